@@ -1,0 +1,1 @@
+"""Chain kinematics, backward-motion controller and the co-simulation master."""

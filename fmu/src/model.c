@@ -1,0 +1,202 @@
+/*
+ * Start values, parameter checks, outputs and fixed-step RK4 integration of TrailerTrain.
+ * Start values must equal the XML's (fmu/variables.py); a test checks them through the FMU.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "model.h"
+
+#define PT_PI 3.14159265358979323846
+
+void model_set_defaults(ModelData *m) {
+    int i;
+    memset(m, 0, sizeof(*m));
+    for (i = 0; i <= N_TRAILERS; i++) {
+        m->front[i] = (i >= 1) ? 0.52 : 0.0;
+        m->rear[i] = (i < N_TRAILERS) ? 0.52 : 0.0;
+        m->mass[i] = (i >= 1) ? 42.1 : 0.0;
+        m->inertia[i] = (i >= 1) ? 3.5083 : 0.0;
+        m->payload[i] = 0.0;
+        m->mu[i] = (i >= 1) ? 0.09 : 0.0;
+        m->theta_start[i] = 0.0;
+        m->slide[i] = 0.0;
+    }
+    m->g = 9.81;
+    m->robot_tau = 0.05;
+    m->robot_acc_max = 1.0;
+    m->robot_alpha_max = 2.0;
+    m->slip_mode = 0;
+    m->phi_max = 1.5707963267948966;
+    m->x0_start = 0.0;
+    m->y0_start = 0.0;
+    m->v_start = 0.0;
+    m->w_start = 0.0;
+    m->max_substep = 0.005;
+    m->v_cmd = 0.0;
+    m->w_cmd = 0.0;
+    m->push_x = 0.0;
+    m->push_y = 0.0;
+    m->time = 0.0;
+    model_state_from_start(m);
+}
+
+void model_state_from_start(ModelData *m) {
+    int i;
+    m->q[IX_X0] = m->x0_start;
+    m->q[IX_Y0] = m->y0_start;
+    for (i = 0; i <= N_TRAILERS; i++) {
+        m->q[IX_THETA + i] = m->theta_start[i];
+    }
+    m->q[IX_V0] = m->v_start;
+    m->q[IX_W0] = m->w_start;
+    m->outputs_valid = false;
+}
+
+static bool check_positive(const char *name, int index, double value, bool allow_zero, char *msg,
+                           size_t len) {
+    const bool ok = isfinite(value) && (allow_zero ? value >= 0.0 : value > 0.0);
+    if (!ok) {
+        if (index >= 0) {
+            snprintf(msg, len, "%s[%d] = %g: must be finite and %s", name, index, value,
+                     allow_zero ? ">= 0" : "> 0");
+        } else {
+            snprintf(msg, len, "%s = %g: must be finite and %s", name, value,
+                     allow_zero ? ">= 0" : "> 0");
+        }
+    }
+    return ok;
+}
+
+static bool check_finite(const char *name, int index, double value, char *msg, size_t len) {
+    if (isfinite(value)) {
+        return true;
+    }
+    if (index >= 0) {
+        snprintf(msg, len, "%s[%d] = %g: must be finite", name, index, value);
+    } else {
+        snprintf(msg, len, "%s = %g: must be finite", name, value);
+    }
+    return false;
+}
+
+bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
+    int i;
+    for (i = 1; i <= N_TRAILERS; i++) {
+        if (!check_positive("front", i, m->front[i], false, msg, len)
+            || !check_positive("rear", i - 1, m->rear[i - 1], false, msg, len)
+            || !check_positive("mass", i, m->mass[i], false, msg, len)
+            || !check_positive("inertia", i, m->inertia[i], false, msg, len)
+            || !check_positive("payload", i, m->payload[i], true, msg, len)
+            || !check_positive("mu", i, m->mu[i], true, msg, len)) {
+            return false;
+        }
+    }
+    for (i = 0; i <= N_TRAILERS; i++) {
+        if (!check_finite("theta_start", i, m->theta_start[i], msg, len)) {
+            return false;
+        }
+    }
+    if (!check_positive("g", -1, m->g, true, msg, len)
+        || !check_positive("robot_tau", -1, m->robot_tau, false, msg, len)
+        || !check_positive("robot_acc_max", -1, m->robot_acc_max, false, msg, len)
+        || !check_positive("robot_alpha_max", -1, m->robot_alpha_max, false, msg, len)
+        || !check_positive("phi_max", -1, m->phi_max, false, msg, len)
+        || !check_positive("max_substep", -1, m->max_substep, false, msg, len)
+        || !check_finite("x0_start", -1, m->x0_start, msg, len)
+        || !check_finite("y0_start", -1, m->y0_start, msg, len)
+        || !check_finite("v_start", -1, m->v_start, msg, len)
+        || !check_finite("w_start", -1, m->w_start, msg, len)) {
+        return false;
+    }
+    if (m->slip_mode == 1) {
+        snprintf(msg, len, "slip_mode = 1: sliding wheels are not implemented yet; allowed is 0");
+        return false;
+    }
+    if (m->slip_mode != 0) {
+        snprintf(msg, len, "slip_mode = %d: allowed are 0 (rolling) and 1 (sliding)",
+                 m->slip_mode);
+        return false;
+    }
+    return true;
+}
+
+static double wrap_angle(double angle) {
+    double wrapped = fmod(angle + PT_PI, 2.0 * PT_PI);
+    if (wrapped < 0.0) {
+        wrapped += 2.0 * PT_PI;
+    }
+    wrapped -= PT_PI;
+    return (wrapped <= -PT_PI) ? PT_PI : wrapped;
+}
+
+void model_compute_outputs(ModelData *m) {
+    double c[NB], s[NB], dv[NB], dw[NB];
+    double dv0, dw0;
+    int i;
+    chain_velocities(m, m->q, c, s, m->v, m->w);
+    robot_accelerations(m, m->q, &dv0, &dw0);
+    chain_accelerations(m, c, s, m->v, m->w, dv0, dw0, dv, dw);
+    lateral_forces(m, m->v, m->w, dv, dw);
+
+    m->x[0] = m->q[IX_X0];
+    m->y[0] = m->q[IX_Y0];
+    m->phi[0] = 0.0;
+    m->jackknifed = false;
+    for (i = 1; i <= N_TRAILERS; i++) {
+        const double th_prev = m->q[IX_THETA + i - 1], th = m->q[IX_THETA + i];
+        const double r = m->rear[i - 1], f = m->front[i];
+        m->x[i] = m->x[i - 1] - r * cos(th_prev) - f * cos(th);
+        m->y[i] = m->y[i - 1] - r * sin(th_prev) - f * sin(th);
+        m->phi[i] = wrap_angle(th_prev - th);
+        m->F_lat_max[i] = m->mu[i] * (m->mass[i] + m->payload[i]) * m->g;
+        m->slipping[i] = fabs(m->F_lat[i]) > m->F_lat_max[i];
+        if (fabs(m->phi[i]) > m->phi_max) {
+            m->jackknifed = true;
+        }
+    }
+    m->outputs_valid = true;
+}
+
+bool model_state_is_finite(const ModelData *m) {
+    int k;
+    for (k = 0; k < N_STATE; k++) {
+        if (!isfinite(m->q[k])) {
+            return false;
+        }
+    }
+    return true;
+}
+
+static void rk4_step(const ModelData *m, double *q, double dt) {
+    double k1[N_STATE], k2[N_STATE], k3[N_STATE], k4[N_STATE], tmp[N_STATE];
+    int k;
+    chain_derivatives(m, q, k1);
+    for (k = 0; k < N_STATE; k++) tmp[k] = q[k] + 0.5 * dt * k1[k];
+    chain_derivatives(m, tmp, k2);
+    for (k = 0; k < N_STATE; k++) tmp[k] = q[k] + 0.5 * dt * k2[k];
+    chain_derivatives(m, tmp, k3);
+    for (k = 0; k < N_STATE; k++) tmp[k] = q[k] + dt * k3[k];
+    chain_derivatives(m, tmp, k4);
+    for (k = 0; k < N_STATE; k++) {
+        q[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
+    }
+}
+
+void model_integrate(ModelData *m, double h, double t_end) {
+    /* Equal substeps no longer than max_substep; the 1e-9 guard keeps h = max_substep one step. */
+    const double ratio = h / m->max_substep;
+    int substeps = (int)ceil(ratio - 1e-9);
+    double dt;
+    int k;
+    if (substeps < 1) {
+        substeps = 1;
+    }
+    dt = h / substeps;
+    for (k = 0; k < substeps; k++) {
+        rk4_step(m, m->q, dt);
+    }
+    m->time = t_end;
+    m->outputs_valid = false;
+}

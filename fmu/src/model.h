@@ -1,0 +1,141 @@
+/*
+ * TrailerTrain: a holonomic robot with n passive off-hooked trailers (the plant of pushtrain).
+ *
+ * Bodies i = 0..N_TRAILERS: 0 is the robot, 1..n the trailers. Headings theta[i] from +x, CCW
+ * positive, pointing toward the robot. The physics (chain kinematics, accelerations, lateral
+ * wheel forces, integration) lives in chain.c, forces.c and model.c; the FMI 2.0 glue in fmi2.c.
+ * See docs/model.md for the derivation.
+ */
+#ifndef TRAILERTRAIN_MODEL_H
+#define TRAILERTRAIN_MODEL_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#include "build_config.h" /* generated per build: N_TRAILERS, MODEL_GUID */
+
+#if !defined(N_TRAILERS) || N_TRAILERS < 1 || N_TRAILERS > 50
+#error "N_TRAILERS must be defined in build_config.h as 1..50"
+#endif
+
+#if defined(__GNUC__)
+#define PT_INTERNAL __attribute__((visibility("hidden")))
+#else
+#define PT_INTERNAL
+#endif
+
+#define NB (N_TRAILERS + 1)          /* number of bodies */
+#define N_STATE (N_TRAILERS + 5)     /* x0, y0, theta[0..n], v0, w0 */
+#define IX_X0 0
+#define IX_Y0 1
+#define IX_THETA 2                   /* theta[i] at IX_THETA + i */
+#define IX_V0 (N_TRAILERS + 3)
+#define IX_W0 (N_TRAILERS + 4)
+
+#define VR_STRIDE 100
+
+/* Scalar value references (< VR_STRIDE); must equal fmu/variables.py SCALARS. */
+enum ScalarVr {
+    vr_v_cmd = 1,
+    vr_w_cmd = 2,
+    vr_push_x = 3,
+    vr_push_y = 4,
+    vr_g = 5,
+    vr_robot_tau = 6,
+    vr_robot_acc_max = 7,
+    vr_robot_alpha_max = 8,
+    vr_slip_mode = 9,
+    vr_phi_max = 10,
+    vr_x0_start = 11,
+    vr_y0_start = 12,
+    vr_v_start = 13,
+    vr_w_start = 14,
+    vr_max_substep = 15,
+    vr_n = 16,
+    vr_jackknifed = 17
+};
+
+/* Array blocks: element i of block b has value reference VR_STRIDE * b + i.
+ * Must equal fmu/variables.py ARRAYS. */
+enum Block {
+    blk_front = 1,        /* i = 1..n   */
+    blk_rear = 2,         /* i = 0..n-1 */
+    blk_mass = 3,         /* i = 1..n   */
+    blk_inertia = 4,
+    blk_payload = 5,
+    blk_mu = 6,
+    blk_theta_start = 7,  /* i = 0..n   */
+    blk_x = 8,
+    blk_y = 9,
+    blk_theta = 10,
+    blk_phi = 11,         /* i = 1..n   */
+    blk_v = 12,           /* i = 0..n   */
+    blk_w = 13,
+    blk_F_lat = 14,       /* i = 1..n   */
+    blk_F_lat_max = 15,
+    blk_slipping = 16,
+    blk_slide = 17,
+    blk_hitch_fx = 18,
+    blk_hitch_fy = 19
+};
+
+/* Everything an instance computes with. Plain data without pointers, so an FMU state is a copy. */
+typedef struct {
+    /* parameters */
+    double front[NB];       /* F_i, i = 1..n [m] */
+    double rear[NB];        /* R_i, i = 0..n-1 [m] */
+    double mass[NB];        /* [kg] */
+    double inertia[NB];     /* about the axle midpoint [kg m^2] */
+    double payload[NB];     /* point mass at the axle midpoint [kg] */
+    double mu[NB];          /* lateral friction coefficient [-] */
+    double theta_start[NB]; /* [rad] */
+    double g, robot_tau, robot_acc_max, robot_alpha_max, phi_max;
+    double x0_start, y0_start, v_start, w_start, max_substep;
+    int slip_mode;
+
+    /* inputs */
+    double v_cmd, w_cmd, push_x, push_y;
+    double slide[NB];       /* imposed lateral sliding speed u_i [m/s], i = 1..n */
+
+    /* continuous state and time */
+    double time;
+    double q[N_STATE];
+
+    /* outputs, valid when outputs_valid */
+    bool outputs_valid;
+    double x[NB], y[NB], phi[NB], v[NB], w[NB];
+    double F_lat[NB], F_lat_max[NB], hitch_fx[NB], hitch_fy[NB];
+    bool slipping[NB];
+    bool jackknifed;
+} ModelData;
+
+/* model.c */
+PT_INTERNAL void model_set_defaults(ModelData *m);
+PT_INTERNAL void model_state_from_start(ModelData *m);
+/* Checks parameters; on failure writes "name = value: what is allowed" into msg and returns false. */
+PT_INTERNAL bool model_check_parameters(const ModelData *m, char *msg, size_t len);
+PT_INTERNAL void model_compute_outputs(ModelData *m);
+PT_INTERNAL bool model_state_is_finite(const ModelData *m);
+/* Integrates from m->time to m->time + h with fixed RK4 substeps; sets m->time = t_end. */
+PT_INTERNAL void model_integrate(ModelData *m, double h, double t_end);
+
+/* chain.c */
+/* Velocities of all bodies: v[i], w[i] and cos/sin of phi_i (index 1..n). */
+PT_INTERNAL void chain_velocities(const ModelData *m, const double *q, double *c, double *s,
+                                  double *v, double *w);
+/* Time derivative of the state. */
+PT_INTERNAL void chain_derivatives(const ModelData *m, const double *q, double *dq);
+/* Robot accelerations (dv0, dw0) commanded by the velocity loop at state q. */
+PT_INTERNAL void robot_accelerations(const ModelData *m, const double *q, double *dv0,
+                                     double *dw0);
+/* Longitudinal and yaw accelerations of all bodies (index 0..n) from the robot's. */
+PT_INTERNAL void chain_accelerations(const ModelData *m, const double *c, const double *s,
+                                     const double *v, const double *w, double dv0, double dw0,
+                                     double *dv, double *dw);
+
+/* forces.c */
+/* Newton-Euler from trailer n down to 1: lateral wheel forces F_lat and hitch forces. */
+PT_INTERNAL void lateral_forces(ModelData *m, const double *v, const double *w, const double *dv,
+                                const double *dw);
+
+#endif

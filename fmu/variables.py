@@ -1,0 +1,164 @@
+"""The TrailerTrain FMU's variables: one table that renders ``modelDescription.xml``.
+
+Value references: scalars have ``vr < 100``; element ``i`` of array block ``b`` has
+``vr = 100 * b + i`` with ``i`` the body index (0 = robot, 1..n trailers). The C side mirrors the
+block numbers in ``src/model.h`` (``enum Block``) and a test checks that the two agree. Start
+values here must equal what the C code sets in ``model_set_defaults`` (also tested, through the
+built FMU).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Variable", "ArrayBlock", "SCALARS", "ARRAYS", "variables_for", "VR_STRIDE"]
+
+VR_STRIDE = 100
+MAX_TRAILERS = 50
+
+# Table 1 of the paper: 42.1 kg, 0.6 m x 0.8 m body -> centroidal inertia m (a^2 + b^2) / 12.
+TRAILER_MASS = 42.1
+TRAILER_INERTIA = round(TRAILER_MASS * (0.6**2 + 0.8**2) / 12.0, 4)  # 3.5083 kg m^2
+LINK = 0.52
+MU = 0.09
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One scalar FMI variable."""
+
+    name: str
+    vr: int
+    type: str  # "Real", "Integer", "Boolean"
+    causality: str  # "input", "output", "parameter", "calculatedParameter", "local"
+    variability: str  # "constant", "fixed", "tunable", "discrete", "continuous"
+    description: str
+    start: float | int | bool | None = None
+    unit: str | None = None
+    initial: str | None = None  # "exact", "approx", "calculated" or None (default)
+
+
+@dataclass(frozen=True)
+class ArrayBlock:
+    """A family ``name[i]`` of variables, i from ``first`` to n (or n-1 if ``to_n_minus_1``)."""
+
+    name: str
+    block: int
+    type: str
+    causality: str
+    variability: str
+    description: str
+    first: int
+    to_n_minus_1: bool = False
+    start: float | int | bool | None = None
+    unit: str | None = None
+    initial: str | None = None
+
+
+SCALARS: tuple[Variable, ...] = (
+    Variable("v_cmd", 1, "Real", "input", "continuous",
+             "Robot commanded longitudinal speed", 0.0, "m/s"),
+    Variable("w_cmd", 2, "Real", "input", "continuous",
+             "Robot commanded yaw rate", 0.0, "rad/s"),
+    Variable("push_x", 3, "Real", "input", "continuous",
+             "External force on the last trailer's axle midpoint, world x", 0.0, "N"),
+    Variable("push_y", 4, "Real", "input", "continuous",
+             "External force on the last trailer's axle midpoint, world y", 0.0, "N"),
+    Variable("g", 5, "Real", "parameter", "fixed", "Gravitational acceleration", 9.81, "m/s2"),
+    Variable("robot_tau", 6, "Real", "parameter", "fixed",
+             "Robot velocity loop first-order time constant (> 0)", 0.05, "s"),
+    Variable("robot_acc_max", 7, "Real", "parameter", "fixed",
+             "Robot longitudinal acceleration limit (> 0)", 1.0, "m/s2"),
+    Variable("robot_alpha_max", 8, "Real", "parameter", "fixed",
+             "Robot yaw acceleration limit (> 0)", 2.0, "rad/s2"),
+    Variable("slip_mode", 9, "Integer", "parameter", "fixed",
+             "0: rolling wheels, forces estimated; 1: wheels slide past friction", 0),
+    Variable("phi_max", 10, "Real", "parameter", "fixed",
+             "Jackknife limit on any |phi[i]| (> 0)", 1.5707963267948966, "rad"),
+    Variable("x0_start", 11, "Real", "parameter", "fixed", "Initial robot x", 0.0, "m"),
+    Variable("y0_start", 12, "Real", "parameter", "fixed", "Initial robot y", 0.0, "m"),
+    Variable("v_start", 13, "Real", "parameter", "fixed",
+             "Initial robot longitudinal speed", 0.0, "m/s"),
+    Variable("w_start", 14, "Real", "parameter", "fixed", "Initial robot yaw rate", 0.0, "rad/s"),
+    Variable("max_substep", 15, "Real", "parameter", "fixed",
+             "Largest internal RK4 substep (> 0)", 0.005, "s"),
+    Variable("n", 16, "Integer", "output", "constant",
+             "Number of trailers (fixed by the build)", None, None, "exact"),
+    Variable("jackknifed", 17, "Boolean", "output", "discrete",
+             "Some |phi[i]| exceeds phi_max", None, None, "calculated"),
+)
+
+ARRAYS: tuple[ArrayBlock, ...] = (
+    ArrayBlock("front", 1, "Real", "parameter", "fixed",
+               "Front hitch link F_i of trailer i (> 0)", 1, start=LINK, unit="m"),
+    ArrayBlock("rear", 2, "Real", "parameter", "fixed",
+               "Rear hitch link R_i of body i (> 0)", 0, to_n_minus_1=True, start=LINK, unit="m"),
+    ArrayBlock("mass", 3, "Real", "parameter", "fixed",
+               "Trailer mass without payload (> 0)", 1, start=TRAILER_MASS, unit="kg"),
+    ArrayBlock("inertia", 4, "Real", "parameter", "fixed",
+               "Trailer yaw inertia about its axle midpoint, without payload (> 0)", 1,
+               start=TRAILER_INERTIA, unit="kg.m2"),
+    ArrayBlock("payload", 5, "Real", "parameter", "fixed",
+               "Payload mass at the axle midpoint (>= 0)", 1, start=0.0, unit="kg"),
+    ArrayBlock("mu", 6, "Real", "parameter", "fixed",
+               "Lateral wheel friction coefficient (>= 0)", 1, start=MU),
+    ArrayBlock("theta_start", 7, "Real", "parameter", "fixed",
+               "Initial heading of body i", 0, start=0.0, unit="rad"),
+    ArrayBlock("x", 8, "Real", "output", "continuous",
+               "x of body i (robot centre, trailer axle midpoint)", 0, unit="m",
+               initial="calculated"),
+    ArrayBlock("y", 9, "Real", "output", "continuous",
+               "y of body i (robot centre, trailer axle midpoint)", 0, unit="m",
+               initial="calculated"),
+    ArrayBlock("theta", 10, "Real", "output", "continuous",
+               "Heading of body i, toward the robot, continuous (not wrapped)", 0, unit="rad",
+               initial="calculated"),
+    ArrayBlock("phi", 11, "Real", "output", "continuous",
+               "Joint angle theta[i-1] - theta[i], wrapped to (-pi, pi]", 1, unit="rad",
+               initial="calculated"),
+    ArrayBlock("v", 12, "Real", "output", "continuous",
+               "Longitudinal speed of body i along its heading", 0, unit="m/s",
+               initial="calculated"),
+    ArrayBlock("w", 13, "Real", "output", "continuous", "Yaw rate of body i", 0, unit="rad/s",
+               initial="calculated"),
+    ArrayBlock("F_lat", 14, "Real", "output", "continuous",
+               "Lateral wheel force on trailer i along its left normal", 1, unit="N",
+               initial="calculated"),
+    ArrayBlock("F_lat_max", 15, "Real", "calculatedParameter", "fixed",
+               "Lateral friction limit mu (mass + payload) g", 1, unit="N", initial="calculated"),
+    ArrayBlock("slipping", 16, "Boolean", "output", "discrete",
+               "Wheel of trailer i slides (slip_mode 1) or would slide (slip_mode 0)", 1,
+               initial="calculated"),
+    ArrayBlock("slide", 17, "Real", "input", "continuous",
+               "Imposed lateral sliding speed of trailer i's wheel along its left normal "
+               "(kinematic disturbance)", 1, start=0.0, unit="m/s"),
+    ArrayBlock("hitch_fx", 18, "Real", "output", "continuous",
+               "Force of body i-1 on trailer i at their hitch, world x", 1, unit="N",
+               initial="calculated"),
+    ArrayBlock("hitch_fy", 19, "Real", "output", "continuous",
+               "Force of body i-1 on trailer i at their hitch, world y", 1, unit="N",
+               initial="calculated"),
+)
+
+
+def variables_for(n_trailers: int) -> list[Variable]:
+    """Every scalar variable of an FMU built for ``n_trailers``, ordered by value reference."""
+    out = list(SCALARS)
+    for block in ARRAYS:
+        last = n_trailers - 1 if block.to_n_minus_1 else n_trailers
+        for i in range(block.first, last + 1):
+            out.append(
+                Variable(
+                    f"{block.name}[{i}]",
+                    VR_STRIDE * block.block + i,
+                    block.type,
+                    block.causality,
+                    block.variability,
+                    block.description.replace(" i ", f" {i} ").replace(" i's", f" {i}'s")
+                    .replace(" i-1 ", f" {i - 1} "),
+                    block.start,
+                    block.unit,
+                    block.initial,
+                )
+            )
+    return sorted(out, key=lambda v: v.vr)
