@@ -358,7 +358,11 @@ def simulate(
     """
     step = _positive("step", step)
     settle_time = _positive("settle_time", settle_time, allow_zero=True)
-    if not (hasattr(reference, "sample") and hasattr(reference, "t_end")):
+    if reference is None:
+        if horizon is None or initial is None:
+            raise CosimError("a run without a reference (open loop) needs a horizon and an initial state")
+        check_goal = False
+    elif not (hasattr(reference, "sample") and hasattr(reference, "t_end")):
         raise CosimError(f"reference = {reference!r}: need a Reference or SampledReference")
     t0 = float(getattr(reference, "t0", 0.0))
     if horizon is None:
@@ -369,7 +373,12 @@ def simulate(
     pos_tol = _positive("goal_tolerance[0]", goal_tolerance[0])
     head_tol = _positive("goal_tolerance[1]", goal_tolerance[1])
 
-    ctrl = controller if isinstance(controller, BackwardController) else BackwardController(controller)
+    if isinstance(controller, ControllerConfig):
+        ctrl = BackwardController(controller)
+    elif hasattr(controller, "command") and hasattr(controller, "n"):
+        ctrl = controller  # BackwardController or an open-loop command profile
+    else:
+        raise CosimError(f"controller = {controller!r}: need a ControllerConfig or BackwardController")
     n = ctrl.n
     sens = sensors if isinstance(sensors, Sensors) else Sensors(sensors or SensorConfig(n_joints=n))
     if sens.n != n:
@@ -384,10 +393,16 @@ def simulate(
         raise CosimError(f"initial.theta has {len(initial.theta)} headings; need n + 1 = {n + 1}")
 
     times = t0 + step * np.arange(n_steps + 1)
-    ref_x, ref_y, ref_th, ref_v, ref_w = reference.sample(times)
-    ref_dir = reference.direction_at(times)
-    goal = np.asarray(reference.goal, dtype=float)
-    t_ref_end = float(reference.t_end)
+    if reference is None:
+        ref_x = ref_y = ref_th = np.full(times.shape, np.nan)
+        ref_v = ref_w = np.zeros(times.shape)
+        ref_dir = np.zeros(times.shape, dtype=int)
+        goal, t_ref_end = np.full(3, np.nan), math.inf
+    else:
+        ref_x, ref_y, ref_th, ref_v, ref_w = reference.sample(times)
+        ref_dir = reference.direction_at(times)
+        goal = np.asarray(reference.goal, dtype=float)
+        t_ref_end = float(reference.t_end)
 
     slave = TrailerTrainSlave(fmu)
     if slave.n != n:
@@ -433,7 +448,7 @@ def simulate(
             x0, y0, th0 = y[0], y[n + 1], y[2 * (n + 1)]
             phi = y[i_phi:i_phi + n]
             meas = sens.measure(x0, y0, th0, phi)
-            if ref_dir[k] == PULL:
+            if ref_dir[k] == PULL and reference is not None:
                 ahead = reference.sample_ahead(t, ctrl.lead_distance)
                 v_cmd, w_cmd, _ = ctrl.command(t, meas, reference.sample_at(t), ahead)
             else:
