@@ -121,6 +121,12 @@ static fmi2Status ensure_outputs(Instance *inst, const char *function) {
     }
     if (!inst->data.outputs_valid) {
         model_compute_outputs(&inst->data);
+        if (!model_outputs_are_finite(&inst->data)) {
+            inst->data.outputs_valid = false;
+            return fail(inst, function, "outputs became non-finite at t = %.9g (overflow of "
+                        "the forces: velocities %g m/s, %g rad/s of the robot)",
+                        inst->data.time, inst->data.q[IX_V0], inst->data.q[IX_W0]);
+        }
     }
     return fmi2OK;
 }
@@ -146,6 +152,27 @@ static bool decode(fmi2ValueReference vr, VrRef *out) {
         return out->index >= 1 && out->index <= N_TRAILERS;
     default: return false;
     }
+}
+
+/* "name" or "name[i]" of a value reference, for messages. */
+static const char *vr_name(fmi2ValueReference vr, char *buffer, size_t len) {
+    static const char *const scalars[] = {
+        "?", "v_cmd", "w_cmd", "push_x", "push_y", "g", "robot_tau", "robot_acc_max",
+        "robot_alpha_max", "slip_mode", "phi_max", "x0_start", "y0_start", "v_start", "w_start",
+        "max_substep", "n", "jackknifed"};
+    static const char *const blocks[] = {
+        "?", "front", "rear", "mass", "inertia", "payload", "mu", "theta_start", "x", "y",
+        "theta", "phi", "v", "w", "F_lat", "F_lat_max", "slipping", "slide", "hitch_fx",
+        "hitch_fy"};
+    VrRef r;
+    if (!decode(vr, &r)) {
+        snprintf(buffer, len, "(unknown value reference %u)", (unsigned)vr);
+    } else if (r.block == 0) {
+        snprintf(buffer, len, "%s", scalars[r.index]);
+    } else {
+        snprintf(buffer, len, "%s[%d]", blocks[r.block], r.index);
+    }
+    return buffer;
 }
 
 static double *real_parameter(ModelData *m, VrRef r) {
@@ -219,7 +246,8 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     }
     inst->logging_on = loggingOn;
     if (nCategories == 0) {
-        inst->log_debug = fmi2False; /* per-step messages only when asked for by name */
+        /* loggingOn applies to all categories; errors and warnings are always reported */
+        inst->log_debug = loggingOn;
         inst->log_errors = fmi2True;
         inst->log_warnings = fmi2True;
         return fmi2OK;
@@ -342,6 +370,12 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     }
     model_state_from_start(&inst->data);
     model_compute_outputs(&inst->data);
+    if (!model_outputs_are_finite(&inst->data)) {
+        inst->mode = mode_error;
+        return fail(inst, "fmi2ExitInitializationMode", "the start values give non-finite "
+                    "outputs (v_start = %g, w_start = %g, v_cmd = %g, w_cmd = %g)",
+                    inst->data.v_start, inst->data.w_start, inst->data.v_cmd, inst->data.w_cmd);
+    }
     inst->mode = mode_step_complete;
     return fmi2OK;
 }
@@ -482,21 +516,24 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         }
         if ((p = real_input(&inst->data, r)) != NULL) {
             if (!isfinite(value[k])) {
-                return fail(inst, "fmi2SetReal", "input with value reference %u = %g: must be "
-                            "finite", (unsigned)vr[k], value[k]);
+                char name[64];
+                return fail(inst, "fmi2SetReal", "input %s = %g: must be finite",
+                            vr_name(vr[k], name, sizeof(name)), value[k]);
             }
             *p = value[k];
             inst->data.outputs_valid = false; /* F_lat depends directly on the inputs */
         } else if ((p = real_parameter(&inst->data, r)) != NULL) {
             if (!setup_mode(inst)) {
-                return fail(inst, "fmi2SetReal", "parameter with value reference %u is fixed: "
-                            "it can be set only in Instantiated or InitializationMode, not %s",
-                            (unsigned)vr[k], mode_name(inst->mode));
+                char name[64];
+                return fail(inst, "fmi2SetReal", "parameter %s is fixed: it can be set only in "
+                            "Instantiated or InitializationMode, not %s",
+                            vr_name(vr[k], name, sizeof(name)), mode_name(inst->mode));
             }
             *p = value[k]; /* checked in fmi2ExitInitializationMode */
         } else {
-            return fail(inst, "fmi2SetReal", "value reference %u is an output or calculated "
-                        "parameter and cannot be set", (unsigned)vr[k]);
+            char name[64];
+            return fail(inst, "fmi2SetReal", "%s is an output or calculated parameter and "
+                        "cannot be set", vr_name(vr[k], name, sizeof(name)));
         }
     }
     return fmi2OK;
@@ -727,9 +764,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         log_message(inst, fmi2OK, "logDebug", "fmi2DoStep: t = %.9g, h = %.9g", t, h);
     }
     model_integrate(&inst->data, h, t + h);
-    if (!model_state_is_finite(&inst->data)) {
+    if (model_state_is_finite(&inst->data)) {
+        model_compute_outputs(&inst->data); /* outputs of the new point, checked once here */
+    }
+    if (!model_state_is_finite(&inst->data) || !model_outputs_are_finite(&inst->data)) {
         inst->mode = mode_error;
-        return fail(inst, "fmi2DoStep", "the state became non-finite in the step from t = %.9g "
+        return fail(inst, "fmi2DoStep", "the state or outputs became non-finite in the step from t = %.9g "
                     "to %.9g (inputs v_cmd = %g, w_cmd = %g)", t, t + h, inst->data.v_cmd,
                     inst->data.w_cmd);
     }

@@ -169,6 +169,17 @@ bool model_state_is_finite(const ModelData *m) {
     return true;
 }
 
+bool model_outputs_are_finite(const ModelData *m) {
+    int i;
+    for (i = 0; i <= N_TRAILERS; i++) {
+        if (!isfinite(m->x[i]) || !isfinite(m->y[i]) || !isfinite(m->v[i]) || !isfinite(m->w[i])
+            || !isfinite(m->F_lat[i]) || !isfinite(m->hitch_fx[i]) || !isfinite(m->hitch_fy[i])) {
+            return false;
+        }
+    }
+    return true;
+}
+
 static void rk4_step(const ModelData *m, double *q, double dt) {
     double k1[N_STATE], k2[N_STATE], k3[N_STATE], k4[N_STATE], tmp[N_STATE];
     int k;

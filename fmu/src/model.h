@@ -116,6 +116,7 @@ PT_INTERNAL void model_state_from_start(ModelData *m);
 PT_INTERNAL bool model_check_parameters(const ModelData *m, char *msg, size_t len);
 PT_INTERNAL void model_compute_outputs(ModelData *m);
 PT_INTERNAL bool model_state_is_finite(const ModelData *m);
+PT_INTERNAL bool model_outputs_are_finite(const ModelData *m);
 /* Integrates from m->time to m->time + h with fixed RK4 substeps; sets m->time = t_end. */
 PT_INTERNAL void model_integrate(ModelData *m, double h, double t_end);
 

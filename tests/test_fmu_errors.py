@@ -1,0 +1,184 @@
+"""Error handling of the TrailerTrain FMU and its builder.
+
+Bad parameters give fmi2Error in fmi2ExitInitializationMode with a logged message naming the
+variable and its value; parameters set after fmi2EnterInitializationMode are honoured; a state
+driven non-finite gives fmi2Error, never NaN outputs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from fmpy.fmi1 import FMICallException
+
+from pushtrain.cosim.kinematics import ChainGeometry, body_positions
+from pushtrain.fmu import FmuBuildError, build_fmu
+
+N = 3
+STATUS_ERROR = 3
+
+OUTPUT_BLOCKS = ("x", "y", "theta", "phi", "v", "w", "F_lat", "hitch_fx", "hitch_fy")
+
+BAD_PARAMETERS = [
+    ("front[1]", 0.0, "0"),
+    ("front[3]", -0.25, "-0.25"),
+    ("rear[0]", -0.25, "-0.25"),
+    ("rear[2]", 0.0, "0"),
+    ("front[2]", math.nan, "nan"),
+    ("mass[2]", 0.0, "0"),
+    ("mass[1]", -42.5, "-42.5"),
+    ("inertia[3]", 0.0, "0"),
+    ("inertia[1]", -1.5, "-1.5"),
+    ("payload[2]", -5.5, "-5.5"),
+    ("mu[1]", -0.125, "-0.125"),
+    ("robot_tau", 0.0, "0"),
+    ("robot_tau", -0.5, "-0.5"),
+    ("robot_acc_max", 0.0, "0"),
+    ("robot_acc_max", -2.5, "-2.5"),
+    ("robot_alpha_max", 0.0, "0"),
+    ("robot_alpha_max", -0.75, "-0.75"),
+    ("phi_max", 0.0, "0"),
+    ("phi_max", -1.25, "-1.25"),
+    ("max_substep", 0.0, "0"),
+    ("max_substep", -0.005, "-0.005"),
+]
+
+
+def error_messages(sim):
+    return [message for status, _, message in sim.messages if status >= STATUS_ERROR]
+
+
+def outputs_finite(sim) -> bool:
+    return all(np.all(np.isfinite(sim.array(block))) for block in OUTPUT_BLOCKS)
+
+
+@pytest.mark.parametrize("when", ["before_enter", "after_enter"])
+@pytest.mark.parametrize("name, value, text", BAD_PARAMETERS)
+def test_bad_parameter_fails_exit_initialization_with_message(built_fmu_sim, name, value, text,
+                                                              when):
+    sim = built_fmu_sim(N, logging_on=True)
+    values = {name: value}
+    with pytest.raises(FMICallException) as info:
+        if when == "before_enter":
+            sim.initialize(params=values)
+        else:
+            sim.initialize(after_enter=values)
+    assert info.value.function == "fmi2ExitInitializationMode"
+    assert info.value.status >= STATUS_ERROR
+    messages = error_messages(sim)
+    assert any(name in m and text in m.lower() for m in messages), messages
+
+
+@pytest.mark.parametrize("value, text", [(2, "2"), (-1, "-1")])
+def test_unknown_slip_mode_is_an_error(built_fmu_sim, value, text):
+    sim = built_fmu_sim(N, logging_on=True)
+    with pytest.raises(FMICallException):
+        sim.initialize(params={"slip_mode": value})
+    assert any("slip_mode" in m and text in m for m in error_messages(sim)), sim.messages
+
+
+def test_slip_mode_1_is_reported_not_implemented(built_fmu_sim):
+    sim = built_fmu_sim(N, logging_on=True)
+    with pytest.raises(FMICallException):
+        sim.initialize(params={"slip_mode": 1})
+    assert any("slip_mode" in m and "not implemented" in m.lower() for m in error_messages(sim)), (
+        sim.messages)
+
+
+def test_good_parameters_log_no_error(built_fmu_sim):
+    sim = built_fmu_sim(N, logging_on=True)
+    sim.initialize(params={"payload[1]": 0.0, "mu[2]": 0.0, "front[1]": 0.3})
+    assert error_messages(sim) == []
+
+
+def test_parameters_set_after_enter_initialization_are_honoured(built_fmu_sim):
+    """libcosim and other FMIL importers set parameters in Initialization Mode."""
+    geom = ChainGeometry(np.array([0.7, 0.45, 0.6]), np.array([0.35, 0.8, 0.52]))
+    theta = np.array([0.4, 0.1, -0.3, 0.2])
+    late = {f"front[{i}]": float(geom.front[i - 1]) for i in range(1, N + 1)}
+    late.update({f"rear[{k}]": float(geom.rear[k]) for k in range(N)})
+    late.update({f"theta_start[{i}]": float(t) for i, t in enumerate(theta)})
+    late.update({"x0_start": 1.5, "y0_start": -2.0, "v_start": -0.2, "w_start": 0.1,
+                 "mass[2]": 80.0, "payload[2]": 20.0, "mu[2]": 0.2, "g": 9.0,
+                 "phi_max": 0.35})
+    sim = built_fmu_sim(N)
+    sim.initialize(after_enter=late)
+    x_ref, y_ref = body_positions(1.5, -2.0, theta, geom)
+    np.testing.assert_allclose(sim.array("x"), x_ref, atol=1e-12)
+    np.testing.assert_allclose(sim.array("y"), y_ref, atol=1e-12)
+    assert sim.real("v[0]") == -0.2 and sim.real("w[0]") == 0.1
+    assert sim.real("F_lat_max[2]") == pytest.approx(0.2 * 100.0 * 9.0, rel=1e-12)
+    assert sim.get(["jackknifed"]) == [True]  # |phi[2]| = 0.4 > 0.35
+    # the robot speed stays v_start while the command equals it: start values took effect
+    sim.set({"v_cmd": -0.2, "w_cmd": 0.1})
+    sim.step(0.1)
+    assert sim.real("v[0]") == pytest.approx(-0.2, abs=1e-15)
+
+
+def _run_until_error(sim, steps, h):
+    """Step; return the first FMICallException, asserting finite outputs while none occurred."""
+    for _ in range(steps):
+        try:
+            sim.step(h)
+        except FMICallException as error:
+            return error
+        assert outputs_finite(sim), {b: sim.array(b) for b in OUTPUT_BLOCKS}
+    return None
+
+
+def test_state_overflow_gives_error_not_nan(built_fmu_sim):
+    sim = built_fmu_sim(N, logging_on=True)
+    sim.initialize({"v_start": 1e308}, {"v_cmd": 1e308})
+    assert outputs_finite(sim)
+    error = _run_until_error(sim, 5, 10.0)  # x0 reaches 1e309 = inf in the first step
+    assert error is not None, "an overflowing state must give fmi2Error"
+    assert error.status >= STATUS_ERROR
+    assert error_messages(sim)
+
+
+def test_output_overflow_gives_error_not_nan(built_fmu_sim):
+    """Centripetal terms R w0^2 overflow: either init or the first step must fail."""
+    sim = built_fmu_sim(N, logging_on=True)
+    try:
+        sim.initialize({"w_start": 1e200}, {"w_cmd": 1e200})
+    except FMICallException as error:
+        assert error.status >= STATUS_ERROR
+        assert error_messages(sim)
+        return
+    assert outputs_finite(sim), "non-finite outputs after fmi2ExitInitializationMode"
+    error = _run_until_error(sim, 3, 0.01)
+    assert error is not None and error.status >= STATUS_ERROR
+
+
+@pytest.mark.parametrize("name, value", [("v_cmd", math.inf), ("v_cmd", math.nan),
+                                         ("w_cmd", -math.inf), ("push_x", math.nan),
+                                         ("slide[2]", math.inf)])
+def test_non_finite_input_never_gives_non_finite_outputs(built_fmu_sim, name, value):
+    """A non-finite input is refused (at the set or the next step) or has finite effects."""
+    sim = built_fmu_sim(N, logging_on=True)
+    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.05})
+    try:
+        sim.set({name: value})
+    except FMICallException as error:
+        assert error.status >= STATUS_ERROR
+        return
+    error = None
+    try:
+        assert outputs_finite(sim), "non-finite outputs right after the set"
+    except FMICallException as refused:  # getters may refuse once the input is known bad
+        error = refused
+    if error is None:
+        error = _run_until_error(sim, 20, 0.01)
+    if error is not None:
+        assert error.status >= STATUS_ERROR
+        assert error_messages(sim)
+
+
+@pytest.mark.parametrize("n_trailers", [0, 51, -3])
+def test_build_fmu_rejects_n_out_of_range(n_trailers, tmp_path):
+    assert issubclass(FmuBuildError, ValueError)
+    with pytest.raises(FmuBuildError, match=str(n_trailers)):
+        build_fmu(n_trailers, tmp_path / "x.fmu")
+    assert not (tmp_path / "x.fmu").exists()

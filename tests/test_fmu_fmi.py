@@ -1,0 +1,331 @@
+"""FMI 2.0 conformance of the TrailerTrain FMU: validation, importers, instances, state, steps."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import zipfile
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+from fmpy.fmi1 import FMICallException
+from fmpy.validation import validate_fmu
+
+from pushtrain.fmu.variables import variables_for
+
+N_DEFAULT = 3
+
+# Every function of the FMI 2.0 Co-Simulation interface (common + CS-specific).
+FMI2_CS_FUNCTIONS = {
+    "fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2SetDebugLogging", "fmi2Instantiate",
+    "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
+    "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2GetReal", "fmi2GetInteger",
+    "fmi2GetBoolean", "fmi2GetString", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean",
+    "fmi2SetString", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
+    "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate",
+    "fmi2GetDirectionalDerivative", "fmi2SetRealInputDerivatives",
+    "fmi2GetRealOutputDerivatives", "fmi2DoStep", "fmi2CancelStep", "fmi2GetStatus",
+    "fmi2GetRealStatus", "fmi2GetIntegerStatus", "fmi2GetBooleanStatus", "fmi2GetStringStatus",
+}
+
+OUTPUT_BLOCKS = ("x", "y", "theta", "phi", "v", "w", "F_lat", "hitch_fx", "hitch_fy")
+
+
+def xml_start(var):
+    """The XML start value of an fmpy ModelVariable, parsed by its type (None if absent)."""
+    if var.start is None:
+        return None
+    if var.type == "Real":
+        return float(var.start)
+    if var.type == "Integer":
+        return int(var.start)
+    if var.type == "Boolean":
+        return var.start.strip().lower() in ("true", "1")
+    return var.start
+
+
+def record(sim, names):
+    """Current values of ``names`` as a float array."""
+    return np.array(sim.get(names), dtype=float)
+
+
+def output_names(sim):
+    """Every Real output (the recorded trajectory)."""
+    return [v.name for v in sim.md.modelVariables
+            if v.causality == "output" and v.type == "Real"]
+
+
+# -- static checks ------------------------------------------------------------------------------
+@pytest.mark.parametrize("n_trailers", [1, N_DEFAULT])
+def test_validate_fmu_reports_no_problems(built_fmu, n_trailers):
+    problems = validate_fmu(str(built_fmu(n_trailers)))
+    assert problems == []
+
+
+def test_fmu_archive_is_self_contained(built_fmu):
+    with zipfile.ZipFile(built_fmu(N_DEFAULT)) as archive:
+        names = set(archive.namelist())
+    assert "modelDescription.xml" in names
+    assert "binaries/linux64/TrailerTrain.so" in names
+    assert any(name.startswith("sources/") and name.endswith(".c") for name in names)
+
+
+@pytest.mark.parametrize("n_trailers", [1, N_DEFAULT, 7])
+def test_model_description_matches_variable_table(built_fmu, n_trailers):
+    md = read_model_description(str(built_fmu(n_trailers)))
+    assert md.coSimulation is not None
+    assert md.coSimulation.modelIdentifier == "TrailerTrain"
+    xml = {v.name: v for v in md.modelVariables}
+    table = {v.name: v for v in variables_for(n_trailers)}
+    assert sorted(xml) == sorted(table)
+    refs = [v.valueReference for v in md.modelVariables]
+    assert len(set(refs)) == len(refs), "value references must be unique"
+    for name, expected in table.items():
+        got = xml[name]
+        assert got.valueReference == expected.vr, name
+        assert got.type == expected.type, name
+        assert got.causality == expected.causality, name
+        assert got.variability == expected.variability, name
+        if expected.initial is not None:
+            assert got.initial == expected.initial, name
+        expected_start = n_trailers if name == "n" else expected.start  # n: fixed by the build
+        if expected_start is None:
+            assert got.start is None, name
+        else:
+            assert xml_start(got) == expected_start, name
+        if expected.unit is not None:
+            assert got.unit == expected.unit, name
+
+
+def test_exported_symbols_are_only_fmi2_functions(built_fmu_unzipped):
+    if shutil.which("nm") is None:
+        pytest.fail("binutils' nm is required to inspect the FMU's exported symbols")
+    unzipdir, _ = built_fmu_unzipped(N_DEFAULT)
+    library = unzipdir / "binaries" / "linux64" / "TrailerTrain.so"
+    out = subprocess.run(["nm", "-D", "--defined-only", str(library)], check=True,
+                         capture_output=True, text=True).stdout
+    symbols = {line.split()[-1] for line in out.splitlines() if line.strip()}
+    assert symbols, "nm found no exported symbols"
+    assert {s for s in symbols if not s.startswith("fmi2")} == set()
+    assert FMI2_CS_FUNCTIONS <= symbols, sorted(FMI2_CS_FUNCTIONS - symbols)
+
+
+# -- importers -----------------------------------------------------------------------------------
+def test_simulate_fmu_runs_the_default_experiment(built_fmu):
+    path = built_fmu(N_DEFAULT)
+    md = read_model_description(str(path))
+    assert md.defaultExperiment is not None and md.defaultExperiment.stopTime is not None
+    stop = float(md.defaultExperiment.stopTime)
+    start = float(md.defaultExperiment.startTime or 0.0)
+    result = simulate_fmu(str(path), output=["x[0]", "theta[1]", f"F_lat[{N_DEFAULT}]"])
+    assert result["time"][0] == pytest.approx(start)
+    assert result["time"][-1] == pytest.approx(stop)
+    for name in ("x[0]", "theta[1]", f"F_lat[{N_DEFAULT}]"):
+        assert np.all(np.isfinite(result[name])), name
+
+
+def test_two_interleaved_instances_equal_each_alone(built_fmu_sim):
+    """No shared mutable state: interleaved stepping gives bitwise the same trajectories."""
+    setups = {
+        "a": ({"front[1]": 0.45, "theta_start[2]": 0.2},
+              {"v_cmd": -0.1, "w_cmd": 0.05, "push_x": 3.0}),
+        "b": ({"rear[0]": 0.61, "mass[3]": 55.0, "theta_start[0]": -0.3},
+              {"v_cmd": 0.2, "w_cmd": -0.1, "push_y": -4.0}),
+    }
+    h, steps = 0.01, 150
+
+    def run_alone(key):
+        sim = built_fmu_sim(N_DEFAULT, instance_name=f"alone_{key}")
+        sim.initialize(*setups[key])
+        names = output_names(sim)
+        rows = []
+        for _ in range(steps):
+            sim.step(h)
+            rows.append(record(sim, names))
+        sim.free()
+        return np.array(rows)
+
+    alone = {key: run_alone(key) for key in setups}
+
+    sims = {key: built_fmu_sim(N_DEFAULT, instance_name=f"both_{key}") for key in setups}
+    for key, sim in sims.items():
+        sim.initialize(*setups[key])
+    names = output_names(sims["a"])
+    rows = {key: [] for key in setups}
+    for _ in range(steps):
+        for key in ("a", "b"):
+            sims[key].step(h)
+            rows[key].append(record(sims[key], names))
+    for key in setups:
+        assert np.array_equal(np.array(rows[key]), alone[key]), key
+    assert not np.array_equal(alone["a"], alone["b"])
+
+
+# -- start values -----------------------------------------------------------------------------
+def _with_start(sim, causalities):
+    return [v for v in sim.md.modelVariables
+            if v.start is not None and v.causality in causalities]
+
+
+def test_values_right_after_instantiate_equal_xml_start(built_fmu_sim):
+    """Parameters and inputs hold the XML start values before anything is set.
+
+    FMI 2.0 lets an FMU refuse fmi2GetXXX in the Instantiated state; such a refusal is allowed,
+    but values that are returned must be the start values.
+    """
+    sim = built_fmu_sim(N_DEFAULT)
+    variables = _with_start(sim, ("parameter", "input"))
+    assert len(variables) > 20
+    try:
+        values = sim.get([v.name for v in variables])
+    except FMICallException:
+        pytest.skip("the FMU refuses fmi2GetXXX in the Instantiated state (allowed by FMI 2.0)")
+    mismatched = {v.name: (got, xml_start(v)) for v, got in zip(variables, values)
+                  if got != xml_start(v)}
+    assert mismatched == {}
+
+
+@pytest.mark.parametrize("n_trailers", [1, N_DEFAULT])
+def test_values_in_initialization_mode_equal_xml_start(built_fmu_sim, n_trailers):
+    sim = built_fmu_sim(n_trailers)
+    sim.fmu.setupExperiment(startTime=0.0)
+    sim.fmu.enterInitializationMode()
+    variables = [v for v in sim.md.modelVariables if v.start is not None]
+    values = sim.get([v.name for v in variables])
+    mismatched = {v.name: (got, xml_start(v)) for v, got in zip(variables, values)
+                  if got != xml_start(v)}
+    assert mismatched == {}
+    assert sim.get(["n"]) == [n_trailers]
+
+
+def test_outputs_are_finite_after_exit_initialization(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize({"theta_start[1]": 0.3, "v_start": -0.05, "w_start": 0.02},
+                   {"v_cmd": -0.1, "w_cmd": 0.05})
+    for block in (*OUTPUT_BLOCKS, "F_lat_max"):
+        assert np.all(np.isfinite(sim.array(block))), block
+    assert sim.array("F_lat_max") == pytest.approx(0.09 * 42.1 * 9.81, rel=1e-12)
+
+
+# -- instantiate ---------------------------------------------------------------------------------
+def test_wrong_guid_fails_instantiate_with_a_message(built_fmu_sim, built_fmu_unzipped):
+    _, md = built_fmu_unzipped(N_DEFAULT)
+    wrong = "{00000000-0000-0000-0000-000000000000}"
+    assert wrong != md.guid
+    log: list = []
+    with pytest.raises(Exception, match="[Ii]nstantiate"):
+        built_fmu_sim(N_DEFAULT, logging_on=True, guid=wrong, messages=log)
+    assert any(status >= 3 and "guid" in message.lower() for status, _, message in log), log
+
+
+# -- FMU state -----------------------------------------------------------------------------------
+def _trajectory(sim, h, steps, inputs_at):
+    names = output_names(sim)
+    rows = []
+    for k in range(steps):
+        sim.set(inputs_at(k))
+        sim.step(h)
+        rows.append(record(sim, names))
+    return np.array(rows)
+
+
+def test_get_set_fmu_state_rolls_back(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize({"theta_start[2]": 0.25}, {"v_cmd": -0.1, "w_cmd": 0.05})
+    h = 0.02
+    for _ in range(25):
+        sim.step(h)
+    saved = sim.fmu.getFMUstate()
+    t_saved = sim.time
+
+    def inputs_at(k):
+        return {"v_cmd": -0.1 + 0.002 * k, "w_cmd": 0.05 * np.cos(0.1 * k), "push_x": 0.1 * k}
+
+    first = _trajectory(sim, h, 60, inputs_at)
+    sim.set({"v_cmd": -0.1, "w_cmd": 0.05, "push_x": 0.0})
+    sim.fmu.setFMUstate(saved)
+    sim.time = t_saved
+    second = _trajectory(sim, h, 60, inputs_at)
+    assert np.array_equal(first, second)
+
+    # serialize, deserialize into a fresh instance initialised differently, replay
+    blob = sim.fmu.serializeFMUstate(saved)
+    assert isinstance(blob, bytes) and len(blob) > 0
+    sim.fmu.freeFMUstate(saved)
+    other = built_fmu_sim(N_DEFAULT, instance_name="other")
+    other.initialize({"theta_start[1]": -0.4})
+    restored = other.fmu.deSerializeFMUstate(blob)
+    other.fmu.setFMUstate(restored)
+    other.fmu.freeFMUstate(restored)
+    other.time = t_saved
+    third = _trajectory(other, h, 60, inputs_at)
+    assert np.array_equal(first, third)
+
+
+# -- doStep ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("h", [0.0, -0.01])
+def test_step_size_not_positive_is_refused(built_fmu_sim, h):
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize()
+    sim.step(0.01)
+    with pytest.raises(FMICallException) as info:
+        sim.fmu.doStep(currentCommunicationPoint=sim.time, communicationStepSize=h)
+    assert info.value.status >= 3
+
+
+@pytest.mark.parametrize("offset", [0.1, -0.005, 1e-3])
+def test_wrong_communication_point_is_refused(built_fmu_sim, offset):
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize()
+    sim.step(0.01)
+    sim.step(0.01)
+    with pytest.raises(FMICallException) as info:
+        sim.fmu.doStep(currentCommunicationPoint=sim.time + offset, communicationStepSize=0.01)
+    assert info.value.status >= 3
+
+
+def _constant_speed_run(sim, points):
+    """Step through the communication points ``points``; return x[0] at each."""
+    xs = []
+    for t0, t1 in zip(points[:-1], points[1:]):
+        sim.fmu.doStep(currentCommunicationPoint=t0, communicationStepSize=t1 - t0)
+        xs.append(sim.real("x[0]"))
+    return np.array(xs)
+
+
+def test_variable_and_inexact_steps_land_exactly(built_fmu_sim):
+    """Steps with last-bit noise, nanosecond grids and odd sizes integrate exactly to t + h.
+
+    With the robot moving straight at constant speed (v_start = v_cmd, theta = 0), x[0] is
+    x0_start + v t exactly, so any dropped or extra substep time shows up in x[0].
+    """
+    speed = 1.0
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize({"v_start": speed}, {"v_cmd": speed})
+    rng = np.random.default_rng(7)
+    # fmpy-style t0 + k h with h having last-bit noise, then summed floats, then integer ns
+    h_noisy = 0.0049999999999999992
+    grid = [k * h_noisy for k in range(0, 201)]
+    t = grid[-1]
+    summed = [t]
+    for h in (0.0049999999999999992, 0.0123, 1e-9, 0.0071, 0.013, 0.0049999999999999992):
+        for _ in range(7):
+            t = t + h
+            summed.append(t)
+    ns0 = int(round(t * 1e9))
+    ns = np.cumsum(np.concatenate(([ns0], rng.integers(1, 20_000_000, size=60))))
+    nanos = [t] + [int(v) * 1e-9 for v in ns[1:]]
+    points = grid + summed[1:] + nanos[1:]
+    xs = _constant_speed_run(sim, points)
+    np.testing.assert_allclose(xs, speed * np.array(points[1:]), rtol=0, atol=1e-12)
+    assert np.all(np.diff(points) > 0)
+
+
+def test_logging_on_does_not_log_every_step(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.05})
+    before = len(sim.messages)
+    for _ in range(300):
+        sim.step(0.005)
+    assert sim.messages[before:] == []
