@@ -392,6 +392,9 @@ def simulate(
     if len(initial.theta) != n + 1:
         raise CosimError(f"initial.theta has {len(initial.theta)} headings; need n + 1 = {n + 1}")
 
+    if hasattr(ctrl, "reset"):
+        # rate limits start from the robot's initial velocity one step before t0
+        ctrl.reset(initial.v0, initial.w0, t0 - step)
     times = t0 + step * np.arange(n_steps + 1)
     if reference is None:
         ref_x = ref_y = ref_th = np.full(times.shape, np.nan)
