@@ -1,0 +1,161 @@
+"""The click CLI: every command, --help, exit codes and error messages for bad input."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from pushtrain.cli.main import cli
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+COMMANDS = ["plan-and-run", "plan", "run", "build-fmu", "analyze", "validate"]
+
+
+@pytest.fixture
+def runner():
+    return CliRunner()
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_has_help_with_an_example(runner, command):
+    result = runner.invoke(cli, [command, "--help"])
+    assert result.exit_code == 0, result.output
+    assert "Example" in result.output
+
+
+def test_group_help_lists_the_commands(runner):
+    result = runner.invoke(cli, ["--help"])
+    assert result.exit_code == 0
+    for command in COMMANDS:
+        assert command in result.output
+
+
+def _write(tmp_path, text, name="bad.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+BAD_SCENARIOS = {
+    "wrong_type": ('[train]\nn = "three"\n', ["train.n", "'three'"]),
+    "negative_mass": ('[train]\nn = 3\nmass = [42.1, -5.0, 42.1]\n', ["train.mass[1]", "-5.0"]),
+    "unknown_key": ('[train]\nn = 3\nmas = 3.0\n', ["train.mas", "unknown key"]),
+    "n_zero": ('[train]\nn = 0\n', ["train.n", "0"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_SCENARIOS))
+def test_bad_scenarios_exit_2_naming_each_field_and_write_nothing(runner, tmp_path, case):
+    text, needles = BAD_SCENARIOS[case]
+    path = _write(tmp_path, text)
+    out = tmp_path / "out"
+    for command in (["validate", path], ["plan-and-run", path, "--out", str(out)]):
+        result = runner.invoke(cli, command)
+        assert result.exit_code == 2, result.output
+        for needle in needles:
+            assert needle in result.output, (needle, result.output)
+    assert not out.exists(), "a rejected scenario must not leave an output folder"
+
+
+def test_all_bad_fields_are_reported_at_once(runner, tmp_path):
+    path = _write(tmp_path, '[train]\nn = 0\nmu = -1\n[controller]\nk_y = -2\n[sim]\nstepp = 1\n')
+    result = runner.invoke(cli, ["validate", path])
+    assert result.exit_code == 2
+    for needle in ("train.n", "train.mu", "controller.k_y", "sim.stepp"):
+        assert needle in result.output
+
+
+def test_start_in_a_wall_exits_2(runner, tmp_path):
+    text = (EXAMPLES / "l_corridor.toml").read_text().replace("x = 4.0\ny = 1.0", "x = 4.0\ny = 5.0")
+    path = _write(tmp_path, text, "wall.toml")
+    out = tmp_path / "out"
+    result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert "start" in result.output and "free space" in result.output
+    assert not out.exists()
+
+
+def test_validate_accepts_every_example(runner):
+    for path in sorted(EXAMPLES.glob("*.toml")):
+        result = runner.invoke(cli, ["validate", str(path)])
+        assert result.exit_code == 0, (path.name, result.output)
+
+
+def test_plan_writes_a_path_that_run_replays(runner, tmp_path):
+    path_file = tmp_path / "path.json"
+    png = tmp_path / "path.png"
+    result = runner.invoke(cli, ["plan", str(EXAMPLES / "l_corridor.toml"), "--out", str(path_file),
+                                 "--plot", str(png)])
+    assert result.exit_code == 0, result.output
+    assert "segments" in result.output
+    data = json.loads(path_file.read_text())
+    assert data["segments"]
+    assert png.stat().st_size > 1000
+    out = tmp_path / "run"
+    result = runner.invoke(cli, ["run", str(EXAMPLES / "l_corridor.toml"), "--path", str(path_file),
+                                 "--out", str(out), "--no-plots"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "goal_reached"
+
+
+def test_run_with_a_broken_path_file_exits_2(runner, tmp_path):
+    bad = tmp_path / "path.json"
+    bad.write_text('{"segments": "nope"}')
+    result = runner.invoke(cli, ["run", str(EXAMPLES / "l_corridor.toml"), "--path", str(bad),
+                                 "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2, result.output
+    assert "path.json" in result.output
+
+
+def test_run_of_a_plan_mission_without_path_exits_2(runner, tmp_path):
+    result = runner.invoke(cli, ["run", str(EXAMPLES / "l_corridor.toml"), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2
+    assert "--path" in result.output
+
+
+def test_build_fmu_command(runner, tmp_path):
+    out = tmp_path / "TT.fmu"
+    result = runner.invoke(cli, ["build-fmu", "--trailers", "2", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert out.is_file()
+    result = runner.invoke(cli, ["build-fmu", "--trailers", "0", "-o", str(out)])
+    assert result.exit_code == 2
+    assert "0" in result.output
+
+
+def test_analyze_reports_stability_and_predicted_offset(runner):
+    result = runner.invoke(cli, ["analyze", str(EXAMPLES / "joint_bias_5deg.toml")])
+    assert result.exit_code == 0, result.output
+    assert "stable" in result.output and "UNSTABLE" in result.output
+    assert "-4.19 cm" in result.output  # sin(5 deg) / (0.52 * 4)
+
+
+def test_plan_and_run_console_script_with_overrides(runner, tmp_path):
+    out = tmp_path / "o"
+    result = runner.invoke(cli, ["plan-and-run", str(EXAMPLES / "straight_push.toml"), "--out", str(out),
+                                 "--trailers", "2", "--seed", "3", "--no-plots"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["n_trailers"] == 2
+    scenario = json.loads((out / "scenario.json").read_text())
+    assert scenario["seed"] == 3 and scenario["train"]["n"] == 2
+    assert (out / "run.log").stat().st_size > 0
+    assert not list(out.glob(".*.part"))
+
+
+def test_unreachable_goal_exits_1_with_a_diagnostic_picture(runner, tmp_path):
+    text = (EXAMPLES / "l_corridor.toml").read_text().replace(
+        "free = [[0.0, 0.0], [9.0, 0.0], [9.0, 9.0], [7.0, 9.0], [7.0, 2.0], [0.0, 2.0]]",
+        "free = [[0.0, 0.0], [9.0, 0.0], [9.0, 9.0], [7.0, 9.0], [7.0, 2.0], [0.0, 2.0]]\n"
+        "obstacles = [[[7.0, 4.0], [9.0, 4.0], [9.0, 4.5], [7.0, 4.5]]]")
+    text = text.replace("time_budget = 2.0", "time_budget = 0.5")
+    path = _write(tmp_path, text, "blocked.toml")
+    out = tmp_path / "out"
+    result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    assert "planning failed" in result.output
+    assert (out / "planning_failure.png").is_file()
+    assert (out / "run.log").is_file()

@@ -1,0 +1,156 @@
+"""Closed loop through the real FMU: the paper's experiments (Sec. 4.2-4.3) and the master's contract."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pushtrain.cosim.controller import ControllerConfig, ControllerError
+from pushtrain.cosim.master import (
+    CosimError,
+    InitialState,
+    PlantConfig,
+    Push,
+    SetBias,
+    Slide,
+    simulate,
+)
+from pushtrain.cosim.reference import Reference, ReferenceError, Segment
+from pushtrain.cosim.sensors import SensorConfig
+from pushtrain.fmu import build_fmu
+
+D = 0.52
+
+
+@pytest.fixture(scope="module")
+def fmu3():
+    return build_fmu(3)
+
+
+class ConstantCommand:
+    """Open loop: the robot drives with a fixed (v0, w0)."""
+
+    n = 3
+    lead_distance = 0.0
+
+    def __init__(self, v0, w0=0.0):
+        self.v0, self.w0 = v0, w0
+
+    def command(self, t, measurement, ref, ahead=None):
+        return self.v0, self.w0, None
+
+
+def _at(data, t):
+    return int(np.searchsorted(data["t"], t - 1e-9))
+
+
+def test_open_loop_pushing_diverges_and_the_closed_loop_holds(fmu3):
+    geom = PlantConfig(n_trailers=3).geometry()
+    straight = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 4.0)], speed=0.08)
+    initial = InitialState.behind_reference(straight, geom, joint_angles=np.radians([0.0, 0.0, 1.0]))
+    open_loop = simulate(fmu3, None, ConstantCommand(-0.08), initial=initial, horizon=50.0)
+    closed = simulate(fmu3, straight, ControllerConfig.uniform(3), initial=initial, horizon=50.0,
+                      check_goal=False)
+    phi_open = np.degrees(np.abs([open_loop.data[f"phi{i}"][-1] for i in (1, 2, 3)]))
+    phi_closed = np.degrees(np.abs([closed.data[f"phi{i}"][-1] for i in (1, 2, 3)]))
+    # open loop: the 1 deg offset grows (or jackknifes); closed loop: the chain straightens
+    assert open_loop.status == "jackknifed" or phi_open.max() > 20.0, phi_open
+    assert phi_closed.max() < 0.5, phi_closed
+    assert abs(closed.data["e_lat"][-1]) < 0.01
+
+
+def test_straight_corridor_disturbance_is_rejected_fig9(fmu3, tmp_path):
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 12.0)], speed=0.08)
+    result = simulate(fmu3, ref, ControllerConfig.uniform(3),
+                      events=[Slide(40.0, 1.0, -0.15)], out_dir=tmp_path)
+    d = result.data
+    before = np.abs(d["e_lat"][: _at(d, 40.0)]).max()
+    peak = np.abs(d["e_lat"][_at(d, 40.0): _at(d, 60.0)]).max()
+    assert before < 1e-3
+    assert peak > 0.12  # the shove moved the last trailer about 15 cm
+    late = _at(d, 110.0)
+    assert np.abs(d["e_lat"][late:]).max() < 0.01
+    for i in (1, 2, 3):
+        assert abs(math.degrees(d[f"phi{i}"][-1])) < 0.5
+    assert result.status == "goal_reached"
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "goal_reached" and summary["lateral_error_m"]["max"] == pytest.approx(peak)
+    assert (tmp_path / "results.csv").read_text().splitlines()[0].startswith("t,x0,")
+    npz = np.load(tmp_path / "results.npz")
+    assert np.array_equal(npz["e_lat"], d["e_lat"])
+
+
+def test_circle_pushed_backward_converges_to_the_steady_joint_angle_fig11(fmu3):
+    rho = 2.5
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("arc", 2 * math.pi * rho, 1 / rho)],
+                                  speed=0.08)
+    geom = PlantConfig(n_trailers=3).geometry()
+    initial = InitialState.behind_reference(ref, geom, lateral_offset=0.2)
+    result = simulate(fmu3, ref, ControllerConfig.uniform(3), initial=initial, horizon=120.0,
+                      check_goal=False)
+    d = result.data
+    k60 = _at(d, 60.0)
+    assert abs(d["e_lat"][0]) == pytest.approx(0.2, abs=1e-9)
+    assert np.abs(d["e_lat"][k60:]).max() < 0.01
+    expected = math.degrees(2 * math.atan(D / rho))  # 23.50 deg
+    assert expected == pytest.approx(23.50, abs=0.005)
+    for i in (1, 2, 3):
+        assert abs(math.degrees(d[f"phi{i}"][-1])) == pytest.approx(expected, abs=0.1)
+
+
+def test_push_force_in_rolling_mode_changes_forces_not_motion(fmu3):
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 1.0)], speed=0.08)
+    quiet = simulate(fmu3, ref, ControllerConfig.uniform(3), horizon=10.0, check_goal=False)
+    pushed = simulate(fmu3, ref, ControllerConfig.uniform(3), horizon=10.0, check_goal=False,
+                      events=[Push(2.0, 3.0, lateral=30.0)])
+    assert np.array_equal(quiet.data["y3"], pushed.data["y3"])
+    k = _at(pushed.data, 3.0)
+    # the push acts on the last trailer's axle along its left normal: its wheel takes it
+    assert pushed.data["F_lat3"][k] - quiet.data["F_lat3"][k] == pytest.approx(-30.0, abs=1e-6)
+
+
+def test_bias_event_switches_on_during_the_run(fmu3):
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 2.0)], speed=0.08)
+    result = simulate(fmu3, ref, ControllerConfig.uniform(3), horizon=5.0, check_goal=False,
+                      events=[SetBias(2.0, 3, math.radians(5.0))])
+    d = result.data
+    before, after = _at(d, 1.99), _at(d, 2.0)
+    assert d["phi_meas3"][before] == pytest.approx(d["phi3"][before])
+    assert d["phi_meas3"][after] - d["phi3"][after] == pytest.approx(math.radians(5.0))
+
+
+def test_bad_configuration_is_refused_before_any_stepping(fmu3):
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 1.0)], speed=0.08)
+    with pytest.raises(ControllerError):
+        simulate(fmu3, ref, ControllerConfig.uniform(3, k_y=0.0))
+    with pytest.raises(CosimError, match="does not divide"):
+        simulate(fmu3, ref, ControllerConfig.uniform(3), step=0.005, horizon=1.0012)
+    with pytest.raises(CosimError, match="n = 3"):
+        simulate(fmu3, ref, ControllerConfig.uniform(2))
+    with pytest.raises(CosimError, match="trailer"):
+        simulate(fmu3, ref, ControllerConfig.uniform(3), events=[Slide(1.0, 1.0, 0.1, trailer=4)])
+    with pytest.raises(ReferenceError):
+        Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", -1.0)])
+
+
+def test_reference_with_a_jump_is_refused():
+    from pushtrain.cosim.reference import SampledReference
+
+    t = np.arange(0.0, 2.0, 0.1)
+    x = -0.08 * t
+    x[10:] += 0.5  # a jump of 0.5 m
+    with pytest.raises(ReferenceError):
+        SampledReference(t, x, np.zeros_like(t), np.full_like(t, math.pi), np.full_like(t, -0.08),
+                         np.zeros_like(t), np.ones_like(t, dtype=int))
+
+
+def test_jackknife_stops_the_run_with_a_clear_status(fmu3):
+    geom = PlantConfig(n_trailers=3).geometry()
+    straight = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 4.0)], speed=0.08)
+    initial = InitialState.behind_reference(straight, geom, joint_angles=np.radians([0.0, 0.0, 5.0]))
+    result = simulate(fmu3, None, ConstantCommand(-0.1), initial=initial, horizon=200.0,
+                      plant=PlantConfig(n_trailers=3, phi_max=math.radians(45.0)))
+    assert result.status == "jackknifed"
+    assert "phi_max" in result.message
+    assert result.data["t"][-1] < 200.0
