@@ -441,6 +441,7 @@ def simulate(
                        file=sys.stderr)
         bias_idx = 0
         slide_active = {}
+        measure_last = bool(getattr(sens.config, "measure_last_pose", False))
         for k in range(n_steps + 1):
             t = float(times[k])
             while bias_idx < len(biases) and biases[bias_idx].t <= t + 1e-12:
@@ -450,7 +451,10 @@ def simulate(
             th_n = y[3 * (n + 1) - 1]
             x0, y0, th0 = y[0], y[n + 1], y[2 * (n + 1)]
             phi = y[i_phi:i_phi + n]
-            meas = sens.measure(x0, y0, th0, phi)
+            if measure_last:
+                meas = sens.measure(x0, y0, th0, phi, (y[n], y[2 * (n + 1) - 1], th_n))
+            else:
+                meas = sens.measure(x0, y0, th0, phi)
             if ref_dir[k] == PULL and reference is not None:
                 ahead = reference.sample_ahead(t, ctrl.lead_distance)
                 v_cmd, w_cmd, _ = ctrl.command(t, meas, reference.sample_at(t), ahead)

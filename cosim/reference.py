@@ -18,23 +18,24 @@ A :class:`Segment` is a line or an arc travelled at constant speed in one direct
 from __future__ import annotations
 
 from bisect import bisect_right
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from math import cos, sin
-from typing import Literal, NamedTuple, Sequence
+from typing import Literal, NamedTuple
 
 import numpy as np
 
 from .kinematics import wrap_angle
 
 __all__ = [
-    "PUSH",
     "PULL",
+    "PUSH",
     "REST",
-    "Segment",
     "Reference",
     "ReferenceError",
     "ReferenceSample",
     "SampledReference",
+    "Segment",
 ]
 
 PUSH = +1
@@ -161,7 +162,7 @@ class Reference:
         speed: float = 0.1,
         cusp_dwell: float = 1.0,
         t0: float = 0.0,
-    ) -> "Reference":
+    ) -> Reference:
         """Reference starting at ``start = (x, y, theta)`` [m, m, rad] through ``segments``.
 
         ``speed`` [m/s] applies to segments without their own; ``cusp_dwell`` [s] is the rest at
@@ -300,10 +301,13 @@ class Reference:
         """Reference pose ``distance`` [m] further along the path than the pose at time ``t``.
 
         The look-ahead follows the segments travelled in the current direction (it never crosses
-        a cusp); past the last segment of that run it continues the run's last line or arc. This is
+        a cusp). Past the end of that run it continues from the run's end pose, in the same
+        direction, along the *backward* extension of the segment after the cusp (curvature
+        negated): that is where the robot sits at the cusp when the chain is in its steady state
+        for the next segment. After the last segment it continues the last line or arc. This is
         the robot's target while pulling (see :mod:`pushtrain.cosim.controller`). ``v`` and ``w``
-        are those of the segment at the look-ahead point (the extrapolated segment's beyond it).
-        At rest it returns :meth:`sample_at` ``(t)`` unchanged.
+        are those of the segment (or extension) at the look-ahead point. At rest it returns
+        :meth:`sample_at` ``(t)`` unchanged.
         """
         if not (np.isfinite(distance) and distance >= 0.0):
             raise ReferenceError(f"look-ahead distance = {distance!r} m: must be finite and >= 0")
@@ -318,8 +322,16 @@ class Reference:
         while s > rows[k][6] and k + 1 < len(rows) and rows[k + 1][3] == sigma:
             s -= rows[k][6]
             k += 1
-        x0, y0, th0, sigma, kappa, speed, _ = rows[k]
-        x, y, th = _advance_scalar(x0, y0, th0, sigma, kappa, s)
+        x0, y0, th0, sigma, kappa, speed, length = rows[k]
+        if s <= length:
+            x, y, th = _advance_scalar(x0, y0, th0, sigma, kappa, s)
+            return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
+        # past the run: continue backward along the next segment (after the cusp), else the last
+        x, y, th = _advance_scalar(x0, y0, th0, sigma, kappa, length)
+        following = [row for row in rows[k + 1 :] if row[3] != 0.0]
+        if following:
+            kappa = -following[0][4]
+        x, y, th = _advance_scalar(x, y, th, sigma, kappa, s - length)
         return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
 
 
@@ -368,8 +380,20 @@ class SampledReference:
         Tolerance of the sign check of ``v`` against ``direction`` [m/s] (default 1e-9).
     """
 
-    def __init__(self, t, x, y, theta, v, w, direction, pos_tol: float = 1e-3,
-                 angle_tol: float = 1e-3, rel_tol: float = 0.05, speed_tol: float = 1e-9):
+    def __init__(
+        self,
+        t,
+        x,
+        y,
+        theta,
+        v,
+        w,
+        direction,
+        pos_tol: float = 1e-3,
+        angle_tol: float = 1e-3,
+        rel_tol: float = 0.05,
+        speed_tol: float = 1e-9,
+    ):
         names = ("t", "x", "y", "theta", "v", "w", "direction")
         arrays = [np.asarray(a, dtype=float).reshape(-1) for a in (t, x, y, theta, v, w, direction)]
         m = arrays[0].size
@@ -381,8 +405,12 @@ class SampledReference:
             bad = np.flatnonzero(~np.isfinite(a))
             if bad.size:
                 raise ReferenceError(f"{name}[{bad[0]}] = {a[bad[0]]!r}: samples must be finite")
-        for name, value in (("pos_tol", pos_tol), ("angle_tol", angle_tol), ("rel_tol", rel_tol),
-                            ("speed_tol", speed_tol)):
+        for name, value in (
+            ("pos_tol", pos_tol),
+            ("angle_tol", angle_tol),
+            ("rel_tol", rel_tol),
+            ("speed_tol", speed_tol),
+        ):
             if not (np.isfinite(value) and value >= 0.0):
                 raise ReferenceError(f"{name} = {value!r}: must be finite and >= 0")
         t, x, y, theta, v, w, direction = arrays
@@ -399,14 +427,17 @@ class SampledReference:
             raise ReferenceError(
                 f"direction[{k}] = {direction[k]!r}: allowed are +1 (push), -1 (pull), 0 (rest)"
             )
-        wrong_sign = ((direction == PUSH) & (v > speed_tol)) | (
-            (direction == PULL) & (v < -speed_tol)) | ((direction == REST) & (np.abs(v) > speed_tol))
+        wrong_sign = (
+            ((direction == PUSH) & (v > speed_tol))
+            | ((direction == PULL) & (v < -speed_tol))
+            | ((direction == REST) & (np.abs(v) > speed_tol))
+        )
         bad = np.flatnonzero(wrong_sign)
         if bad.size:
             k = int(bad[0])
             raise ReferenceError(
-                f"v[{k}] = {v[k]!r} m/s at t = {t[k]!r} s contradicts direction {int(direction[k])}:"
-                " pushing needs v <= 0, pulling v >= 0, rest v = 0"
+                f"v[{k}] = {v[k]!r} m/s at t = {t[k]!r} s contradicts direction"
+                f" {int(direction[k])}: pushing needs v <= 0, pulling v >= 0, rest v = 0"
             )
         theta = np.unwrap(theta)
         step = np.hypot(np.diff(x), np.diff(y))
@@ -431,11 +462,18 @@ class SampledReference:
         self._v, self._w, self._direction = v, w, direction.astype(int)
         self._s = np.concatenate(([0.0], np.cumsum(step)))  # distance travelled [m]
         self._t_list = t.tolist()
-        self._cols = (x.tolist(), y.tolist(), theta.tolist(), v.tolist(), w.tolist(),
-                      self._direction.tolist(), self._s.tolist())
+        self._cols = (
+            x.tolist(),
+            y.tolist(),
+            theta.tolist(),
+            v.tolist(),
+            w.tolist(),
+            self._direction.tolist(),
+            self._s.tolist(),
+        )
 
     @classmethod
-    def from_reference(cls, reference: Reference, dt: float, **tolerances) -> "SampledReference":
+    def from_reference(cls, reference: Reference, dt: float, **tolerances) -> SampledReference:
         """Sample a :class:`Reference` every ``dt`` [s] from its ``t0`` to its :attr:`t_end`."""
         if not (np.isfinite(dt) and dt > 0.0):
             raise ReferenceError(f"dt = {dt!r} s: must be finite and > 0")
@@ -498,16 +536,18 @@ class SampledReference:
         pose = [(1.0 - a) * c[k] + a * c[k + 1] for c in (x, y, th)]
         if self._t_list[0] <= t < self._t_list[-1]:
             kd = k if a < 1.0 else k + 1
-            return ReferenceSample(*pose, (1.0 - a) * v[k] + a * v[k + 1],
-                                   (1.0 - a) * w[k] + a * w[k + 1], int(d[kd]))
+            return ReferenceSample(
+                *pose, (1.0 - a) * v[k] + a * v[k + 1], (1.0 - a) * w[k] + a * w[k + 1], int(d[kd])
+            )
         return ReferenceSample(*pose, 0.0, 0.0, REST)
 
     def sample_ahead(self, t: float, distance: float) -> ReferenceSample:
         """Reference pose ``distance`` [m] further along the path than the pose at time ``t``.
 
         Same contract as :meth:`Reference.sample_ahead`: the look-ahead stays within the run of
-        samples with the current direction and continues the run's last motion (line or arc with
-        curvature w/|v| of its last moving sample) beyond it.
+        samples with the current direction; beyond it, it continues along the backward extension
+        of the motion after the cusp (curvature -w/|v| of the first moving sample of the next run)
+        or, after the last run, the run's last motion (curvature w/|v| of its last moving sample).
         """
         if not (np.isfinite(distance) and distance >= 0.0):
             raise ReferenceError(f"look-ahead distance = {distance!r} m: must be finite and >= 0")
@@ -532,6 +572,12 @@ class SampledReference:
         if speed == 0.0 and last > 0:
             speed, rate = abs(v[last - 1]), w[last - 1]
         kappa = rate / speed if speed > 0.0 else 0.0
+        nxt = next((j for j in range(last + 1, len(s)) if d[j] not in (REST, here.direction)), None)
+        if nxt is not None and v[nxt] != 0.0:
+            kappa = -w[nxt] / abs(v[nxt])  # backward extension of the segment after the cusp
+        elif nxt is not None and nxt + 1 < len(s) and v[nxt + 1] != 0.0:
+            kappa = -w[nxt + 1] / abs(v[nxt + 1])
+        rate = kappa * speed
         sigma = -float(here.direction)
         xe, ye, the = _advance_scalar(x[last], y[last], th[last], sigma, kappa, target - s[last])
         return ReferenceSample(xe, ye, the, sigma * speed, rate, here.direction)

@@ -1,0 +1,180 @@
+"""Tests of the last trailer's reference (pushtrain.cosim.reference)."""
+
+import numpy as np
+import pytest
+from pushtrain.cosim.reference import (
+    PULL,
+    PUSH,
+    REST,
+    Reference,
+    ReferenceError,
+    SampledReference,
+    Segment,
+)
+
+
+def mixed_reference(cusp_dwell=1.5):
+    return Reference.from_segments(
+        (0.3, -0.2, 0.4),
+        [
+            Segment("line", 1.0),
+            Segment("arc", 1.2, 0.5),
+            Segment("arc", 0.8, -0.3, direction=PULL, speed=0.05),
+            Segment("line", 0.7, direction=PULL),
+            Segment("arc", 1.0, 0.4),
+        ],
+        speed=0.1,
+        cusp_dwell=cusp_dwell,
+    )
+
+
+def phase_boundaries(ref):
+    return np.asarray(ref._t_start)
+
+
+def test_eq1_holds_within_segments():
+    """Central differences of x, y, theta equal (v cos theta, v sin theta, w) (Eq. 1, +x)."""
+    ref = mixed_reference()
+    t = np.linspace(ref.t0, ref.t_end, 4001)[1:-1]
+    h = 1e-4
+    bounds = np.append(phase_boundaries(ref), ref.t_end)
+    inside = np.all(np.abs(t[:, None] - bounds[None, :]) > 2 * h, axis=1)
+    t = t[inside]
+    _x, _y, th, v, w = ref.sample(t)
+    xp, yp, thp, _, _ = ref.sample(t + h)
+    xm, ym, thm, _, _ = ref.sample(t - h)
+    np.testing.assert_allclose((xp - xm) / (2 * h), v * np.cos(th), atol=1e-7)
+    np.testing.assert_allclose((yp - ym) / (2 * h), v * np.sin(th), atol=1e-7)
+    np.testing.assert_allclose((thp - thm) / (2 * h), w, atol=1e-7)
+    d = ref.direction_at(t)
+    assert set(np.unique(d)) <= {PUSH, PULL, REST}
+    assert np.all(v[d == PUSH] < 0) and np.all(v[d == PULL] > 0)
+
+
+def test_reference_is_continuous_and_reaches_the_goal():
+    ref = mixed_reference()
+    t = np.arange(ref.t0, ref.t_end + 1e-9, 0.005)
+    x, y, th, _v, _ = ref.sample(t)
+    step = np.hypot(np.diff(x), np.diff(y))
+    assert np.all(step <= 0.1 * 0.005 + 1e-12)
+    assert np.all(np.abs(np.diff(th)) <= 0.5 * 0.1 * 0.005 + 1e-12)
+    assert np.sum(step) == pytest.approx(ref.length, rel=1e-4)
+    g = ref.goal
+    assert (x[-1], y[-1]) == pytest.approx((g[0], g[1]), abs=1e-9)
+
+
+def test_cusp_dwell():
+    dwell = 1.5
+    ref = mixed_reference(dwell)
+    t_cusp1 = 1.0 / 0.1 + 1.2 / 0.1  # end of the first pushing run
+    t = np.linspace(t_cusp1 + 1e-6, t_cusp1 + dwell - 1e-6, 50)
+    x, y, th, v, w = ref.sample(t)
+    assert np.all(ref.direction_at(t) == REST)
+    assert np.all(v == 0.0) and np.all(w == 0.0)
+    assert np.ptp(x) == 0.0 and np.ptp(y) == 0.0 and np.ptp(th) == 0.0
+    assert ref.direction_at(t_cusp1 - 1e-6)[0] == PUSH
+    assert ref.direction_at(t_cusp1 + dwell + 1e-6)[0] == PULL
+    expected_end = 2.2 / 0.1 + 0.8 / 0.05 + 0.7 / 0.1 + 1.0 / 0.1 + 2 * dwell
+    assert ref.t_end == pytest.approx(expected_end)
+    no_dwell = mixed_reference(0.0)
+    assert no_dwell.t_end == pytest.approx(expected_end - 2 * dwell)
+
+
+def test_sample_at_equals_sample():
+    ref = mixed_reference()
+    for t in np.linspace(ref.t0 - 3.0, ref.t_end + 3.0, 301):
+        s = ref.sample_at(t)
+        x, y, th, v, w = (a[0] for a in ref.sample(t))
+        assert s[:5] == pytest.approx((x, y, th, v, w), abs=1e-12)
+        assert s.direction == ref.direction_at(t)[0]
+
+
+def test_sample_ahead_within_and_beyond_a_run():
+    ref = mixed_reference(0.0)
+    # inside the first run the look-ahead is the sample at a later time
+    s = ref.sample_ahead(3.0, 0.5)
+    assert s[:5] == pytest.approx(tuple(ref.sample_at(3.0 + 0.5 / 0.1)[:5]), abs=1e-12)
+    # beyond the run's end (t = 22 s at the cusp) it continues backward along the next segment:
+    # the next (pulling) arc has curvature -0.3, so the extension lies on that arc's circle
+    cusp = ref.sample_at(22.0)
+    ahead = ref.sample_ahead(21.0, 0.1 + 0.6)  # 0.5 m past the cusp
+    kappa_next = -0.3
+    centre = np.array([cusp.x, cusp.y]) + np.array([-np.sin(cusp.theta), np.cos(cusp.theta)]) / (
+        kappa_next
+    )
+    assert np.hypot(ahead.x - centre[0], ahead.y - centre[1]) == pytest.approx(
+        1 / abs(kappa_next), abs=1e-9
+    )
+    assert ahead.direction == PUSH
+    assert np.hypot(ahead.x - cusp.x, ahead.y - cusp.y) == pytest.approx(0.6, abs=0.01)
+    # at rest the look-ahead is the current sample
+    assert ref.sample_ahead(-1.0, 2.0) == ref.sample_at(-1.0)
+    with pytest.raises(ReferenceError, match="distance"):
+        ref.sample_ahead(1.0, -0.1)
+
+
+def test_sampled_reference_reproduces_the_analytic_one():
+    ref = mixed_reference()
+    sampled = SampledReference.from_reference(ref, 0.01)
+    assert sampled.t_end == pytest.approx(ref.t_end, abs=0.01)
+    assert sampled.length == pytest.approx(ref.length, rel=1e-4)
+    t = np.linspace(ref.t0, ref.t_end - 0.02, 777)
+    for a, b in zip(sampled.sample(t), ref.sample(t)):
+        np.testing.assert_allclose(a[1:-1], b[1:-1], atol=2e-3)
+    for tk in (3.0, 30.0, 45.0, 60.0):
+        assert sampled.sample_at(tk)[:3] == pytest.approx(ref.sample_at(tk)[:3], abs=1e-5)
+        assert sampled.sample_at(tk).direction == ref.sample_at(tk).direction
+        a, b = sampled.sample_ahead(tk, 1.5), ref.sample_ahead(tk, 1.5)
+        assert a[:3] == pytest.approx(b[:3], abs=3e-3)
+        assert a.direction == b.direction
+
+
+def _sampled_line(m=200, dt=0.01, speed=0.1):
+    t = dt * np.arange(m)
+    x = -speed * t
+    return dict(
+        t=t,
+        x=x,
+        y=np.zeros(m),
+        theta=np.zeros(m),
+        v=np.full(m, -speed),
+        w=np.zeros(m),
+        direction=np.full(m, PUSH),
+    )
+
+
+def test_sampled_reference_detects_jumps():
+    SampledReference(**_sampled_line())  # the clean line is accepted
+    bad = _sampled_line()
+    bad["y"][100:] += 0.05  # 5 cm lateral step
+    with pytest.raises(ReferenceError, match="position jumps"):
+        SampledReference(**bad)
+    bad = _sampled_line()
+    bad["theta"][50:] += 0.2
+    with pytest.raises(ReferenceError, match="heading jumps"):
+        SampledReference(**bad)
+    bad = _sampled_line()
+    bad["t"][10] = bad["t"][9]
+    with pytest.raises(ReferenceError, match="strictly increase"):
+        SampledReference(**bad)
+    bad = _sampled_line()
+    bad["direction"][20] = PULL
+    with pytest.raises(ReferenceError, match="contradicts direction"):
+        SampledReference(**bad)
+    bad = _sampled_line()
+    bad["x"][5] = np.nan
+    with pytest.raises(ReferenceError, match="finite"):
+        SampledReference(**bad)
+
+
+def test_sampled_reference_unwraps_headings():
+    m, dt, w = 400, 0.01, 0.5
+    t = dt * np.arange(m)
+    theta = np.pi - 0.5 + w * t  # crosses pi
+    kappa = 2.0
+    speed = w / kappa
+    x = -(np.sin(theta) - np.sin(theta[0])) / kappa
+    y = (np.cos(theta) - np.cos(theta[0])) / kappa
+    wrapped = np.mod(theta + np.pi, 2 * np.pi) - np.pi
+    ref = SampledReference(t, x, y, wrapped, np.full(m, -speed), np.full(m, w), np.full(m, PUSH))
+    assert ref.sample_at(3.5).theta == pytest.approx(theta[350], abs=1e-9)

@@ -1,0 +1,137 @@
+"""Tests of the sensor models (pushtrain.cosim.sensors)."""
+
+import numpy as np
+import pytest
+from pushtrain.cosim.sensors import Measurement, SensorConfig, SensorError, Sensors
+
+NOISY = dict(joint_noise_std=0.01, pos_noise_std=0.02, heading_noise_std=0.005)
+
+
+def run(sensors, steps=50, n=3):
+    out = []
+    for k in range(steps):
+        phi = 0.1 * np.sin(0.1 * k + np.arange(n))
+        m = sensors.measure(1.0 + k, 2.0, 0.3, phi)
+        out.append(np.concatenate(([m.x0, m.y0, m.theta0], m.phi)))
+    return np.array(out)
+
+
+def test_seeded_reproducibility():
+    a = run(Sensors(SensorConfig(3, seed=7, **NOISY)))
+    b = run(Sensors(SensorConfig(3, seed=7, **NOISY)))
+    c = run(Sensors(SensorConfig(3, seed=8, **NOISY)))
+    np.testing.assert_array_equal(a, b)
+    assert not np.allclose(a, c)
+    s = Sensors(SensorConfig(3, seed=7, **NOISY))
+    first = run(s)
+    s.reset()
+    np.testing.assert_array_equal(run(s), first)
+
+
+def test_bias_is_applied_exactly_and_can_be_switched_on():
+    bias = np.array([0.01, -0.02, 0.03])
+    s = Sensors(SensorConfig(3, joint_bias=bias))
+    phi = np.array([0.2, -0.1, 0.05])
+    m = s.measure(0.5, -0.5, 1.0, phi)
+    assert isinstance(m, Measurement) and m.last_pose is None
+    np.testing.assert_array_equal(m.phi, phi + bias)
+    assert (m.x0, m.y0, m.theta0) == (0.5, -0.5, 1.0)
+    s.set_bias(3, np.radians(10.0))
+    m = s.measure(0.5, -0.5, 1.0, phi)
+    np.testing.assert_array_equal(m.phi, phi + [0.01, -0.02, np.radians(10.0)])
+    np.testing.assert_array_equal(s.bias, [0.01, -0.02, np.radians(10.0)])
+    s.reset()
+    np.testing.assert_array_equal(s.bias, bias)
+    scalar = Sensors(SensorConfig(2, joint_bias=0.05))
+    np.testing.assert_array_equal(
+        scalar.measure(0, 0, 0, [0.0, 0.1]).phi, np.array([0.0, 0.1]) + 0.05
+    )
+
+
+def test_quantization():
+    q = np.radians(0.5)
+    s = Sensors(SensorConfig(2, joint_quantization=q))
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        phi = rng.uniform(-1, 1, 2)
+        meas = s.measure(0, 0, 0, phi).phi
+        steps = meas / q
+        np.testing.assert_allclose(steps, np.round(steps), atol=1e-9)
+        assert np.all(np.abs(meas - phi) <= 0.5 * q + 1e-12)
+
+
+def test_backlash_is_a_dead_band():
+    b = 0.02
+    s = Sensors(SensorConfig(1, joint_backlash=b))
+    assert s.measure(0, 0, 0, [0.0]).phi[0] == 0.0  # starts at the first true angle
+    # moving up: the reading lags by b/2 once the play is taken up
+    assert s.measure(0, 0, 0, [0.005]).phi[0] == 0.0  # inside the band: no change
+    assert s.measure(0, 0, 0, [0.05]).phi[0] == pytest.approx(0.05 - b / 2)
+    # reversing: nothing happens until the joint has moved back by the band width b
+    assert s.measure(0, 0, 0, [0.05 - 0.015]).phi[0] == pytest.approx(0.05 - b / 2)
+    assert s.measure(0, 0, 0, [0.05 - b]).phi[0] == pytest.approx(0.05 - b / 2)
+    assert s.measure(0, 0, 0, [0.0]).phi[0] == pytest.approx(0.0 + b / 2)
+    # the error is bounded by b/2 on any path
+    s.reset()
+    path = 0.2 * np.sin(np.linspace(0, 20, 500))
+    readings = np.array([s.measure(0, 0, 0, [p]).phi[0] for p in path])
+    assert np.max(np.abs(readings - path)) <= b / 2 + 1e-12
+    assert np.max(np.abs(readings - path)) > 0.45 * b
+
+
+def test_noise_statistics():
+    cfg = SensorConfig(4, joint_bias=0.1, seed=3, **NOISY)
+    s = Sensors(cfg)
+    m = 20000
+    phi = np.array([0.1, 0.2, -0.3, 0.0])
+    data = np.array(
+        [
+            np.concatenate(([r.x0, r.y0, r.theta0], r.phi))
+            for r in (s.measure(1.0, 2.0, 0.5, phi) for _ in range(m))
+        ]
+    )
+    err = data - np.concatenate(([1.0, 2.0, 0.5], phi + 0.1))
+    std = np.array([0.02, 0.02, 0.005, 0.01, 0.01, 0.01, 0.01])
+    # mean within 4 standard errors, std within 3 %
+    assert np.all(np.abs(err.mean(axis=0)) < 4 * std / np.sqrt(m))
+    np.testing.assert_allclose(err.std(axis=0), std, rtol=0.03)
+    # independent channels
+    corr = np.corrcoef(err.T)
+    assert np.max(np.abs(corr - np.eye(7))) < 0.04
+
+
+def test_last_pose_measurement():
+    s = Sensors(SensorConfig(2, measure_last_pose=True))
+    m = s.measure(0.0, 0.0, 0.0, [0.0, 0.0], last_pose=(-2.08, 0.0, 0.0))
+    assert m.last_pose == (-2.08, 0.0, 0.0)
+    with pytest.raises(SensorError, match="last_pose"):
+        s.measure(0.0, 0.0, 0.0, [0.0, 0.0])
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(n_joints=0), "n_joints"),
+        (dict(n_joints=3, joint_bias=[0.1, 0.2]), "joint_bias"),
+        (dict(n_joints=3, joint_noise_std=-1.0), "joint_noise_std"),
+        (dict(n_joints=3, joint_quantization=np.nan), "joint_quantization"),
+        (dict(n_joints=3, joint_backlash=-0.1), "joint_backlash"),
+        (dict(n_joints=3, pos_noise_std=-0.1), "pos_noise_std"),
+        (dict(n_joints=3, seed=-2), "seed"),
+    ],
+)
+def test_bad_config_raises(kwargs, field):
+    with pytest.raises(SensorError, match=field):
+        SensorConfig(**kwargs)
+
+
+def test_bad_calls_raise():
+    s = Sensors(SensorConfig(3))
+    with pytest.raises(SensorError, match="joint"):
+        s.set_bias(0, 0.1)
+    with pytest.raises(SensorError, match="joint"):
+        s.set_bias(4, 0.1)
+    with pytest.raises(SensorError, match="finite"):
+        s.set_bias(1, np.inf)
+    with pytest.raises(SensorError, match="shape"):
+        s.measure(0, 0, 0, [0.1, 0.2])
