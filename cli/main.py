@@ -363,8 +363,14 @@ def analyze_cmd(scenario):
                f"{[round(math.degrees(b), 3) for b in bias]} deg)")
     exact = analysis.steady_lateral_error(eps, link, c.k_y)
     paper = analysis.steady_lateral_error(eps, link, c.k_y, form="paper")
-    click.echo(f"predicted steady lateral error y_e: {exact * 100:.2f} cm "
-               f"(paper's Eq. 9, tan form: {paper * 100:.2f} cm)")
+    if sc.sensors.localize == "last_trailer":
+        click.echo(f"predicted steady lateral error y_e (last trailer localized): {exact * 100:.2f} cm "
+                   f"(paper's Eq. 9, tan form: {paper * 100:.2f} cm)")
+    else:
+        est = analysis.steady_lateral_error_estimated_pose(bias, link, c.k_x, c.k_y, c.k_theta, speed)
+        click.echo(f"predicted steady lateral error y_e (last trailer computed from the biased joints): "
+                   f"{est * 100:.2f} cm; with the last trailer localized it would be "
+                   f"{exact * 100:.2f} cm (Eq. 9: {paper * 100:.2f} cm)")
 
 
 @cli.command("validate")

@@ -97,7 +97,8 @@ def sensors_of(sc: Scenario) -> SensorConfig:
         joint_noise_std=math.radians(s.joint_noise_deg),
         joint_quantization=math.radians(s.joint_quantization_deg),
         joint_backlash=math.radians(s.joint_backlash_deg), pos_noise_std=s.position_noise,
-        heading_noise_std=math.radians(s.heading_noise_deg), seed=sc.seed,
+        heading_noise_std=math.radians(s.heading_noise_deg),
+        measure_last_pose=s.localize == "last_trailer", seed=sc.seed,
     )
 
 

@@ -143,6 +143,9 @@ class ControllerSection(_Section):
 
 
 class SensorSection(_Section):
+    # "robot": localize the robot, compute the last trailer from the joint angles (the paper's
+    # prototype); "last_trailer": localize the last trailer directly (the setting of Eq. 6-9)
+    localize: Literal["robot", "last_trailer"] = "robot"
     joint_bias_deg: FiniteFloat | list[FiniteFloat] = 0.0
     joint_noise_deg: NonNegFloat = 0.0
     joint_quantization_deg: NonNegFloat = 0.0

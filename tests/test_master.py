@@ -154,3 +154,22 @@ def test_jackknife_stops_the_run_with_a_clear_status(fmu3):
     assert result.status == "jackknifed"
     assert "phi_max" in result.message
     assert result.data["t"][-1] < 200.0
+
+
+@pytest.mark.parametrize("bias_deg, joint", [(5.0, 3), (10.0, 3), (5.0, 2)])
+def test_joint_bias_steady_offset_matches_the_analysis_fig14(fmu3, bias_deg, joint):
+    from pushtrain.cosim import analysis
+
+    biases = np.zeros(3)
+    biases[joint - 1] = math.radians(bias_deg)
+    sensors = SensorConfig(n_joints=3, joint_bias=biases, measure_last_pose=True)
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 14.0)], speed=0.08)
+    cfg = ControllerConfig.uniform(3)
+    result = simulate(fmu3, ref, cfg, sensors, horizon=170.0, check_goal=False)
+    offset = float(np.mean(result.data["e_lat"][_at(result.data, 150.0):]))
+    predicted = analysis.steady_lateral_error(analysis.effective_bias(biases), D, cfg.k_y)
+    assert offset == pytest.approx(predicted, rel=0.02)
+    # a bias on joint 2 of 3 enters with the opposite sign (alternating sum)
+    assert math.copysign(1.0, offset) == (-1.0 if joint == 3 else 1.0)
+    assert result.status == "completed"
+    assert max(abs(math.degrees(result.data[f"phi{i}"][-1])) for i in (1, 2, 3)) < 15.0
