@@ -141,8 +141,11 @@ def _run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, g
                       "trailer": (sc.train.trailer_size.length, sc.train.trailer_size.width)}
         path_xy = None if path is None else path.poses[:, :2]
         try:
-            written = plotting.plot_all(result.data, sc.train.n, out_dir, world=world_of(sc),
-                                        path_xy=path_xy, footprints=footprints, gif=gif)
+            from .runner import geometry_of
+
+            written = plotting.plot_all(result, sc.train.n, out_dir, world=world_of(sc),
+                                        path_xy=path_xy, footprints=footprints, gif=gif,
+                                        geometry=geometry_of(sc))
             log.info("plots: %s", ", ".join(p.name for p in written))
         except Exception as exc:  # plots must never lose the results already written
             log.exception("plotting failed")

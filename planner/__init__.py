@@ -1,0 +1,34 @@
+"""Planner: Reeds-Shepp paths of the last trailer (OMPL), whole-train check, reference export.
+
+Public API::
+
+    World.from_dict(d), Train.uniform(n), BodyFootprint(length, width, offset)
+    plan(world, start, goal, train, config=PlannerConfig(), start_headings=None) -> PlannedPath
+    PlannedPath.to_reference(speed, cusp_dwell) / to_json / from_json
+    check_train(world, train, start, segments, ...) -> TrainCheckResult
+    PlanningError(reason, message, where)
+"""
+
+from .errors import REASONS, PlanningError, PlanningInputError
+from .path import PlannedPath
+from .planner import (
+    PLANNERS,
+    PlannerConfig,
+    ReedsSheppCurve,
+    plan,
+    primitives_to_segments,
+    rs_distance,
+    turning_radius_from_joint_limit,
+)
+from .reeds_shepp import Primitive, evaluate_primitives, recover_primitives
+from .train_check import TrainCheckResult, check_train
+from .world import BodyFootprint, Train, World, draw_poses, save_diagnostic
+from . import worlds
+
+__all__ = [
+    "REASONS", "PlanningError", "PlanningInputError", "PlannedPath", "PLANNERS", "PlannerConfig",
+    "ReedsSheppCurve", "plan", "primitives_to_segments", "rs_distance",
+    "turning_radius_from_joint_limit", "Primitive", "evaluate_primitives", "recover_primitives",
+    "TrainCheckResult", "check_train", "BodyFootprint", "Train", "World", "draw_poses",
+    "save_diagnostic", "worlds",
+]

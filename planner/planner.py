@@ -1,0 +1,651 @@
+"""Reeds-Shepp planning of the last trailer with OMPL, and the whole-train replanning loop.
+
+This is the only module of pushtrain that imports ompl; OMPL's camelCase stays here and results
+are converted to numpy at once.
+
+Planner state: the last trailer's axle midpoint (x, y) and ``yaw`` = its direction of travel
+when pushing, yaw = theta + pi (theta: chain heading, toward the robot). Reeds-Shepp "forward"
+is therefore pushing (:data:`~pushtrain.cosim.reference.PUSH`, trailer leads) and "backward"
+pulling (:data:`~pushtrain.cosim.reference.PULL`, robot leads).
+
+Turning-radius rule (when :attr:`PlannerConfig.turning_radius` is None)::
+
+    r = D / tan(phi_max / (2 (1 + transient_margin)))      D = max_i max(F_i, R_i)
+
+i.e. the steady joint angle on the arc, 2 atan(D / r), is phi_max / (1 + transient_margin).
+Entering an arc from a line does not overshoot the steady angle in the chain kinematics, but
+switching between opposite arcs does: up to 1.46x the steady angle for 3 trailers and 1.56x for
+10 (r = 0.9 .. 1.5 m, D = 0.52 m), so the default margin 0.6 covers both; tracking transients
+of the closed loop need the rest. With phi_max = 90 deg and D = 0.52 m this gives r = 0.975 m.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import asdict, dataclass, field, replace
+from typing import Sequence
+
+import numpy as np
+from shapely.geometry import Point
+
+from pushtrain.cosim.reference import PULL, PUSH, Segment
+
+from .errors import PlanningError, PlanningInputError
+from .path import PlannedPath
+from .reeds_shepp import Primitive, recover_primitives
+from .train_check import check_train
+from .world import Train, World
+
+from ompl import base as ob  # noqa: E402  (the one module that imports ompl)
+from ompl import geometric as og  # noqa: E402
+from ompl import util as ou  # noqa: E402
+
+__all__ = [
+    "PlannerConfig",
+    "plan",
+    "turning_radius_from_joint_limit",
+    "PLANNERS",
+    "ReedsSheppCurve",
+    "rs_distance",
+]
+
+log = logging.getLogger(__name__)
+
+# OMPL prints to stdout; library code must not: keep only its errors.
+ou.setLogLevel(ou.LOG_ERROR)
+
+PLANNERS = ("rrtconnect", "rrtstar", "bitstar", "prmstar")
+"""Planner names: ``rrtconnect`` stops at its first solution; the others are anytime optimal."""
+
+_ANYTIME = {"rrtstar", "bitstar", "prmstar"}
+
+
+def _allocate_planner(name: str, si):
+    """OMPL planner object for ``name``."""
+    factory = {
+        "rrtconnect": og.RRTConnect,
+        "rrtstar": og.RRTstar,
+        "bitstar": og.BITstar,
+        "prmstar": og.PRMstar,
+    }[name]
+    return factory(si)
+
+
+def turning_radius_from_joint_limit(phi_max: float, link: float, transient_margin: float = 0.6) -> float:
+    """Turning radius [m] whose steady joint angle is ``phi_max / (1 + transient_margin)``.
+
+    ``r = link / tan(phi_max / (2 (1 + transient_margin)))`` with ``phi_max`` [rad] in (0, pi)
+    and ``link`` the largest hitch link [m].
+    """
+    if not (0.0 < phi_max < math.pi):
+        raise PlanningInputError(f"phi_max = {phi_max!r} rad: allowed is (0, pi)")
+    if not (transient_margin >= 0.0 and math.isfinite(transient_margin)):
+        raise PlanningInputError(f"transient_margin = {transient_margin!r}: must be finite and >= 0")
+    return float(link / math.tan(phi_max / (2.0 * (1.0 + transient_margin))))
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Planner settings (SI units).
+
+    Parameters
+    ----------
+    turning_radius : float or None
+        Reeds-Shepp radius [m]; None derives it from the train's ``phi_max`` with
+        :func:`turning_radius_from_joint_limit` and ``transient_margin``.
+    transient_margin : float
+        Margin of the radius rule (0.6: steady joint angle = phi_max / 1.6).
+    planner : str
+        One of :data:`PLANNERS`; ``rrtconnect`` (default) returns its first solution fast,
+        the others improve the path for ``anytime_time`` seconds.
+    time_budget : float
+        Wall-clock budget [s] for planning and all replanning together.
+    anytime_time : float
+        Solve time [s] of one anytime-planner run (capped by what is left of the budget).
+    seed : int or None
+        OMPL random seed (>= 1). Same seed, same plan for ``rrtconnect``; anytime planners stop
+        on time and are reproducible only if the machine is equally fast. None: OMPL's own seed.
+    simplify : bool
+        Shortcut the solution with OMPL's path simplifier (to its fixed point).
+    inflation : float
+        Clearance [m] every body keeps from obstacles (planning and train check).
+    offtrack_allowance : float
+        Extra clearance [m] for the last trailer while planning only, to leave room for the
+        followers that cut inside corners in transients.
+    planning_resolution : float
+        Motion-validation step [m] of OMPL along a local path (coarse; re-checked densely).
+    check_resolution : float
+        Dense re-check step [m], <= 0.01: largest corner displacement between checked samples.
+    max_attempts : int
+        Plans tried in total (the first plus replans after failed train checks).
+    radius_growth, inflation_growth, block_radius : float
+        Replanning: radius factor per joint-limit failure, added inflation [m] per collision
+        failure, and half-size [m] of the region blocked around a follower's collision.
+    check_train : bool
+        Run the whole-train check (disable only to study the last trailer alone).
+    allow_pull_arcs : bool
+        Let local Reeds-Shepp curves turn while pulling (default). False restricts pulling to
+        straight lines (much harder for the sampling planners; for studies only).
+    """
+
+    turning_radius: float | None = None
+    transient_margin: float = 0.6
+    planner: str = "rrtconnect"
+    time_budget: float = 2.0
+    anytime_time: float = 0.5
+    seed: int | None = 1
+    simplify: bool = True
+    inflation: float = 0.05
+    offtrack_allowance: float = 0.1
+    planning_resolution: float = 0.05
+    check_resolution: float = 0.01
+    max_attempts: int = 6
+    radius_growth: float = 1.2
+    inflation_growth: float = 0.05
+    block_radius: float = 0.25
+    check_train: bool = True
+    allow_pull_arcs: bool = True
+
+    def __post_init__(self):
+        name = str(self.planner).lower()
+        if name not in PLANNERS:
+            raise PlanningInputError(f"planner = {self.planner!r}: allowed are {PLANNERS}")
+        object.__setattr__(self, "planner", name)
+        positive = ("time_budget", "anytime_time", "planning_resolution", "check_resolution",
+                    "radius_growth", "block_radius")
+        for key in positive:
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0.0):
+                raise PlanningInputError(f"{key} = {value!r}: must be finite and > 0")
+        for key in ("inflation", "offtrack_allowance", "inflation_growth", "transient_margin"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise PlanningInputError(f"{key} = {value!r}: must be finite and >= 0")
+        if self.turning_radius is not None and not (
+            math.isfinite(self.turning_radius) and self.turning_radius > 0.0
+        ):
+            raise PlanningInputError(f"turning_radius = {self.turning_radius!r} m: must be > 0")
+        if self.check_resolution > 0.01:
+            raise PlanningInputError(
+                f"check_resolution = {self.check_resolution!r} m: must be <= 0.01"
+            )
+        if self.seed is not None and int(self.seed) < 1:
+            raise PlanningInputError(f"seed = {self.seed!r}: must be an integer >= 1 or None")
+        if int(self.max_attempts) < 1:
+            raise PlanningInputError(f"max_attempts = {self.max_attempts!r}: must be >= 1")
+
+    def radius_for(self, train: Train) -> float:
+        """The turning radius [m] used for ``train``."""
+        if self.turning_radius is not None:
+            return float(self.turning_radius)
+        return turning_radius_from_joint_limit(train.phi_max, train.max_link(), self.transient_margin)
+
+
+# ---------------------------------------------------------------------- OMPL helpers
+def _set_seed(seed: int) -> None:
+    """Seed OMPL's generator. OMPL logs an error when re-seeding after the first draw but does
+    re-seed (checked by the tests); that message is silenced here."""
+    level = ou.getLogLevel()
+    ou.setLogLevel(ou.LOG_NONE)
+    try:
+        ou.RNG.setSeed(int(seed))
+    finally:
+        ou.setLogLevel(level)
+
+
+def _space(rho: float, bounds) -> "ob.ReedsSheppStateSpace":
+    space = ob.ReedsSheppStateSpace(float(rho))
+    b = ob.RealVectorBounds(2)
+    b.setLow(0, bounds[0])
+    b.setLow(1, bounds[1])
+    b.setHigh(0, bounds[2])
+    b.setHigh(1, bounds[3])
+    space.setBounds(b)
+    return space
+
+
+def _yaw_wrap(yaw: float) -> float:
+    """Yaw in [-pi, pi) as OMPL's SO2 bounds require."""
+    return (float(yaw) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class ReedsSheppCurve:
+    """OMPL's Reeds-Shepp curve between two planner states (x, y, yaw) for radius ``rho``.
+
+    ``length`` is OMPL's ``distance`` [m]; :meth:`interpolate` is OMPL's ``interpolate`` at
+    the fraction t in [0, 1]; :meth:`primitives` recovers the line/arc pieces.
+    """
+
+    def __init__(self, rho: float, a: Sequence[float], b: Sequence[float]):
+        pad = 2.0 * rho + 1.0
+        lo = min(a[0], b[0]) - pad, min(a[1], b[1]) - pad
+        hi = max(a[0], b[0]) + pad, max(a[1], b[1]) + pad
+        self.rho = float(rho)
+        self._space = _space(rho, (lo[0], lo[1], hi[0], hi[1]))
+        self._a, self._b, self._out = (self._space.allocState() for _ in range(3))
+        for state, pose in ((self._a, a), (self._b, b)):
+            state.setX(float(pose[0]))
+            state.setY(float(pose[1]))
+            state.setYaw(_yaw_wrap(pose[2]))
+        self.length = float(self._space.distance(self._a, self._b))
+
+    def interpolate(self, t: float) -> tuple[float, float, float]:
+        """Pose (x, y, yaw) at the fraction ``t`` of the curve."""
+        self._space.interpolate(self._a, self._b, float(t), self._out)
+        return self._out.getX(), self._out.getY(), self._out.getYaw()
+
+    def primitives(self, tol: float = 1e-9) -> list[Primitive]:
+        """Recovered line/arc pieces (see :mod:`pushtrain.planner.reeds_shepp`)."""
+        return recover_primitives(self.interpolate, self.length, self.rho, tol)
+
+
+def rs_distance(rho: float, a: Sequence[float], b: Sequence[float]) -> float:
+    """Length [m] of the shortest Reeds-Shepp curve from pose ``a`` to ``b`` (x, y, yaw)."""
+    return ReedsSheppCurve(rho, a, b).length
+
+
+def primitives_to_segments(primitives: Sequence[Primitive], rho: float) -> list[Segment]:
+    """Planner-frame primitives -> reference segments (forward = PUSH, backward = PULL).
+
+    The chain heading theta = yaw + pi changes like yaw, so d(theta)/ds per metre travelled is
+    +1/rho for a left arc driven forward, -1/rho backward, and the opposite for right arcs.
+    """
+    out = []
+    for p in primitives:
+        direction = PUSH if p.gear > 0 else PULL
+        if p.turn == "S":
+            out.append(Segment("line", p.length, 0.0, direction))
+        else:
+            k = (1.0 if p.turn == "L" else -1.0) * p.gear / rho
+            out.append(Segment("arc", p.length, k, direction))
+    return out
+
+
+def _merge(segments: Sequence[Segment]) -> list[Segment]:
+    out: list[Segment] = []
+    for g in segments:
+        if out and (out[-1].kind, out[-1].curvature, out[-1].direction) == (
+            g.kind, g.curvature, g.direction
+        ):
+            out[-1] = Segment(g.kind, out[-1].length + g.length, g.curvature, g.direction)
+        else:
+            out.append(g)
+    return out
+
+
+class _TrailerMotionValidator(ob.MotionValidator):
+    """Motion check along OMPL's Reeds-Shepp curve at ``step`` metres: every sampled state
+    valid and, unless ``allow_pull_arcs``, no heading change while travelling backward."""
+
+    def __init__(self, si, space, is_valid, step: float, allow_pull_arcs: bool):
+        super().__init__(si)
+        self._space, self._valid, self._step = space, is_valid, float(step)
+        self._allow = bool(allow_pull_arcs)
+        self._tmp = space.allocState()
+
+    def checkMotion(self, s1, s2):  # noqa: N802 (OMPL API)
+        length = self._space.distance(s1, s2)
+        m = max(1, int(math.ceil(length / self._step)))
+        x0, y0, yaw0 = s1.getX(), s1.getY(), s1.getYaw()
+        tmp = self._tmp
+        for k in range(1, m + 1):
+            self._space.interpolate(s1, s2, k / m, tmp)
+            if not self._valid(tmp):
+                return False
+            x1, y1, yaw1 = tmp.getX(), tmp.getY(), tmp.getYaw()
+            if not self._allow:
+                dyaw = (yaw1 - yaw0 + math.pi) % (2.0 * math.pi) - math.pi
+                dx, dy = x1 - x0, y1 - y0
+                mid = yaw0 + 0.5 * dyaw
+                if abs(dyaw) > 1e-9 and dx * math.cos(mid) + dy * math.sin(mid) < 0.0:
+                    return False
+            x0, y0, yaw0 = x1, y1, yaw1
+        return True
+
+
+@dataclass
+class _Attempt:
+    """State of one planning attempt (what the replanning loop changes)."""
+
+    radius: float
+    inflation: float
+    blocks: list = field(default_factory=list)
+
+
+def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
+                attempt: _Attempt, solve_time: float, seed: int | None):
+    """One OMPL solve of the last trailer. Returns (states (M,3), info) or raises PlanningError."""
+    last = train.last
+    planning_world = world.with_obstacles(attempt.blocks) if attempt.blocks else world
+    region = planning_world.eroded(attempt.inflation + config.offtrack_allowance)
+    contains = region.contains
+    polygons = last.polygons
+
+    def is_valid(state) -> bool:
+        theta = state.getYaw() + math.pi
+        return bool(contains(polygons(state.getX(), state.getY(), theta)))
+
+    if seed is not None:
+        _set_seed(seed)
+    space = _space(attempt.radius, world.bounds)
+    ss = og.SimpleSetup(space)
+    ss.setStateValidityChecker(is_valid)
+    si = ss.getSpaceInformation()
+    validator = _TrailerMotionValidator(si, space, is_valid, config.planning_resolution,
+                                        config.allow_pull_arcs)
+    si.setMotionValidator(validator)
+    start, goal = space.allocState(), space.allocState()
+    for state, pose in ((start, start_yaw), (goal, goal_yaw)):
+        state.setX(float(pose[0]))
+        state.setY(float(pose[1]))
+        state.setYaw(_yaw_wrap(pose[2]))
+    ss.setStartAndGoalStates(start, goal)
+    if config.planner in _ANYTIME:
+        ss.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
+    ss.setPlanner(_allocate_planner(config.planner, si))
+    ss.setup()
+    t0 = time.perf_counter()
+    if si.isValid(start) and si.isValid(goal) and si.checkMotion(start, goal):
+        # The shortest Reeds-Shepp curve itself is free: it is the optimal path.
+        info = {"status": "direct", "solve_time": time.perf_counter() - t0,
+                "planner_time": time.perf_counter() - t0}
+        states = np.array([[p.getX(), p.getY(), p.getYaw()] for p in (start, goal)])
+        info["raw_length"] = info["length_ompl"] = float(space.distance(start, goal))
+        return states, info
+    status = ss.solve(float(solve_time))
+    solve_wall = time.perf_counter() - t0
+    name = str(status)
+    info = {"status": name, "solve_time": solve_wall, "planner_time": ss.getLastPlanComputationTime()}
+    if not ss.haveExactSolutionPath():
+        if ss.haveSolutionPath():
+            path = ss.getSolutionPath()
+            reached = path.getState(path.getStateCount() - 1)
+            gap = float(space.distance(reached, goal))
+            raise PlanningError(
+                "approximate_only",
+                f"{config.planner} found only an approximate solution within {solve_time:.3g} s: "
+                f"it ends at ({reached.getX():.3f}, {reached.getY():.3f}), {gap:.3f} m (Reeds-Shepp) "
+                f"from the goal ({goal_yaw[0]:.3f}, {goal_yaw[1]:.3f})",
+                where=(reached.getX(), reached.getY()), details={"gap": gap, **info},
+            )
+        raise PlanningError(
+            "unreachable",
+            f"{config.planner} found no path to the goal ({goal_yaw[0]:.3f}, {goal_yaw[1]:.3f}) "
+            f"within {solve_time:.3g} s (status {name})",
+            where=tuple(goal_yaw[:2]), details=info,
+        )
+    path = ss.getSolutionPath()
+    info["raw_length"] = float(path.length())
+    if config.simplify:
+        t1 = time.perf_counter()
+        og.PathSimplifier(si).simplifyMax(path)
+        path = _greedy_shortcut(si, path)
+        info["simplify_time"] = time.perf_counter() - t1
+    states = np.array([[s.getX(), s.getY(), s.getYaw()] for s in path.getStates()])
+    info["length_ompl"] = float(path.length())
+    return states, info
+
+
+def _greedy_shortcut(si, path):
+    """Deterministic shortcut: from each kept state, jump to the farthest later state that a
+    single free Reeds-Shepp curve reaches (removes the wiggles random shortcutting leaves)."""
+    states = list(path.getStates())
+    kept, i = [states[0]], 0
+    while i < len(states) - 1:
+        j = len(states) - 1
+        while j > i + 1 and not si.checkMotion(states[i], states[j]):
+            j -= 1
+        kept.append(states[j])
+        i = j
+    return og.PathGeometric(si, kept)
+
+
+def _segments_from_states(states: np.ndarray, rho: float) -> tuple[list[Segment], float]:
+    """Line/arc segments of the Reeds-Shepp path through ``states`` (planner frame), and the
+    largest deviation [m] between the segments and OMPL's interpolation (checked at 33 points
+    per local curve)."""
+    from .reeds_shepp import evaluate_primitives
+
+    prims: list[Primitive] = []
+    worst = 0.0
+    for a, b in zip(states[:-1], states[1:]):
+        curve = ReedsSheppCurve(rho, a, b)
+        p = curve.primitives()
+        if curve.length > 0.0 and p:
+            ts = np.linspace(0.0, 1.0, 33)
+            ref = np.array([curve.interpolate(t) for t in ts])
+            ev = evaluate_primitives(a, p, rho, ts * curve.length)
+            worst = max(worst, float(np.hypot(*(ev[:, :2] - ref[:, :2]).T).max()))
+        prims += p
+    return _merge(primitives_to_segments(prims, rho)), worst
+
+
+def _chain_to_yaw(pose) -> tuple[float, float, float]:
+    return float(pose[0]), float(pose[1]), float(pose[2]) + math.pi
+
+
+def _check_endpoints(world: World, train: Train, start, goal, start_headings, inflation: float):
+    """Raise PlanningError for no free space, colliding start/goal, or separated start/goal."""
+    if world.free.is_empty or world.free_area <= 1e-12:
+        raise PlanningError(
+            "no_free_space",
+            f"the map has no free space (free area {world.free_area:.3g} m² inside outline bounds "
+            f"{tuple(round(b, 3) for b in world.outline.bounds)})",
+        )
+    last = train.last
+    half = 0.5 * min(last.length, last.width) + inflation
+    core = world.eroded(half)
+    if core.is_empty:
+        raise PlanningError(
+            "no_free_space",
+            f"no place in the map fits the last trailer ({last.length} m x {last.width} m) with "
+            f"{inflation} m clearance: the free space is nowhere wider than {2 * half:.3f} m",
+        )
+    region = world.eroded(inflation)
+    theta0 = (np.full(train.n + 1, float(start[2])) if start_headings is None
+              else np.asarray(start_headings, dtype=float))
+    from .train_check import body_positions_along
+
+    x, y = body_positions_along(np.asarray(start, dtype=float)[None, :], theta0[None, :], train.geometry)
+    for i, body in enumerate(train.bodies):
+        poly = body.polygons(x[0, i], y[0, i], theta0[i])
+        if not region.contains(poly):
+            name = "robot" if i == 0 else f"trailer {i}"
+            raise PlanningError(
+                "start_in_collision",
+                f"at the start the {name} (body {i}) at ({x[0, i]:.3f}, {y[0, i]:.3f}), heading "
+                f"{math.degrees(theta0[i]):.1f} deg, is not inside the free space with "
+                f"{inflation} m clearance",
+                where=(x[0, i], y[0, i], theta0[i]), details={"body": i},
+            )
+    if not region.contains(last.polygons(*goal)):
+        raise PlanningError(
+            "goal_in_collision",
+            f"at the goal the last trailer at ({goal[0]:.3f}, {goal[1]:.3f}), heading "
+            f"{math.degrees(goal[2]):.1f} deg, is not inside the free space with {inflation} m "
+            "clearance",
+            where=tuple(goal), details={"body": train.n},
+        )
+    # Footprint centres must lie in the free space shrunk by half the smaller side: if start and
+    # goal centres are in different pieces of it, no motion connects them.
+    pieces = list(getattr(core, "geoms", [core]))
+    if len(pieces) > 1:
+        def piece_of(pose):
+            cx = pose[0] + last.offset * math.cos(pose[2])
+            cy = pose[1] + last.offset * math.sin(pose[2])
+            p = Point(cx, cy)
+            return next((k for k, g in enumerate(pieces) if g.covers(p)), None)
+
+        ka, kb = piece_of(start), piece_of(goal)
+        if ka is not None and kb is not None and ka != kb:
+            raise PlanningError(
+                "unreachable",
+                f"the goal ({goal[0]:.3f}, {goal[1]:.3f}) lies in a part of the map the last trailer "
+                f"cannot reach from the start ({start[0]:.3f}, {start[1]:.3f}): every connection is "
+                f"narrower than {2 * half:.3f} m (trailer width + 2 x clearance)",
+                where=tuple(goal[:2]), details={"start_piece": ka, "goal_piece": kb},
+            )
+
+
+def plan(
+    world: World,
+    start: Sequence[float],
+    goal: Sequence[float],
+    train: Train,
+    config: PlannerConfig | None = None,
+    start_headings: Sequence[float] | None = None,
+) -> PlannedPath:
+    """Plan a line/arc path of the last trailer from ``start`` to ``goal`` and check the train.
+
+    Parameters
+    ----------
+    world : World
+    start, goal : (x, y, theta)
+        Last trailer's axle-midpoint poses [m, m, rad], chain convention (theta toward the
+        robot).
+    train : Train
+    config : PlannerConfig or None
+    start_headings : (n+1,) or None
+        Headings [rad] of robot and trailers at the start; None is a straight chain.
+
+    Returns
+    -------
+    PlannedPath
+        With :attr:`~PlannedPath.headings` from the whole-train check.
+
+    Raises
+    ------
+    PlanningError
+        ``reason`` in no_free_space, start_in_collision, goal_in_collision, unreachable,
+        approximate_only, train_check_failed (PlanningInputError for malformed input).
+    """
+    config = config or PlannerConfig()
+    t_begin = time.perf_counter()
+    start = np.asarray(start, dtype=float).reshape(-1)
+    goal = np.asarray(goal, dtype=float).reshape(-1)
+    for name, pose in (("start", start), ("goal", goal)):
+        if pose.size != 3 or not np.all(np.isfinite(pose)):
+            raise PlanningInputError(f"{name} = {pose.tolist()!r}: need finite (x, y, theta)")
+    if start_headings is not None:
+        start_headings = np.asarray(start_headings, dtype=float).reshape(-1)
+        if start_headings.size != train.n + 1 or not np.all(np.isfinite(start_headings)):
+            raise PlanningInputError(
+                f"start_headings has {start_headings.size} entries; need n + 1 = {train.n + 1} "
+                "finite headings [rad]"
+            )
+        if abs(math.remainder(start_headings[-1] - start[2], 2 * math.pi)) > 1e-9:
+            raise PlanningInputError(
+                f"start_headings[-1] = {start_headings[-1]!r} differs from start theta {start[2]!r}"
+            )
+    _check_endpoints(world, train, start, goal, start_headings, config.inflation)
+
+    attempt = _Attempt(config.radius_for(train), config.inflation)
+    history = []
+    last_error: PlanningError | None = None
+    last_result = None
+    for k in range(int(config.max_attempts)):
+        remaining = config.time_budget - (time.perf_counter() - t_begin)
+        if remaining <= 0.0:
+            break
+        solve_time = min(config.anytime_time, remaining) if config.planner in _ANYTIME else remaining
+        seed = None if config.seed is None else int(config.seed) + k
+        try:
+            states, info = _solve_once(world, train, _chain_to_yaw(start), _chain_to_yaw(goal),
+                                       config, attempt, solve_time, seed)
+        except PlanningError as exc:
+            last_error = exc
+            history.append({"attempt": k, "radius": attempt.radius, "inflation": attempt.inflation,
+                            "blocks": len(attempt.blocks), "error": exc.reason})
+            if k == 0 or exc.reason != "unreachable":
+                break
+            # a replanning change made it unreachable: undo the last change and try again
+            attempt = _Attempt(config.radius_for(train), config.inflation)
+            continue
+        segments, deviation = _segments_from_states(states, attempt.radius)
+        if deviation > 1e-6:
+            raise RuntimeError(
+                f"Reeds-Shepp segment recovery deviates {deviation:.3g} m from OMPL's curve"
+            )
+        entry = {"attempt": k, "radius": attempt.radius, "inflation": attempt.inflation,
+                 "blocks": len(attempt.blocks), "seed": seed, **info}
+        result = None
+        if config.check_train:
+            result = check_train(world, train, start, segments, start_headings,
+                                 margin=config.inflation, resolution=config.check_resolution)
+            entry["train_ok"] = result.ok
+            entry["failure"] = result.failure
+        history.append(entry)
+        if result is None or result.ok:
+            info_all = {
+                "planner": config.planner, "seed": config.seed, "attempts": history,
+                "radius": attempt.radius, "inflation": attempt.inflation,
+                "time": time.perf_counter() - t_begin,
+                "first_solution_time": history[0].get("planner_time"),
+                "train_check": None if result is None else {
+                    "max_abs_phi": result.max_abs_phi.tolist(),
+                    "min_clearance": result.min_clearance,
+                },
+            }
+            path = PlannedPath(start, tuple(segments), attempt.radius,
+                               None if start_headings is None else start_headings,
+                               config.check_resolution, info_all)
+            if result is not None:
+                path.headings = _resample_headings(result, path)
+            log.info("planned %.2f m, %d segments, %d cusps in %.3f s (%d attempts)",
+                     path.length, len(segments), path.n_cusps, info_all["time"], k + 1)
+            return path
+        last_result = result
+        attempt = _next_attempt(attempt, result.failure, train, config)
+    if last_result is not None and last_result.failure is not None:
+        f = last_result.failure
+        name = "robot" if f["body"] == 0 else f"trailer {f['body']}"
+        what = (f"collides near ({f['x']:.3f}, {f['y']:.3f})" if f["kind"] == "collision"
+                else f"reaches |phi_{f['body']}| = {math.degrees(abs(f['phi'])):.1f} deg > "
+                     f"{math.degrees(train.phi_max):.1f} deg")
+        raise PlanningError(
+            "train_check_failed",
+            f"after {len(history)} attempts ({time.perf_counter() - t_begin:.2f} s) the whole train "
+            f"still fails: the {name} {what} at s = {f['s']:.2f} m of the last plan",
+            where=(f["x"], f["y"]), details={"failure": f, "attempts": history},
+        )
+    if last_error is not None:
+        last_error.details.setdefault("attempts", history)
+        raise last_error
+    raise PlanningError(
+        "unreachable",
+        f"no plan within the time budget {config.time_budget} s",
+        where=tuple(goal[:2]), details={"attempts": history},
+    )
+
+
+def _resample_headings(result, path: PlannedPath) -> np.ndarray:
+    """Headings of the train check interpolated at the path's dense samples."""
+    out = np.empty((path.s.size, result.headings.shape[1]))
+    for i in range(out.shape[1]):
+        out[:, i] = np.interp(path.s, result.s, result.headings[:, i])
+    return out
+
+
+def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: PlannerConfig) -> _Attempt:
+    """Change what the last failure calls for: block the colliding region (and grow the
+    inflation) after a collision, a larger radius after a joint-limit failure."""
+    from shapely.geometry import box as _box
+
+    if failure["kind"] == "collision":
+        r = config.block_radius
+        block = _box(failure["x"] - r, failure["y"] - r, failure["x"] + r, failure["y"] + r)
+        blocks = attempt.blocks + [block]
+        inflation = attempt.inflation + (config.inflation_growth if len(blocks) > 1 else 0.0)
+        log.info("train check: %s; blocking (%.2f, %.2f), inflation %.3f m", failure["kind"],
+                 failure["x"], failure["y"], inflation)
+        return replace(attempt, inflation=inflation, blocks=blocks)
+    radius = attempt.radius * config.radius_growth
+    log.info("train check: joint limit; radius %.3f m", radius)
+    return replace(attempt, radius=radius)
+
+
+def config_dict(config: PlannerConfig) -> dict:
+    """Plain-data form of a configuration."""
+    return asdict(config)

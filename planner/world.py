@@ -1,0 +1,366 @@
+"""Corridor maps, body footprints and the train description used by the planner.
+
+A :class:`World` is free space in the plane: the inside of an optional outline polygon
+(``free``) minus any number of obstacle polygons (``obstacles`` and ``walls`` are synonyms).
+Everything is plain data (lists of ``[x, y]`` points, metres) so a scenario file can hold it.
+
+Bodies are rectangles attached to their axle midpoints (the robot's centre for body 0): a
+:class:`BodyFootprint` is ``length`` along the body heading, ``width`` across it, and ``offset``,
+the signed distance [m] from the axle midpoint to the rectangle's centre along the heading
+``theta`` (positive toward the robot, the chain convention of :mod:`pushtrain.cosim.kinematics`).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import shapely
+from shapely.geometry import MultiPolygon, Point, Polygon, box
+from shapely.ops import unary_union
+
+from pushtrain.cosim.kinematics import ChainGeometry
+
+from .errors import PlanningInputError
+
+__all__ = ["World", "BodyFootprint", "Train", "save_diagnostic", "draw_poses"]
+
+log = logging.getLogger(__name__)
+
+_WORLD_KEYS = ("free", "obstacles", "walls", "bounds")
+
+
+def _polygon(points: Any, field_name: str) -> Polygon:
+    """A valid shapely polygon from a list of [x, y] points [m]; PlanningInputError otherwise."""
+    try:
+        arr = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise PlanningInputError(
+            f"{field_name} = {points!r}: need a list of [x, y] points (numbers)"
+        ) from exc
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 3:
+        raise PlanningInputError(
+            f"{field_name} has shape {arr.shape}: need at least 3 points [x, y]"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise PlanningInputError(f"{field_name} contains non-finite coordinates")
+    poly = Polygon(arr)
+    if not poly.is_valid:
+        fixed = shapely.make_valid(poly)
+        polys = [g for g in getattr(fixed, "geoms", [fixed]) if isinstance(g, Polygon)]
+        poly = unary_union(polys) if polys else Polygon()
+        log.warning("%s was not a valid (simple) polygon; repaired with make_valid", field_name)
+    return poly
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    """Free space for the train: ``outline`` minus ``obstacles``.
+
+    Parameters
+    ----------
+    outline : shapely Polygon
+        Region the bodies must stay inside [m].
+    obstacles : tuple of shapely Polygon
+        Regions the bodies must not touch [m] (walls, shelves, ...).
+
+    Use :meth:`from_dict` to build one from plain data.
+    """
+
+    outline: Polygon
+    obstacles: tuple = ()
+    free: Any = field(init=False, repr=False)
+
+    def __post_init__(self):
+        free = self.outline
+        if self.obstacles:
+            free = free.difference(unary_union(list(self.obstacles)))
+        object.__setattr__(self, "free", free)
+        shapely.prepare(free)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "World":
+        """Build a world from a scenario file's ``[world]`` section (plain data, metres).
+
+        Accepted keys:
+
+        ``free``
+            ``[[x, y], ...]``: outline of the free space (a simple polygon, either orientation).
+        ``obstacles``, ``walls``
+            ``[[[x, y], ...], ...]``: polygons removed from the free space (synonyms; both may
+            be given, they are combined).
+        ``bounds``
+            ``[xmin, ymin, xmax, ymax]``: a rectangular outline, used when ``free`` is absent.
+
+        At least one of ``free`` and ``bounds`` is required. Unknown keys are an error.
+        """
+        if not isinstance(data, Mapping):
+            raise PlanningInputError(f"world must be a table/dict, got {type(data).__name__}")
+        unknown = sorted(set(data) - set(_WORLD_KEYS))
+        if unknown:
+            raise PlanningInputError(f"world has unknown keys {unknown}: allowed are {_WORLD_KEYS}")
+        if "free" in data:
+            outline = _polygon(data["free"], "world.free")
+        elif "bounds" in data:
+            b = np.asarray(data["bounds"], dtype=float).reshape(-1)
+            if b.size != 4 or not np.all(np.isfinite(b)) or b[2] <= b[0] or b[3] <= b[1]:
+                raise PlanningInputError(
+                    f"world.bounds = {data['bounds']!r}: need [xmin, ymin, xmax, ymax] with "
+                    "xmax > xmin and ymax > ymin"
+                )
+            outline = box(*b)
+        else:
+            raise PlanningInputError("world needs 'free' (an outline) or 'bounds'")
+        obstacles = []
+        for key in ("obstacles", "walls"):
+            items = data.get(key, [])
+            if not isinstance(items, Sequence):
+                raise PlanningInputError(f"world.{key} must be a list of polygons")
+            obstacles += [_polygon(p, f"world.{key}[{k}]") for k, p in enumerate(items)]
+        return cls(outline, tuple(obstacles))
+
+    def to_dict(self) -> dict:
+        """Plain-data form accepted by :meth:`from_dict` (outline and obstacle exteriors)."""
+
+        def rings(geom):
+            polys = geom.geoms if isinstance(geom, MultiPolygon) else [geom]
+            return [np.asarray(p.exterior.coords)[:-1].tolist() for p in polys if not p.is_empty]
+
+        out = {"free": rings(self.outline)[0]} if not self.outline.is_empty else {"free": []}
+        holes = [np.asarray(r.coords)[:-1].tolist() for r in getattr(self.outline, "interiors", [])]
+        obstacles = holes + [r for o in self.obstacles for r in rings(o)]
+        if obstacles:
+            out["obstacles"] = obstacles
+        return out
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(xmin, ymin, xmax, ymax) of the free space [m]; the outline's if it is empty."""
+        geom = self.outline if self.free.is_empty else self.free
+        return tuple(float(a) for a in geom.bounds)
+
+    @property
+    def free_area(self) -> float:
+        """Area of the free space [m²]."""
+        return float(self.free.area)
+
+    def eroded(self, margin: float):
+        """Free space shrunk by ``margin`` [m] (prepared): a body inside it keeps that clearance."""
+        geom = self.free if margin <= 0.0 else self.free.buffer(-float(margin), quad_segs=16)
+        shapely.prepare(geom)
+        return geom
+
+    def with_obstacles(self, extra: Sequence[Polygon]) -> "World":
+        """A copy with ``extra`` obstacle polygons added."""
+        return World(self.outline, tuple(self.obstacles) + tuple(extra))
+
+    def contains_point(self, x: float, y: float) -> bool:
+        """Whether (x, y) [m] lies in the free space."""
+        return bool(self.free.contains(Point(float(x), float(y))))
+
+    # ------------------------------------------------------------------ drawing
+    def plot(self, ax, free_color: str = "#f4f4f4", obstacle_color: str = "#606060"):
+        """Draw the free space (light) and everything else inside the bounds (dark) on ``ax``."""
+        from matplotlib.patches import PathPatch
+        from matplotlib.path import Path as MplPath
+
+        xmin, ymin, xmax, ymax = self.outline.bounds
+        pad = 0.05 * max(xmax - xmin, ymax - ymin, 1e-9)
+        frame = box(xmin - pad, ymin - pad, xmax + pad, ymax + pad)
+        blocked = frame.difference(self.free)
+        for geom, color in ((blocked, obstacle_color), (self.free, free_color)):
+            for poly in getattr(geom, "geoms", [geom]):
+                if not isinstance(poly, Polygon) or poly.is_empty:
+                    continue
+                verts, codes = [], []
+                for ring in [poly.exterior, *poly.interiors]:
+                    xy = np.asarray(ring.coords)
+                    verts += xy.tolist()
+                    codes += [MplPath.MOVETO] + [MplPath.LINETO] * (len(xy) - 2) + [MplPath.CLOSEPOLY]
+                ax.add_patch(PathPatch(MplPath(verts, codes), facecolor=color, edgecolor="none"))
+        ax.set_xlim(xmin - pad, xmax + pad)
+        ax.set_ylim(ymin - pad, ymax + pad)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        return ax
+
+
+@dataclass(frozen=True)
+class BodyFootprint:
+    """Rectangle of one body in its own frame.
+
+    Parameters
+    ----------
+    length : float
+        Extent along the body heading [m], > 0.
+    width : float
+        Extent across the body heading [m], > 0.
+    offset : float
+        Rectangle centre minus axle midpoint along the heading theta (toward the robot) [m];
+        must keep the axle midpoint inside the rectangle (|offset| <= length / 2).
+    """
+
+    length: float = 0.8
+    width: float = 0.6
+    offset: float = 0.0
+
+    def __post_init__(self):
+        for name in ("length", "width"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise PlanningInputError(f"footprint {name} = {value!r} m: must be finite and > 0")
+        if not (np.isfinite(self.offset) and abs(self.offset) <= 0.5 * self.length):
+            raise PlanningInputError(
+                f"footprint offset = {self.offset!r} m: the axle midpoint must lie inside the "
+                f"rectangle, |offset| <= length/2 = {0.5 * self.length}"
+            )
+
+    def corners(self, x, y, theta) -> np.ndarray:
+        """Corners [m] of the rectangle at axle-midpoint poses; shape (..., 4, 2), CCW order."""
+        x, y, theta = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x, y, theta)))
+        c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
+        hl, hw = 0.5 * self.length, 0.5 * self.width
+        along = self.offset + np.array([hl, -hl, -hl, hl])
+        across = np.array([hw, hw, -hw, -hw])
+        px = x[..., None] + along * c - across * s
+        py = y[..., None] + along * s + across * c
+        return np.stack([px, py], axis=-1)
+
+    def polygons(self, x, y, theta) -> np.ndarray:
+        """Shapely polygons of the rectangle at the given poses (array of the broadcast shape)."""
+        return shapely.polygons(self.corners(x, y, theta))
+
+    def to_dict(self) -> dict:
+        """Plain data."""
+        return {"length": self.length, "width": self.width, "offset": self.offset}
+
+
+@dataclass(frozen=True)
+class Train:
+    """Geometry, footprints and joint limit of a robot with n trailers.
+
+    Parameters
+    ----------
+    geometry : ChainGeometry
+        Hitch links F_i, R_i [m].
+    robot : BodyFootprint
+        Body 0 (its reference point is the robot centre).
+    trailers : tuple of BodyFootprint
+        Bodies 1..n, one per trailer (own sizes allowed).
+    phi_max : float
+        Limit on every |phi_i| [rad] (the FMU's ``phi_max``), in (0, pi).
+    """
+
+    geometry: ChainGeometry
+    robot: BodyFootprint = BodyFootprint(0.6, 0.5, 0.0)
+    trailers: tuple = ()
+    phi_max: float = 0.5 * np.pi
+
+    def __post_init__(self):
+        trailers = tuple(self.trailers) or (BodyFootprint(),) * self.geometry.n
+        if len(trailers) != self.geometry.n:
+            raise PlanningInputError(
+                f"{len(trailers)} trailer footprints for a chain of n = {self.geometry.n} trailers"
+            )
+        object.__setattr__(self, "trailers", trailers)
+        if not (np.isfinite(self.phi_max) and 0.0 < self.phi_max < np.pi):
+            raise PlanningInputError(f"phi_max = {self.phi_max!r} rad: allowed is (0, pi)")
+
+    @classmethod
+    def uniform(
+        cls,
+        n_trailers: int = 3,
+        link: float = 0.52,
+        robot: BodyFootprint | None = None,
+        trailer: BodyFootprint | None = None,
+        phi_max: float = 0.5 * np.pi,
+    ) -> "Train":
+        """``n_trailers`` equal trailers (Table 1 defaults: 0.8 m x 0.6 m, D = 0.52 m)."""
+        geometry = ChainGeometry.uniform(n_trailers, link)
+        return cls(
+            geometry,
+            robot or BodyFootprint(0.6, 0.5, 0.0),
+            (trailer or BodyFootprint(),) * geometry.n,
+            phi_max,
+        )
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "Train":
+        """From plain data: ``n_trailers`` (int), optional ``link`` (m, default 0.52) or
+        ``front``/``rear`` lists, ``robot`` and ``trailer`` (one dict for all) or ``trailers``
+        (a list of dicts) with ``length``/``width``/``offset``, and ``phi_max_deg``."""
+        if "front" in data or "rear" in data:
+            geometry = ChainGeometry(np.asarray(data["front"]), np.asarray(data["rear"]))
+        else:
+            geometry = ChainGeometry.uniform(int(data.get("n_trailers", 3)), data.get("link", 0.52))
+        robot = BodyFootprint(**data["robot"]) if "robot" in data else BodyFootprint(0.6, 0.5)
+        if "trailers" in data:
+            trailers = tuple(BodyFootprint(**t) for t in data["trailers"])
+        else:
+            trailers = (BodyFootprint(**data.get("trailer", {})),) * geometry.n
+        phi_max = np.radians(float(data.get("phi_max_deg", 90.0)))
+        return cls(geometry, robot, trailers, phi_max)
+
+    @property
+    def n(self) -> int:
+        """Number of trailers."""
+        return self.geometry.n
+
+    @property
+    def bodies(self) -> tuple:
+        """Footprints of bodies 0..n."""
+        return (self.robot, *self.trailers)
+
+    @property
+    def last(self) -> BodyFootprint:
+        """Footprint of the last trailer (the planned body)."""
+        return self.trailers[-1]
+
+    def max_link(self) -> float:
+        """Largest hitch link max(F_i, R_i) [m]."""
+        return float(max(self.geometry.front.max(), self.geometry.rear.max()))
+
+
+def draw_poses(ax, train: Train, x, y, theta, color="tab:blue", alpha=0.6, label=None):
+    """Outline every body of ``train`` at positions ``x, y`` (n+1,) and headings (n+1,)."""
+    for i, body in enumerate(train.bodies):
+        c = body.corners(x[i], y[i], theta[i])
+        ax.fill(c[:, 0], c[:, 1], facecolor="none", edgecolor=color, alpha=alpha,
+                label=label if i == 0 else None)
+
+
+def save_diagnostic(path, world: World, start=None, goal=None, train: Train | None = None,
+                    poses=None, title: str | None = None, marks=None) -> None:
+    """Save a PNG of the map with the last trailer at ``start`` and ``goal`` (x, y, theta).
+
+    ``poses`` (N, 3) draws a path of the last trailer; ``marks`` is a list of (x, y, text)
+    points to flag (collisions, ...). No pyplot: safe in headless processes.
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 7))
+    ax = fig.add_subplot()
+    world.plot(ax)
+    last = train.last if train is not None else BodyFootprint()
+    for pose, color, name in ((start, "tab:green", "start"), (goal, "tab:red", "goal")):
+        if pose is None:
+            continue
+        c = last.corners(*pose[:3])
+        ax.fill(c[:, 0], c[:, 1], facecolor=color, alpha=0.4, edgecolor=color, label=name)
+        ax.annotate("", xy=(pose[0] + 0.4 * np.cos(pose[2]), pose[1] + 0.4 * np.sin(pose[2])),
+                    xytext=(pose[0], pose[1]), arrowprops={"arrowstyle": "->", "color": color})
+    if poses is not None:
+        poses = np.asarray(poses)
+        ax.plot(poses[:, 0], poses[:, 1], "-", color="tab:blue", lw=1, label="last trailer")
+    for x, y, text in marks or []:
+        ax.plot([x], [y], "x", color="magenta", ms=10)
+        ax.annotate(text, (x, y), color="magenta", fontsize=8)
+    ax.legend(loc="best", fontsize=8)
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.savefig(path, dpi=110)
