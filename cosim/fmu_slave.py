@@ -174,7 +174,13 @@ class TrailerTrainSlave:
 
         def write(values) -> None:
             view[:] = values
-            set_(component, refs, count, buffer)
+            try:
+                set_(component, refs, count, buffer)
+            except FMICallException as exc:
+                raise CosimError(
+                    f"setting {list(names)} = {list(view)} failed at t = {self.time:.6f} s: "
+                    f"{self.last_messages() or exc}"
+                ) from exc
 
         return write
 

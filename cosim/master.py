@@ -256,7 +256,7 @@ def _columns(n: int) -> list[str]:
     cols = ["t"]
     for base in ("x", "y", "theta", "v", "w"):
         cols += [f"{base}{i}" for i in range(n + 1)]
-    for base in ("phi", "phi_meas", "F_lat", "F_lat_max", "slipping"):
+    for base in ("phi", "phi_meas", "F_lat", "F_lat_max", "slipping", "u"):
         cols += [f"{base}{i}" for i in range(1, n + 1)]
     cols += ["v_cmd", "w_cmd", "push_x", "push_y", "slide"]
     cols += ["x_d", "y_d", "theta_d", "v_d", "w_d", "direction"]
@@ -387,6 +387,9 @@ def simulate(
     if plant.n_trailers != n:
         raise CosimError(f"plant.n_trailers = {plant.n_trailers}; the controller's chain has {n}")
     pushes, slides, biases = _validate_events(events, n, t0 + horizon)
+    if slides and plant.slip_mode == 1:
+        raise CosimError("Slide events impose a kinematic slide (slip_mode 0); with "
+                         "slip_mode = 1 the wheels slide physically: use Push events instead")
     if initial is None:
         initial = InitialState.behind_reference(reference, plant.geometry())
     if len(initial.theta) != n + 1:
@@ -423,7 +426,7 @@ def simulate(
         slave.start(start_values, t0)
         out_names = (slave.names("x", 0, n) + slave.names("y", 0, n) + slave.names("theta", 0, n)
                      + slave.names("v", 0, n) + slave.names("w", 0, n) + slave.names("phi", 1, n)
-                     + slave.names("F_lat", 1, n))
+                     + slave.names("F_lat", 1, n) + slave.names("slide_speed", 1, n))
         read = slave.real_reader(out_names)
         f_max = slave.get_reals(slave.names("F_lat_max", 1, n))
         slip_names = slave.names("slipping", 1, n) + ["jackknifed"]
@@ -493,7 +496,8 @@ def simulate(
             row[base + 2 * n:base + 3 * n] = y[i_flat:i_flat + n]
             row[base + 3 * n:base + 4 * n] = f_max
             row[base + 4 * n:base + 5 * n] = flags[:n]
-            base += 5 * n
+            row[base + 5 * n:base + 6 * n] = y[i_flat + n:i_flat + 2 * n]
+            base += 6 * n
             row[base:base + 5] = (v_cmd, w_cmd, push_x, push_y, slide_n)
             row[base + 5:base + 11] = (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k])
             e_theta = _wrap(y[3 * (n + 1) - 1] - ref_th[k])

@@ -29,7 +29,7 @@ __all__ = ["FmuBuildError", "build_fmu", "render_model_description", "cache_dir"
 log = logging.getLogger(__name__)
 
 MODEL_IDENTIFIER = "TrailerTrain"
-SOURCE_FILES = ("model.c", "chain.c", "forces.c", "fmi2.c")
+SOURCE_FILES = ("model.c", "chain.c", "forces.c", "slip.c", "fmi2.c")
 HEADER_FILES = ("model.h",)
 DEFAULT_STEP = 0.005
 BUILD_FORMAT = "1"  # bump when the rendering or packaging changes

@@ -86,6 +86,8 @@ SCALARS: tuple[Variable, ...] = (
              "Number of trailers (fixed by the build)", None, None, "exact"),
     Variable("jackknifed", 17, "Boolean", "output", "discrete",
              "Some |phi[i]| exceeds phi_max", None, None, "calculated"),
+    Variable("slip_substep", 18, "Real", "parameter", "fixed",
+             "Largest internal substep while some wheel slides, slip_mode 1 (> 0)", 0.0005, "s"),
 )
 
 ARRAYS: tuple[ArrayBlock, ...] = (
@@ -137,6 +139,9 @@ ARRAYS: tuple[ArrayBlock, ...] = (
                initial="calculated"),
     ArrayBlock("hitch_fy", 19, "Real", "output", "continuous",
                "Force of body i-1 on trailer i at their hitch, world y", 1, unit="N",
+               initial="calculated"),
+    ArrayBlock("slide_speed", 20, "Real", "output", "continuous",
+               "Lateral sliding speed of trailer i's wheel along its left normal", 1, unit="m/s",
                initial="calculated"),
 )
 

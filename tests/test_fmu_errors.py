@@ -79,12 +79,14 @@ def test_unknown_slip_mode_is_an_error(built_fmu_sim, value, text):
     assert any("slip_mode" in m and text in m for m in error_messages(sim)), sim.messages
 
 
-def test_slip_mode_1_is_reported_not_implemented(built_fmu_sim):
+def test_slip_mode_1_initializes_and_its_substep_is_checked(built_fmu_sim):
     sim = built_fmu_sim(N, logging_on=True)
+    sim.initialize(params={"slip_mode": 1})  # sliding wheels are implemented
+    assert not error_messages(sim)
+    bad = built_fmu_sim(N, logging_on=True)
     with pytest.raises(FMICallException):
-        sim.initialize(params={"slip_mode": 1})
-    assert any("slip_mode" in m and "not implemented" in m.lower() for m in error_messages(sim)), (
-        sim.messages)
+        bad.initialize(params={"slip_mode": 1, "slip_substep": 0.0})
+    assert any("slip_substep" in m and "0" in m for m in error_messages(bad)), bad.messages
 
 
 def test_good_parameters_log_no_error(built_fmu_sim):

@@ -142,13 +142,13 @@ static bool decode(fmi2ValueReference vr, VrRef *out) {
     out->block = (int)(vr / VR_STRIDE);
     out->index = (int)(vr % VR_STRIDE);
     switch (out->block) {
-    case 0: return out->index >= 1 && out->index <= vr_jackknifed;
+    case 0: return out->index >= 1 && out->index <= vr_slip_substep;
     case blk_rear: return out->index <= N_TRAILERS - 1;
     case blk_theta_start: case blk_x: case blk_y: case blk_theta: case blk_v: case blk_w:
         return out->index <= N_TRAILERS;
     case blk_front: case blk_mass: case blk_inertia: case blk_payload: case blk_mu:
     case blk_phi: case blk_F_lat: case blk_F_lat_max: case blk_slipping: case blk_slide:
-    case blk_hitch_fx: case blk_hitch_fy:
+    case blk_hitch_fx: case blk_hitch_fy: case blk_slide_speed:
         return out->index >= 1 && out->index <= N_TRAILERS;
     default: return false;
     }
@@ -159,11 +159,11 @@ static const char *vr_name(fmi2ValueReference vr, char *buffer, size_t len) {
     static const char *const scalars[] = {
         "?", "v_cmd", "w_cmd", "push_x", "push_y", "g", "robot_tau", "robot_acc_max",
         "robot_alpha_max", "slip_mode", "phi_max", "x0_start", "y0_start", "v_start", "w_start",
-        "max_substep", "n", "jackknifed"};
+        "max_substep", "n", "jackknifed", "slip_substep"};
     static const char *const blocks[] = {
         "?", "front", "rear", "mass", "inertia", "payload", "mu", "theta_start", "x", "y",
         "theta", "phi", "v", "w", "F_lat", "F_lat_max", "slipping", "slide", "hitch_fx",
-        "hitch_fy"};
+        "hitch_fy", "slide_speed"};
     VrRef r;
     if (!decode(vr, &r)) {
         snprintf(buffer, len, "(unknown value reference %u)", (unsigned)vr);
@@ -189,6 +189,7 @@ static double *real_parameter(ModelData *m, VrRef r) {
         case vr_v_start: return &m->v_start;
         case vr_w_start: return &m->w_start;
         case vr_max_substep: return &m->max_substep;
+        case vr_slip_substep: return &m->slip_substep;
         default: return NULL;
         }
     case blk_front: return &m->front[r.index];
@@ -227,6 +228,7 @@ static bool real_output(const ModelData *m, VrRef r, double *value) {
     case blk_F_lat_max: *value = m->F_lat_max[r.index]; return true;
     case blk_hitch_fx: *value = m->hitch_fx[r.index]; return true;
     case blk_hitch_fy: *value = m->hitch_fy[r.index]; return true;
+    case blk_slide_speed: *value = m->slide_speed[r.index]; return true;
     default: return false;
     }
 }
@@ -518,6 +520,13 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
             if (!isfinite(value[k])) {
                 char name[64];
                 return fail(inst, "fmi2SetReal", "input %s = %g: must be finite",
+                            vr_name(vr[k], name, sizeof(name)), value[k]);
+            }
+            if (r.block == blk_slide && value[k] != 0.0 && inst->data.slip_mode == 1) {
+                char name[64];
+                return fail(inst, "fmi2SetReal", "input %s = %g: an imposed slide is the "
+                            "kinematic disturbance of slip_mode 0; with slip_mode = 1 push the "
+                            "trailer with push_x, push_y instead",
                             vr_name(vr[k], name, sizeof(name)), value[k]);
             }
             *p = value[k];

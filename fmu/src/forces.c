@@ -17,12 +17,13 @@
 
 #include "model.h"
 
-void lateral_forces(ModelData *m, const double *v, const double *w, const double *dv,
-                    const double *dw) {
+void lateral_forces(const ModelData *m, const double *q, const double *v, const double *w,
+                    const double *dv, const double *dw, double *F_lat, double *hitch_fx,
+                    double *hitch_fy) {
     double next_fx = 0.0, next_fy = 0.0; /* f_{i+1}, world frame */
     int i;
     for (i = N_TRAILERS; i >= 1; i--) {
-        const double theta = m->q[IX_THETA + i];
+        const double theta = q[IX_THETA + i];
         const double ex = cos(theta), ey = sin(theta);
         const double nx = -ey, ny = ex;
         const double total_mass = m->mass[i] + m->payload[i];
@@ -37,10 +38,10 @@ void lateral_forces(ModelData *m, const double *v, const double *w, const double
         const double rear_link = (i < N_TRAILERS) ? m->rear[i] : 0.0;
         const double f_n = (m->inertia[i] * dw[i] - rear_link * next_n) / m->front[i];
         const double f_e = total_mass * a_e + next_e - push_e;
-        m->F_lat[i] = total_mass * a_n - f_n + next_n - push_n;
-        m->hitch_fx[i] = f_e * ex + f_n * nx;
-        m->hitch_fy[i] = f_e * ey + f_n * ny;
-        next_fx = m->hitch_fx[i];
-        next_fy = m->hitch_fy[i];
+        F_lat[i] = total_mass * a_n - f_n + next_n - push_n;
+        hitch_fx[i] = f_e * ex + f_n * nx;
+        hitch_fy[i] = f_e * ey + f_n * ny;
+        next_fx = hitch_fx[i];
+        next_fy = hitch_fy[i];
     }
 }

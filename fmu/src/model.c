@@ -34,6 +34,7 @@ void model_set_defaults(ModelData *m) {
     m->v_start = 0.0;
     m->w_start = 0.0;
     m->max_substep = 0.005;
+    m->slip_substep = 0.0005;
     m->v_cmd = 0.0;
     m->w_cmd = 0.0;
     m->push_x = 0.0;
@@ -51,6 +52,13 @@ void model_state_from_start(ModelData *m) {
     }
     m->q[IX_V0] = m->v_start;
     m->q[IX_W0] = m->w_start;
+    m->dynamic = false;
+    for (i = 0; i <= N_TRAILERS; i++) {
+        m->wt[i] = 0.0;
+        m->alpha_dyn[i] = 0.0;
+        m->f_dyn[i] = 0.0;
+        m->F_lat_max[i] = (i >= 1) ? m->mu[i] * (m->mass[i] + m->payload[i]) * m->g : 0.0;
+    }
     m->outputs_valid = false;
 }
 
@@ -110,11 +118,10 @@ bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
         || !check_finite("w_start", -1, m->w_start, msg, len)) {
         return false;
     }
-    if (m->slip_mode == 1) {
-        snprintf(msg, len, "slip_mode = 1: sliding wheels are not implemented yet; allowed is 0");
+    if (!check_positive("slip_substep", -1, m->slip_substep, false, msg, len)) {
         return false;
     }
-    if (m->slip_mode != 0) {
+    if (m->slip_mode != 0 && m->slip_mode != 1) {
         snprintf(msg, len, "slip_mode = %d: allowed are 0 (rolling) and 1 (sliding)",
                  m->slip_mode);
         return false;
@@ -135,10 +142,17 @@ void model_compute_outputs(ModelData *m) {
     double c[NB], s[NB], dv[NB], dw[NB];
     double dv0, dw0;
     int i;
-    chain_velocities(m, m->q, c, s, m->v, m->w);
-    robot_accelerations(m, m->q, &dv0, &dw0);
-    chain_accelerations(m, c, s, m->v, m->w, dv0, dw0, dv, dw);
-    lateral_forces(m, m->v, m->w, dv, dw);
+    if (m->dynamic) {
+        slip_outputs(m); /* some wheel slides: velocities and forces from the dynamics */
+    } else {
+        chain_velocities(m, m->q, c, s, m->v, m->w);
+        robot_accelerations(m, m->q, &dv0, &dw0);
+        chain_accelerations(m, c, s, m->v, m->w, dv0, dw0, dv, dw);
+        lateral_forces(m, m->q, m->v, m->w, dv, dw, m->F_lat, m->hitch_fx, m->hitch_fy);
+        for (i = 1; i <= N_TRAILERS; i++) {
+            m->slide_speed[i] = m->slide[i];
+        }
+    }
 
     m->x[0] = m->q[IX_X0];
     m->y[0] = m->q[IX_Y0];
@@ -151,7 +165,12 @@ void model_compute_outputs(ModelData *m) {
         m->y[i] = m->y[i - 1] - r * sin(th_prev) - f * sin(th);
         m->phi[i] = wrap_angle(th_prev - th);
         m->F_lat_max[i] = m->mu[i] * (m->mass[i] + m->payload[i]) * m->g;
-        m->slipping[i] = fabs(m->F_lat[i]) > m->F_lat_max[i];
+        if (m->dynamic) {
+            m->slipping[i] = fabs(m->slide_speed[i]) > 1e-6
+                             || fabs(m->F_lat[i]) >= m->F_lat_max[i] * (1.0 - 1e-9);
+        } else {
+            m->slipping[i] = fabs(m->F_lat[i]) > m->F_lat_max[i];
+        }
         if (fabs(m->phi[i]) > m->phi_max) {
             m->jackknifed = true;
         }
@@ -173,6 +192,7 @@ bool model_outputs_are_finite(const ModelData *m) {
     int i;
     for (i = 0; i <= N_TRAILERS; i++) {
         if (!isfinite(m->x[i]) || !isfinite(m->y[i]) || !isfinite(m->v[i]) || !isfinite(m->w[i])
+            || !isfinite(m->slide_speed[i]) || !isfinite(m->wt[i])
             || !isfinite(m->F_lat[i]) || !isfinite(m->hitch_fx[i]) || !isfinite(m->hitch_fy[i])) {
             return false;
         }
@@ -180,7 +200,7 @@ bool model_outputs_are_finite(const ModelData *m) {
     return true;
 }
 
-static void rk4_step(const ModelData *m, double *q, double dt) {
+void model_rk4_step(const ModelData *m, double *q, double dt) {
     double k1[N_STATE], k2[N_STATE], k3[N_STATE], k4[N_STATE], tmp[N_STATE];
     int k;
     chain_derivatives(m, q, k1);
@@ -196,17 +216,23 @@ static void rk4_step(const ModelData *m, double *q, double dt) {
 }
 
 void model_integrate(ModelData *m, double h, double t_end) {
-    /* Equal substeps no longer than max_substep; the 1e-9 guard keeps h = max_substep one step. */
-    const double ratio = h / m->max_substep;
-    int substeps = (int)ceil(ratio - 1e-9);
-    double dt;
-    int k;
-    if (substeps < 1) {
-        substeps = 1;
-    }
-    dt = h / substeps;
-    for (k = 0; k < substeps; k++) {
-        rk4_step(m, m->q, dt);
+    if (m->slip_mode == 1) {
+        double t_left = h;
+        while (t_left > 0.0) {
+            t_left -= slip_advance(m, t_left);
+        }
+    } else {
+        /* Equal substeps no longer than max_substep; the guard keeps h = max_substep one step. */
+        int substeps = (int)ceil(h / m->max_substep - 1e-9);
+        double dt;
+        int k;
+        if (substeps < 1) {
+            substeps = 1;
+        }
+        dt = h / substeps;
+        for (k = 0; k < substeps; k++) {
+            model_rk4_step(m, m->q, dt);
+        }
     }
     m->time = t_end;
     m->outputs_valid = false;

@@ -52,7 +52,8 @@ enum ScalarVr {
     vr_w_start = 14,
     vr_max_substep = 15,
     vr_n = 16,
-    vr_jackknifed = 17
+    vr_jackknifed = 17,
+    vr_slip_substep = 18
 };
 
 /* Array blocks: element i of block b has value reference VR_STRIDE * b + i.
@@ -76,7 +77,8 @@ enum Block {
     blk_slipping = 16,
     blk_slide = 17,
     blk_hitch_fx = 18,
-    blk_hitch_fy = 19
+    blk_hitch_fy = 19,
+    blk_slide_speed = 20  /* i = 1..n   */
 };
 
 /* Everything an instance computes with. Plain data without pointers, so an FMU state is a copy. */
@@ -91,6 +93,7 @@ typedef struct {
     double theta_start[NB]; /* [rad] */
     double g, robot_tau, robot_acc_max, robot_alpha_max, phi_max;
     double x0_start, y0_start, v_start, w_start, max_substep;
+    double slip_substep;    /* substep while some wheel slides (slip_mode 1) [s] */
     int slip_mode;
 
     /* inputs */
@@ -100,11 +103,17 @@ typedef struct {
     /* continuous state and time */
     double time;
     double q[N_STATE];
+    /* slip_mode 1: while some wheel slides ("dynamic" regime) the trailer yaw rates are states */
+    bool dynamic;
+    double wt[NB];          /* trailer yaw rates [rad/s], valid when dynamic */
+    double alpha_dyn[NB];   /* trailer yaw accelerations of the last dynamic substep [rad/s^2] */
+    double f_dyn[NB];       /* lateral wheel forces of the last dynamic substep [N] */
 
     /* outputs, valid when outputs_valid */
     bool outputs_valid;
     double x[NB], y[NB], phi[NB], v[NB], w[NB];
     double F_lat[NB], F_lat_max[NB], hitch_fx[NB], hitch_fy[NB];
+    double slide_speed[NB]; /* lateral sliding speed of wheel i along n_i [m/s] */
     bool slipping[NB];
     bool jackknifed;
 } ModelData;
@@ -117,6 +126,8 @@ PT_INTERNAL bool model_check_parameters(const ModelData *m, char *msg, size_t le
 PT_INTERNAL void model_compute_outputs(ModelData *m);
 PT_INTERNAL bool model_state_is_finite(const ModelData *m);
 PT_INTERNAL bool model_outputs_are_finite(const ModelData *m);
+/* One classical RK4 step of the rolling (kinematic) model. */
+PT_INTERNAL void model_rk4_step(const ModelData *m, double *q, double dt);
 /* Integrates from m->time to m->time + h with fixed RK4 substeps; sets m->time = t_end. */
 PT_INTERNAL void model_integrate(ModelData *m, double h, double t_end);
 
@@ -135,8 +146,18 @@ PT_INTERNAL void chain_accelerations(const ModelData *m, const double *c, const 
                                      double *dv, double *dw);
 
 /* forces.c */
-/* Newton-Euler from trailer n down to 1: lateral wheel forces F_lat and hitch forces. */
-PT_INTERNAL void lateral_forces(ModelData *m, const double *v, const double *w, const double *dv,
-                                const double *dw);
+/* Newton-Euler from trailer n down to 1 for rolling wheels at headings q: lateral wheel forces
+   (F_lat) and hitch forces (world frame) into the given arrays (index 1..n). */
+PT_INTERNAL void lateral_forces(const ModelData *m, const double *q, const double *v,
+                                const double *w, const double *dv, const double *dw,
+                                double *F_lat, double *hitch_fx, double *hitch_fy);
+
+/* slip.c (slip_mode 1) */
+/* One substep within the t_left [s] still to go: kinematic RK4 (at most max_substep) while every
+   wheel can roll, else velocity-level time stepping with Coulomb friction impulses (at most
+   slip_substep). Returns the substep taken. */
+PT_INTERNAL double slip_advance(ModelData *m, double t_left);
+/* Outputs of the dynamic regime: velocities, sliding speeds, wheel and hitch forces. */
+PT_INTERNAL void slip_outputs(ModelData *m);
 
 #endif

@@ -1,0 +1,313 @@
+/*
+ * slip_mode 1: trailer wheels that slide sideways when rolling would need more lateral force than
+ * Coulomb friction gives (assumption C3), mu_i (m_i + payload_i) g.
+ *
+ * Formulation: an exact stick/slip treatment by velocity-level time stepping (Moreau-Jean).
+ * - While every wheel can roll (the force rolling needs is within friction at the start of the
+ *   substep), the substep is the kinematic RK4 step of slip_mode 0: mode 1 then reproduces
+ *   mode 0 exactly.
+ * - Otherwise the trailer headings th_1..th_n become dynamic with yaw rates wt_k as states (the
+ *   robot stays velocity-controlled, assumption C4). With the hitch constraints eliminated, the
+ *   Lagrange equations in th are  M(th) alpha = g(th, wt, robot) + J_u^T F_d,  where
+ *     L_ik = F_k + R_k (k < i), F_i (k = i), 0 (k > i)   (d P_i / d th_k = -L_ik n_k)
+ *     M_kj = sum_{i >= max(k,j)} m_i L_ik L_ij cos(th_k - th_j) + I_k delta_kj
+ *     g_k  = sum_{i >= k} m_i L_ik [n_k.a_h + sum_{j <= i} L_ij wt_j^2 sin(th_j - th_k)]
+ *            - L_nk n_k.push
+ *     u_i  = V_h.n_i + sum_k J_ik wt_k,  J_ik = -L_ik cos(th_k - th_i)   (lateral wheel speed)
+ *   with a_h, V_h the acceleration and velocity of the robot's rear hitch. Each substep solves
+ *   for friction impulses lambda_i = F_d,i dt with |lambda_i| <= mu_i (m_i + payload_i) g dt and
+ *   lambda_i opposing u_i, or u_i = 0 for a sticking wheel (a box-constrained LCP, solved by
+ *   projected Gauss-Seidel on A = J M^-1 J^T), then wt+ = wt_free + M^-1 J^T lambda and
+ *   th += dt wt+. Friction is implicit, so sticking wheels stay exactly at u = 0 (no chattering)
+ *   at any substep. When every wheel sticks again the state returns to the kinematic regime.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "model.h"
+
+#define PGS_ITERATIONS 200
+#define STICK_SPEED 1e-7 /* |u| below this counts as rolling when leaving the dynamic regime */
+
+static double clamp(double value, double lo, double hi) {
+    return value < lo ? lo : (value > hi ? hi : value);
+}
+
+/* L_ik of the note above, with trailer indices 1..n. */
+static double link_sum(const ModelData *m, int i, int k) {
+    if (k > i) {
+        return 0.0;
+    }
+    return (k < i) ? m->front[k] + m->rear[k] : m->front[k];
+}
+
+/* Cholesky factorization of the SPD n x n matrix a (row-major, in place, lower triangle). */
+static void cholesky(double *a, int n) {
+    int i, j, k;
+    for (j = 0; j < n; j++) {
+        double d = a[j * n + j];
+        for (k = 0; k < j; k++) d -= a[j * n + k] * a[j * n + k];
+        d = sqrt(d > 0.0 ? d : 1e-300);
+        a[j * n + j] = d;
+        for (i = j + 1; i < n; i++) {
+            double s = a[i * n + j];
+            for (k = 0; k < j; k++) s -= a[i * n + k] * a[j * n + k];
+            a[i * n + j] = s / d;
+        }
+    }
+}
+
+static void cholesky_solve(const double *l, int n, double *b) {
+    int i, k;
+    for (i = 0; i < n; i++) {
+        double s = b[i];
+        for (k = 0; k < i; k++) s -= l[i * n + k] * b[k];
+        b[i] = s / l[i * n + i];
+    }
+    for (i = n - 1; i >= 0; i--) {
+        double s = b[i];
+        for (k = i + 1; k < n; k++) s -= l[k * n + i] * b[k];
+        b[i] = s / l[i * n + i];
+    }
+}
+
+/* Robot rear hitch: velocity vh and acceleration ah (world) at state q. */
+static void robot_hitch(const ModelData *m, const double *q, double *vh, double *ah) {
+    const double th = q[IX_THETA], v0 = q[IX_V0], w0 = q[IX_W0], r = m->rear[0];
+    const double ex = cos(th), ey = sin(th), nx = -ey, ny = ex;
+    double dv0, dw0;
+    robot_accelerations(m, q, &dv0, &dw0);
+    vh[0] = v0 * ex - r * w0 * nx;
+    vh[1] = v0 * ey - r * w0 * ny;
+    /* a0 = dv0 e0 + v0 w0 n0;  a_h = a0 - R0 (dw0 n0 - w0^2 e0) */
+    ah[0] = dv0 * ex + v0 * w0 * nx - r * (dw0 * nx - w0 * w0 * ex);
+    ah[1] = dv0 * ey + v0 * w0 * ny - r * (dw0 * ny - w0 * w0 * ey);
+}
+
+/* RK4 of the robot alone (its motion does not depend on the trailers). */
+static void robot_rk4(const ModelData *m, double *q, double dt) {
+    double k[4][5], tmp[N_STATE];
+    const int idx[5] = {IX_X0, IX_Y0, IX_THETA, IX_V0, IX_W0};
+    const double weight[4] = {0.0, 0.5, 0.5, 1.0};
+    int stage, j;
+    memcpy(tmp, q, sizeof(tmp));
+    for (stage = 0; stage < 4; stage++) {
+        for (j = 0; j < 5 && stage > 0; j++) {
+            tmp[idx[j]] = q[idx[j]] + weight[stage] * dt * k[stage - 1][j];
+        }
+        k[stage][0] = tmp[IX_V0] * cos(tmp[IX_THETA]);
+        k[stage][1] = tmp[IX_V0] * sin(tmp[IX_THETA]);
+        k[stage][2] = tmp[IX_W0];
+        robot_accelerations(m, tmp, &k[stage][3], &k[stage][4]);
+    }
+    for (j = 0; j < 5; j++) {
+        q[idx[j]] += dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
+    }
+}
+
+/* Can every wheel roll at q? (the force rolling needs is within friction) */
+static bool all_wheels_roll(const ModelData *m, const double *q) {
+    double c[NB], s[NB], v[NB], w[NB], dv[NB], dw[NB], f[NB], hx[NB], hy[NB];
+    double dv0, dw0;
+    int i;
+    chain_velocities(m, q, c, s, v, w);
+    robot_accelerations(m, q, &dv0, &dw0);
+    chain_accelerations(m, c, s, v, w, dv0, dw0, dv, dw);
+    lateral_forces(m, q, v, w, dv, dw, f, hx, hy);
+    for (i = 1; i <= N_TRAILERS; i++) {
+        if (fabs(f[i]) > m->F_lat_max[i]) {
+            return false;
+        }
+    }
+    return true;
+}
+
+static void enter_dynamic(ModelData *m) {
+    double c[NB], s[NB], v[NB], w[NB];
+    int i;
+    chain_velocities(m, m->q, c, s, v, w);
+    for (i = 1; i <= N_TRAILERS; i++) {
+        m->wt[i] = w[i];
+        m->f_dyn[i] = 0.0;
+        m->alpha_dyn[i] = 0.0;
+    }
+    m->dynamic = true;
+}
+
+/* Jacobian J (n x n, row i-1 = wheel i) of the lateral wheel speeds and their offset b. */
+static void wheel_speed_map(const ModelData *m, const double *q, const double *vh, double *jac,
+                            double *b) {
+    const int n = N_TRAILERS;
+    int i, k;
+    for (i = 1; i <= n; i++) {
+        const double th_i = q[IX_THETA + i];
+        b[i - 1] = -vh[0] * sin(th_i) + vh[1] * cos(th_i);
+        for (k = 1; k <= n; k++) {
+            jac[(i - 1) * n + (k - 1)] = -link_sum(m, i, k) * cos(q[IX_THETA + k] - th_i);
+        }
+    }
+}
+
+static void dynamic_step(ModelData *m, double dt) {
+    enum { n = N_TRAILERS };
+    double mass[n * n], rhs[n], jac[n * n], minv_jt[n * n], a[n * n], b[n], lim[n], lam[n];
+    double w_free[n], u_free[n], vh[2], ah[2];
+    double *q = m->q;
+    int i, j, k, it;
+
+    robot_hitch(m, q, vh, ah);
+    /* mass matrix and the non-friction generalized forces at the start of the substep */
+    for (k = 1; k <= n; k++) {
+        const double th_k = q[IX_THETA + k];
+        const double nkx = -sin(th_k), nky = cos(th_k);
+        double g = 0.0;
+        for (j = 1; j <= n; j++) {
+            double mkj = 0.0;
+            const int from = k > j ? k : j;
+            for (i = from; i <= n; i++) {
+                mkj += (m->mass[i] + m->payload[i]) * link_sum(m, i, k) * link_sum(m, i, j);
+            }
+            mass[(k - 1) * n + (j - 1)] = mkj * cos(th_k - q[IX_THETA + j])
+                                          + (j == k ? m->inertia[k] : 0.0);
+        }
+        for (i = k; i <= n; i++) {
+            double centripetal = nkx * ah[0] + nky * ah[1];
+            for (j = 1; j <= i; j++) {
+                centripetal += link_sum(m, i, j) * m->wt[j] * m->wt[j]
+                               * sin(q[IX_THETA + j] - th_k);
+            }
+            g += (m->mass[i] + m->payload[i]) * link_sum(m, i, k) * centripetal;
+        }
+        g -= link_sum(m, n, k) * (nkx * m->push_x + nky * m->push_y);
+        rhs[k - 1] = g;
+    }
+    cholesky(mass, n);
+    for (k = 0; k < n; k++) {
+        w_free[k] = rhs[k] * dt;
+    }
+    cholesky_solve(mass, n, w_free);
+    for (k = 0; k < n; k++) {
+        w_free[k] += m->wt[k + 1];
+    }
+
+    /* the robot moves on; the wheel speeds use its new velocity and the current headings */
+    robot_rk4(m, q, dt);
+    robot_hitch(m, q, vh, ah);
+    wheel_speed_map(m, q, vh, jac, b);
+    for (i = 0; i < n; i++) {
+        double u = b[i];
+        for (k = 0; k < n; k++) u += jac[i * n + k] * w_free[k];
+        u_free[i] = u;
+    }
+    /* M^-1 J^T column by column, then A = J M^-1 J^T */
+    for (i = 0; i < n; i++) {
+        double col[n];
+        for (k = 0; k < n; k++) col[k] = jac[i * n + k];
+        cholesky_solve(mass, n, col);
+        for (k = 0; k < n; k++) minv_jt[k * n + i] = col[k];
+    }
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < n; j++) {
+            double sum = 0.0;
+            for (k = 0; k < n; k++) sum += jac[i * n + k] * minv_jt[k * n + j];
+            a[i * n + j] = sum;
+        }
+    }
+    /* projected Gauss-Seidel on the friction impulses, warm-started */
+    for (i = 0; i < n; i++) {
+        lim[i] = m->F_lat_max[i + 1] * dt;
+        lam[i] = clamp(m->f_dyn[i + 1] * dt, -lim[i], lim[i]);
+    }
+    for (it = 0; it < PGS_ITERATIONS; it++) {
+        double change = 0.0;
+        for (i = 0; i < n; i++) {
+            double u = u_free[i], updated;
+            for (j = 0; j < n; j++) u += a[i * n + j] * lam[j];
+            updated = clamp(lam[i] - u / a[i * n + i], -lim[i], lim[i]);
+            change = fmax(change, fabs(updated - lam[i]));
+            lam[i] = updated;
+        }
+        if (change <= 1e-14 * (1.0 + lim[0])) {
+            break;
+        }
+    }
+    /* velocities, headings, and the regime for the next substep */
+    {
+        bool all_stick = true;
+        for (k = 0; k < n; k++) {
+            double w_new = w_free[k];
+            for (i = 0; i < n; i++) w_new += minv_jt[k * n + i] * lam[i];
+            m->alpha_dyn[k + 1] = (w_new - m->wt[k + 1]) / dt;
+            m->wt[k + 1] = w_new;
+            q[IX_THETA + k + 1] += dt * w_new;
+        }
+        for (i = 0; i < n; i++) {
+            double u = b[i];
+            for (k = 0; k < n; k++) u += jac[i * n + k] * m->wt[k + 1];
+            m->f_dyn[i + 1] = lam[i] / dt;
+            if (fabs(u) > STICK_SPEED || fabs(lam[i]) >= lim[i] * (1.0 - 1e-9)) {
+                all_stick = false;
+            }
+        }
+        if (all_stick) {
+            m->dynamic = false;
+        }
+    }
+}
+
+double slip_advance(ModelData *m, double t_left) {
+    const bool roll = !m->dynamic && all_wheels_roll(m, m->q);
+    const double longest = roll ? m->max_substep : m->slip_substep;
+    /* equal substeps over what is left, so the last one ends exactly at the target time */
+    const double dt = t_left / ceil(t_left / longest - 1e-9);
+    if (roll) {
+        model_rk4_step(m, m->q, dt);
+        return dt;
+    }
+    if (!m->dynamic) {
+        enter_dynamic(m);
+    }
+    dynamic_step(m, dt);
+    return dt;
+}
+
+void slip_outputs(ModelData *m) {
+    const int n = N_TRAILERS;
+    const double *q = m->q;
+    double vh[2], ah[2], next_fx = 0.0, next_fy = 0.0;
+    double ax[NB], ay[NB];
+    int i, k;
+    robot_hitch(m, q, vh, ah);
+    m->v[0] = q[IX_V0];
+    m->w[0] = q[IX_W0];
+    for (i = 1; i <= n; i++) {
+        const double th_i = q[IX_THETA + i];
+        const double ex = cos(th_i), ey = sin(th_i);
+        double vx = vh[0], vy = vh[1];
+        ax[i] = ah[0];
+        ay[i] = ah[1];
+        for (k = 1; k <= i; k++) {
+            const double th_k = q[IX_THETA + k], l = link_sum(m, i, k);
+            const double nkx = -sin(th_k), nky = cos(th_k);
+            const double w = m->wt[k], al = m->alpha_dyn[k];
+            vx -= l * w * nkx;
+            vy -= l * w * nky;
+            ax[i] -= l * (al * nkx - w * w * cos(th_k));
+            ay[i] -= l * (al * nky - w * w * sin(th_k));
+        }
+        m->v[i] = vx * ex + vy * ey;
+        m->w[i] = m->wt[i];
+        m->slide_speed[i] = -vx * ey + vy * ex;
+        m->F_lat[i] = m->f_dyn[i];
+    }
+    /* hitch forces from trailer n down: f_i = f_{i+1} + m_i a_i - F_d,i n_i - push (i = n) */
+    for (i = n; i >= 1; i--) {
+        const double th_i = q[IX_THETA + i];
+        const double mi = m->mass[i] + m->payload[i];
+        const double nx = -sin(th_i), ny = cos(th_i);
+        m->hitch_fx[i] = next_fx + mi * ax[i] - m->F_lat[i] * nx - (i == n ? m->push_x : 0.0);
+        m->hitch_fy[i] = next_fy + mi * ay[i] - m->F_lat[i] * ny - (i == n ? m->push_y : 0.0);
+        next_fx = m->hitch_fx[i];
+        next_fy = m->hitch_fy[i];
+    }
+}
