@@ -90,6 +90,19 @@ def controller_of(sc: Scenario) -> ControllerConfig:
     )
 
 
+def governed(sc: Scenario, config: ControllerConfig):
+    """The tracking controller behind a slip-aware governor built from the scenario's train."""
+    from pushtrain.cosim.controller import BackwardController
+    from pushtrain.cosim.governor import GovernedController, GovernorConfig, SlipGovernor
+
+    t, r = sc.train, sc.robot
+    gov = SlipGovernor(GovernorConfig(
+        config.geometry, _per_trailer(t.mass, t.n) + _per_trailer(t.payload, t.n),
+        _per_trailer(t.inertia, t.n), _per_trailer(t.mu, t.n), fraction=sc.controller.governor_fraction,
+        tau=r.tau, acc_max=r.acc_max, alpha_max=math.radians(r.alpha_max_deg)))
+    return GovernedController(BackwardController(config), gov, dt=sc.sim.step)
+
+
 def sensors_of(sc: Scenario) -> SensorConfig:
     s = sc.sensors
     return SensorConfig(
@@ -207,6 +220,8 @@ def run_scenario(sc: Scenario, out_dir: Path, *, reference: Reference | None = N
         if reference is None:
             reference = scripted_reference(sc)
         controller = controller_of(sc)
+        if sc.controller.governor:
+            controller = governed(sc, controller)
         horizon = sc.sim.horizon
     initial = initial_of(sc, reference)
     result = simulate(

@@ -140,6 +140,10 @@ class ControllerSection(_Section):
     # Command rate limits; the paper keeps |alpha| <= 10 deg/s^2 to avoid lateral slip (Sec. 4.4).
     acc_max: PositiveFloat | None = 0.2
     alpha_max_deg: PositiveFloat | None = 10.0
+    # slip-aware governor: limit command changes so the predicted lateral wheel forces stay below
+    # governor_fraction of friction (computed with the controller's own model of the train)
+    governor: bool = False
+    governor_fraction: Annotated[float, Field(gt=0, le=1)] = 0.8
 
 
 class SensorSection(_Section):

@@ -228,6 +228,11 @@ class BackwardController:
         self.lead_distance = config.lead
         self.reset()
 
+    def sent(self, v0: float, w0: float) -> None:
+        """Record the command actually sent after an outer limiter (e.g. the slip governor), so
+        the rate limits continue from it."""
+        self._v_prev, self._w_prev = float(v0), float(w0)
+
     def reset(self, v0: float = 0.0, w0: float = 0.0, t: float | None = None) -> None:
         """Forget the history: the previous command becomes ``(v0, w0)`` [m/s, rad/s] at ``t`` [s].
 
