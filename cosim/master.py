@@ -87,6 +87,7 @@ class PlantConfig:
     phi_max: float | None = None
     slip_mode: int | None = None
     max_substep: float | None = None
+    slip_substep: float | None = None
 
     def _array(self, name: str, first: int):
         value = getattr(self, name)
@@ -111,7 +112,7 @@ class PlantConfig:
             if values:
                 out.update(values)
         for name in ("g", "robot_tau", "robot_acc_max", "robot_alpha_max", "phi_max",
-                     "slip_mode", "max_substep"):
+                     "slip_mode", "max_substep", "slip_substep"):
             value = getattr(self, name)
             if value is not None:
                 out[name] = value

@@ -83,6 +83,21 @@ def test_all_wheels_sliding_without_robot_motion_only_lose_energy(fmu3):
     assert ke[-1] < 1e-6  # and they come to rest
 
 
+def test_frictionless_sliding_conserves_energy(fmu3):
+    # mu = 0: every wheel slides freely; once the robot has stopped nothing does work, so the
+    # kinetic energy stays constant up to the first-order time stepping (checks M and the
+    # velocity-product terms of the sliding dynamics)
+    initial = InitialState(0.0, 0.0, np.array([0.0, 0.3, -0.2, 0.4]), w0=1.0)
+    plant = PlantConfig(3, slip_mode=1, mu=0.0, robot_alpha_max=1000.0, robot_tau=0.005,
+                        slip_substep=2e-4)
+    d = simulate(fmu3, None, Hold(), initial=initial, plant=plant, horizon=4.0).data
+    ke = sum(0.5 * M * (d[f"v{i}"] ** 2 + d[f"u{i}"] ** 2) + 0.5 * I * d[f"w{i}"] ** 2
+             for i in (1, 2, 3))
+    still = int(np.searchsorted(d["t"], 0.1))
+    assert abs(d["w0"][still]) < 1e-6 and ke[still] > 1.0
+    assert np.max(np.abs(ke[still:] / ke[still] - 1.0)) < 2e-3
+
+
 def _rotation(fmu, alpha_deg, payload=(0.0, 0.0, 0.0)):
     profile = RotationProfile(3, math.radians(20.0), math.radians(alpha_deg))
     plant = PlantConfig(3, slip_mode=1, robot_alpha_max=5.0, payload=list(payload))

@@ -151,32 +151,42 @@ static void wheel_speed_map(const ModelData *m, const double *q, const double *v
 static void dynamic_step(ModelData *m, double dt) {
     enum { n = N_TRAILERS };
     double mass[n * n], rhs[n], jac[n * n], minv_jt[n * n], a[n * n], b[n], lim[n], lam[n];
-    double w_free[n], u_free[n], vh[2], ah[2];
+    double w_free[n], u_free[n], vh[2], ah[2], s_mat[n * n], t_coef[n];
     double *q = m->q;
     int i, j, k, it;
 
     robot_hitch(m, q, vh, ah);
-    /* mass matrix and the non-friction generalized forces at the start of the substep */
+    /* Mass matrix and the non-friction generalized forces at the start of the substep, in O(n^2)
+       with S_kj = sum_{i >= max(k,j)} m_i L_ik L_ij: for k < j, S_kj = (F_k + R_k) T_j with
+       T_j = m_j F_j + (F_j + R_j) sum_{i > j} m_i, and S_jj = m_j F_j^2 + (F_j + R_j)^2 sum_{i>j} m_i.
+       Then M_kj = S_kj cos(th_k - th_j) + I_k delta_kj and
+       g_k = T_k n_k.a_h + sum_j S_kj wt_j^2 sin(th_j - th_k) - L_nk n_k.push. */
+    {
+        double tail = 0.0; /* sum of the masses behind trailer k */
+        for (k = n; k >= 1; k--) {
+            const double mk = m->mass[k] + m->payload[k];
+            const double fr = m->front[k] + m->rear[k];
+            t_coef[k - 1] = mk * m->front[k] + fr * tail;
+            s_mat[(k - 1) * n + (k - 1)] = mk * m->front[k] * m->front[k] + fr * fr * tail;
+            tail += mk;
+        }
+        for (k = 1; k <= n; k++) {
+            for (j = k + 1; j <= n; j++) {
+                const double skj = (m->front[k] + m->rear[k]) * t_coef[j - 1];
+                s_mat[(k - 1) * n + (j - 1)] = skj;
+                s_mat[(j - 1) * n + (k - 1)] = skj;
+            }
+        }
+    }
     for (k = 1; k <= n; k++) {
         const double th_k = q[IX_THETA + k];
         const double nkx = -sin(th_k), nky = cos(th_k);
-        double g = 0.0;
+        double g = t_coef[k - 1] * (nkx * ah[0] + nky * ah[1]);
         for (j = 1; j <= n; j++) {
-            double mkj = 0.0;
-            const int from = k > j ? k : j;
-            for (i = from; i <= n; i++) {
-                mkj += (m->mass[i] + m->payload[i]) * link_sum(m, i, k) * link_sum(m, i, j);
-            }
-            mass[(k - 1) * n + (j - 1)] = mkj * cos(th_k - q[IX_THETA + j])
-                                          + (j == k ? m->inertia[k] : 0.0);
-        }
-        for (i = k; i <= n; i++) {
-            double centripetal = nkx * ah[0] + nky * ah[1];
-            for (j = 1; j <= i; j++) {
-                centripetal += link_sum(m, i, j) * m->wt[j] * m->wt[j]
-                               * sin(q[IX_THETA + j] - th_k);
-            }
-            g += (m->mass[i] + m->payload[i]) * link_sum(m, i, k) * centripetal;
+            const double skj = s_mat[(k - 1) * n + (j - 1)];
+            const double d = q[IX_THETA + j] - th_k;
+            mass[(k - 1) * n + (j - 1)] = skj * cos(d) + (j == k ? m->inertia[k] : 0.0);
+            g += skj * m->wt[j] * m->wt[j] * sin(d);
         }
         g -= link_sum(m, n, k) * (nkx * m->push_x + nky * m->push_y);
         rhs[k - 1] = g;
@@ -227,7 +237,7 @@ static void dynamic_step(ModelData *m, double dt) {
             change = fmax(change, fabs(updated - lam[i]));
             lam[i] = updated;
         }
-        if (change <= 1e-14 * (1.0 + lim[0])) {
+        if (change <= 1e-10 * lim[0]) { /* relative to the impulse scale mu m g dt */
             break;
         }
     }
