@@ -232,8 +232,64 @@ def run_scenario(sc: Scenario, out_dir: Path, *, reference: Reference | None = N
     )
     result.summary["scenario"] = sc.name
     result.summary["mission"] = sc.mission.kind
+    clearance = check_run_clearance(sc, result.data)
+    if clearance is not None:
+        result.summary["map_check"] = clearance
+        if clearance["collisions"] and result.status != "fmu_error":
+            first = min(clearance["collisions"].items(), key=lambda kv: kv[1]["t"])
+            result.status = "collision"
+            result.message = (f"{first[0]} leaves the free space at t = {first[1]['t']:.2f} s "
+                              f"near ({first[1]['x']:.2f}, {first[1]['y']:.2f}) m; "
+                              f"the run itself ended: {result.message}")
+            result.summary["status"], result.summary["message"] = result.status, result.message
     atomic_write_text(Path(out_dir) / "summary.json", json.dumps(result.summary, indent=2))
     return RunOutcome(result, reference, path, dict(result.files))
+
+
+def check_run_clearance(sc: Scenario, data, resolution: float = 0.01) -> dict | None:
+    """Check every body's footprint along the co-simulated motion against the map.
+
+    Samples are taken so that no body moves more than ``resolution`` [m] (plus half a footprint
+    rotation) between checks. Returns ``None`` without a map, else a dict with the first contact
+    of each body (time, position) and the smallest clearance to the walls [m].
+    """
+    import shapely
+
+    world = world_of(sc)
+    if world is None or len(data) == 0:
+        return None
+    train = train_of(sc)
+    n = sc.train.n
+    xs = np.column_stack([data[f"x{i}"] for i in range(n + 1)])
+    ys = np.column_stack([data[f"y{i}"] for i in range(n + 1)])
+    ths = np.column_stack([data[f"theta{i}"] for i in range(n + 1)])
+    reach = max(max(b.length, b.width) for b in train.bodies)
+    motion = np.max(np.hypot(np.diff(xs, axis=0), np.diff(ys, axis=0))
+                    + 0.5 * reach * np.abs(np.diff(ths, axis=0)), axis=1)
+    keep = [0]
+    travelled = 0.0
+    for k, step in enumerate(motion, start=1):
+        travelled += step
+        if travelled >= resolution:
+            keep.append(k)
+            travelled = 0.0
+    if keep[-1] != len(data) - 1:
+        keep.append(len(data) - 1)
+    keep = np.array(keep)
+    boundary = world.free.boundary
+    first_contact, clearance = {}, np.inf
+    for i, body in enumerate(train.bodies):
+        polys = body.polygons(xs[keep, i], ys[keep, i], ths[keep, i])
+        inside = shapely.covers(world.free, polys)
+        clearance = min(clearance, float(np.min(shapely.distance(polys, boundary))))
+        bad = np.flatnonzero(~inside)
+        if bad.size:
+            k = keep[bad[0]]
+            name = "robot" if i == 0 else f"trailer {i}"
+            first_contact[name] = {"t": float(data["t"][k]), "x": float(xs[k, i]),
+                                   "y": float(ys[k, i])}
+    return {"collisions": first_contact, "min_clearance_m": 0.0 if first_contact else clearance,
+            "checked_samples": int(keep.size)}
 
 
 def check_start_in_map(sc: Scenario) -> None:

@@ -53,8 +53,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-# OMPL prints to stdout; library code must not: keep only its errors.
-ou.setLogLevel(ou.LOG_ERROR)
+# OMPL prints to stdout/stderr; library code must not. Every OMPL failure the planner can meet
+# (invalid start/goal, no or approximate solution) becomes a PlanningError instead.
+ou.setLogLevel(ou.LOG_NONE)
 
 PLANNERS = ("rrtconnect", "rrtstar", "bitstar", "prmstar")
 """Planner names: ``rrtconnect`` stops at its first solution; the others are anytime optimal."""
@@ -128,6 +129,14 @@ class PlannerConfig:
     allow_pull_arcs : bool
         Let local Reeds-Shepp curves turn while pulling (default). False restricts pulling to
         straight lines (much harder for the sampling planners; for studies only).
+    pull_ghost : bool
+        From the first attempt on, while a local curve pulls (robot leads), also require the
+        train stretched straight ahead of the last trailer to be free: the robot is about
+        sum(F_i + R_i) ahead and a pulled chain straightens behind it. Conservative, and it
+        slows planning in narrow corridors, so by default it is switched on only for the
+        replans after a plan failed the train check while pulling (without it the
+        last-trailer planner happily pulls the trailer to where the robot would be inside a
+        wall).
     """
 
     turning_radius: float | None = None
@@ -139,7 +148,7 @@ class PlannerConfig:
     simplify: bool = True
     inflation: float = 0.05
     offtrack_allowance: float = 0.1
-    planning_resolution: float = 0.05
+    planning_resolution: float = 0.1
     check_resolution: float = 0.01
     max_attempts: int = 6
     radius_growth: float = 1.2
@@ -147,6 +156,7 @@ class PlannerConfig:
     block_radius: float = 0.25
     check_train: bool = True
     allow_pull_arcs: bool = True
+    pull_ghost: bool = False
 
     def __post_init__(self):
         name = str(self.planner).lower()
@@ -279,10 +289,11 @@ class _TrailerMotionValidator(ob.MotionValidator):
     """Motion check along OMPL's Reeds-Shepp curve at ``step`` metres: every sampled state
     valid and, unless ``allow_pull_arcs``, no heading change while travelling backward."""
 
-    def __init__(self, si, space, is_valid, step: float, allow_pull_arcs: bool):
+    def __init__(self, si, space, is_valid, step: float, allow_pull_arcs: bool, ghost_valid=None):
         super().__init__(si)
         self._space, self._valid, self._step = space, is_valid, float(step)
         self._allow = bool(allow_pull_arcs)
+        self._ghost = ghost_valid
         self._tmp = space.allocState()
 
     def checkMotion(self, s1, s2):  # noqa: N802 (OMPL API)
@@ -295,12 +306,13 @@ class _TrailerMotionValidator(ob.MotionValidator):
             if not self._valid(tmp):
                 return False
             x1, y1, yaw1 = tmp.getX(), tmp.getY(), tmp.getYaw()
-            if not self._allow:
-                dyaw = (yaw1 - yaw0 + math.pi) % (2.0 * math.pi) - math.pi
-                dx, dy = x1 - x0, y1 - y0
-                mid = yaw0 + 0.5 * dyaw
-                if abs(dyaw) > 1e-9 and dx * math.cos(mid) + dy * math.sin(mid) < 0.0:
-                    return False
+            dyaw = (yaw1 - yaw0 + math.pi) % (2.0 * math.pi) - math.pi
+            mid = yaw0 + 0.5 * dyaw
+            backward = (x1 - x0) * math.cos(mid) + (y1 - y0) * math.sin(mid) < 0.0
+            if backward and not self._allow and abs(dyaw) > 1e-9:
+                return False
+            if backward and self._ghost is not None and not self._ghost(x1, y1, yaw1):
+                return False
             x0, y0, yaw0 = x1, y1, yaw1
         return True
 
@@ -312,6 +324,7 @@ class _Attempt:
     radius: float
     inflation: float
     blocks: list = field(default_factory=list)
+    ghost: bool = False
 
 
 def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
@@ -333,8 +346,23 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
     ss = og.SimpleSetup(space)
     ss.setStateValidityChecker(is_valid)
     si = ss.getSpaceInformation()
+    ghost_valid = None
+    if attempt.ghost:
+        # while pulling, the robot leads: check the train stretched straight ahead of the last
+        # trailer (where a towed chain ends up after a straight pull)
+        ahead = np.cumsum((train.geometry.front + train.geometry.rear)[::-1])[::-1]  # bodies 0..n-1
+        ghost_region = planning_world.eroded(attempt.inflation)
+        ghost_bodies = train.bodies[:-1]
+
+        def ghost_valid(x, y, yaw):
+            theta = yaw + math.pi
+            c, s = math.cos(theta), math.sin(theta)
+            polys = [body.polygons(x + d * c, y + d * s, theta)
+                     for body, d in zip(ghost_bodies, ahead)]
+            return all(ghost_region.contains(p) for p in polys)
+
     validator = _TrailerMotionValidator(si, space, is_valid, config.planning_resolution,
-                                        config.allow_pull_arcs)
+                                        config.allow_pull_arcs, ghost_valid)
     si.setMotionValidator(validator)
     start, goal = space.allocState(), space.allocState()
     for state, pose in ((start, start_yaw), (goal, goal_yaw)):
@@ -541,7 +569,7 @@ def plan(
             )
     _check_endpoints(world, train, start, goal, start_headings, config.inflation)
 
-    attempt = _Attempt(config.radius_for(train), config.inflation)
+    attempt = _Attempt(config.radius_for(train), config.inflation, ghost=config.pull_ghost)
     history = []
     last_error: PlanningError | None = None
     last_result = None
@@ -561,7 +589,7 @@ def plan(
             if k == 0 or exc.reason != "unreachable":
                 break
             # a replanning change made it unreachable: undo the last change and try again
-            attempt = _Attempt(config.radius_for(train), config.inflation)
+            attempt = _Attempt(config.radius_for(train), config.inflation, ghost=attempt.ghost)
             continue
         segments, deviation = _segments_from_states(states, attempt.radius)
         if deviation > 1e-6:
@@ -569,7 +597,7 @@ def plan(
                 f"Reeds-Shepp segment recovery deviates {deviation:.3g} m from OMPL's curve"
             )
         entry = {"attempt": k, "radius": attempt.radius, "inflation": attempt.inflation,
-                 "blocks": len(attempt.blocks), "seed": seed, **info}
+                 "blocks": len(attempt.blocks), "ghost": attempt.ghost, "seed": seed, **info}
         result = None
         if config.check_train:
             result = check_train(world, train, start, segments, start_headings,
@@ -597,13 +625,30 @@ def plan(
                      path.length, len(segments), path.n_cusps, info_all["time"], k + 1)
             return path
         last_result = result
-        attempt = _next_attempt(attempt, result.failure, train, config)
+        bounds = np.cumsum([g.length for g in segments])
+        j = min(int(np.searchsorted(bounds, result.failure["s"] - 1e-9)), len(segments) - 1)
+        pulling = result.failure["kind"] == "pull_deviation" or segments[j].direction == PULL
+        if pulling and not attempt.ghost:
+            # first pulling failure: keep the map, make the planner see the robot ahead
+            attempt = replace(attempt, ghost=True)
+        else:
+            attempt = _next_attempt(attempt, result.failure, train, config)
+        # never block the last trailer's own start or goal footprint
+        keep_clear = [train.last.polygons(*pose).buffer(attempt.inflation + config.offtrack_allowance)
+                      for pose in (start, goal)]
+        attempt.blocks = [b for b in attempt.blocks if not any(b.intersects(k) for k in keep_clear)]
     if last_result is not None and last_result.failure is not None:
         f = last_result.failure
         name = "robot" if f["body"] == 0 else f"trailer {f['body']}"
-        what = (f"collides near ({f['x']:.3f}, {f['y']:.3f})" if f["kind"] == "collision"
-                else f"reaches |phi_{f['body']}| = {math.degrees(abs(f['phi'])):.1f} deg > "
-                     f"{math.degrees(train.phi_max):.1f} deg")
+        if f["kind"] == "collision":
+            what = f"collides near ({f['x']:.3f}, {f['y']:.3f})"
+        elif f["kind"] == "joint_limit":
+            what = (f"reaches |phi_{f['body']}| = {math.degrees(abs(f['phi'])):.1f} deg > "
+                    f"{math.degrees(train.phi_max):.1f} deg")
+        else:
+            what = (f"cannot be pulled along the planned curve: it ends {f['end_error']:.3f} m and "
+                    f"{math.degrees(f['end_heading_error']):.1f} deg off the planned cusp "
+                    f"({f['x']:.3f}, {f['y']:.3f})")
         raise PlanningError(
             "train_check_failed",
             f"after {len(history)} attempts ({time.perf_counter() - t_begin:.2f} s) the whole train "
@@ -623,8 +668,9 @@ def plan(
 def _resample_headings(result, path: PlannedPath) -> np.ndarray:
     """Headings of the train check interpolated at the path's dense samples."""
     out = np.empty((path.s.size, result.headings.shape[1]))
+    s = np.maximum.accumulate(result.s)  # pulling progress may stall for a sample
     for i in range(out.shape[1]):
-        out[:, i] = np.interp(path.s, result.s, result.headings[:, i])
+        out[:, i] = np.interp(path.s, s, result.headings[:, i])
     return out
 
 
@@ -642,7 +688,7 @@ def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: Planne
                  failure["x"], failure["y"], inflation)
         return replace(attempt, inflation=inflation, blocks=blocks)
     radius = attempt.radius * config.radius_growth
-    log.info("train check: joint limit; radius %.3f m", radius)
+    log.info("train check: %s; radius %.3f m", failure["kind"], radius)
     return replace(attempt, radius=radius)
 
 

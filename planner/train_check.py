@@ -17,7 +17,7 @@ Pulling stretches (robot leads)
     the trailers are towed (``forward_velocities``, stable). The stretch ends when the last
     trailer's progress along the planned curve reaches its end; the largest distance of the
     last trailer from the planned curve and its end error are reported, and an end error above
-    ``pull_tolerance`` is a failure. The next pushing stretch starts from the planned cusp
+    ``pull_tolerance`` (or a heading error above ``pull_heading_tolerance``) is a failure. The next pushing stretch starts from the planned cusp
     pose with the headings the towed chain arrived with. The co-simulation master's
     robot-led controller is free to differ; this model only asks whether the train can be
     pulled along the curve at all.
@@ -246,7 +246,8 @@ def body_positions_from_last_vec(last_xy, theta, geometry):
 
 def _simulate(start, segments, theta0, geometry, step, lookahead):
     """Samples of the whole train along the path: (s, last-trailer poses, headings, x, y,
-    pull_info) where s is the last trailer's planned progress [m]."""
+    pull_info, jump) where s is the last trailer's planned progress [m] and ``jump`` marks the
+    samples re-anchored to the planned cusp pose after a pulling stretch."""
     s_all, poses_all, interval_segment = dense_samples(start, segments, step)
     n1 = geometry.n + 1
     # stretches: maximal runs of intervals with the same direction
@@ -256,6 +257,7 @@ def _simulate(start, segments, theta0, geometry, step, lookahead):
     x_first, y_first = body_positions_from_last_vec(poses_all[0, :2], np.asarray(theta0, float), geometry)
     X.append(x_first[None, :]), Y.append(y_first[None, :])
     pull_info = []
+    jumps = [np.array([False])]
     theta = np.asarray(theta0, dtype=float)
     for a, b in zip(bounds[:-1], bounds[1:]):
         # samples a..b (interval a starts at sample a, interval b-1 ends at sample b)
@@ -266,6 +268,7 @@ def _simulate(start, segments, theta0, geometry, step, lookahead):
             x, y = body_positions_along(poses_all[a:b + 1], th, geometry)
             S.append(sub_s[1:]), P.append(poses_all[a + 1:b + 1]), TH.append(th[1:])
             X.append(x[1:]), Y.append(y[1:])
+            jumps.append(np.zeros(b - a, dtype=bool))
             theta = th[-1]
         else:
             length = s_all[b] - s_all[a]
@@ -276,9 +279,10 @@ def _simulate(start, segments, theta0, geometry, step, lookahead):
             start_xy = P[-1][-1, :2] if len(P) else poses_all[a, :2]
             x, y, th, prog = _pull_stretch(theta, start_xy, full, length, geometry,
                                            step, lookahead)
-            k = np.clip(np.searchsorted(s_all[a:b + 1] - s_all[a], prog), 0, b - a)
-            planned = poses_all[a:b + 1][k]
-            dev = np.hypot(x[:, -1] - planned[:, 0], y[:, -1] - planned[:, 1])
+            s_sub = s_all[a:b + 1] - s_all[a]
+            px = np.interp(prog, s_sub, poses_all[a:b + 1, 0])
+            py = np.interp(prog, s_sub, poses_all[a:b + 1, 1])
+            dev = np.hypot(x[:, -1] - px, y[:, -1] - py)
             end_err = float(np.hypot(x[-1, -1] - poses_all[b, 0], y[-1, -1] - poses_all[b, 1]))
             pull_info.append({"s_start": float(s_all[a]), "s_end": float(s_all[b]),
                               "max_deviation": float(dev.max()), "end_error": end_err,
@@ -290,7 +294,9 @@ def _simulate(start, segments, theta0, geometry, step, lookahead):
             x_re, y_re = body_positions_from_last_vec(poses_all[b, :2], theta, geometry)
             S.append(np.array([s_all[b]])), P.append(poses_all[b:b + 1]), TH.append(theta[None, :])
             X.append(x_re[None, :]), Y.append(y_re[None, :])
-    return (np.concatenate(S), np.vstack(P), np.vstack(TH), np.vstack(X), np.vstack(Y), pull_info)
+            jumps.append(np.zeros(x.shape[0], dtype=bool)), jumps.append(np.array([True]))
+    return (np.concatenate(S), np.vstack(P), np.vstack(TH), np.vstack(X), np.vstack(Y), pull_info,
+            np.concatenate(jumps))
 
 
 def check_train(
@@ -304,6 +310,7 @@ def check_train(
     free_eroded=None,
     lookahead: float = 1.0,
     pull_tolerance: float = 0.25,
+    pull_heading_tolerance: float = 0.2,
 ) -> TrainCheckResult:
     """Reconstruct the train's motion along the path and test footprints and joint limits.
 
@@ -326,6 +333,8 @@ def check_train(
     pull_tolerance : float
         Largest allowed distance [m] of the last trailer from the planned end of a pulling
         stretch.
+    pull_heading_tolerance : float
+        Largest allowed heading error [rad] of the last trailer there.
     """
     n = train.n
     theta0 = (
@@ -338,15 +347,16 @@ def check_train(
     region = world.eroded(margin) if free_eroded is None else free_eroded
     step = float(resolution)
     for _attempt in range(4):
-        s, poses, headings, x, y, pull_info = _simulate(start, segments, theta0, train.geometry,
-                                                        step, lookahead)
+        s, poses, headings, x, y, pull_info, jump = _simulate(
+            start, segments, theta0, train.geometry, step, lookahead
+        )
         corners = np.stack(
             [b.corners(x[:, i], y[:, i], headings[:, i]) for i, b in enumerate(train.bodies)], axis=1
         )  # (N, n+1, 4, 2)
         move = np.linalg.norm(np.diff(corners, axis=0), axis=-1)  # (N-1, n+1, 4)
         # a re-anchoring jump after a pulling stretch is not motion: ignore those intervals
-        jump = np.diff(s) == 0.0
-        move = move[~jump].max() if (~jump).any() else 0.0
+        moving = ~jump[1:]
+        move = move[moving].max() if moving.any() else 0.0
         if move <= resolution * (1.0 + 1e-9):
             break
         step *= 0.95 * resolution / move
@@ -380,16 +390,16 @@ def check_train(
             "kind": "joint_limit", "body": j + 1, "index": k, "s": float(s[k]),
             "x": float(x[k, j + 1]), "y": float(y[k, j + 1]), "phi": float(phi[k, j]),
         }
-    if failure is None:
-        for info in pull_info:
-            if info["end_error"] > pull_tolerance:
-                failure = {
-                    "kind": "pull_deviation", "body": n, "index": int(np.searchsorted(s, info["s_end"])),
-                    "s": info["s_end"], "x": float(poses[np.searchsorted(s, info["s_end"]) - 1, 0]),
-                    "y": float(poses[np.searchsorted(s, info["s_end"]) - 1, 1]),
-                    "end_error": info["end_error"],
-                }
-                break
+    for info in pull_info:
+        bad = info["end_error"] > pull_tolerance or abs(info["end_heading_error"]) > pull_heading_tolerance
+        if bad and (failure is None or info["s_end"] <= failure["s"]):
+            k = int(np.searchsorted(s, info["s_end"]))
+            failure = {
+                "kind": "pull_deviation", "body": n, "index": k, "s": info["s_end"],
+                "x": float(poses[max(k - 1, 0), 0]), "y": float(poses[max(k - 1, 0), 1]),
+                "end_error": info["end_error"], "end_heading_error": info["end_heading_error"],
+            }
+            break
     return TrainCheckResult(
         ok=failure is None, s=s, poses=poses, headings=headings, x=x, y=y,
         max_abs_phi=max_abs_phi, min_clearance=float(clear.min()), failure=failure,

@@ -49,7 +49,7 @@ def _polygon(points: Any, field_name: str) -> Polygon:
     poly = Polygon(arr)
     if not poly.is_valid:
         fixed = shapely.make_valid(poly)
-        polys = [g for g in getattr(fixed, "geoms", [fixed]) if isinstance(g, Polygon)]
+        polys = [g for g in getattr(fixed, "geoms", [fixed]) if isinstance(g, (Polygon, MultiPolygon))]
         poly = unary_union(polys) if polys else Polygon()
         log.warning("%s was not a valid (simple) polygon; repaired with make_valid", field_name)
     return poly

@@ -40,12 +40,12 @@ def l_corridor(width: float = 2.0, leg: float = 9.0) -> dict:
     }
 
 
-def bay(corridor_width: float = 2.0, bay_width: float = 1.4, bay_depth: float = 3.0) -> dict:
-    """A corridor along x with a dead-end bay on its upper side that needs one direction change.
+def bay(corridor_width: float = 3.0, bay_width: float = 1.4, bay_depth: float = 3.0) -> dict:
+    """A corridor along x with a dead-end bay on its upper side; one direction change needed.
 
-    The train starts with its last trailer already past the bay (x = 11.5) and must end with the
-    last trailer first in the bay: pull back along the corridor (robot leads), then push into
-    the bay with a left turn.
+    The train starts with its last trailer already past the bay (x = 11.5, pushing toward +x,
+    robot behind at -x) and must end pushed into the bay, last trailer first: the robot pulls
+    the train back along the corridor, then pushes it into the bay with a left turn.
     """
     w, bw, bd = float(corridor_width), float(bay_width), float(bay_depth)
     x0 = 8.0

@@ -1,0 +1,319 @@
+"""Robustness sweeps (issue 7): spec, expansion, Dask vs serial, failures, resume, report, CLI.
+
+Short scenarios: three trailers pushed 4 m along a straight line at 0.08 m/s (50 s, 10,000
+steps) with a bias on joint 3; the Dask cluster (2 worker processes) is started once per module.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from pushtrain.cli.scenario import parse_scenario
+from pushtrain.cli.sweep import FmuRef, _materialize, prepare_runs, sweep
+from pushtrain.cosim.sweep import (
+    TIMING_COLUMNS,
+    SweepError,
+    expand_runs,
+    parse_path,
+    parse_sweep_spec,
+    read_results,
+    run_key,
+    set_path,
+)
+
+BASE = {
+    "name": "short_bias",
+    "mission": {"kind": "scripted"},
+    "train": {"n": 3},
+    "start": {"x": 0.0, "y": 0.0, "theta_deg": 180.0},
+    "reference": {"speed": 0.08, "segments": [{"kind": "line", "length": 4.0}]},
+    "sensors": {"localize": "last_trailer", "joint_bias_deg": [0.0, 0.0, 0.0]},
+    "sim": {"settle_time": 0.0, "goal_tolerance": 0.2},
+}
+BASE_TOML = """
+name = "short_bias"
+[mission]
+kind = "scripted"
+[train]
+n = 3
+[start]
+x = 0.0
+y = 0.0
+theta_deg = 180.0
+[reference]
+speed = 0.08
+segments = [{ kind = "line", length = 4.0 }]
+[sensors]
+localize = "last_trailer"
+joint_bias_deg = [0.0, 0.0, 0.0]
+[sim]
+settle_time = 0.0
+goal_tolerance = 0.2
+"""
+SPEC8 = {
+    "name": "bias_gain",
+    "steady_window": 5.0,
+    "chunk_size": 2,
+    "parameters": [
+        {"path": "sensors.joint_bias_deg[2]", "values": [-6.0, -2.0, 2.0, 6.0]},
+        {"path": "controller.k_y", "values": [4.0, 6.0]},
+    ],
+}
+SPEC8_TOML = """
+name = "bias_gain"
+steady_window = 5.0
+chunk_size = 2
+[[parameters]]
+path = "sensors.joint_bias_deg[2]"
+values = [-6.0, -2.0, 2.0, 6.0]
+[[parameters]]
+path = "controller.k_y"
+values = [4.0, 6.0]
+"""
+D = 0.52
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") \
+            as cluster, Client(cluster) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def base():
+    return parse_scenario(BASE, "base")
+
+
+@pytest.fixture(scope="module")
+def serial8(base, tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial8")
+    return sweep(base, parse_sweep_spec(SPEC8), out, serial=True, plots=True)
+
+
+def _table(rows):
+    """Rows without the columns that measure time."""
+    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows]
+
+
+# ----------------------------------------------------------------------------- spec and runs
+@pytest.mark.parametrize("data, where, needle", [
+    ({"parameters": [{"path": "train.n", "values": [1], "vals": 2}]}, "parameters[0].vals",
+     "unknown key"),
+    ({"parameters": [{"path": "train.n", "dist": "uniform", "low": 0, "high": 1}]},
+     "parameters[0].dist", "monte_carlo"),
+    ({"mode": "monte_carlo", "parameters": [{"path": "train.n", "values": [1, 2]}]}, "samples",
+     "required"),
+    ({"parameters": [{"path": "train..n", "values": [1]}]}, "parameters[0]", "not a field path"),
+    ({"mode": "monte_carlo", "samples": 3,
+      "parameters": [{"path": "controller.k_y", "dist": "uniform", "low": 2.0, "high": 1.0}]},
+     "parameters[0]", "'low' < 'high'"),
+    ({"parameters": [{"path": "controller.k_y", "values": [1.0], "range":
+                      {"start": 0, "stop": 1, "num": 2}}]}, "parameters[0]", "exactly one"),
+    ({"parameters": [{"path": "controller.k_y", "values": [{"a": 1}]}]},
+     "parameters[0].values[0]", "valid"),
+    ({"parameters": []}, "parameters", "at least 1"),
+    ({"metrics": ["rms_lat"], "parameters": [{"path": "train.n", "values": [2]}]}, "metrics[0]",
+     "rms_lat_m"),
+])
+def test_spec_errors_name_the_field(data, where, needle):
+    with pytest.raises(SweepError) as err:
+        parse_sweep_spec(data, "spec.toml")
+    text = str(err.value)
+    assert any(w == where for w, _, _ in err.value.errors), text
+    assert needle in text, text
+
+
+def test_paths_parse_get_and_set():
+    assert parse_path("sensors.joint_bias_deg[2]") == ("sensors", "joint_bias_deg", 2)
+    assert parse_path("events[0].distance") == ("events", 0, "distance")
+    data = {"events": [{"distance": 1.0}], "train": {"n": 3}}
+    set_path(data, "events[0].distance", -0.2)
+    assert data["events"][0]["distance"] == -0.2
+    with pytest.raises(KeyError, match=r"events\[1\]"):
+        set_path(data, "events[1].distance", 0.0)
+    with pytest.raises(KeyError, match="no such field"):
+        set_path(data, "train.m", 0.0)
+
+
+def test_grid_and_monte_carlo_expansion():
+    grid = expand_runs(parse_sweep_spec(SPEC8))
+    assert [r.params["sensors.joint_bias_deg[2]"] for r in grid[:3]] == [-6.0, -6.0, -2.0]
+    assert [r.params["controller.k_y"] for r in grid[:3]] == [4.0, 6.0, 4.0]
+    assert len({r.key for r in grid}) == 8
+    assert grid[5].key == run_key(5, grid[5].params)
+    mc = {"mode": "monte_carlo", "samples": 50, "seed": 7, "parameters": [
+        {"path": "controller.k_y", "dist": "uniform", "low": 2.0, "high": 6.0},
+        {"path": "sensors.joint_noise_deg", "dist": "normal", "mean": 0.5, "std": 0.1},
+        {"path": "sensors.localize", "values": ["robot", "last_trailer"]}]}
+    a = expand_runs(parse_sweep_spec(mc))
+    b = expand_runs(parse_sweep_spec(mc))
+    assert [r.params for r in a] == [r.params for r in b]
+    k_y = [r.params["controller.k_y"] for r in a]
+    assert all(2.0 <= v < 6.0 for v in k_y) and len(set(k_y)) == 50
+    assert {r.params["sensors.localize"] for r in a} == {"robot", "last_trailer"}
+    longer = expand_runs(parse_sweep_spec({**mc, "samples": 60}))
+    assert [r.params for r in longer[:50]] == [r.params for r in a]
+    other = expand_runs(parse_sweep_spec({**mc, "seed": 8}))
+    assert [r.params for r in other] != [r.params for r in a]
+
+
+def test_bad_combinations_are_reported_before_anything_runs(base, tmp_path):
+    spec = parse_sweep_spec({"parameters": [{"path": "train.n", "values": [3, 5]}]})
+    with pytest.raises(SweepError) as err:
+        sweep(base, spec, tmp_path / "out", serial=True)
+    assert "run 1 (train.n = 5): sensors.joint_bias_deg" in str(err.value)
+    assert not (tmp_path / "out").exists()
+    spec = parse_sweep_spec({"parameters": [{"path": "controller.k_yy", "values": [1.0]}]})
+    with pytest.raises(SweepError, match=r"parameters\[0\]\.path.*no such field"):
+        prepare_runs(base, spec)
+
+
+# ------------------------------------------------------------------------------------ execution
+def test_cluster_gives_the_same_numbers_as_serial(client, base, serial8, tmp_path):
+    outcome = sweep(base, parse_sweep_spec(SPEC8), tmp_path, client=client, plots=False)
+    assert outcome.complete and outcome.new == 8
+    assert all(r["ok"] for r in outcome.rows)
+    assert _table(outcome.rows) == _table(serial8.rows)
+    assert _table(read_results(tmp_path / "results.csv")) == _table(serial8.rows)
+    assert len(list((tmp_path / "chunks").glob("chunk-*.csv"))) == 4  # chunk_size = 2
+
+
+def test_bias_offset_matches_the_closed_form(serial8):
+    for row in serial8.rows:
+        eps = math.radians(row["sensors.joint_bias_deg[2]"])
+        expected = -math.sin(eps) / (D * row["controller.k_y"])  # last trailer localized
+        assert row["predicted_steady_lat_m"] == pytest.approx(expected, rel=1e-9)
+        assert row["steady_lat_m"] == pytest.approx(expected, rel=0.03), row
+
+
+def test_failing_runs_are_recorded_and_the_sweep_finishes(client, base, tmp_path):
+    spec = parse_sweep_spec({
+        "overrides": {"sensors.joint_bias_deg[2]": 6.0},
+        "parameters": [{"path": "train.phi_max_deg", "values": [90.0, 1.0]},
+                       # a horizon the 5 ms step does not divide: only the co-simulation sees it
+                       {"path": "sim.horizon", "values": [50.0, 50.0025]}]})
+    outcome = sweep(base, spec, tmp_path, client=client, plots=True)
+    by = {(r["train.phi_max_deg"], r["sim.horizon"]): r for r in outcome.rows}
+    assert outcome.complete and len(by) == 4
+    assert by[(90.0, 50.0)]["ok"] and by[(90.0, 50.0)]["status"] == "goal_reached"
+    assert by[(1.0, 50.0)]["status"] == "jackknifed" and "phi_max" in by[(1.0, 50.0)]["error"]
+    for phi_max in (90.0, 1.0):
+        row = by[(phi_max, 50.0025)]
+        assert row["status"] == "error" and "does not divide the horizon" in row["error"]
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["ok"] == 1 and report["failed"] == 3
+    assert {f["status"] for f in report["failures"]} == {"jackknifed", "error"}
+    assert all(Path(p).is_file() for p in report["files"]["plots"])
+
+
+def test_interrupted_sweep_resumes_to_the_same_table(base, serial8, tmp_path):
+    spec = parse_sweep_spec(SPEC8)
+    first = sweep(base, spec, tmp_path, serial=True, max_runs=3, plots=False)
+    assert not first.complete and first.new == 3 and len(first.rows) == 3
+    assert len(read_results(tmp_path / "results.csv")) == 3
+    second = sweep(base, spec, tmp_path, serial=True, plots=False)
+    assert second.complete and second.skipped == 3 and second.new == 5
+    assert _table(second.rows) == _table(serial8.rows)
+    changed = parse_sweep_spec({**SPEC8, "steady_window": 6.0})
+    with pytest.raises(SweepError, match="different sweep"):
+        sweep(base, changed, tmp_path, serial=True, plots=False)
+
+
+def test_fmu_bytes_are_written_on_a_worker_without_the_file(tmp_path, serial8):
+    from pushtrain.fmu import build_fmu
+
+    path = Path(build_fmu(3))
+    import hashlib
+
+    sha = hashlib.sha256(path.read_bytes()).hexdigest()
+    ref = FmuRef(3, str(tmp_path / "elsewhere" / "TrailerTrain.fmu"), sha)
+    local = _materialize(ref, {f"fmu-{sha}": path.read_bytes()})
+    assert Path(local).read_bytes() == path.read_bytes()
+    with pytest.raises(FileNotFoundError, match="not on this worker"):
+        _materialize(ref, {})
+
+
+def test_report_plots_exist_for_each_parameter_and_the_bias(serial8):
+    names = sorted(Path(p).name for p in serial8.files["plots"])
+    assert names == ["bias_offset.png", "sweep_controller_k_y.png",
+                     "sweep_sensors_joint_bias_deg_2.png"]
+    report = serial8.report
+    assert report["success_rate"] == 1.0
+    assert report["bias_prediction"]["max_deviation_over_largest_prediction"] < 0.03
+
+
+# ------------------------------------------------------------------------------------------ CLI
+@pytest.mark.parametrize("workers", ["0", "2"])
+def test_cli_sweep(tmp_path, workers):
+    from pushtrain.cli.main import cli
+
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(SPEC8_TOML)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["sweep", str(tmp_path / "base.toml"), "--spec",
+                                      str(tmp_path / "spec.toml"), "--workers", workers,
+                                      "--out", str(out), "--no-plots"])
+    assert result.exit_code == 0, result.output
+    assert "success: 8/8" in result.output
+    assert "steady[cm]" in result.output
+    assert len(read_results(out / "results.csv")) == 8
+    assert not list(out.glob("*.png"))
+
+
+def test_cli_bad_spec_exits_2_naming_the_field(tmp_path):
+    from pushtrain.cli.main import cli
+
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text('[[parameters]]\npath = "controller.k_y"\nvalue = [1.0]\n')
+    result = CliRunner().invoke(cli, ["sweep", str(tmp_path / "base.toml"), "--spec",
+                                      str(tmp_path / "spec.toml"), "--workers", "0"])
+    assert result.exit_code == 2, result.output
+    assert "parameters[0].value" in result.output and "unknown key" in result.output
+
+
+# ------------------------------------------------------------------------------------- examples
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def test_example_joint_bias_sweep_reproduces_fig14(tmp_path):
+    outcome = sweep(EXAMPLES / "joint_bias_5deg.toml", EXAMPLES / "sweeps" / "joint_bias.toml",
+                    tmp_path, serial=True, plots=False)
+    assert outcome.complete and len(outcome.rows) == 11 and not outcome.failures
+    for row in outcome.rows:
+        eps = math.radians(row["sensors.joint_bias_deg[2]"])
+        expected = -math.sin(eps) / (D * 4.0)  # K_y = 4, last trailer localized
+        assert row["steady_lat_m"] == pytest.approx(expected, rel=0.02, abs=2e-4), row
+
+
+def test_example_alternating_sign_spec_predicts_the_alternating_sum():
+    from pushtrain.cli.scenario import load_scenario
+    from pushtrain.cosim.sweep import load_sweep_spec
+
+    spec = load_sweep_spec(EXAMPLES / "sweeps" / "alternating_sign.toml")
+    runs, _, _ = prepare_runs(load_scenario(EXAMPLES / "joint_bias_5deg.toml"), spec)
+    assert len(runs) == 27
+    for run in runs:
+        b = [run.params[f"sensors.joint_bias_deg[{k}]"] for k in range(3)]
+        assert run.extras["eps_eff_deg"] == pytest.approx(b[2] - b[1] + b[0], abs=1e-12)
+        assert run.payload["scenario"]["sensors"]["localize"] == "last_trailer"
+        assert run.payload["scenario"]["reference"]["segments"][0]["length"] == 5.0
+
+
+def test_plan_missions_are_planned_once_per_train_geometry_as_plain_data():
+    from pushtrain.cli.scenario import load_scenario
+
+    spec = parse_sweep_spec({"parameters": [{"path": "train.n", "values": [2, 3]},
+                                            {"path": "controller.k_y", "values": [3.0, 4.0]}]})
+    runs, _, _ = prepare_runs(load_scenario(EXAMPLES / "l_corridor.toml"), spec)
+    texts = [json.dumps(r.payload["path"], sort_keys=True) for r in runs]  # plain data only
+    assert texts[0] == texts[1] and texts[2] == texts[3] and texts[0] != texts[2]
+    assert all(r.failure is None for r in runs)
+    assert [r.payload["fmu"].n for r in runs] == [2, 2, 3, 3]
