@@ -202,13 +202,16 @@ def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:
         heading_offset=math.radians(sc.start.heading_offset_deg), joint_angles=joints)
 
 
-def run_scenario(sc: Scenario, out_dir: Path, *, reference: Reference | None = None, path=None,
-                 progress: bool | None = None) -> RunOutcome:
+def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Reference | None = None,
+                 path=None, progress: bool | None = None, fmu=None) -> RunOutcome:
     """Co-simulate ``sc`` along ``reference`` (or its scripted reference / the rotation profile).
 
-    Writes ``results.csv``, ``results.npz`` and ``summary.json`` into ``out_dir``.
+    ``fmu`` is the TrailerTrain FMU to use (default: built for ``train.n``). With ``out_dir``,
+    writes ``results.csv``, ``results.npz`` and ``summary.json`` there; without, writes nothing.
+    The recorded motion is checked against the map (status ``collision`` if a body leaves it).
     """
-    fmu = build_fmu(sc.train.n)
+    if fmu is None:
+        fmu = build_fmu(sc.train.n)
     plant = plant_of(sc)
     if sc.mission.kind == "rotation":
         rot = sc.rotation
@@ -228,7 +231,7 @@ def run_scenario(sc: Scenario, out_dir: Path, *, reference: Reference | None = N
         fmu, reference, controller, sensors_of(sc), events_of(sc), plant=plant, initial=initial,
         step=sc.sim.step, horizon=horizon, settle_time=sc.sim.settle_time,
         goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
-        progress=progress, out_dir=out_dir,
+        progress=progress,
     )
     result.summary["scenario"] = sc.name
     result.summary["mission"] = sc.mission.kind
@@ -242,7 +245,8 @@ def run_scenario(sc: Scenario, out_dir: Path, *, reference: Reference | None = N
                               f"near ({first[1]['x']:.2f}, {first[1]['y']:.2f}) m; "
                               f"the run itself ended: {result.message}")
             result.summary["status"], result.summary["message"] = result.status, result.message
-    atomic_write_text(Path(out_dir) / "summary.json", json.dumps(result.summary, indent=2))
+    if out_dir is not None:
+        result.save(out_dir)
     return RunOutcome(result, reference, path, dict(result.files))
 
 

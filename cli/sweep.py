@@ -100,34 +100,17 @@ def run_task(payload: dict, shared: dict):
     ``payload`` holds ``scenario`` (a resolved, validated scenario dict), ``fmu`` (an
     :class:`FmuRef`) and ``path`` (``PlannedPath.to_dict()`` data for ``plan`` missions, else None).
     """
-    from pushtrain.cosim.master import simulate
-    from pushtrain.cosim.openloop import RotationProfile
-
-    from .runner import (controller_of, events_of, initial_of, plant_of, scripted_reference,
-                         sensors_of)
+    from .runner import run_scenario
 
     sc = parse_scenario(payload["scenario"], payload["scenario"].get("name", "<run>"))
     fmu = _materialize(payload["fmu"], shared)
-    if sc.mission.kind == "rotation":
-        rot = sc.rotation
-        controller = RotationProfile(sc.train.n, math.radians(rot.w_max_deg),
-                                     math.radians(rot.alpha_deg), rot.hold)
-        horizon, reference = sc.sim.horizon or rot.duration, None
-    else:
-        if sc.mission.kind == "plan":
-            from pushtrain.planner.path import PlannedPath
+    reference = None
+    if sc.mission.kind == "plan":
+        from pushtrain.planner.path import PlannedPath
 
-            reference = PlannedPath.from_dict(payload["path"]).to_reference(
-                speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
-        else:
-            reference = scripted_reference(sc)
-        controller, horizon = controller_of(sc), sc.sim.horizon
-    return simulate(
-        fmu, reference, controller, sensors_of(sc), events_of(sc), plant=plant_of(sc),
-        initial=initial_of(sc, reference), step=sc.sim.step, horizon=horizon,
-        settle_time=sc.sim.settle_time,
-        goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
-        progress=False, out_dir=None)
+        reference = PlannedPath.from_dict(payload["path"]).to_reference(
+            speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
+    return run_scenario(sc, None, reference=reference, progress=False, fmu=fmu).result
 
 
 def _base_dict(sc: Scenario, spec: SweepSpec) -> dict:

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from pushtrain.cli.main import cli
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-COMMANDS = ["plan-and-run", "plan", "run", "build-fmu", "analyze", "validate"]
+COMMANDS = ["plan-and-run", "plan", "run", "build-fmu", "analyze", "validate", "slip-study", "sweep"]
 
 
 @pytest.fixture
