@@ -25,6 +25,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from pushtrain.errors import FieldErrors
+
 __all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -33,15 +35,8 @@ FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 Point = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 
 
-class ScenarioError(ValueError):
+class ScenarioError(FieldErrors):
     """A scenario file that cannot be used; ``errors`` lists (path, value, what is allowed)."""
-
-    def __init__(self, source: str, errors: list[tuple[str, object, str]]):
-        self.source = source
-        self.errors = errors
-        lines = [f"{source}: {len(errors)} problem(s)"]
-        lines += [f"  {path} = {value!r}: {allowed}" for path, value, allowed in errors]
-        super().__init__("\n".join(lines))
 
 
 class _Section(BaseModel):

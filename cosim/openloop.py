@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["RotationProfile"]
+__all__ = ["RotationProfile", "ConstantCommand"]
 
 
 @dataclass(frozen=True)
@@ -54,3 +54,19 @@ class RotationProfile:
 
     def command(self, t, measurement, ref, ahead=None):
         return 0.0, self.yaw_rate(t), None
+
+
+@dataclass(frozen=True)
+class ConstantCommand:
+    """The robot drives with a fixed (v0 [m/s], w0 [rad/s]): open-loop pushing or holding still.
+
+    Has the controller interface the master expects (``n``, ``lead_distance``, ``command``).
+    """
+
+    n: int
+    v0: float = 0.0
+    w0: float = 0.0
+    lead_distance: float = 0.0
+
+    def command(self, t, measurement, ref, ahead=None):
+        return self.v0, self.w0, None

@@ -42,6 +42,8 @@ import numpy as np
 from pydantic import (BaseModel, ConfigDict, Field, StrictBool, StrictInt, ValidationError,
                       model_validator)
 
+from pushtrain.errors import FieldErrors
+
 __all__ = [
     "SweepError",
     "RangeSpec",
@@ -105,15 +107,8 @@ TIMING_COLUMNS = ("wall_time_s", "task_time_s")
 """Columns that measure time and so differ between otherwise identical runs."""
 
 
-class SweepError(ValueError):
+class SweepError(FieldErrors):
     """A sweep that cannot be run; ``errors`` lists (where, value, what is allowed)."""
-
-    def __init__(self, source: str, errors: list[tuple[str, object, str]]):
-        self.source = source
-        self.errors = errors
-        lines = [f"{source}: {len(errors)} problem(s)"]
-        lines += [f"  {where} = {value!r}: {allowed}" for where, value, allowed in errors]
-        super().__init__("\n".join(lines))
 
 
 # ---------------------------------------------------------------------------------------- paths

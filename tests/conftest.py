@@ -214,3 +214,9 @@ def built_fmu_sim(built_fmu_unzipped):
     for sim in reversed(made):
         sim.free()
 
+
+
+@pytest.fixture(scope="session")
+def fmu3(built_fmu):
+    """The TrailerTrain FMU for 3 trailers (the paper's train)."""
+    return built_fmu(3)

@@ -7,29 +7,14 @@ import pytest
 
 from pushtrain.cosim.controller import ControllerConfig
 from pushtrain.cosim.master import InitialState, PlantConfig, Push, simulate
-from pushtrain.cosim.openloop import RotationProfile
+from pushtrain.cosim.openloop import ConstantCommand, RotationProfile
 from pushtrain.cosim.reference import Reference, Segment
-from pushtrain.fmu import build_fmu
 
 M, I = 42.1, 3.5083
 
 
-@pytest.fixture(scope="module")
-def fmu3():
-    return build_fmu(3)
-
-
-class Hold:
-    """The robot holds still (velocity commands zero)."""
-
-    n = 3
-    lead_distance = 0.0
-
-    def command(self, t, measurement, ref, ahead=None):
-        return 0.0, 0.0, None
-
-
 AT_REST = InitialState(0.0, 0.0, np.zeros(4))
+HOLD = ConstantCommand(3)  # the robot holds still
 
 
 def test_below_friction_mode_1_reproduces_mode_0(fmu3):
@@ -52,7 +37,7 @@ def test_below_friction_mode_1_reproduces_mode_0(fmu3):
 @pytest.mark.parametrize("force, moves", [(30.0, False), (45.0, True)])
 def test_a_push_below_friction_moves_nothing_and_above_it_slides(fmu3, force, moves):
     limit = 0.09 * M * 9.81  # 37.17 N
-    result = simulate(fmu3, None, Hold(), initial=AT_REST, plant=PlantConfig(3, slip_mode=1),
+    result = simulate(fmu3, None, HOLD, initial=AT_REST, plant=PlantConfig(3, slip_mode=1),
                       horizon=4.0, events=[Push(1.0, 2.0, lateral=force)])
     d = result.data
     moved = math.hypot(d["x3"][-1] - d["x3"][0], d["y3"][-1] - d["y3"][0])
@@ -72,7 +57,7 @@ def test_all_wheels_sliding_without_robot_motion_only_lose_energy(fmu3):
     # the robot spins and stops abruptly: the trailers slide on and friction brakes them
     initial = InitialState(0.0, 0.0, np.zeros(4), w0=1.5)
     plant = PlantConfig(3, slip_mode=1, robot_alpha_max=1000.0, robot_tau=0.01)
-    d = simulate(fmu3, None, Hold(), initial=initial, plant=plant, horizon=3.0).data
+    d = simulate(fmu3, None, HOLD, initial=initial, plant=plant, horizon=3.0).data
     ke = sum(0.5 * M * (d[f"v{i}"] ** 2 + d[f"u{i}"] ** 2) + 0.5 * I * d[f"w{i}"] ** 2
              for i in (1, 2, 3))
     still = int(np.searchsorted(d["t"], 0.15))  # robot at rest (|w0| < 1e-6 rad/s) from here
@@ -90,7 +75,7 @@ def test_frictionless_sliding_conserves_energy(fmu3):
     initial = InitialState(0.0, 0.0, np.array([0.0, 0.3, -0.2, 0.4]), w0=1.0)
     plant = PlantConfig(3, slip_mode=1, mu=0.0, robot_alpha_max=1000.0, robot_tau=0.005,
                         slip_substep=2e-4)
-    d = simulate(fmu3, None, Hold(), initial=initial, plant=plant, horizon=4.0).data
+    d = simulate(fmu3, None, HOLD, initial=initial, plant=plant, horizon=4.0).data
     ke = sum(0.5 * M * (d[f"v{i}"] ** 2 + d[f"u{i}"] ** 2) + 0.5 * I * d[f"w{i}"] ** 2
              for i in (1, 2, 3))
     still = int(np.searchsorted(d["t"], 0.1))
@@ -127,7 +112,7 @@ def test_slide_input_is_refused_in_slip_mode_1(fmu3):
     from pushtrain.cosim.master import CosimError, Slide
 
     with pytest.raises(CosimError, match="Push"):
-        simulate(fmu3, None, Hold(), initial=AT_REST, plant=PlantConfig(3, slip_mode=1),
+        simulate(fmu3, None, HOLD, initial=AT_REST, plant=PlantConfig(3, slip_mode=1),
                  horizon=1.0, events=[Slide(0.2, 0.5, 0.1)])
     with TrailerTrainSlave(fmu3) as slave:  # and the FMU itself refuses it, naming the input
         slave.start({"slip_mode": 1})

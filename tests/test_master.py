@@ -16,29 +16,11 @@ from pushtrain.cosim.master import (
     Slide,
     simulate,
 )
+from pushtrain.cosim.openloop import ConstantCommand
 from pushtrain.cosim.reference import Reference, ReferenceError, Segment
 from pushtrain.cosim.sensors import SensorConfig
-from pushtrain.fmu import build_fmu
 
 D = 0.52
-
-
-@pytest.fixture(scope="module")
-def fmu3():
-    return build_fmu(3)
-
-
-class ConstantCommand:
-    """Open loop: the robot drives with a fixed (v0, w0)."""
-
-    n = 3
-    lead_distance = 0.0
-
-    def __init__(self, v0, w0=0.0):
-        self.v0, self.w0 = v0, w0
-
-    def command(self, t, measurement, ref, ahead=None):
-        return self.v0, self.w0, None
 
 
 def _at(data, t):
@@ -49,7 +31,7 @@ def test_open_loop_pushing_diverges_and_the_closed_loop_holds(fmu3):
     geom = PlantConfig(n_trailers=3).geometry()
     straight = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 4.0)], speed=0.08)
     initial = InitialState.behind_reference(straight, geom, joint_angles=np.radians([0.0, 0.0, 1.0]))
-    open_loop = simulate(fmu3, None, ConstantCommand(-0.08), initial=initial, horizon=50.0)
+    open_loop = simulate(fmu3, None, ConstantCommand(3, -0.08), initial=initial, horizon=50.0)
     closed = simulate(fmu3, straight, ControllerConfig.uniform(3), initial=initial, horizon=50.0,
                       check_goal=False)
     phi_open = np.degrees(np.abs([open_loop.data[f"phi{i}"][-1] for i in (1, 2, 3)]))
@@ -149,7 +131,7 @@ def test_jackknife_stops_the_run_with_a_clear_status(fmu3):
     geom = PlantConfig(n_trailers=3).geometry()
     straight = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 4.0)], speed=0.08)
     initial = InitialState.behind_reference(straight, geom, joint_angles=np.radians([0.0, 0.0, 5.0]))
-    result = simulate(fmu3, None, ConstantCommand(-0.1), initial=initial, horizon=200.0,
+    result = simulate(fmu3, None, ConstantCommand(3, -0.1), initial=initial, horizon=200.0,
                       plant=PlantConfig(n_trailers=3, phi_max=math.radians(45.0)))
     assert result.status == "jackknifed"
     assert "phi_max" in result.message
