@@ -162,13 +162,18 @@ def _start_headings(sc: Scenario) -> np.ndarray:
 
 
 def plan_path(sc: Scenario):
-    """Plan the last trailer's path of a ``plan`` mission (raises PlanningError)."""
+    """Plan the last trailer's path of a ``plan`` mission (raises PlanningError).
+
+    The whole-train check simulates the scenario's own controller at the reference speed and
+    cusp dwell the co-simulation will use.
+    """
     from pushtrain.planner import PlannerConfig, plan
 
     p = sc.planner
     config = PlannerConfig(
         planner=p.planner, time_budget=p.time_budget, turning_radius=p.turning_radius,
         transient_margin=p.transient_margin, inflation=p.inflation, seed=sc.seed,
+        controller=controller_of(sc), speed=p.speed, cusp_dwell=p.cusp_dwell,
     )
     goal = (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg))
     return plan(world_of(sc), _start_pose(sc), goal, train_of(sc), config,

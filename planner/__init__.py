@@ -21,7 +21,7 @@ from .planner import (
     turning_radius_from_joint_limit,
 )
 from .reeds_shepp import Primitive, evaluate_primitives, recover_primitives
-from .train_check import TrainCheckResult, check_train
+from .train_check import TrackerConfig, TrainCheckResult, check_train
 from .world import BodyFootprint, Train, World, draw_poses, save_diagnostic
 from . import worlds
 
@@ -29,6 +29,6 @@ __all__ = [
     "REASONS", "PlanningError", "PlanningInputError", "PlannedPath", "PLANNERS", "PlannerConfig",
     "ReedsSheppCurve", "plan", "primitives_to_segments", "rs_distance",
     "turning_radius_from_joint_limit", "Primitive", "evaluate_primitives", "recover_primitives",
-    "TrainCheckResult", "check_train", "BodyFootprint", "Train", "World", "draw_poses",
+    "TrackerConfig", "TrainCheckResult", "check_train", "BodyFootprint", "Train", "World", "draw_poses",
     "save_diagnostic", "worlds",
 ]

@@ -77,7 +77,10 @@ class PlannedPath:
     cusps : (K,) int array
         Indices into :attr:`poses` where the direction changes.
     headings : (N, n+1) array or None
-        Body headings from the whole-train check along :attr:`poses` (set by the planner).
+        Body headings [rad] from the planner's closed-loop train check (set by the planner):
+        those of the simulated train at the time the reference passes each of :attr:`poses`
+        (at a cusp: when it arrives). The simulated last trailer is near, not exactly at,
+        those poses (its tracking error is in ``info["train_check"]``).
     """
 
     start: np.ndarray

@@ -17,6 +17,11 @@ Entering an arc from a line does not overshoot the steady angle in the chain kin
 switching between opposite arcs does: up to 1.46x the steady angle for 3 trailers and 1.56x for
 10 (r = 0.9 .. 1.5 m, D = 0.52 m), so the default margin 0.6 covers both; tracking transients
 of the closed loop need the rest. With phi_max = 90 deg and D = 0.52 m this gives r = 0.975 m.
+
+Whole-train check and replanning: every plan is checked by simulating the co-simulation's
+controller in closed loop with the chain (:mod:`pushtrain.planner.train_check`); a failure
+changes the next attempt (larger radius, or a blocked region and more inflation, see
+:func:`_next_attempt`) until a plan passes, ``max_attempts`` or ``time_budget`` run out.
 """
 
 from __future__ import annotations
@@ -30,12 +35,13 @@ from typing import Sequence
 import numpy as np
 from shapely.geometry import Point
 
+from pushtrain.cosim.controller import ControllerConfig
 from pushtrain.cosim.reference import PULL, PUSH, Segment
 
 from .errors import PlanningError, PlanningInputError
 from .path import PlannedPath
 from .reeds_shepp import Primitive, recover_primitives
-from .train_check import check_train
+from .train_check import TrackerConfig, check_train, reference_times
 from .world import Train, World
 
 from ompl import base as ob  # noqa: E402  (the one module that imports ompl)
@@ -122,21 +128,33 @@ class PlannerConfig:
     max_attempts : int
         Plans tried in total (the first plus replans after failed train checks).
     radius_growth, inflation_growth, block_radius : float
-        Replanning: radius factor per joint-limit failure, added inflation [m] per collision
-        failure, and half-size [m] of the region blocked around a follower's collision.
+        Replanning after a failed train check: radius factor per joint-limit failure, missed
+        goal or collision of a leading body while pulling; added inflation [m] per further
+        collision, and half-size [m] of the region blocked around a collision (see
+        :func:`_next_attempt`).
     check_train : bool
-        Run the whole-train check (disable only to study the last trailer alone).
+        Run the whole-train check (disable only to study the last trailer alone): a
+        closed-loop simulation of the co-simulation's controller along the plan
+        (:func:`~pushtrain.planner.train_check.check_train`).
     allow_pull_arcs : bool
         Let local Reeds-Shepp curves turn while pulling (default). False restricts pulling to
         straight lines (much harder for the sampling planners; for studies only).
+    controller : ControllerConfig or None
+        The co-simulation's controller, simulated by the whole-train check
+        (:class:`~pushtrain.planner.train_check.TrackerConfig`); None: the scenario defaults of
+        :func:`~pushtrain.planner.train_check.default_controller` for the train.
+    speed : float
+        Reference speed [m/s] the co-simulation will use (``PlannedPath.to_reference``).
+    cusp_dwell : float
+        Rest [s] of the reference at each direction change in the co-simulation.
     pull_ghost : bool
-        From the first attempt on, while a local curve pulls (robot leads), also require the
-        train stretched straight ahead of the last trailer to be free: the robot is about
-        sum(F_i + R_i) ahead and a pulled chain straightens behind it. Conservative, and it
-        slows planning in narrow corridors, so by default it is switched on only for the
-        replans after a plan failed the train check while pulling (without it the
-        last-trailer planner happily pulls the trailer to where the robot would be inside a
-        wall).
+        While a local curve pulls (robot leads), also require the train stretched straight
+        ahead of the last trailer to be free: the robot is about sum(F_i + R_i) ahead and a
+        pulled chain straightens behind it. Off by default and never switched on by the
+        replanning: it slows planning in narrow corridors, and the closed-loop check's pull
+        collisions come mostly from the chain wrapping around the arc after a cusp, which it
+        does not see (examples/bay.toml, seeds 1-20, 3 s: 3 plans with the ghost switched on
+        after a pulling failure, 16 without).
     """
 
     turning_radius: float | None = None
@@ -156,6 +174,9 @@ class PlannerConfig:
     block_radius: float = 0.25
     check_train: bool = True
     allow_pull_arcs: bool = True
+    controller: ControllerConfig | None = None
+    speed: float = 0.08
+    cusp_dwell: float = 1.0
     pull_ghost: bool = False
 
     def __post_init__(self):
@@ -185,6 +206,12 @@ class PlannerConfig:
             raise PlanningInputError(f"seed = {self.seed!r}: must be an integer >= 1 or None")
         if int(self.max_attempts) < 1:
             raise PlanningInputError(f"max_attempts = {self.max_attempts!r}: must be >= 1")
+        self.tracker()  # validates controller, speed and cusp_dwell
+
+    def tracker(self) -> TrackerConfig:
+        """What the whole-train check simulates: controller, reference speed and cusp dwell."""
+        return TrackerConfig(controller=self.controller, speed=self.speed,
+                             cusp_dwell=self.cusp_dwell)
 
     def radius_for(self, train: Train) -> float:
         """The turning radius [m] used for ``train``."""
@@ -569,6 +596,8 @@ def plan(
             )
     _check_endpoints(world, train, start, goal, start_headings, config.inflation)
 
+    tracker = config.tracker()
+    tracker.controller_for(train.geometry)  # a controller for another n fails here, not later
     attempt = _Attempt(config.radius_for(train), config.inflation, ghost=config.pull_ghost)
     history = []
     last_error: PlanningError | None = None
@@ -601,7 +630,8 @@ def plan(
         result = None
         if config.check_train:
             result = check_train(world, train, start, segments, start_headings,
-                                 margin=config.inflation, resolution=config.check_resolution)
+                                 margin=config.inflation, resolution=config.check_resolution,
+                                 tracker=tracker)
             entry["train_ok"] = result.ok
             entry["failure"] = result.failure
         history.append(entry)
@@ -614,25 +644,23 @@ def plan(
                 "train_check": None if result is None else {
                     "max_abs_phi": result.max_abs_phi.tolist(),
                     "min_clearance": result.min_clearance,
+                    "max_tracking_error": result.max_tracking_error,
+                    "max_lateral_error": result.max_lateral_error,
+                    "max_heading_error": result.max_heading_error,
+                    "goal_error": list(result.goal_error),
+                    "speed": tracker.speed, "cusp_dwell": tracker.cusp_dwell,
                 },
             }
             path = PlannedPath(start, tuple(segments), attempt.radius,
                                None if start_headings is None else start_headings,
                                config.check_resolution, info_all)
             if result is not None:
-                path.headings = _resample_headings(result, path)
+                path.headings = _resample_headings(result, path, tracker)
             log.info("planned %.2f m, %d segments, %d cusps in %.3f s (%d attempts)",
                      path.length, len(segments), path.n_cusps, info_all["time"], k + 1)
             return path
         last_result = result
-        bounds = np.cumsum([g.length for g in segments])
-        j = min(int(np.searchsorted(bounds, result.failure["s"] - 1e-9)), len(segments) - 1)
-        pulling = result.failure["kind"] == "pull_deviation" or segments[j].direction == PULL
-        if pulling and not attempt.ghost:
-            # first pulling failure: keep the map, make the planner see the robot ahead
-            attempt = replace(attempt, ghost=True)
-        else:
-            attempt = _next_attempt(attempt, result.failure, train, config)
+        attempt = _next_attempt(attempt, result.failure, train, config)
         # never block the last trailer's own start or goal footprint
         keep_clear = [train.last.polygons(*pose).buffer(attempt.inflation + config.offtrack_allowance)
                       for pose in (start, goal)]
@@ -646,13 +674,13 @@ def plan(
             what = (f"reaches |phi_{f['body']}| = {math.degrees(abs(f['phi'])):.1f} deg > "
                     f"{math.degrees(train.phi_max):.1f} deg")
         else:
-            what = (f"cannot be pulled along the planned curve: it ends {f['end_error']:.3f} m and "
-                    f"{math.degrees(f['end_heading_error']):.1f} deg off the planned cusp "
-                    f"({f['x']:.3f}, {f['y']:.3f})")
+            what = (f"ends {f['distance']:.3f} m and {math.degrees(f['heading_error']):.1f} deg "
+                    f"from the goal (at ({f['x']:.3f}, {f['y']:.3f}))")
         raise PlanningError(
             "train_check_failed",
             f"after {len(history)} attempts ({time.perf_counter() - t_begin:.2f} s) the whole train "
-            f"still fails: the {name} {what} at s = {f['s']:.2f} m of the last plan",
+            f"still fails: the {name} {what} at t = {f['t']:.2f} s, s = {f['s']:.2f} m of the "
+            "last plan",
             where=(f["x"], f["y"]), details={"failure": f, "attempts": history},
         )
     if last_error is not None:
@@ -665,21 +693,32 @@ def plan(
     )
 
 
-def _resample_headings(result, path: PlannedPath) -> np.ndarray:
-    """Headings of the train check interpolated at the path's dense samples."""
-    out = np.empty((path.s.size, result.headings.shape[1]))
-    s = np.maximum.accumulate(result.s)  # pulling progress may stall for a sample
-    for i in range(out.shape[1]):
-        out[:, i] = np.interp(path.s, s, result.headings[:, i])
-    return out
+def _resample_headings(result, path: PlannedPath, tracker: TrackerConfig) -> np.ndarray:
+    """The closed-loop simulation's headings at the times the reference passes the path's dense
+    samples (at a cusp: when it arrives there). They belong to the simulated train, whose last
+    trailer is near, not exactly at, :attr:`PlannedPath.poses`."""
+    t, _ = reference_times(path.segments, tracker.speed, tracker.cusp_dwell, path.s)
+    return result.headings_at(t)
 
 
 def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: PlannerConfig) -> _Attempt:
-    """Change what the last failure calls for: block the colliding region (and grow the
-    inflation) after a collision, a larger radius after a joint-limit failure."""
+    """Change what the last failure of the closed-loop train check calls for.
+
+    - A leading body (robot or trailer 1..n-1) collides while pulling: a larger radius. The
+      robot leads toward the reference point ``lead_distance`` (the chain length) ahead; past
+      the end of a pulling run that point follows the backward extension of the next
+      segment, so before a cusp into an arc of radius r the chain wraps about lead / r rad
+      around that arc's circle (3.2 rad for 3 trailers at r = 0.97 m) and its leading bodies
+      sweep a disc of radius about r. Only a larger radius shrinks it; blocking the spot
+      changes nothing, the last trailer never goes there.
+    - Any other collision: block the colliding region (and grow the inflation from the
+      second block on).
+    - A joint-limit failure or a missed goal: a larger radius.
+    """
     from shapely.geometry import box as _box
 
-    if failure["kind"] == "collision":
+    if failure["kind"] == "collision" and not (failure["direction"] == PULL
+                                               and failure["body"] < train.n):
         r = config.block_radius
         block = _box(failure["x"] - r, failure["y"] - r, failure["x"] + r, failure["y"] + r)
         blocks = attempt.blocks + [block]
@@ -688,7 +727,8 @@ def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: Planne
                  failure["x"], failure["y"], inflation)
         return replace(attempt, inflation=inflation, blocks=blocks)
     radius = attempt.radius * config.radius_growth
-    log.info("train check: %s; radius %.3f m", failure["kind"], radius)
+    log.info("train check: %s of body %d while %s; radius %.3f m", failure["kind"],
+             failure["body"], "pulling" if failure["direction"] == PULL else "pushing", radius)
     return replace(attempt, radius=radius)
 
 

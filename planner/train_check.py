@@ -1,30 +1,44 @@
-"""Whole-train check: integrate the chain along a planned path and test every body.
+"""Whole-train check: predict the closed loop the co-simulation will run and test every body.
 
-The planner plans the last trailer only. Here the motion of all bodies is reconstructed:
+The planner plans the last trailer only. Here the whole train's motion along the plan is
+predicted by running the co-simulation's own controller,
+:class:`~pushtrain.cosim.controller.BackwardController`, in closed loop with the kinematic chain:
 
-Pushing stretches (trailer leads)
-    The last trailer follows the planned path exactly and the other headings follow from the
-    inverse velocity map of :mod:`pushtrain.cosim.kinematics` (``heading_rates_from_last``):
-    for travel speed |v| = 1, ``v_n = -1``, ``w_n = curvature`` and
-    ``d(theta)/ds = heading_rates_from_last(theta, v_n, w_n)`` (RK4). This direction is stable.
-
-Pulling stretches (robot leads)
-    Making the last trailer follow a pulling segment exactly is the unstable direction of the
-    chain: from a straight 3-trailer chain (D = 0.52 m) a 1 deg pulling arc followed by 1 m of
-    straight pulling already drives a joint past 100 deg, so that model would reject almost
-    every plan with a cusp. Instead the robot leads: it pursues the planned curve (pure
-    pursuit with look-ahead ``lookahead`` [m] on the curve extended straight past its end) and
-    the trailers are towed (``forward_velocities``, stable). The stretch ends when the last
-    trailer's progress along the planned curve reaches its end; the largest distance of the
-    last trailer from the planned curve and its end error are reported, and an end error above
-    ``pull_tolerance`` (or a heading error above ``pull_heading_tolerance``) is a failure. The next pushing stretch starts from the planned cusp
-    pose with the headings the towed chain arrived with. The co-simulation master's
-    robot-led controller is free to differ; this model only asks whether the train can be
-    pulled along the curve at all.
+Reference
+    ``Reference.from_segments(start, segments, tracker.speed, tracker.cusp_dwell)``, the same
+    time-parameterized reference :meth:`~pushtrain.planner.path.PlannedPath.to_reference`
+    hands to the co-simulation master.
+Controller
+    ``BackwardController(tracker.controller)`` (gains, robot limits, rate limits, lead distance
+    and its own chain model), called every ``tracker.step`` seconds at ``t_k = k * step`` with a
+    perfect measurement (robot pose and joint angles ``phi_i = theta_{i-1} - theta_i``) exactly
+    as the master calls it; the command is held over the step (zero-order hold) and the rate
+    limits start from rest one step before t = 0, as in the master.
+Plant
+    The robot moves along its heading with the commanded ``(v0, w0)`` (no first-order velocity
+    lag: the FMU's ``tau`` = 0.05 s is ignored, no slip), the trailers are towed:
+    ``d(theta)/dt`` from the forward velocity map of :mod:`pushtrain.cosim.kinematics`
+    (:func:`~pushtrain.cosim.kinematics.forward_velocities`, here as the fast scalar
+    :func:`towed_rates`), with the train's own geometry (the controller's model may differ).
+    The state ``(x0, y0, theta_0..theta_n)`` is integrated with RK4 over each step (the
+    command is constant within a step). The error is that of the zero-order hold, first
+    order in the step: on a bay plan with a cusp and 0.24 m transients (3 trailers) the last
+    trailer's trajectory differs from a 0.002 s run by 2.4 cm with a 0.1 s step, 1.0 cm with
+    0.05 s and 0.36 cm with the default 0.025 s (a test keeps it below 1 cm).
+Start and end
+    The last trailer starts at ``start`` with the given headings (the co-simulation's
+    ``InitialState.behind_reference``), at rest. The run continues ``tracker.settle_time``
+    seconds past the reference's end (the reference then rests and the robot brakes to a
+    stop within its acceleration limit).
 
 Every body's rectangle is tested against the free space shrunk by a margin (shapely,
-vectorized) and every |phi_i| against the train's ``phi_max``. Samples are refined until no
-corner of any body moves more than ``resolution`` between two checked samples.
+vectorized) at samples spaced so that no corner of any body travels more than ``resolution``
+between two checked samples (steps are subdivided where needed, standing samples are
+skipped), and every |phi_i| against the train's ``phi_max`` at every step. The last
+trailer's tracking error (distance to the reference sample at the same time, lateral error
+and heading error) and its final distance to the goal are reported; missing the goal by more
+than ``tracker.goal_tolerance`` is a failure too (the co-simulation would end with
+``goal_not_reached``).
 """
 
 from __future__ import annotations
@@ -37,76 +51,122 @@ from typing import Sequence
 import numpy as np
 import shapely
 
+from pushtrain.cosim.controller import BackwardController, ControllerConfig
 from pushtrain.cosim.kinematics import ChainGeometry, joint_angles
-from pushtrain.cosim.reference import PUSH, Segment
+from pushtrain.cosim.reference import PULL, Reference, Segment
 
-from .path import dense_samples
+from .errors import PlanningInputError
 from .world import Train, World
 
 __all__ = [
+    "TrackerConfig",
     "TrainCheckResult",
-    "integrate_headings",
+    "Trajectory",
     "body_positions_along",
     "check_train",
-    "chain_heading_rates",
+    "default_controller",
+    "reference_times",
+    "simulate_tracking",
+    "towed_rates",
 ]
 
 log = logging.getLogger(__name__)
 
 
-def chain_heading_rates(geometry: ChainGeometry):
-    """A fast scalar version of ``kinematics.heading_rates_from_last`` for one geometry.
+def default_controller(geometry: ChainGeometry) -> ControllerConfig:
+    """The scenario defaults of :class:`~pushtrain.cosim.controller.ControllerConfig` for a chain.
 
-    Returns ``f(theta, v_n, w_n) -> list`` of d(theta_i)/dt [rad/s], i = 0..n. Same recursion
-    (v_{i-1} = c v_i + F_i s w_i, w_{i-1} = (s v_i - F_i c w_i) / R_{i-1}); the tests compare it
-    with :func:`pushtrain.cosim.kinematics.heading_rates_from_last`.
+    Default gains (K_x = 1 1/s, K_y = 4 1/m², K_theta = 4 1/m), v_max = 0.1 m/s,
+    w_max = 0.1 rad/s, acc_max = 0.2 m/s², alpha_max = 10 deg/s² (``cli/scenario.py``'s
+    robot and controller sections), the default lead distance, and ``geometry`` as the
+    controller's chain model.
+    """
+    return ControllerConfig(geometry=geometry, v_max=0.1, w_max=0.1, acc_max=0.2,
+                            alpha_max=math.radians(10.0))
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """How the co-simulation will track the plan (what :func:`check_train` simulates).
+
+    Parameters
+    ----------
+    controller : ControllerConfig or None
+        The co-simulation's controller; None: :func:`default_controller` of the train's
+        geometry.
+    speed : float
+        Reference speed |v_d| [m/s] on every segment without its own speed, > 0.
+    cusp_dwell : float
+        Rest [s] of the reference at every direction change, >= 0.
+    step : float
+        Control and integration step [s], > 0 (the controller is called every ``step``).
+    settle_time : float
+        Simulated time [s] past the reference's end, >= 0.
+    goal_tolerance : (float, float) or None
+        Position [m] and heading [rad] tolerance of the last trailer at the end of the run
+        (the co-simulation's goal test); None: report the goal error only.
+    """
+
+    controller: ControllerConfig | None = None
+    speed: float = 0.08
+    cusp_dwell: float = 1.0
+    step: float = 0.025
+    settle_time: float = 2.0
+    goal_tolerance: tuple[float, float] | None = (0.05, math.radians(5.0))
+
+    def __post_init__(self):
+        if self.controller is not None and not isinstance(self.controller, ControllerConfig):
+            raise PlanningInputError(
+                f"tracker.controller = {self.controller!r}: must be a ControllerConfig or None")
+        checks = (("speed", None), ("step", None), ("cusp_dwell", 0.0), ("settle_time", 0.0))
+        for key, low in checks:
+            value = getattr(self, key)
+            ok = isinstance(value, (int, float)) and math.isfinite(value)
+            ok = ok and (value > 0.0 if low is None else value >= low)
+            if not ok:
+                allowed = "finite and > 0" if low is None else "finite and >= 0"
+                raise PlanningInputError(f"tracker.{key} = {value!r}: must be {allowed}")
+        if self.goal_tolerance is not None:
+            tol = tuple(self.goal_tolerance)
+            if len(tol) != 2 or not all(math.isfinite(a) and a > 0.0 for a in tol):
+                raise PlanningInputError(
+                    f"tracker.goal_tolerance = {self.goal_tolerance!r}: need None or two finite "
+                    "numbers > 0 (position [m], heading [rad])")
+            object.__setattr__(self, "goal_tolerance", (float(tol[0]), float(tol[1])))
+
+    def controller_for(self, geometry: ChainGeometry) -> ControllerConfig:
+        """The controller configuration used for a chain of ``geometry`` (checks its n)."""
+        config = self.controller if self.controller is not None else default_controller(geometry)
+        if config.geometry.n != geometry.n:
+            raise PlanningInputError(
+                f"tracker.controller has a chain model of n = {config.geometry.n} trailers; the "
+                f"train has n = {geometry.n}")
+        return config
+
+
+def towed_rates(geometry: ChainGeometry):
+    """A fast scalar form of :func:`pushtrain.cosim.kinematics.forward_velocities` (yaw rates).
+
+    Returns ``f(theta, v0, w0) -> list`` of d(theta_i)/dt [rad/s], i = 0..n, for headings
+    ``theta`` (n+1,) [rad] and the robot's (v0 [m/s], w0 [rad/s]): the same recursion
+    v_i = c v_{i-1} + R_{i-1} s w_{i-1}, w_i = (s v_{i-1} - R_{i-1} c w_{i-1}) / F_i with
+    c, s of phi_i = theta_{i-1} - theta_i.
     """
     front = [float(a) for a in geometry.front]
     rear = [float(a) for a in geometry.rear]
     n = geometry.n
 
-    def rates(theta, v_n: float, w_n: float):
+    def rates(theta, v0: float, w0: float):
         w = [0.0] * (n + 1)
-        v, w[n] = v_n, w_n
-        for i in range(n, 0, -1):
+        v, w[0] = v0, w0
+        for i in range(1, n + 1):
             phi = theta[i - 1] - theta[i]
             c, s = math.cos(phi), math.sin(phi)
-            f = front[i - 1]
-            v, w[i - 1] = c * v + f * s * w[i], (s * v - f * c * w[i]) / rear[i - 1]
+            r = rear[i - 1]
+            v, w[i] = c * v + r * s * w[i - 1], (s * v - r * c * w[i - 1]) / front[i - 1]
         return w
 
     return rates
-
-
-def integrate_headings(
-    s: np.ndarray,
-    interval_segment: np.ndarray,
-    segments: Sequence[Segment],
-    theta0: Sequence[float],
-    geometry: ChainGeometry,
-) -> np.ndarray:
-    """Headings of all bodies at the samples ``s`` [m] (RK4 over each sample interval).
-
-    ``theta0`` (n+1,) are the start headings [rad]; returns (N, n+1) [rad], continuous.
-    """
-    rates = chain_heading_rates(geometry)
-    n1 = geometry.n + 1
-    out = np.empty((s.size, n1))
-    th = [float(a) for a in theta0]
-    out[0] = th
-    sigma = [-float(g.direction) for g in segments]
-    kappa = [float(g.curvature) for g in segments]
-    ds_all = np.diff(s)
-    for k in range(s.size - 1):
-        j = interval_segment[k]
-        v, w, h = sigma[j], kappa[j], float(ds_all[k])
-        k1 = rates(th, v, w)
-        k2 = rates([a + 0.5 * h * b for a, b in zip(th, k1)], v, w)
-        k3 = rates([a + 0.5 * h * b for a, b in zip(th, k2)], v, w)
-        k4 = rates([a + h * b for a, b in zip(th, k3)], v, w)
-        th = [a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4) for a, b1, b2, b3, b4 in zip(th, k1, k2, k3, k4)]
-        out[k + 1] = th
-    return out
 
 
 def body_positions_along(poses: np.ndarray, headings: np.ndarray, geometry: ChainGeometry):
@@ -127,6 +187,201 @@ def body_positions_along(poses: np.ndarray, headings: np.ndarray, geometry: Chai
     return x, y
 
 
+def _robot_positions(state: np.ndarray, geometry: ChainGeometry):
+    """Positions (x, y), each (N, n+1), of all bodies from states (N, 3 + n) = (x0, y0, theta)."""
+    th = state[:, 2:]
+    c, s = np.cos(th), np.sin(th)
+    step_x = -geometry.rear * c[:, :-1] - geometry.front * c[:, 1:]
+    step_y = -geometry.rear * s[:, :-1] - geometry.front * s[:, 1:]
+    zero = np.zeros((state.shape[0], 1))
+    x = state[:, :1] + np.concatenate((zero, np.cumsum(step_x, axis=1)), axis=1)
+    y = state[:, 1:2] + np.concatenate((zero, np.cumsum(step_y, axis=1)), axis=1)
+    return x, y
+
+
+def reference_times(segments: Sequence[Segment], speed: float, cusp_dwell: float, s):
+    """Time [s] at which the reference of :class:`~pushtrain.cosim.reference.Reference` (t0 = 0)
+    reaches the travelled distance ``s`` [m] (array); at a cusp the arrival (start of the dwell).
+
+    Returns ``(t, knots)`` where ``knots = (t_knots, s_knots)`` is the piecewise-linear map
+    t -> s (flat during dwells) for :func:`numpy.interp`.
+    """
+    t_k, s_k = [0.0], [0.0]
+    t, pos, previous = 0.0, 0.0, None
+    starts, ends, seg_t0, seg_speed = [], [], [], []
+    for seg in segments:
+        if previous is not None and seg.direction != previous:
+            t += cusp_dwell
+            t_k.append(t), s_k.append(pos)
+        v = speed if seg.speed is None else seg.speed
+        starts.append(pos), seg_t0.append(t), seg_speed.append(v)
+        t += seg.length / v
+        pos += seg.length
+        ends.append(pos)
+        t_k.append(t), s_k.append(pos)
+        previous = seg.direction
+    s = np.asarray(s, dtype=float)
+    j = np.clip(np.searchsorted(np.array(ends), s, side="left"), 0, len(ends) - 1)
+    times = np.array(seg_t0)[j] + (s - np.array(starts)[j]) / np.array(seg_speed)[j]
+    return times, (np.array(t_k), np.array(s_k))
+
+
+@dataclass
+class Trajectory:
+    """A closed-loop run of :func:`simulate_tracking` (every row one sample).
+
+    Attributes
+    ----------
+    t : (K,) array
+        Times [s]: the control instants ``k * step`` and, where a step was subdivided for the
+        footprint test, intermediate times.
+    state : (K, 3 + n) array
+        Robot position and all headings ``(x0, y0, theta_0..theta_n)`` [m, m, rad].
+    command : (K, 2) array
+        Robot command (v0 [m/s], w0 [rad/s]) held from this sample on.
+    reference : (K, 3) array
+        The last trailer's reference pose (x, y, theta) at ``t``.
+    direction : (K,) int array
+        Reference direction at ``t`` (PUSH +1, PULL -1, REST 0).
+    control : (K,) bool array
+        True at the control instants (False at subdivision samples).
+    """
+
+    t: np.ndarray
+    state: np.ndarray
+    command: np.ndarray
+    reference: np.ndarray
+    direction: np.ndarray
+    control: np.ndarray
+
+
+def _rk4_step(rates, state, v0: float, w0: float, h: float):
+    """One RK4 step of (x0, y0, theta...) under the constant robot command (v0, w0)."""
+    def f(z):
+        th = z[2:]
+        return [v0 * math.cos(th[0]), v0 * math.sin(th[0])] + rates(th, v0, w0)
+
+    k1 = f(state)
+    k2 = f([a + 0.5 * h * b for a, b in zip(state, k1)])
+    k3 = f([a + 0.5 * h * b for a, b in zip(state, k2)])
+    k4 = f([a + h * b for a, b in zip(state, k3)])
+    return [a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+            for a, b1, b2, b3, b4 in zip(state, k1, k2, k3, k4)]
+
+
+class _Measurement:
+    """Perfect measurement handed to the controller (robot pose and joint angles)."""
+
+    __slots__ = ("x0", "y0", "theta0", "phi")
+
+    def __init__(self, state):
+        self.x0, self.y0, self.theta0 = state[0], state[1], state[2]
+        th = state[2:]
+        self.phi = [th[i - 1] - th[i] for i in range(1, len(th))]
+
+
+def simulate_tracking(
+    geometry: ChainGeometry,
+    reference: Reference,
+    start_headings: Sequence[float],
+    controller: ControllerConfig,
+    step: float = 0.025,
+    settle_time: float = 2.0,
+) -> Trajectory:
+    """Run ``controller`` in closed loop with the kinematic chain along ``reference``.
+
+    Parameters
+    ----------
+    geometry : ChainGeometry
+        The plant's chain (the controller uses its own model ``controller.geometry``).
+    reference : Reference
+        The last trailer's reference (t0 = 0); the last trailer starts at ``reference.start``.
+    start_headings : (n+1,)
+        Start headings [rad] of robot and trailers (the last equals the start theta).
+    controller : ControllerConfig
+    step : float
+        Control and RK4 step [s].
+    settle_time : float
+        Time [s] simulated past ``reference.t_end``.
+
+    Returns
+    -------
+    Trajectory
+        Samples at the control instants ``k * step`` (k = 0..K-1, the last one at or after
+        ``t_end + settle_time``).
+    """
+    ctrl = BackwardController(controller)
+    ctrl.reset(0.0, 0.0, -step)
+    rates = towed_rates(geometry)
+    th0 = np.asarray(start_headings, dtype=float)
+    x, y = body_positions_along(np.asarray(reference.start, dtype=float)[None, :], th0[None, :],
+                                geometry)
+    state = [float(x[0, 0]), float(y[0, 0])] + [float(a) for a in th0]
+    n_steps = int(math.ceil((reference.t_end + settle_time) / step - 1e-9))
+    states, commands, refs, dirs = [], [], [], []
+    for k in range(n_steps + 1):
+        t = k * step
+        ref = reference.sample_at(t)
+        ahead = reference.sample_ahead(t, ctrl.lead_distance) if ref.direction == PULL else None
+        v0, w0, _ = ctrl.command(t, _Measurement(state), ref, ahead)
+        states.append(state), commands.append((v0, w0))
+        refs.append((ref.x, ref.y, ref.theta)), dirs.append(ref.direction)
+        if k < n_steps:
+            state = _rk4_step(rates, state, v0, w0, step)
+    return Trajectory(step * np.arange(n_steps + 1), np.array(states), np.array(commands),
+                      np.array(refs), np.array(dirs, dtype=int), np.ones(n_steps + 1, dtype=bool))
+
+
+def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution: float):
+    """Subdivide the steps in which some corner moves more than ``resolution`` (RK4 substeps
+    under the held command). Returns (trajectory, x, y, corners)."""
+    rates = towed_rates(geometry)
+    x, y = _robot_positions(traj.state, geometry)
+    corners = _corners(train, x, y, traj.state[:, 2:])
+    move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
+    bad = np.flatnonzero(move > resolution)
+    if not bad.size:
+        return traj, x, y, corners
+    rows = {name: [getattr(traj, name)] for name in ("t", "state", "command", "reference",
+                                                     "direction", "control")}
+    for k in bad:
+        m = int(math.ceil(move[k] / resolution * 1.05))
+        h = (traj.t[k + 1] - traj.t[k]) / m
+        v0, w0 = traj.command[k]
+        z = [float(a) for a in traj.state[k]]
+        for j in range(1, m):
+            z = _rk4_step(rates, z, v0, w0, h)
+            rows["t"].append([traj.t[k] + j * h]), rows["state"].append([z])
+            rows["command"].append([traj.command[k]]), rows["reference"].append([traj.reference[k]])
+            rows["direction"].append([traj.direction[k]]), rows["control"].append([False])
+    merged = {name: np.concatenate([np.asarray(r) for r in parts]) for name, parts in rows.items()}
+    order = np.argsort(merged["t"], kind="stable")
+    traj = Trajectory(**{name: value[order] for name, value in merged.items()})
+    x, y = _robot_positions(traj.state, geometry)
+    return traj, x, y, _corners(train, x, y, traj.state[:, 2:])
+
+
+def _corners(train: Train, x, y, headings):
+    """Corners (K, n+1, 4, 2) of every body."""
+    return np.stack([b.corners(x[:, i], y[:, i], headings[:, i])
+                     for i, b in enumerate(train.bodies)], axis=1)
+
+
+def _thin(move: np.ndarray, resolution: float) -> np.ndarray:
+    """Indices of the samples to check: consecutive kept samples are at most ``resolution`` of
+    corner travel apart (``move[k]`` <= resolution is the travel from sample k to k + 1)."""
+    keep, travelled = [0], 0.0
+    for k, d in enumerate(move):
+        if travelled + d > resolution:
+            keep.append(k)
+            travelled = 0.0
+        travelled += d
+    last = move.size
+    if keep[-1] != last:
+        keep.append(last)
+    return np.unique(np.array(keep, dtype=int))
+
+
 @dataclass
 class TrainCheckResult:
     """Outcome of :func:`check_train`.
@@ -134,169 +389,68 @@ class TrainCheckResult:
     Attributes
     ----------
     ok : bool
-        Every body inside the shrunk free space and every |phi_i| <= phi_max at every sample.
-    s, poses, headings, x, y : arrays
-        Samples [m], last-trailer poses (N, 3), headings (N, n+1) [rad], body positions (N, n+1).
+        Every body inside the shrunk free space at every checked sample, every |phi_i| <=
+        phi_max at every sample, and the goal reached within ``tracker.goal_tolerance``.
+    t : (N,) array
+        Times [s] of the checked samples (consecutive ones at most ``resolution`` of corner
+        travel apart).
+    s : (N,) array
+        The reference's travelled distance [m] at ``t`` (flat during cusp dwells).
+    poses : (N, 3) array
+        The simulated last trailer's pose (x, y, theta) [m, m, rad].
+    reference : (N, 3) array
+        The reference pose of the last trailer at ``t``.
+    headings : (N, n+1) array
+        Simulated headings [rad]; ``x, y`` (N, n+1) the bodies' positions [m].
     max_abs_phi : (n,) array
-        Largest |phi_i| along the path [rad].
+        Largest |phi_i| over all simulated samples [rad].
     min_clearance : float
-        Smallest distance [m] of any body to the blocked space (negative: overlap depth bound).
-    pulls : list of dict
-        Per pulling stretch: ``max_deviation`` and ``end_error`` [m] of the towed last trailer
-        from the planned curve.
+        Smallest distance [m] of any body to the blocked space at the checked samples; 0 if a
+        body crosses the free space's boundary, minus its distance if it lies wholly outside.
+    max_tracking_error : float
+        Largest distance [m] of the last trailer from its reference sample at the same time.
+    max_lateral_error, max_heading_error : float
+        Largest |lateral error| [m] (in the reference's frame) and |heading error| [rad].
+    goal_error : (float, float)
+        Distance [m] and |heading error| [rad] of the last trailer to the goal at the first
+        control instant at or after the reference's end within ``tracker.goal_tolerance``
+        (where the co-simulation stops with ``goal_reached``), else at the end of the run.
+    trajectory : Trajectory
+        Every simulated sample (control instants and subdivisions).
     failure : dict or None
-        First failure: ``kind`` ("collision", "joint_limit" or "pull_deviation"), ``body`` (0 robot .. n),
-        ``index``, ``s`` [m], ``x``, ``y`` [m] (body position, or the overlap point for
-        collisions), ``phi`` [rad] for joint failures.
+        First failure: ``kind`` ("collision", "joint_limit" or "goal_missed"), ``body``
+        (0 robot .. n), ``t`` [s], ``s`` [m] (reference progress), ``direction`` (of the
+        reference's last moving phase at ``t``: PUSH or PULL), ``x``, ``y`` [m] (the overlap
+        point for collisions, else the body's position), ``phi`` [rad] for joint failures,
+        ``distance`` [m] and ``heading_error`` [rad] for a missed goal.
+    collisions : list of (int, int)
+        (checked sample index, body) of every sample outside the free space.
     """
 
     ok: bool
+    t: np.ndarray
     s: np.ndarray
     poses: np.ndarray
+    reference: np.ndarray
     headings: np.ndarray
     x: np.ndarray
     y: np.ndarray
     max_abs_phi: np.ndarray
     min_clearance: float
+    max_tracking_error: float
+    max_lateral_error: float
+    max_heading_error: float
+    goal_error: tuple
+    trajectory: Trajectory
     failure: dict | None = None
     collisions: list = field(default_factory=list)
-    pulls: list = field(default_factory=list)
 
-
-def _pull_stretch(theta0, last_xy, curve, length, geometry, ds, lookahead):
-    """Tow the chain with the robot pursuing ``curve`` (M, 2) until the last trailer's progress
-    along its first ``length`` metres reaches the end.
-
-    Returns (x (K, n+1), y (K, n+1), theta (K, n+1), progress (K,)) of the samples after the
-    first one (which equals the given state).
-    """
-    n = geometry.n
-    seg = np.diff(curve, axis=0)
-    seg_len = np.hypot(seg[:, 0], seg[:, 1])
-    cum = np.concatenate(([0.0], np.cumsum(seg_len)))
-    theta = np.asarray(theta0, dtype=float).copy()
-    xs, ys = body_positions_from_last_vec(last_xy, theta, geometry)
-    x0, y0 = xs[0], ys[0]
-    front, rear = geometry.front, geometry.rear
-    out_x, out_y, out_t, out_p = [], [], [], []
-
-    def project(px, py, lo_idx):
-        d = np.hypot(curve[:, 0] - px, curve[:, 1] - py)
-        k = int(np.argmin(d))
-        # refine on the neighbouring polyline pieces
-        best_s, best_d = cum[k], d[k]
-        for j in (k - 1, k):
-            if 0 <= j < seg_len.size and seg_len[j] > 0.0:
-                u = ((px - curve[j, 0]) * seg[j, 0] + (py - curve[j, 1]) * seg[j, 1]) / seg_len[j] ** 2
-                u = min(1.0, max(0.0, u))
-                qx, qy = curve[j, 0] + u * seg[j, 0], curve[j, 1] + u * seg[j, 1]
-                dd = math.hypot(px - qx, py - qy)
-                if dd < best_d:
-                    best_s, best_d = cum[j] + u * seg_len[j], dd
-        return best_s, best_d
-
-    def rates(state):
-        x0_, y0_ = state[0], state[1]
-        th = state[2:]
-        s_r, _ = project(x0_, y0_, 0)
-        target = s_r + lookahead
-        gx = float(np.interp(target, cum, curve[:, 0]))
-        gy = float(np.interp(target, cum, curve[:, 1]))
-        alpha = math.atan2(gy - y0_, gx - x0_) - th[0]
-        alpha = (alpha + math.pi) % (2.0 * math.pi) - math.pi
-        w0 = 2.0 * math.sin(alpha) / lookahead
-        # towing: forward velocity map from the robot (v0 = 1)
-        w = np.empty(n + 1)
-        v, w[0] = 1.0, w0
-        for i in range(1, n + 1):
-            phi = th[i - 1] - th[i]
-            c, s = math.cos(phi), math.sin(phi)
-            v, w[i] = c * v + rear[i - 1] * s * w[i - 1], (s * v - rear[i - 1] * c * w[i - 1]) / front[i - 1]
-        return np.concatenate(([math.cos(th[0]), math.sin(th[0])], w))
-
-    state = np.concatenate(([x0, y0], theta))
-    max_steps = int(10 * (length + 4.0 * (front.sum() + rear.sum())) / ds) + 10
-    for _ in range(max_steps):
-        k1 = rates(state)
-        k2 = rates(state + 0.5 * ds * k1)
-        state = state + ds * k2
-        th = state[2:]
-        bx, by = body_positions_vec(state[0], state[1], th, geometry)
-        prog, _ = project(bx[-1], by[-1], 0)
-        out_x.append(bx), out_y.append(by), out_t.append(th.copy()), out_p.append(prog)
-        if prog >= length - 1e-9:
-            break
-    return np.array(out_x), np.array(out_y), np.array(out_t), np.array(out_p)
-
-
-def body_positions_vec(x0, y0, theta, geometry):
-    """Positions of bodies 0..n from the robot centre (as ``kinematics.body_positions``)."""
-    c, s = np.cos(theta), np.sin(theta)
-    step_x = -geometry.rear * c[:-1] - geometry.front * c[1:]
-    step_y = -geometry.rear * s[:-1] - geometry.front * s[1:]
-    return (x0 + np.concatenate(([0.0], np.cumsum(step_x))),
-            y0 + np.concatenate(([0.0], np.cumsum(step_y))))
-
-
-def body_positions_from_last_vec(last_xy, theta, geometry):
-    """Positions of bodies 0..n from the last trailer's position and all headings."""
-    x, y = body_positions_vec(0.0, 0.0, theta, geometry)
-    return x + (last_xy[0] - x[-1]), y + (last_xy[1] - y[-1])
-
-
-def _simulate(start, segments, theta0, geometry, step, lookahead):
-    """Samples of the whole train along the path: (s, last-trailer poses, headings, x, y,
-    pull_info, jump) where s is the last trailer's planned progress [m] and ``jump`` marks the
-    samples re-anchored to the planned cusp pose after a pulling stretch."""
-    s_all, poses_all, interval_segment = dense_samples(start, segments, step)
-    n1 = geometry.n + 1
-    # stretches: maximal runs of intervals with the same direction
-    direction = np.array([segments[j].direction for j in interval_segment])
-    bounds = np.concatenate(([0], np.flatnonzero(np.diff(direction) != 0) + 1, [direction.size]))
-    S, P, TH, X, Y = [np.array([0.0])], [poses_all[:1]], [np.asarray(theta0, float)[None, :]], [], []
-    x_first, y_first = body_positions_from_last_vec(poses_all[0, :2], np.asarray(theta0, float), geometry)
-    X.append(x_first[None, :]), Y.append(y_first[None, :])
-    pull_info = []
-    jumps = [np.array([False])]
-    theta = np.asarray(theta0, dtype=float)
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        # samples a..b (interval a starts at sample a, interval b-1 ends at sample b)
-        if direction[a] == PUSH:
-            sub_s = s_all[a:b + 1]
-            th = integrate_headings(sub_s, interval_segment[a:b], segments, theta, geometry)
-            th[:, -1] = poses_all[a:b + 1, 2] + (th[0, -1] - poses_all[a, 2])
-            x, y = body_positions_along(poses_all[a:b + 1], th, geometry)
-            S.append(sub_s[1:]), P.append(poses_all[a + 1:b + 1]), TH.append(th[1:])
-            X.append(x[1:]), Y.append(y[1:])
-            jumps.append(np.zeros(b - a, dtype=bool))
-            theta = th[-1]
-        else:
-            length = s_all[b] - s_all[a]
-            curve = poses_all[a:b + 1, :2]
-            end_dir = np.array([np.cos(poses_all[b, 2]), np.sin(poses_all[b, 2])])
-            ext = curve[-1] + np.outer(np.linspace(step, 6.0 * lookahead + 4.0, 200), end_dir)
-            full = np.vstack([curve, ext])
-            start_xy = P[-1][-1, :2] if len(P) else poses_all[a, :2]
-            x, y, th, prog = _pull_stretch(theta, start_xy, full, length, geometry,
-                                           step, lookahead)
-            s_sub = s_all[a:b + 1] - s_all[a]
-            px = np.interp(prog, s_sub, poses_all[a:b + 1, 0])
-            py = np.interp(prog, s_sub, poses_all[a:b + 1, 1])
-            dev = np.hypot(x[:, -1] - px, y[:, -1] - py)
-            end_err = float(np.hypot(x[-1, -1] - poses_all[b, 0], y[-1, -1] - poses_all[b, 1]))
-            pull_info.append({"s_start": float(s_all[a]), "s_end": float(s_all[b]),
-                              "max_deviation": float(dev.max()), "end_error": end_err,
-                              "end_heading_error": float(th[-1, -1] - poses_all[b, 2])})
-            last_pose = np.column_stack([x[:, -1], y[:, -1], th[:, -1]])
-            S.append(s_all[a] + prog), P.append(last_pose), TH.append(th), X.append(x), Y.append(y)
-            # continue from the planned cusp pose with the towed chain's headings
-            theta = th[-1] - th[-1, -1] + poses_all[b, 2]
-            x_re, y_re = body_positions_from_last_vec(poses_all[b, :2], theta, geometry)
-            S.append(np.array([s_all[b]])), P.append(poses_all[b:b + 1]), TH.append(theta[None, :])
-            X.append(x_re[None, :]), Y.append(y_re[None, :])
-            jumps.append(np.zeros(x.shape[0], dtype=bool)), jumps.append(np.array([True]))
-    return (np.concatenate(S), np.vstack(P), np.vstack(TH), np.vstack(X), np.vstack(Y), pull_info,
-            np.concatenate(jumps))
+    def headings_at(self, t) -> np.ndarray:
+        """Simulated headings [rad] at times ``t`` [s] (linear interpolation), (len(t), n+1)."""
+        tr = self.trajectory
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return np.column_stack([np.interp(t, tr.t, tr.state[:, 2 + i])
+                                for i in range(tr.state.shape[1] - 2)])
 
 
 def check_train(
@@ -308,11 +462,9 @@ def check_train(
     margin: float = 0.0,
     resolution: float = 0.01,
     free_eroded=None,
-    lookahead: float = 1.0,
-    pull_tolerance: float = 0.25,
-    pull_heading_tolerance: float = 0.2,
+    tracker: TrackerConfig | None = None,
 ) -> TrainCheckResult:
-    """Reconstruct the train's motion along the path and test footprints and joint limits.
+    """Simulate the co-simulation's closed loop along the path and test footprints, joints, goal.
 
     Parameters
     ----------
@@ -325,17 +477,13 @@ def check_train(
     margin : float
         Clearance [m] every body must keep from the blocked space.
     resolution : float
-        Largest corner displacement [m] of any body between checked samples.
+        Largest corner travel [m] of any body between checked samples.
     free_eroded : shapely geometry or None
         Precomputed ``world.eroded(margin)``.
-    lookahead : float
-        Pure-pursuit look-ahead [m] of the robot on pulling stretches.
-    pull_tolerance : float
-        Largest allowed distance [m] of the last trailer from the planned end of a pulling
-        stretch.
-    pull_heading_tolerance : float
-        Largest allowed heading error [rad] of the last trailer there.
+    tracker : TrackerConfig or None
+        Controller, reference speed, cusp dwell and simulation settings; None: the defaults.
     """
+    tracker = tracker or TrackerConfig()
     n = train.n
     theta0 = (
         np.full(n + 1, float(start[2]))
@@ -343,65 +491,103 @@ def check_train(
         else np.asarray(start_headings, dtype=float).reshape(-1)
     )
     if theta0.size != n + 1:
-        raise ValueError(f"start_headings has {theta0.size} entries; need n + 1 = {n + 1}")
+        raise PlanningInputError(f"start_headings has {theta0.size} entries; need n + 1 = {n + 1}")
+    if not (math.isfinite(resolution) and resolution > 0.0):
+        raise PlanningInputError(f"resolution = {resolution!r} m: must be finite and > 0")
+    controller = tracker.controller_for(train.geometry)
     region = world.eroded(margin) if free_eroded is None else free_eroded
-    step = float(resolution)
-    for _attempt in range(4):
-        s, poses, headings, x, y, pull_info, jump = _simulate(
-            start, segments, theta0, train.geometry, step, lookahead
-        )
-        corners = np.stack(
-            [b.corners(x[:, i], y[:, i], headings[:, i]) for i, b in enumerate(train.bodies)], axis=1
-        )  # (N, n+1, 4, 2)
-        move = np.linalg.norm(np.diff(corners, axis=0), axis=-1)  # (N-1, n+1, 4)
-        # a re-anchoring jump after a pulling stretch is not motion: ignore those intervals
-        moving = ~jump[1:]
-        move = move[moving].max() if moving.any() else 0.0
-        if move <= resolution * (1.0 + 1e-9):
-            break
-        step *= 0.95 * resolution / move
-    else:
-        log.warning("train check: corner motion %.4f m per sample exceeds %.4f m", move, resolution)
-    polys = shapely.polygons(corners)
-    inside = shapely.contains(region, polys)  # (N, n+1)
-    phi = joint_angles(headings)  # (N, n)
-    abs_phi = np.abs(phi)
-    max_abs_phi = abs_phi.max(axis=0)
+    reference = Reference.from_segments(start, segments, tracker.speed, tracker.cusp_dwell)
+    traj = simulate_tracking(train.geometry, reference, theta0, controller, tracker.step,
+                             tracker.settle_time)
+    traj, x_all, y_all, corners = _refine(traj, train.geometry, train, resolution)
+    move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
+    keep = _thin(move, resolution)
+    headings_all = traj.state[:, 2:]
+    _, (t_knots, s_knots) = reference_times(segments, tracker.speed, tracker.cusp_dwell, [0.0])
+    s_all = np.interp(traj.t, t_knots, s_knots)
+
+    # tracking errors of the last trailer (at every sample, against the reference at that time)
+    last = np.column_stack([x_all[:, -1], y_all[:, -1], headings_all[:, -1]])
+    dx, dy = last[:, 0] - traj.reference[:, 0], last[:, 1] - traj.reference[:, 1]
+    c, s_ = np.cos(traj.reference[:, 2]), np.sin(traj.reference[:, 2])
+    lateral = -s_ * dx + c * dy
+    heading_err = np.angle(np.exp(1j * (last[:, 2] - traj.reference[:, 2])))
+    # goal test as the master's: the first control instant at or after t_end within tolerance
+    # (the co-simulation stops there), else the end of the run
+    goal = reference.goal
+    after = np.flatnonzero(traj.control & (traj.t >= reference.t_end - 1e-12))
+    dist = np.hypot(last[after, 0] - goal[0], last[after, 1] - goal[1])
+    head = np.abs(np.angle(np.exp(1j * (last[after, 2] - goal[2]))))
+    k_goal = after[-1] if after.size else traj.t.size - 1
+    if tracker.goal_tolerance is not None and after.size:
+        tol_pos, tol_head = tracker.goal_tolerance
+        within = np.flatnonzero((dist <= tol_pos) & (head <= tol_head))
+        if within.size:
+            k_goal = after[within[0]]
+    goal_dist = float(math.hypot(last[k_goal, 0] - goal[0], last[k_goal, 1] - goal[1]))
+    goal_head = float(abs(math.remainder(last[k_goal, 2] - goal[2], 2.0 * math.pi)))
+
+    # footprints at the checked samples, joints at every sample
+    polys = shapely.polygons(corners[keep])  # (N, n+1)
+    inside = shapely.contains(region, polys)
     clear = shapely.distance(region.boundary, polys)
     clear = np.where(inside, clear, -clear)
+    phi = joint_angles(headings_all)
+    abs_phi = np.abs(phi)
+    moving_dir = _last_moving_direction(traj.direction, segments)
+
     failure = None
     collisions = [(int(k), int(i)) for k, i in zip(*np.nonzero(~inside))]
     k_coll = np.flatnonzero(~inside.all(axis=1))
     k_joint = np.flatnonzero((abs_phi > train.phi_max).any(axis=1))
-    if k_coll.size and (not k_joint.size or k_coll[0] <= k_joint[0]):
-        k = int(k_coll[0])
-        i = int(np.flatnonzero(~inside[k])[0])
-        outside = polys[k, i].difference(region)
-        point = outside.representative_point() if not outside.is_empty else polys[k, i].centroid
-        failure = {
-            "kind": "collision", "body": i, "index": k, "s": float(s[k]),
-            "x": float(point.x), "y": float(point.y),
-            "body_x": float(x[k, i]), "body_y": float(y[k, i]), "theta": float(headings[k, i]),
-        }
+    t_coll = traj.t[keep[k_coll[0]]] if k_coll.size else math.inf
+    t_joint = traj.t[k_joint[0]] if k_joint.size else math.inf
+
+    def where(k):
+        return {"t": float(traj.t[k]), "s": float(s_all[k]), "direction": int(moving_dir[k])}
+
+    if k_coll.size and t_coll <= t_joint:
+        kc = int(k_coll[0])
+        i = int(np.flatnonzero(~inside[kc])[0])
+        k = int(keep[kc])
+        outside = polys[kc, i].difference(region)
+        point = outside.representative_point() if not outside.is_empty else polys[kc, i].centroid
+        failure = {"kind": "collision", "body": i, **where(k), "x": float(point.x),
+                   "y": float(point.y), "body_x": float(x_all[k, i]), "body_y": float(y_all[k, i]),
+                   "theta": float(headings_all[k, i])}
     elif k_joint.size:
         k = int(k_joint[0])
         j = int(np.argmax(abs_phi[k]))
-        failure = {
-            "kind": "joint_limit", "body": j + 1, "index": k, "s": float(s[k]),
-            "x": float(x[k, j + 1]), "y": float(y[k, j + 1]), "phi": float(phi[k, j]),
-        }
-    for info in pull_info:
-        bad = info["end_error"] > pull_tolerance or abs(info["end_heading_error"]) > pull_heading_tolerance
-        if bad and (failure is None or info["s_end"] <= failure["s"]):
-            k = int(np.searchsorted(s, info["s_end"]))
-            failure = {
-                "kind": "pull_deviation", "body": n, "index": k, "s": info["s_end"],
-                "x": float(poses[max(k - 1, 0), 0]), "y": float(poses[max(k - 1, 0), 1]),
-                "end_error": info["end_error"], "end_heading_error": info["end_heading_error"],
-            }
-            break
+        failure = {"kind": "joint_limit", "body": j + 1, **where(k), "x": float(x_all[k, j + 1]),
+                   "y": float(y_all[k, j + 1]), "phi": float(phi[k, j])}
+    elif tracker.goal_tolerance is not None and (
+        goal_dist > tracker.goal_tolerance[0] or goal_head > tracker.goal_tolerance[1]
+    ):
+        k = traj.t.size - 1
+        failure = {"kind": "goal_missed", "body": n, **where(k), "x": float(last[k, 0]),
+                   "y": float(last[k, 1]), "distance": goal_dist, "heading_error": goal_head}
+    log.debug("train check: %s; %d steps, %d checked samples, max tracking error %.3f m",
+              "ok" if failure is None else failure["kind"], int(traj.control.sum()), keep.size,
+              float(np.hypot(dx, dy).max()))
     return TrainCheckResult(
-        ok=failure is None, s=s, poses=poses, headings=headings, x=x, y=y,
-        max_abs_phi=max_abs_phi, min_clearance=float(clear.min()), failure=failure,
-        collisions=collisions, pulls=pull_info,
+        ok=failure is None, t=traj.t[keep], s=s_all[keep], poses=last[keep],
+        reference=traj.reference[keep], headings=headings_all[keep], x=x_all[keep],
+        y=y_all[keep], max_abs_phi=abs_phi.max(axis=0), min_clearance=float(clear.min()),
+        max_tracking_error=float(np.hypot(dx, dy).max()),
+        max_lateral_error=float(np.abs(lateral).max()),
+        max_heading_error=float(np.abs(heading_err).max()), goal_error=(goal_dist, goal_head),
+        trajectory=traj, failure=failure, collisions=collisions,
     )
+
+
+def _last_moving_direction(direction: np.ndarray, segments: Sequence[Segment]) -> np.ndarray:
+    """Direction of the reference's current or last moving phase at every sample (PUSH/PULL)."""
+    out = direction.copy()
+    previous = segments[0].direction
+    for k, d in enumerate(out):
+        if d == 0:
+            out[k] = previous
+        else:
+            previous = d
+    return out
+
