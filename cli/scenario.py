@@ -26,6 +26,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from pushtrain.errors import FieldErrors
+from pushtrain.validation import Problems, field_errors
 
 __all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
 
@@ -258,45 +259,8 @@ class Scenario(_Section):
             if self.start is None:
                 problems.append(("start", None, "required when mission.kind = 'scripted'"))
         if problems:
-            raise _Problems(problems)
+            raise Problems(problems)
         return self
-
-
-class _Problems(ValueError):
-    def __init__(self, problems):
-        self.problems = problems
-        super().__init__("; ".join(f"{p} = {v!r}: {a}" for p, v, a in problems))
-
-
-def _is_branch(part) -> bool:
-    """A pydantic union-branch tag in an error location (not a field name)."""
-    return isinstance(part, str) and (
-        part in ("float", "int", "str", "constrained-float", "constrained-int")
-        or part.startswith(("list[", "function-", "literal["))
-    )
-
-
-def _path(loc) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        elif not _is_branch(part):
-            out += ("." if out else "") + str(part)
-    return out or "(top level)"
-
-
-def _wrong_branch(err) -> bool:
-    """For a value that may be a number or a list: drop the errors of the branch not taken."""
-    loc = err["loc"]
-    tags = [k for k, part in enumerate(loc) if _is_branch(part)]
-    if not tags:
-        return False
-    branch = loc[tags[0]]
-    if branch.startswith("list["):
-        inside = any(isinstance(part, int) for part in loc[tags[0] + 1:])
-        return not inside and not isinstance(err.get("input"), list)
-    return isinstance(err.get("input"), list)
 
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
@@ -304,25 +268,7 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        errors, seen = [], set()
-        for err in exc.errors():
-            ctx = err.get("ctx") or {}
-            inner = ctx.get("error")
-            if isinstance(inner, _Problems):
-                errors += inner.problems
-                continue
-            if _wrong_branch(err):
-                continue
-            path = _path(err["loc"])
-            if err["type"] == "extra_forbidden":
-                allowed = "unknown key (check the spelling)"
-            else:
-                allowed = err["msg"].removeprefix("Value error, ")
-            key = (path, allowed)
-            if key not in seen:
-                seen.add(key)
-                errors.append((path, err.get("input"), allowed))
-        raise ScenarioError(source, errors) from None
+        raise ScenarioError(source, field_errors(exc)) from None
 
 
 def load_scenario(path) -> Scenario:

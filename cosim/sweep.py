@@ -43,6 +43,7 @@ from pydantic import (BaseModel, ConfigDict, Field, StrictBool, StrictInt, Valid
                       model_validator)
 
 from pushtrain.errors import FieldErrors
+from pushtrain.validation import Problems, field_errors
 
 __all__ = [
     "SweepError",
@@ -311,7 +312,7 @@ class SweepSpec(_Section):
             if path in seen:
                 problems.append((f"overrides.{path!r}", path, "also swept in parameters"))
         if problems:
-            raise _Problems(problems)
+            raise Problems(problems)
         return self
 
     @property
@@ -325,30 +326,6 @@ class SweepSpec(_Section):
         return math.prod(len(p.grid_values()) for p in self.parameters)
 
 
-class _Problems(ValueError):
-    def __init__(self, problems):
-        self.problems = problems
-        super().__init__("; ".join(f"{p} = {v!r}: {a}" for p, v, a in problems))
-
-
-def _is_branch(part) -> bool:
-    """A pydantic union-branch tag in an error location (not a field name)."""
-    return isinstance(part, str) and (
-        part in ("float", "int", "str", "bool", "constrained-float", "constrained-int", "none")
-        or part.startswith(("list[", "function-", "literal[", "union["))
-    )
-
-
-def _loc(loc) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        elif not _is_branch(part):
-            out += ("." if out else "") + str(part)
-    return out or "(top level)"
-
-
 def parse_sweep_spec(data: dict, source: str = "<sweep>") -> SweepSpec:
     """Validate plain data (a parsed TOML document) into a :class:`SweepSpec`.
 
@@ -360,35 +337,7 @@ def parse_sweep_spec(data: dict, source: str = "<sweep>") -> SweepSpec:
     try:
         return SweepSpec.model_validate(data)
     except ValidationError as exc:
-        errors, seen = [], set()
-        for err in exc.errors():
-            inner = (err.get("ctx") or {}).get("error")
-            if isinstance(inner, _Problems):
-                errors += inner.problems
-                continue
-            where = _loc(err["loc"])
-            if err["type"] == "extra_forbidden":
-                allowed = "unknown key (check the spelling)"
-            else:
-                allowed = err["msg"].removeprefix("Value error, ")
-            if (where, allowed) not in seen:
-                seen.add((where, allowed))
-                errors.append((where, err.get("input"), allowed))
-        errors = _merge_union_errors(errors)
-        raise SweepError(source, errors) from None
-
-
-def _merge_union_errors(errors):
-    """A value that matched no branch of a union gives one error per branch: keep one line."""
-    out, index = [], {}
-    for where, value, allowed in errors:
-        if where in index:
-            k = index[where]
-            out[k] = (where, value, out[k][2] + "; or " + allowed)
-        else:
-            index[where] = len(out)
-            out.append((where, value, allowed))
-    return out
+        raise SweepError(source, field_errors(exc)) from None
 
 
 def load_sweep_spec(path) -> SweepSpec:

@@ -1,0 +1,78 @@
+"""Turn pydantic validation errors into (where, value, what is allowed) lines for users.
+
+Scenario files and sweep specs share this: every problem is reported at once with its path
+(``train.mass[1]``), union branches that were not meant are dropped (a per-trailer field that
+takes a number or a list reports only the branch matching what was written), and a value that
+fits no branch gets one line.
+"""
+
+from __future__ import annotations
+
+__all__ = ["Problems", "field_errors"]
+
+
+class Problems(ValueError):
+    """Raised inside a model validator to report several (where, value, allowed) problems."""
+
+    def __init__(self, problems: list[tuple[str, object, str]]):
+        self.problems = problems
+        super().__init__("; ".join(f"{p} = {v!r}: {a}" for p, v, a in problems))
+
+
+def _is_branch(part) -> bool:
+    """A pydantic union-branch tag in an error location (not a field name)."""
+    return isinstance(part, str) and (
+        part in ("float", "int", "str", "bool", "none", "constrained-float", "constrained-int")
+        or part.startswith(("list[", "function-", "literal[", "union["))
+    )
+
+
+def _where(loc) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif not _is_branch(part):
+            out += ("." if out else "") + str(part)
+    return out or "(top level)"
+
+
+def _wrong_branch(err) -> bool:
+    """For a value that may be a number or a list: is this the error of the branch not taken?"""
+    loc = err["loc"]
+    tags = [k for k, part in enumerate(loc) if _is_branch(part)]
+    if not tags:
+        return False
+    branch = loc[tags[0]]
+    is_list = isinstance(err.get("input"), list)
+    if branch.startswith("list["):
+        inside = any(isinstance(part, int) for part in loc[tags[0] + 1:])
+        return not inside and not is_list
+    if branch in ("float", "int", "constrained-float", "constrained-int"):
+        return is_list
+    return False
+
+
+def field_errors(exc) -> list[tuple[str, object, str]]:
+    """The problems of a pydantic ``ValidationError``, one line per field."""
+    lines, index = [], {}
+    for err in exc.errors():
+        inner = (err.get("ctx") or {}).get("error")
+        if isinstance(inner, Problems):
+            lines += inner.problems
+            continue
+        if _wrong_branch(err):
+            continue
+        where = _where(err["loc"])
+        if err["type"] == "extra_forbidden":
+            allowed = "unknown key (check the spelling)"
+        else:
+            allowed = err["msg"].removeprefix("Value error, ")
+        if where in index:  # the same value failed several branches: one line
+            k = index[where]
+            if allowed not in lines[k][2]:
+                lines[k] = (where, lines[k][1], lines[k][2] + "; or " + allowed)
+        else:
+            index[where] = len(lines)
+            lines.append((where, err.get("input"), allowed))
+    return lines
