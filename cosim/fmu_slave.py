@@ -184,6 +184,16 @@ class TrailerTrainSlave:
 
         return write
 
+    def bool_reader(self, names):
+        """A function returning the current values of the Booleans ``names`` as a list of 0/1."""
+        refs = self._refs(names)
+        get = self.slave.getBoolean
+
+        def read() -> list:
+            return get(refs)
+
+        return read
+
     def get_booleans(self, names) -> list[bool]:
         return [bool(b) for b in self.slave.getBoolean(self._refs(names))]
 

@@ -431,8 +431,7 @@ def simulate(
         read = slave.real_reader(out_names)
         f_max = slave.get_reals(slave.names("F_lat_max", 1, n))
         slip_names = slave.names("slipping", 1, n) + ["jackknifed"]
-        slip_refs = slave._refs(slip_names)
-        get_bool = slave.slave.getBoolean
+        read_flags = slave.bool_reader(slip_names)
         write_cmd = slave.real_writer(["v_cmd", "w_cmd", "push_x", "push_y"])
         slide_writers = {i: slave.real_writer([f"slide[{i}]"]) for i in range(1, n + 1)}
         i_phi, i_flat = 5 * (n + 1), 5 * (n + 1) + n
@@ -484,7 +483,7 @@ def simulate(
             slide_n = slide_active.get(n, 0.0)
             # outputs again: forces depend directly on the inputs just set
             y = read()
-            flags = get_bool(slip_refs)
+            flags = read_flags()
             # tracking error of the last trailer in the reference's (chain) frame
             dx, dy = y[n] - ref_x[k], y[2 * (n + 1) - 1] - ref_y[k]
             c, s_ = math.cos(ref_th[k]), math.sin(ref_th[k])

@@ -484,6 +484,11 @@ class SampledReference:
         return cls(t, x, y, theta, v, w, direction, **tolerances)
 
     @property
+    def start(self) -> tuple[float, float, float]:
+        """First pose (x, y, theta) [m, m, rad]."""
+        return (float(self._x[0]), float(self._y[0]), float(self._theta[0]))
+
+    @property
     def t0(self) -> float:
         """Time of the first sample [s]."""
         return self._t_list[0]

@@ -155,3 +155,15 @@ def test_joint_bias_steady_offset_matches_the_analysis_fig14(fmu3, bias_deg, joi
     assert math.copysign(1.0, offset) == (-1.0 if joint == 3 else 1.0)
     assert result.status == "completed"
     assert max(abs(math.degrees(result.data[f"phi{i}"][-1])) for i in (1, 2, 3)) < 15.0
+
+
+def test_a_sampled_reference_drives_the_same_run_as_its_segments(fmu3):
+    from pushtrain.cosim.reference import SampledReference
+
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 0.5), Segment("arc", 0.5, 0.8)],
+                                  speed=0.08)
+    sampled = SampledReference.from_reference(ref, 0.005)
+    a = simulate(fmu3, ref, ControllerConfig.uniform(3))
+    b = simulate(fmu3, sampled, ControllerConfig.uniform(3))
+    assert a.status == b.status == "goal_reached"
+    assert np.max(np.abs(a.data["x3"] - b.data["x3"][: len(a.data)])) < 1e-3
