@@ -335,7 +335,7 @@ def build_fmu_cmd(trailers, out, force):
     click.echo(f"{path} (n = {trailers})")
 
 
-@cli.command("analyze")
+@cli.command("analyze", short_help="Stability (Eq. 12-13, Routh-Hurwitz) and predicted joint-bias offsets.")
 @_scenario_arg
 def analyze_cmd(scenario):
     """Stability (Eq. 12-13, Routh-Hurwitz) and predicted offsets from joint biases (Eq. 9).
