@@ -134,16 +134,16 @@ static void enter_dynamic(ModelData *m) {
     m->dynamic = true;
 }
 
-/* Jacobian J (n x n, row i-1 = wheel i) of the lateral wheel speeds and their offset b. */
-static void wheel_speed_map(const ModelData *m, const double *q, const double *vh, double *jac,
-                            double *b) {
+/* Jacobian J (n x n, row i-1 = wheel i) of the lateral wheel speeds and their offset b, with
+   ct, st the cosines and sines of the trailer headings (index 1..n). */
+static void wheel_speed_map(const ModelData *m, const double *ct, const double *st,
+                            const double *vh, double *jac, double *b) {
     const int n = N_TRAILERS;
     int i, k;
     for (i = 1; i <= n; i++) {
-        const double th_i = q[IX_THETA + i];
-        b[i - 1] = -vh[0] * sin(th_i) + vh[1] * cos(th_i);
-        for (k = 1; k <= n; k++) {
-            jac[(i - 1) * n + (k - 1)] = -link_sum(m, i, k) * cos(q[IX_THETA + k] - th_i);
+        b[i - 1] = -vh[0] * st[i] + vh[1] * ct[i];
+        for (k = 1; k <= n; k++) { /* cos(th_k - th_i) */
+            jac[(i - 1) * n + (k - 1)] = -link_sum(m, i, k) * (ct[k] * ct[i] + st[k] * st[i]);
         }
     }
 }
@@ -151,7 +151,7 @@ static void wheel_speed_map(const ModelData *m, const double *q, const double *v
 static void dynamic_step(ModelData *m, double dt) {
     enum { n = N_TRAILERS };
     double mass[n * n], rhs[n], jac[n * n], minv_jt[n * n], a[n * n], b[n], lim[n], lam[n];
-    double w_free[n], u_free[n], vh[2], ah[2], s_mat[n * n], t_coef[n];
+    double w_free[n], u_free[n], vh[2], ah[2], s_mat[n * n], t_coef[n], ct[NB], st[NB];
     double *q = m->q;
     int i, j, k, it;
 
@@ -179,14 +179,18 @@ static void dynamic_step(ModelData *m, double dt) {
         }
     }
     for (k = 1; k <= n; k++) {
-        const double th_k = q[IX_THETA + k];
-        const double nkx = -sin(th_k), nky = cos(th_k);
+        ct[k] = cos(q[IX_THETA + k]);
+        st[k] = sin(q[IX_THETA + k]);
+    }
+    for (k = 1; k <= n; k++) {
+        const double nkx = -st[k], nky = ct[k];
         double g = t_coef[k - 1] * (nkx * ah[0] + nky * ah[1]);
         for (j = 1; j <= n; j++) {
             const double skj = s_mat[(k - 1) * n + (j - 1)];
-            const double d = q[IX_THETA + j] - th_k;
-            mass[(k - 1) * n + (j - 1)] = skj * cos(d) + (j == k ? m->inertia[k] : 0.0);
-            g += skj * m->wt[j] * m->wt[j] * sin(d);
+            const double cos_d = ct[j] * ct[k] + st[j] * st[k]; /* cos(th_j - th_k) */
+            const double sin_d = st[j] * ct[k] - ct[j] * st[k]; /* sin(th_j - th_k) */
+            mass[(k - 1) * n + (j - 1)] = skj * cos_d + (j == k ? m->inertia[k] : 0.0);
+            g += skj * m->wt[j] * m->wt[j] * sin_d;
         }
         g -= link_sum(m, n, k) * (nkx * m->push_x + nky * m->push_y);
         rhs[k - 1] = g;
@@ -203,7 +207,7 @@ static void dynamic_step(ModelData *m, double dt) {
     /* the robot moves on; the wheel speeds use its new velocity and the current headings */
     robot_rk4(m, q, dt);
     robot_hitch(m, q, vh, ah);
-    wheel_speed_map(m, q, vh, jac, b);
+    wheel_speed_map(m, ct, st, vh, jac, b);
     for (i = 0; i < n; i++) {
         double u = b[i];
         for (k = 0; k < n; k++) u += jac[i * n + k] * w_free[k];
