@@ -6,7 +6,6 @@ Exit codes: 0 success; 1 the run completed but the goal was not reached (or no p
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import sys

@@ -5,7 +5,6 @@ Library code for the CLI: it raises typed errors and logs, it never prints or ex
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os

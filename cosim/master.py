@@ -19,7 +19,7 @@ import math
 import os
 import sys
 import time as _time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
@@ -28,7 +28,7 @@ import numpy as np
 from .controller import BackwardController, ControllerConfig, ControllerError
 from .fmu_slave import CosimError, TrailerTrainSlave
 from .kinematics import ChainGeometry, body_positions_from_last
-from .reference import PULL, Reference, ReferenceError
+from .reference import PULL, Reference
 from .sensors import SensorConfig, Sensors
 
 __all__ = [

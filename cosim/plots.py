@@ -863,7 +863,7 @@ def animate(data, n: int, out_path, *, world=None, footprints=None, fps: float =
     front, _rear = hitch_links(data, n, geometry)
     t = _col(data, "t")
     x, y, th = _bodies(data, n)
-    xd, yd, thd = _col(data, "x_d"), _col(data, "y_d"), _col(data, "theta_d")
+    xd, yd = _col(data, "x_d"), _col(data, "y_d")
     names = data.dtype.names
     slipping = np.stack([_col(data, f"slipping{i}") > 0.5 if f"slipping{i}" in names
                          else np.zeros(len(data), bool) for i in range(1, n + 1)], axis=1)

@@ -1,7 +1,6 @@
 """The click CLI: every command, --help, exit codes and error messages for bad input."""
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest

@@ -1,7 +1,6 @@
 """The slip-aware governor: its force model against the FMU, and a manoeuvre it keeps from sliding."""
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
