@@ -19,14 +19,12 @@ Three kinds of mission (``mission.kind``):
 from __future__ import annotations
 
 import math
-import tomllib
-from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from pushtrain.errors import FieldErrors
-from pushtrain.validation import Problems, field_errors
+from pushtrain.validation import Problems, field_errors, read_toml
 
 __all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
 
@@ -273,14 +271,4 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
 
 def load_scenario(path) -> Scenario:
     """Read and validate a scenario TOML file."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError(str(path), [("(file)", str(path), f"cannot be read: {exc.strerror}")])
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), [("(syntax)", None, f"not valid TOML: {exc}")]) from None
-    data.setdefault("name", path.stem)
-    return parse_scenario(data, str(path))
+    return parse_scenario(read_toml(path, ScenarioError), str(path))

@@ -33,7 +33,6 @@ import math
 import os
 import re
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Callable, Literal, Sequence, Union
@@ -43,7 +42,7 @@ from pydantic import (BaseModel, ConfigDict, Field, StrictBool, StrictInt, Valid
                       model_validator)
 
 from pushtrain.errors import FieldErrors
-from pushtrain.validation import Problems, field_errors
+from pushtrain.validation import Problems, field_errors, read_toml
 
 __all__ = [
     "SweepError",
@@ -342,18 +341,7 @@ def parse_sweep_spec(data: dict, source: str = "<sweep>") -> SweepSpec:
 
 def load_sweep_spec(path) -> SweepSpec:
     """Read and validate a sweep TOML file (raises :class:`SweepError`)."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SweepError(str(path), [("(file)", str(path),
-                                      f"cannot be read: {exc.strerror}")]) from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SweepError(str(path), [("(syntax)", None, f"not valid TOML: {exc}")]) from None
-    data.setdefault("name", path.stem)
-    return parse_sweep_spec(data, str(path))
+    return parse_sweep_spec(read_toml(path, SweepError), str(path))
 
 
 # ----------------------------------------------------------------------------------------- runs

@@ -8,7 +8,7 @@ fits no branch gets one line.
 
 from __future__ import annotations
 
-__all__ = ["Problems", "field_errors"]
+__all__ = ["Problems", "field_errors", "read_toml"]
 
 
 class Problems(ValueError):
@@ -76,3 +76,24 @@ def field_errors(exc) -> list[tuple[str, object, str]]:
             index[where] = len(lines)
             lines.append((where, err.get("input"), allowed))
     return lines
+
+
+def read_toml(path, error_cls) -> dict:
+    """The TOML document at ``path`` with ``name`` defaulting to the file's stem.
+
+    A file that cannot be read or parsed raises ``error_cls(source, [(where, value, allowed)])``.
+    """
+    import tomllib
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise error_cls(str(path), [("(file)", str(path), f"cannot be read: {exc.strerror}")]) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error_cls(str(path), [("(syntax)", None, f"not valid TOML: {exc}")]) from None
+    data.setdefault("name", path.stem)
+    return data
