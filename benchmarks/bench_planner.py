@@ -53,20 +53,19 @@ def bench(name: str, seeds: int, best_seeds: int, anytime: str) -> dict:
             out["median_first_s"] = statistics.median(first) if first else float("nan")
             out["rrtc_lengths"] = lengths
             out["median_cusps"] = statistics.median(cusps) if cusps else float("nan")
-    best = []
-    for seed in range(1, best_seeds + 1):
-        cfg = PlannerConfig(planner=anytime, seed=seed, anytime_time=2.0, time_budget=2.5,
-                            check_train=False, max_attempts=1)
-        path, _, _ = _run(world, case, train, cfg)
-        if path is not None:
-            best.append(path.length)
-    any05 = []
-    for seed in range(1, seeds + 1):
-        cfg = PlannerConfig(planner=anytime, seed=seed, anytime_time=0.5, time_budget=0.6,
-                            check_train=False, max_attempts=1)
-        path, _, _ = _run(world, case, train, cfg)
-        if path is not None:
-            any05.append(path.length)
+    def anytime_lengths(n_seeds: int, solve_time: float, budget: float) -> list[float]:
+        lengths = []
+        for seed in range(1, n_seeds + 1):
+            cfg = PlannerConfig(planner=anytime, seed=seed, anytime_time=solve_time,
+                                time_budget=budget,
+                                check_train=False, max_attempts=1)
+            path, _, _ = _run(world, case, train, cfg)
+            if path is not None:
+                lengths.append(path.length)
+        return lengths
+
+    best = anytime_lengths(best_seeds, 2.0, 2.5)
+    any05 = anytime_lengths(seeds, 0.5, 0.6)
     b = min(best + any05 + out["rrtc_lengths"]) if (best or any05 or out["rrtc_lengths"]) else float("nan")
     out["best_2s"] = min(best) if best else float("nan")
     out["best_any"] = b

@@ -67,12 +67,12 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from math import atan2, cos, isfinite, sin
+from math import cos, isfinite, sin
 from typing import NamedTuple
 
 import numpy as np
 
-from .kinematics import ChainGeometry
+from .kinematics import ChainGeometry, wrap_scalar
 from .reference import PULL, PUSH, REST
 
 __all__ = [
@@ -97,11 +97,6 @@ MODE_PULL = "pull"
 
 class ControllerError(ValueError):
     """Invalid controller configuration or input (gain, limit, shape, non-finite value)."""
-
-
-def _wrap(angle: float) -> float:
-    """Wrap an angle [rad] to [-pi, pi] (scalar, cheap)."""
-    return atan2(sin(angle), cos(angle))
 
 
 @dataclass(frozen=True)
@@ -328,7 +323,7 @@ class BackwardController:
             c, s = cos(th_n), sin(th_n)
             x_e = -(c * dx + s * dy)
             y_e = s * dx - c * dy
-            th_e = _wrap(ref[2] - th_n)
+            th_e = wrap_scalar(ref[2] - th_n)
             u_d = -v_d
             u_ref = u_d * cos(th_e) + self._kx * x_e  # Eq. 3
             w_ref = ref[4] + u_d * (self._ky * y_e + self._kth * sin(th_e))  # Eq. 4
@@ -346,7 +341,7 @@ class BackwardController:
             c, s = cos(th0), sin(th0)
             x_e = c * dx + s * dy
             y_e = -s * dx + c * dy
-            th_e = _wrap(ahead[2] - th0)
+            th_e = wrap_scalar(ahead[2] - th0)
             u_d = abs(ahead[3])
             u_ref = u_d * cos(th_e) + self._kx * x_e
             w_ref = ahead[4] + u_d * (self._ky * y_e + self._kth * sin(th_e))

@@ -26,6 +26,7 @@ inverses from trailer n to the robot is the paper's Eq. (5).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +34,7 @@ import numpy as np
 __all__ = [
     "ChainGeometry",
     "wrap_angle",
+    "wrap_scalar",
     "joint_angles",
     "forward_velocities",
     "inverse_velocities",
@@ -50,6 +52,12 @@ def wrap_angle(angle):
     wrapped = np.mod(np.asarray(angle, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
     wrapped = np.where(wrapped == -np.pi, np.pi, wrapped)
     return wrapped if np.ndim(wrapped) else float(wrapped)
+
+
+def wrap_scalar(angle: float) -> float:
+    """Wrap one angle [rad] to (-pi, pi] with plain floats (for per-step loops)."""
+    wrapped = (angle + math.pi) % (2.0 * math.pi) - math.pi
+    return math.pi if wrapped == -math.pi else wrapped
 
 
 @dataclass(frozen=True)

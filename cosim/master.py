@@ -27,7 +27,7 @@ import numpy as np
 
 from .controller import BackwardController, ControllerConfig, ControllerError
 from .fmu_slave import CosimError, TrailerTrainSlave
-from .kinematics import ChainGeometry, body_positions_from_last
+from .kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
 from .reference import PULL, Reference
 from .sensors import SensorConfig, Sensors
 
@@ -500,7 +500,7 @@ def simulate(
             base += 6 * n
             row[base:base + 5] = (v_cmd, w_cmd, push_x, push_y, slide_n)
             row[base + 5:base + 11] = (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k])
-            e_theta = _wrap(y[3 * (n + 1) - 1] - ref_th[k])
+            e_theta = wrap_scalar(y[3 * (n + 1) - 1] - ref_th[k])
             row[base + 11:base + 15] = (c * dx + s_ * dy, -s_ * dx + c * dy, e_theta, flags[n])
             k_last = k
             if flags[n]:
@@ -511,7 +511,7 @@ def simulate(
                 break
             if check_goal and t >= t_ref_end - 1e-12:
                 dist = math.hypot(y[n] - goal[0], y[2 * (n + 1) - 1] - goal[1])
-                if dist <= pos_tol and abs(_wrap(y[3 * (n + 1) - 1] - goal[2])) <= head_tol:
+                if dist <= pos_tol and abs(wrap_scalar(y[3 * (n + 1) - 1] - goal[2])) <= head_tol:
                     status = STATUS_GOAL
                     message = f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
                     break
@@ -556,11 +556,6 @@ def simulate(
     if out_dir is not None:
         result.save(out_dir)
     return result
-
-
-def _wrap(angle: float) -> float:
-    """Scalar angle wrap to [-pi, pi) for the per-step loop (math, not numpy)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _rms(a: np.ndarray) -> float:

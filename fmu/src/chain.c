@@ -15,10 +15,6 @@
 
 #include "model.h"
 
-static double clamp(double value, double lo, double hi) {
-    return value < lo ? lo : (value > hi ? hi : value);
-}
-
 void chain_velocities(const ModelData *m, const double *q, double *c, double *s, double *v,
                       double *w) {
     int i;
@@ -38,8 +34,8 @@ void chain_velocities(const ModelData *m, const double *q, double *c, double *s,
 }
 
 void robot_accelerations(const ModelData *m, const double *q, double *dv0, double *dw0) {
-    *dv0 = clamp((m->v_cmd - q[IX_V0]) / m->robot_tau, -m->robot_acc_max, m->robot_acc_max);
-    *dw0 = clamp((m->w_cmd - q[IX_W0]) / m->robot_tau, -m->robot_alpha_max, m->robot_alpha_max);
+    *dv0 = pt_clamp((m->v_cmd - q[IX_V0]) / m->robot_tau, -m->robot_acc_max, m->robot_acc_max);
+    *dw0 = pt_clamp((m->w_cmd - q[IX_W0]) / m->robot_tau, -m->robot_alpha_max, m->robot_alpha_max);
 }
 
 void chain_derivatives(const ModelData *m, const double *q, double *dq) {

@@ -34,6 +34,10 @@
 
 #define VR_STRIDE 100
 
+static inline double pt_clamp(double value, double lo, double hi) {
+    return value < lo ? lo : (value > hi ? hi : value);
+}
+
 /* Scalar value references (< VR_STRIDE); must equal fmu/variables.py SCALARS. */
 enum ScalarVr {
     vr_v_cmd = 1,

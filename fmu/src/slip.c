@@ -29,10 +29,6 @@
 #define PGS_ITERATIONS 200
 #define STICK_SPEED 1e-7 /* |u| below this counts as rolling when leaving the dynamic regime */
 
-static double clamp(double value, double lo, double hi) {
-    return value < lo ? lo : (value > hi ? hi : value);
-}
-
 /* L_ik of the note above, with trailer indices 1..n. */
 static double link_sum(const ModelData *m, int i, int k) {
     if (k > i) {
@@ -230,14 +226,14 @@ static void dynamic_step(ModelData *m, double dt) {
     /* projected Gauss-Seidel on the friction impulses, warm-started */
     for (i = 0; i < n; i++) {
         lim[i] = m->F_lat_max[i + 1] * dt;
-        lam[i] = clamp(m->f_dyn[i + 1] * dt, -lim[i], lim[i]);
+        lam[i] = pt_clamp(m->f_dyn[i + 1] * dt, -lim[i], lim[i]);
     }
     for (it = 0; it < PGS_ITERATIONS; it++) {
         double change = 0.0;
         for (i = 0; i < n; i++) {
             double u = u_free[i], updated;
             for (j = 0; j < n; j++) u += a[i * n + j] * lam[j];
-            updated = clamp(lam[i] - u / a[i * n + i], -lim[i], lim[i]);
+            updated = pt_clamp(lam[i] - u / a[i * n + i], -lim[i], lim[i]);
             change = fmax(change, fabs(updated - lam[i]));
             lam[i] = updated;
         }
