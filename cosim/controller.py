@@ -31,14 +31,10 @@ Pulling (direction PULL, the robot leads, v_d > 0)
     dynamics unstable (linearizing ``phi_n' = w_{n-1} - w_n`` under the inverse map gives
     ``+(v_n / R_{n-1}) phi_n``: every joint ahead of a prescribed body jackknifes). So when pulling
     the robot leads: it tracks, with the same Kanayama law in its own forward frame (heading
-    theta_0, speed v0 > 0), the reference path point ``lead_distance`` metres *ahead* of the last
-    trailer's reference (``sample_ahead`` of :class:`~pushtrain.cosim.reference.Reference` or
-    :class:`~pushtrain.cosim.reference.SampledReference`; past the end of the pulling run it
-    continues the run's last line or arc). With F = R the towed trailers have no steady
-    off-tracking on lines and arcs, so the last trailer converges onto the same path; the
-    default lead is the length of the straight chain, sum(R_{i-1} + F_i), which on an arc of
-    radius rho exceeds the steady arc length 2 rho atan(D/rho) per link slightly (the last trailer
-    then lags along the path by a few centimetres, without lateral error). Kanayama on the
+    theta_0, speed v0 > 0), a reference of its own, ``leader``: the robot's motion that makes the
+    towed chain bring the last trailer along its reference, computed backward in time from a
+    straight chain at the end of each pulling run (:class:`~pushtrain.cosim.pulling.PullGuide`).
+    Towing is stable, so errors of the chain behind the robot decay. Kanayama on the
     last trailer in its forward frame followed by the inverse map was rejected for the reason
     above (verified in the tests: it jackknifes).
 
@@ -120,9 +116,6 @@ class ControllerConfig:
     acc_max, alpha_max : float or None
         Optional rate limits of the command [m/s², rad/s²], > 0; ``None`` disables. If one is
         given the other may stay ``None`` (unlimited).
-    lead_distance : float or None
-        Look-ahead [m] of the robot's target along the path while pulling; ``None`` takes the
-        straight chain length sum(R_{i-1} + F_i).
     rest_speed : float
         |v_d| [m/s] at or below which the reference counts as resting (>= 0).
     """
@@ -135,7 +128,6 @@ class ControllerConfig:
     w_max: float = 0.1
     acc_max: float | None = None
     alpha_max: float | None = None
-    lead_distance: float | None = None
     rest_speed: float = 1e-9
 
     def __post_init__(self):
@@ -149,7 +141,7 @@ class ControllerConfig:
                 and value > 0.0
             ):
                 raise ControllerError(f"{name} = {value!r}: must be a finite number > 0")
-        for name in ("acc_max", "alpha_max", "lead_distance"):
+        for name in ("acc_max", "alpha_max"):
             value = getattr(self, name)
             if value is not None and not (isfinite(value) and value > 0.0):
                 raise ControllerError(f"{name} = {value!r}: must be None or a finite number > 0")
@@ -164,13 +156,6 @@ class ControllerConfig:
         except ValueError as exc:
             raise ControllerError(str(exc)) from exc
         return cls(geometry=geometry, **kwargs)
-
-    @property
-    def lead(self) -> float:
-        """Effective look-ahead distance [m] used while pulling."""
-        if self.lead_distance is not None:
-            return float(self.lead_distance)
-        return float(np.sum(self.geometry.front) + np.sum(self.geometry.rear))
 
 
 class ControlInfo(NamedTuple):
@@ -220,7 +205,8 @@ class BackwardController:
         self._amax = None if config.acc_max is None else float(config.acc_max)
         self._alphamax = None if config.alpha_max is None else float(config.alpha_max)
         self._rest = float(config.rest_speed)
-        self.lead_distance = config.lead
+        self.guide_geometry = config.geometry
+        self._guides: dict = {}
         self.reset()
 
     def sent(self, v0: float, w0: float) -> None:
@@ -266,7 +252,7 @@ class BackwardController:
 
     # -- the control law --
 
-    def command(self, t: float, measurement, ref, ahead=None):
+    def command(self, t: float, measurement, ref, leader=None):
         """Robot command for the measured state and the reference at time ``t``.
 
         Parameters
@@ -282,10 +268,10 @@ class BackwardController:
             ``phi``.
         ref : ReferenceSample
             The last trailer's reference ``(x, y, theta, v, w, direction)`` at ``t``.
-        ahead : ReferenceSample or None
-            Only needed while pulling: the reference path point :attr:`lead_distance` ahead of
-            ``ref`` (``reference.sample_ahead(t, controller.lead_distance)``). See
-            :meth:`command_from`, which fills both.
+        leader : ReferenceSample or None
+            Only needed while pulling: the robot's own reference ``(x0, y0, theta0, v0, w0,
+            PULL)`` at ``t``, from :class:`~pushtrain.cosim.pulling.PullGuide` built with
+            :attr:`guide_geometry`. See :meth:`command_from`, which fills both.
 
         Returns
         -------
@@ -330,21 +316,21 @@ class BackwardController:
             v_raw, w_raw = self.robot_velocity(phi, -u_ref, w_ref)  # Eq. 5
         elif direction == PULL:
             mode = MODE_PULL
-            if ahead is None:
+            if leader is None:
                 raise ControllerError(
-                    f"pulling at t = {t!r} s needs the look-ahead sample `ahead` (the reference"
-                    f" {self.lead_distance:.4g} m ahead);"
+                    f"pulling at t = {t!r} s needs the robot's reference `leader` "
+                    "(PullGuide(reference, controller.guide_geometry).sample_at(t));"
                     " use command_from(reference, t, measurement)"
                 )
-            # Kanayama on the robot in its own forward frame toward the look-ahead point
-            dx, dy = ahead[0] - x0, ahead[1] - y0
+            # Kanayama on the robot in its own forward frame along its own reference
+            dx, dy = leader[0] - x0, leader[1] - y0
             c, s = cos(th0), sin(th0)
             x_e = c * dx + s * dy
             y_e = -s * dx + c * dy
-            th_e = wrap_scalar(ahead[2] - th0)
-            u_d = abs(ahead[3])
+            th_e = wrap_scalar(leader[2] - th0)
+            u_d = abs(leader[3])
             u_ref = u_d * cos(th_e) + self._kx * x_e
-            w_ref = ahead[4] + u_d * (self._ky * y_e + self._kth * sin(th_e))
+            w_ref = leader[4] + u_d * (self._ky * y_e + self._kth * sin(th_e))
             v_raw, w_raw = u_ref, w_ref
         else:
             raise ControllerError(
@@ -355,15 +341,28 @@ class BackwardController:
         return v, w, info
 
     def command_from(self, reference, t: float, measurement):
-        """:meth:`command` with ``ref`` and ``ahead`` sampled from ``reference`` at ``t``.
+        """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t``.
 
         ``reference`` is a :class:`~pushtrain.cosim.reference.Reference` or
-        :class:`~pushtrain.cosim.reference.SampledReference` (anything with ``sample_at(t)`` and
-        ``sample_ahead(t, distance)``). The look-ahead is only sampled while pulling.
+        :class:`~pushtrain.cosim.reference.SampledReference`. While pulling, the robot's
+        reference comes from a :class:`~pushtrain.cosim.pulling.PullGuide` of ``reference``,
+        built on first use and kept for later calls with the same reference object.
         """
         ref = reference.sample_at(t)
-        ahead = reference.sample_ahead(t, self.lead_distance) if ref[5] == PULL else None
-        return self.command(t, measurement, ref, ahead)
+        leader = self.guide_for(reference).sample_at(t) if ref[5] == PULL else None
+        return self.command(t, measurement, ref, leader)
+
+    def guide_for(self, reference):
+        """The :class:`~pushtrain.cosim.pulling.PullGuide` of ``reference`` for this controller's
+        chain model (cached per reference object)."""
+        key = id(reference)
+        cached = self._guides.get(key)
+        if cached is None or cached.reference is not reference:
+            from .pulling import PullGuide
+
+            cached = PullGuide(reference, self.guide_geometry)
+            self._guides = {key: cached}
+        return cached
 
     def _limit(self, t: float, v: float, w: float):
         """Apply the common-factor speed limits and the optional rate limits."""

@@ -178,7 +178,7 @@ class SlipGovernor:
 class GovernedController:
     """A tracking controller whose commands pass through a :class:`SlipGovernor`.
 
-    Has the interface the co-simulation master expects (``n``, ``lead_distance``, ``reset``,
+    Has the interface the co-simulation master expects (``n``, ``guide_geometry``, ``reset``,
     ``command``).
     """
 
@@ -187,14 +187,14 @@ class GovernedController:
         self.governor = governor
         self.dt = dt
         self.n = controller.n
-        self.lead_distance = controller.lead_distance
+        self.guide_geometry = controller.guide_geometry
 
     def reset(self, v0: float = 0.0, w0: float = 0.0, t=None) -> None:
         self.controller.reset(v0, w0, t)
         self.governor.reset(v0, w0)
 
-    def command(self, t, measurement, ref, ahead=None):
-        v, w, info = self.controller.command(t, measurement, ref, ahead)
+    def command(self, t, measurement, ref, leader=None):
+        v, w, info = self.controller.command(t, measurement, ref, leader)
         v_out, w_out = self.governor.limit(measurement.phi, v, w, self.dt)
         if (v_out, w_out) != (v, w):
             self.controller.sent(v_out, w_out)  # its rate limits continue from what was sent

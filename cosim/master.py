@@ -28,6 +28,7 @@ import numpy as np
 from .controller import BackwardController, ControllerConfig, ControllerError
 from .fmu_slave import CosimError, TrailerTrainSlave
 from .kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
+from .pulling import PullGuide
 from .reference import PULL, Reference
 from .sensors import SensorConfig, Sensors
 
@@ -411,6 +412,12 @@ def simulate(
         goal = np.asarray(reference.goal, dtype=float)
         t_ref_end = float(reference.t_end)
 
+    guide = None
+    if reference is not None and np.any(ref_dir == PULL):
+        geometry = getattr(ctrl, "guide_geometry", None)
+        if geometry is not None:  # open-loop controllers ignore the reference
+            guide = PullGuide(reference, geometry)
+
     slave = TrailerTrainSlave(fmu)
     if slave.n != n:
         slave.close()
@@ -458,9 +465,8 @@ def simulate(
                 meas = sens.measure(x0, y0, th0, phi, (y[n], y[2 * (n + 1) - 1], th_n))
             else:
                 meas = sens.measure(x0, y0, th0, phi)
-            if ref_dir[k] == PULL and reference is not None:
-                ahead = reference.sample_ahead(t, ctrl.lead_distance)
-                v_cmd, w_cmd, _ = ctrl.command(t, meas, reference.sample_at(t), ahead)
+            if ref_dir[k] == PULL and guide is not None:
+                v_cmd, w_cmd, _ = ctrl.command(t, meas, reference.sample_at(t), guide.sample_at(t))
             else:
                 v_cmd, w_cmd, _ = ctrl.command(
                     t, meas, (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k]))

@@ -15,14 +15,14 @@ class RotationProfile:
     Each half period the yaw rate ramps with angular acceleration ``alpha`` [rad/s^2] to
     ``+w_max`` [rad/s], holds for ``hold`` [s] and ramps back to 0; the next half period does the
     same with ``-w_max``, so the robot swings back and forth. Has the controller interface the
-    master expects (``n``, ``lead_distance``, ``command``).
+    master expects (``n``, ``guide_geometry``, ``command``).
     """
 
     n: int
     w_max: float
     alpha: float
     hold: float = 0.0
-    lead_distance: float = 0.0
+    guide_geometry: None = None
 
     def __post_init__(self):
         for name in ("w_max", "alpha"):
@@ -52,7 +52,7 @@ class RotationProfile:
             w = max(0.0, self.w_max - self.alpha * (tau - ramp - self.hold))
         return sign * w
 
-    def command(self, t, measurement, ref, ahead=None):
+    def command(self, t, measurement, ref, leader=None):
         return 0.0, self.yaw_rate(t), None
 
 
@@ -60,13 +60,13 @@ class RotationProfile:
 class ConstantCommand:
     """The robot drives with a fixed (v0 [m/s], w0 [rad/s]): open-loop pushing or holding still.
 
-    Has the controller interface the master expects (``n``, ``lead_distance``, ``command``).
+    Has the controller interface the master expects (``n``, ``guide_geometry``, ``command``).
     """
 
     n: int
     v0: float = 0.0
     w0: float = 0.0
-    lead_distance: float = 0.0
+    guide_geometry: None = None
 
-    def command(self, t, measurement, ref, ahead=None):
+    def command(self, t, measurement, ref, leader=None):
         return self.v0, self.w0, None

@@ -297,43 +297,6 @@ class Reference:
             return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
         return ReferenceSample(x, y, th, 0.0, 0.0, REST)
 
-    def sample_ahead(self, t: float, distance: float) -> ReferenceSample:
-        """Reference pose ``distance`` [m] further along the path than the pose at time ``t``.
-
-        The look-ahead follows the segments travelled in the current direction (it never crosses
-        a cusp). Past the end of that run it continues from the run's end pose, in the same
-        direction, along the *backward* extension of the segment after the cusp (curvature
-        negated): that is where the robot sits at the cusp when the chain is in its steady state
-        for the next segment. After the last segment it continues the last line or arc. This is
-        the robot's target while pulling (see :mod:`pushtrain.cosim.controller`). ``v`` and ``w``
-        are those of the segment (or extension) at the look-ahead point. At rest it returns
-        :meth:`sample_at` ``(t)`` unchanged.
-        """
-        if not (np.isfinite(distance) and distance >= 0.0):
-            raise ReferenceError(f"look-ahead distance = {distance!r} m: must be finite and >= 0")
-        t = float(t)
-        here = self.sample_at(t)
-        if here.direction == REST:
-            return here
-        k, tau = self._row_at(t)
-        rows = self._rows[1]
-        sigma = rows[k][3]
-        s = rows[k][5] * tau + float(distance)  # distance from the start of phase k
-        while s > rows[k][6] and k + 1 < len(rows) and rows[k + 1][3] == sigma:
-            s -= rows[k][6]
-            k += 1
-        x0, y0, th0, sigma, kappa, speed, length = rows[k]
-        if s <= length:
-            x, y, th = _advance_scalar(x0, y0, th0, sigma, kappa, s)
-            return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
-        # past the run: continue backward along the next segment (after the cusp), else the last
-        x, y, th = _advance_scalar(x0, y0, th0, sigma, kappa, length)
-        following = [row for row in rows[k + 1 :] if row[3] != 0.0]
-        if following:
-            kappa = -following[0][4]
-        x, y, th = _advance_scalar(x, y, th, sigma, kappa, s - length)
-        return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
-
 
 def _advance_scalar(x, y, theta, sigma, kappa, s):
     """Scalar :func:`_advance` with plain floats (used on every communication step)."""
@@ -355,7 +318,7 @@ class SampledReference:
     most ``max(|w_k|, |w_k+1|) dt (1 + rel_tol) + angle_tol``; anything more is a jump and raises
     :class:`ReferenceError`. The sign of ``v`` must agree with ``direction`` (v <= 0 when pushing,
     >= 0 when pulling, 0 at rest, within ``speed_tol``). The same query methods as
-    :class:`Reference` are offered (:meth:`sample`, :meth:`sample_at`, :meth:`sample_ahead`,
+    :class:`Reference` are offered (:meth:`sample`, :meth:`sample_at`,
     :meth:`direction_at`, :attr:`t_end`, :attr:`goal`, :attr:`length`).
 
     Parameters
@@ -545,44 +508,3 @@ class SampledReference:
                 *pose, (1.0 - a) * v[k] + a * v[k + 1], (1.0 - a) * w[k] + a * w[k + 1], int(d[kd])
             )
         return ReferenceSample(*pose, 0.0, 0.0, REST)
-
-    def sample_ahead(self, t: float, distance: float) -> ReferenceSample:
-        """Reference pose ``distance`` [m] further along the path than the pose at time ``t``.
-
-        Same contract as :meth:`Reference.sample_ahead`: the look-ahead stays within the run of
-        samples with the current direction; beyond it, it continues along the backward extension
-        of the motion after the cusp (curvature -w/|v| of the first moving sample of the next run)
-        or, after the last run, the run's last motion (curvature w/|v| of its last moving sample).
-        """
-        if not (np.isfinite(distance) and distance >= 0.0):
-            raise ReferenceError(f"look-ahead distance = {distance!r} m: must be finite and >= 0")
-        here = self.sample_at(t)
-        if here.direction == REST:
-            return here
-        x, y, th, v, w, d, s = self._cols
-        k, a = self._interval(float(t))
-        target = (1.0 - a) * s[k] + a * s[k + 1] + float(distance)
-        last = k
-        while last + 1 < len(s) and d[last + 1] == here.direction:
-            last += 1
-        # the run's motion ends at sample `last` (the next sample, if any, starts a rest/cusp)
-        if target <= s[last]:
-            j = min(max(bisect_right(s, target, k, last + 1) - 1, k), max(last - 1, k))
-            span = s[j + 1] - s[j] if j + 1 <= last else 0.0
-            b = (target - s[j]) / span if span > 0.0 else 0.0
-            return ReferenceSample(
-                *[(1.0 - b) * c[j] + b * c[j + 1] for c in (x, y, th, v, w)], here.direction
-            )
-        speed, rate = abs(v[last]), w[last]
-        if speed == 0.0 and last > 0:
-            speed, rate = abs(v[last - 1]), w[last - 1]
-        kappa = rate / speed if speed > 0.0 else 0.0
-        nxt = next((j for j in range(last + 1, len(s)) if d[j] not in (REST, here.direction)), None)
-        if nxt is not None and v[nxt] != 0.0:
-            kappa = -w[nxt] / abs(v[nxt])  # backward extension of the segment after the cusp
-        elif nxt is not None and nxt + 1 < len(s) and v[nxt + 1] != 0.0:
-            kappa = -w[nxt + 1] / abs(v[nxt + 1])
-        rate = kappa * speed
-        sigma = -float(here.direction)
-        xe, ye, the = _advance_scalar(x[last], y[last], th[last], sigma, kappa, target - s[last])
-        return ReferenceSample(xe, ye, the, sigma * speed, rate, here.direction)

@@ -11,6 +11,7 @@ REASONS = (
     "unreachable",
     "approximate_only",
     "train_check_failed",
+    "pull_end_blocked",
     "invalid_input",
 )
 """Allowed values of :attr:`PlanningError.reason`."""

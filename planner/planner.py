@@ -36,6 +36,7 @@ import numpy as np
 from shapely.geometry import Point
 
 from pushtrain.cosim.controller import ControllerConfig
+from pushtrain.cosim.pulling import straight_chain_mismatch
 from pushtrain.cosim.reference import PULL, PUSH, Segment
 
 from .errors import PlanningError, PlanningInputError
@@ -147,14 +148,14 @@ class PlannerConfig:
         Reference speed [m/s] the co-simulation will use (``PlannedPath.to_reference``).
     cusp_dwell : float
         Rest [s] of the reference at each direction change in the co-simulation.
-    pull_ghost : bool
-        While a local curve pulls (robot leads), also require the train stretched straight
-        ahead of the last trailer to be free: the robot is about sum(F_i + R_i) ahead and a
-        pulled chain straightens behind it. Off by default and never switched on by the
-        replanning: it slows planning in narrow corridors, and the closed-loop check's pull
-        collisions come mostly from the chain wrapping around the arc after a cusp, which it
-        does not see (examples/bay.toml, seeds 1-20, 3 s: 3 plans with the ghost switched on
-        after a pulling failure, 16 without).
+    straight_pull_ends : bool
+        Require, at the end of every pulling run (a cusp, or the goal), the train drawn out
+        straight ahead of the last trailer to be free (with ``inflation``): the controller's
+        look-ahead continues straight past the run's end
+        (:meth:`~pushtrain.cosim.reference.Reference.sample_ahead`), so that is where the robot
+        leads the chain. Default on; without it the sampling planner happily ends a pull on an
+        arc whose tangent points into a wall, and the closed-loop check fails at the robot
+        (examples/bay.toml: 0 of 20 seeds pass the first check; see the note in the benchmark).
     """
 
     turning_radius: float | None = None
@@ -177,7 +178,8 @@ class PlannerConfig:
     controller: ControllerConfig | None = None
     speed: float = 0.08
     cusp_dwell: float = 1.0
-    pull_ghost: bool = False
+    straight_pull_ends: bool = True
+    pull_start_tolerance: float | None = 0.4
 
     def __post_init__(self):
         name = str(self.planner).lower()
@@ -314,20 +316,54 @@ def _merge(segments: Sequence[Segment]) -> list[Segment]:
 
 class _TrailerMotionValidator(ob.MotionValidator):
     """Motion check along OMPL's Reeds-Shepp curve at ``step`` metres: every sampled state
-    valid and, unless ``allow_pull_arcs``, no heading change while travelling backward."""
+    valid; unless ``allow_pull_arcs``, no heading change while travelling backward; and, with
+    ``pull_end_valid``, a free straight train at the end of every backward (pulling) run of the
+    curve, located to 1e-6 of the curve by bisection (see :attr:`PlannerConfig.straight_pull_ends`).
+    """
 
-    def __init__(self, si, space, is_valid, step: float, allow_pull_arcs: bool, ghost_valid=None):
+    def __init__(self, si, space, is_valid, step: float, allow_pull_arcs: bool,
+                 pull_end_valid=None, pull_start_valid=None):
         super().__init__(si)
         self._space, self._valid, self._step = space, is_valid, float(step)
         self._allow = bool(allow_pull_arcs)
-        self._ghost = ghost_valid
+        self._pull_end_valid = pull_end_valid
+        self._pull_start_valid = pull_start_valid
+        self.goal: tuple[float, float] | None = None
         self._tmp = space.allocState()
+        self._probe = space.allocState()
+
+    def _backward_at(self, s1, s2, t: float, length: float) -> bool:
+        """True if the curve s1 -> s2 travels backward just after the fraction ``t``."""
+        dt = min(1e-7, 1e-7 / max(length, 1e-9)) if length > 0.0 else 1e-7
+        a, b = self._tmp, self._probe
+        self._space.interpolate(s1, s2, t, a)
+        self._space.interpolate(s1, s2, min(t + dt, 1.0), b)
+        yaw = a.getYaw()
+        return (b.getX() - a.getX()) * math.cos(yaw) + (b.getY() - a.getY()) * math.sin(yaw) < 0.0
+
+    def _pull_end_ok(self, s1, s2, t_lo: float, t_hi: float, length: float) -> bool:
+        """Locate the end of a backward run in [t_lo, t_hi] (backward at t_lo, forward at t_hi)
+        by bisection and check the straight train there."""
+        for _ in range(40):
+            if (t_hi - t_lo) * length < 1e-6:
+                break
+            mid = 0.5 * (t_lo + t_hi)
+            if self._backward_at(s1, s2, mid, length):
+                t_lo = mid
+            else:
+                t_hi = mid
+        self._space.interpolate(s1, s2, t_hi, self._probe)
+        p = self._probe
+        return self._pull_end_valid(p.getX(), p.getY(), p.getYaw())
 
     def checkMotion(self, s1, s2):  # noqa: N802 (OMPL API)
         length = self._space.distance(s1, s2)
         m = max(1, int(math.ceil(length / self._step)))
         x0, y0, yaw0 = s1.getX(), s1.getY(), s1.getYaw()
         tmp = self._tmp
+        was_backward = False
+        # the curve's leading pulling run, as samples (x, y, yaw), while it lasts
+        leading = [(x0, y0, yaw0)] if self._pull_start_valid is not None else None
         for k in range(1, m + 1):
             self._space.interpolate(s1, s2, k / m, tmp)
             if not self._valid(tmp):
@@ -338,10 +374,47 @@ class _TrailerMotionValidator(ob.MotionValidator):
             backward = (x1 - x0) * math.cos(mid) + (y1 - y0) * math.sin(mid) < 0.0
             if backward and not self._allow and abs(dyaw) > 1e-9:
                 return False
-            if backward and self._ghost is not None and not self._ghost(x1, y1, yaw1):
-                return False
+            if self._pull_end_valid is not None and was_backward and not backward:
+                # a backward run ended within the last two samples
+                if not self._pull_end_ok(s1, s2, (k - 2) / m, k / m, length):
+                    return False
+            if leading is not None:
+                if backward:
+                    leading.append((x1, y1, yaw1))
+                else:
+                    if len(leading) > 1 and not self._pull_start_valid(s1, leading):
+                        return False
+                    leading = None
+            was_backward = backward
             x0, y0, yaw0 = x1, y1, yaw1
+        if leading is not None and len(leading) > 1 and not self._pull_start_valid(s1, leading):
+            return False
+        if self._pull_end_valid is not None and was_backward and self._is_goal(s2):
+            # the path ends pulling: at the goal the chain is drawn out straight
+            return bool(self._pull_end_valid(s2.getX(), s2.getY(), s2.getYaw()))
+        # A curve ending backward elsewhere may go on pulling in the next curve: that junction
+        # is checked on the finished path (_pull_ends_at_junctions).
         return True
+
+    def _is_goal(self, state) -> bool:
+        g = self.goal
+        return g is not None and abs(state.getX() - g[0]) < 1e-9 and abs(state.getY() - g[1]) < 1e-9
+
+    def junction_pull_end_ok(self, before_a, before_b, after_a, after_b) -> bool:
+        """True unless the curve ``before_a -> before_b`` ends backward, the next one
+        ``after_a -> after_b`` (with ``after_a`` = ``before_b``) starts forward, and the straight
+        train at that cusp is not free."""
+        if self._pull_end_valid is None:
+            return True
+        la = self._space.distance(before_a, before_b)
+        lb = self._space.distance(after_a, after_b)
+        if la <= 0.0 or lb <= 0.0:
+            return True
+        ends_backward = self._backward_at(before_a, before_b, max(0.0, 1.0 - 1e-6 / la), la)
+        starts_forward = not self._backward_at(after_a, after_b, 0.0, lb)
+        if not (ends_backward and starts_forward):
+            return True
+        return bool(self._pull_end_valid(after_a.getX(), after_a.getY(), after_a.getYaw()))
 
 
 @dataclass
@@ -351,11 +424,10 @@ class _Attempt:
     radius: float
     inflation: float
     blocks: list = field(default_factory=list)
-    ghost: bool = False
 
 
 def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
-                attempt: _Attempt, solve_time: float, seed: int | None):
+                attempt: _Attempt, solve_time: float, seed: int | None, start_headings=None):
     """One OMPL solve of the last trailer. Returns (states (M,3), info) or raises PlanningError."""
     last = train.last
     planning_world = world.with_obstacles(attempt.blocks) if attempt.blocks else world
@@ -373,24 +445,34 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
     ss = og.SimpleSetup(space)
     ss.setStateValidityChecker(is_valid)
     si = ss.getSpaceInformation()
-    ghost_valid = None
-    if attempt.ghost:
-        # while pulling, the robot leads: check the train stretched straight ahead of the last
-        # trailer (where a towed chain ends up after a straight pull)
-        ahead = np.cumsum((train.geometry.front + train.geometry.rear)[::-1])[::-1]  # bodies 0..n-1
-        ghost_region = planning_world.eroded(attempt.inflation)
-        ghost_bodies = train.bodies[:-1]
+    pull_end_valid = None
+    if config.straight_pull_ends:
+        # bodies 0..n-1 on the straight line ahead of the last trailer, at their link distances
+        ahead = np.cumsum((train.geometry.front + train.geometry.rear)[::-1])[::-1]
+        chain_region = planning_world.eroded(attempt.inflation)
+        leading_bodies = train.bodies[:-1]
 
-        def ghost_valid(x, y, yaw):
+        def pull_end_valid(x, y, yaw):
             theta = yaw + math.pi
             c, s = math.cos(theta), math.sin(theta)
-            polys = [body.polygons(x + d * c, y + d * s, theta)
-                     for body, d in zip(ghost_bodies, ahead)]
-            return all(ghost_region.contains(p) for p in polys)
+            return all(chain_region.contains(body.polygons(x + d * c, y + d * s, theta))
+                       for body, d in zip(leading_bodies, ahead))
+
+    pull_start_valid = None
+    if config.pull_start_tolerance is not None:
+        tolerance = float(config.pull_start_tolerance)
+        start_xy = (float(start_yaw[0]), float(start_yaw[1]))
+
+        def pull_start_valid(s1, samples):
+            pts = [(x, y, yaw + math.pi) for x, y, yaw in samples]
+            at_start = math.hypot(s1.getX() - start_xy[0], s1.getY() - start_xy[1]) < 1e-9
+            target = start_headings if at_start else None
+            return straight_chain_mismatch(train.geometry, pts, target) <= tolerance
 
     validator = _TrailerMotionValidator(si, space, is_valid, config.planning_resolution,
-                                        config.allow_pull_arcs, ghost_valid)
+                                        config.allow_pull_arcs, pull_end_valid, pull_start_valid)
     si.setMotionValidator(validator)
+    validator.goal = (float(goal_yaw[0]), float(goal_yaw[1]))
     start, goal = space.allocState(), space.allocState()
     for state, pose in ((start, start_yaw), (goal, goal_yaw)):
         state.setX(float(pose[0]))
@@ -438,6 +520,15 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         og.PathSimplifier(si).simplifyMax(path)
         path = _greedy_shortcut(si, path)
         info["simplify_time"] = time.perf_counter() - t1
+    path_states = list(path.getStates())
+    for a, b, c in zip(path_states[:-2], path_states[1:-1], path_states[2:]):
+        if not validator.junction_pull_end_ok(a, b, b, c):
+            raise PlanningError(
+                "pull_end_blocked",
+                f"{config.planner}'s path ends a pull at ({b.getX():.3f}, {b.getY():.3f}), where "
+                "the train drawn out straight ahead of the last trailer does not fit",
+                where=(b.getX(), b.getY()), details=info,
+            )
     states = np.array([[s.getX(), s.getY(), s.getYaw()] for s in path.getStates()])
     info["length_ompl"] = float(path.length())
     return states, info
@@ -598,7 +689,7 @@ def plan(
 
     tracker = config.tracker()
     tracker.controller_for(train.geometry)  # a controller for another n fails here, not later
-    attempt = _Attempt(config.radius_for(train), config.inflation, ghost=config.pull_ghost)
+    attempt = _Attempt(config.radius_for(train), config.inflation)
     history = []
     last_error: PlanningError | None = None
     last_result = None
@@ -610,15 +701,17 @@ def plan(
         seed = None if config.seed is None else int(config.seed) + k
         try:
             states, info = _solve_once(world, train, _chain_to_yaw(start), _chain_to_yaw(goal),
-                                       config, attempt, solve_time, seed)
+                                       config, attempt, solve_time, seed, start_headings)
         except PlanningError as exc:
             last_error = exc
             history.append({"attempt": k, "radius": attempt.radius, "inflation": attempt.inflation,
                             "blocks": len(attempt.blocks), "error": exc.reason})
+            if exc.reason == "pull_end_blocked":
+                continue  # a constraint of the planner's own, not of the train check: next seed
             if k == 0 or exc.reason != "unreachable":
                 break
             # a replanning change made it unreachable: undo the last change and try again
-            attempt = _Attempt(config.radius_for(train), config.inflation, ghost=attempt.ghost)
+            attempt = _Attempt(config.radius_for(train), config.inflation)
             continue
         segments, deviation = _segments_from_states(states, attempt.radius)
         if deviation > 1e-6:
@@ -626,7 +719,7 @@ def plan(
                 f"Reeds-Shepp segment recovery deviates {deviation:.3g} m from OMPL's curve"
             )
         entry = {"attempt": k, "radius": attempt.radius, "inflation": attempt.inflation,
-                 "blocks": len(attempt.blocks), "ghost": attempt.ghost, "seed": seed, **info}
+                 "blocks": len(attempt.blocks), "seed": seed, **info}
         result = None
         if config.check_train:
             result = check_train(world, train, start, segments, start_headings,
@@ -705,12 +798,10 @@ def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: Planne
     """Change what the last failure of the closed-loop train check calls for.
 
     - A leading body (robot or trailer 1..n-1) collides while pulling: a larger radius. The
-      robot leads toward the reference point ``lead_distance`` (the chain length) ahead; past
-      the end of a pulling run that point follows the backward extension of the next
-      segment, so before a cusp into an arc of radius r the chain wraps about lead / r rad
-      around that arc's circle (3.2 rad for 3 trailers at r = 0.97 m) and its leading bodies
-      sweep a disc of radius about r. Only a larger radius shrinks it; blocking the spot
-      changes nothing, the last trailer never goes there.
+      robot leads on its own reference (:class:`~pushtrain.cosim.pulling.PullGuide`), which
+      swings wide of the last trailer's path where the pull turns; the last trailer never
+      goes there, so blocking the spot changes nothing, while a larger radius narrows the
+      swing.
     - Any other collision: block the colliding region (and grow the inflation from the
       second block on).
     - A joint-limit failure or a missed goal: a larger radius.

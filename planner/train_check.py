@@ -9,9 +9,10 @@ Reference
     time-parameterized reference :meth:`~pushtrain.planner.path.PlannedPath.to_reference`
     hands to the co-simulation master.
 Controller
-    ``BackwardController(tracker.controller)`` (gains, robot limits, rate limits, lead distance
-    and its own chain model), called every ``tracker.step`` seconds at ``t_k = k * step`` with a
-    perfect measurement (robot pose and joint angles ``phi_i = theta_{i-1} - theta_i``) exactly
+    ``BackwardController(tracker.controller)`` (gains, robot limits, rate limits and its own
+    chain model, from which the robot's pulling reference, a
+    :class:`~pushtrain.cosim.pulling.PullGuide`, is built), called every ``tracker.step``
+    seconds at ``t_k = k * step`` with a perfect measurement (robot pose and joint angles ``phi_i = theta_{i-1} - theta_i``) exactly
     as the master calls it; the command is held over the step (zero-order hold) and the rate
     limits start from rest one step before t = 0, as in the master.
 Plant
@@ -53,6 +54,7 @@ import shapely
 
 from pushtrain.cosim.controller import BackwardController, ControllerConfig
 from pushtrain.cosim.kinematics import ChainGeometry, joint_angles
+from pushtrain.cosim.pulling import PullGuide
 from pushtrain.cosim.reference import PULL, Reference, Segment
 
 from .errors import PlanningInputError
@@ -78,8 +80,7 @@ def default_controller(geometry: ChainGeometry) -> ControllerConfig:
 
     Default gains (K_x = 1 1/s, K_y = 4 1/m², K_theta = 4 1/m), v_max = 0.1 m/s,
     w_max = 0.1 rad/s, acc_max = 0.2 m/s², alpha_max = 10 deg/s² (``cli/scenario.py``'s
-    robot and controller sections), the default lead distance, and ``geometry`` as the
-    controller's chain model.
+    robot and controller sections) and ``geometry`` as the controller's chain model.
     """
     return ControllerConfig(geometry=geometry, v_max=0.1, w_max=0.1, acc_max=0.2,
                             alpha_max=math.radians(10.0))
@@ -312,6 +313,7 @@ def simulate_tracking(
     """
     ctrl = BackwardController(controller)
     ctrl.reset(0.0, 0.0, -step)
+    guide = PullGuide(reference, controller.geometry)
     rates = towed_rates(geometry)
     th0 = np.asarray(start_headings, dtype=float)
     x, y = body_positions_along(np.asarray(reference.start, dtype=float)[None, :], th0[None, :],
@@ -322,8 +324,8 @@ def simulate_tracking(
     for k in range(n_steps + 1):
         t = k * step
         ref = reference.sample_at(t)
-        ahead = reference.sample_ahead(t, ctrl.lead_distance) if ref.direction == PULL else None
-        v0, w0, _ = ctrl.command(t, _Measurement(state), ref, ahead)
+        leader = guide.sample_at(t) if ref.direction == PULL else None
+        v0, w0, _ = ctrl.command(t, _Measurement(state), ref, leader)
         states.append(state), commands.append((v0, w0))
         refs.append((ref.x, ref.y, ref.theta)), dirs.append(ref.direction)
         if k < n_steps:

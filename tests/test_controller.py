@@ -269,14 +269,14 @@ def test_push_cusp_pull_cusp_push_sequence():
     assert np.max(np.abs(plant.phi)) < np.radians(40.0)
 
 
-def test_rest_and_missing_look_ahead():
+def test_rest_and_missing_pull_reference():
     ctrl = BackwardController(ControllerConfig.uniform(2))
     meas = Measurement(0.0, 0.0, 0.0, np.array([0.3, -0.2]))
     v, w, info = ctrl.command(0.0, meas, ReferenceSample(-1.0, 0.5, 0.2, 0.0, 0.0, REST))
     assert (v, w, info.mode) == (0.0, 0.0, MODE_REST)
     v, w, info = ctrl.command(0.0, meas, ReferenceSample(-1.0, 0.5, 0.2, 0.0, 0.3, PUSH))
     assert (v, w, info.mode) == (0.0, 0.0, MODE_REST)  # v_d = 0: no division, no motion
-    with pytest.raises(ControllerError, match="ahead"):
+    with pytest.raises(ControllerError, match="leader"):
         ctrl.command(0.0, meas, ReferenceSample(1.0, 0.0, 0.0, 0.1, 0.0, PULL))
     with pytest.raises(ControllerError, match="direction"):
         ctrl.command(0.0, meas, ReferenceSample(1.0, 0.0, 0.0, 0.1, 0.0, 2))
@@ -373,7 +373,6 @@ def test_model_mismatch_still_converges():
         (dict(w_max=-0.1), "w_max"),
         (dict(acc_max=0.0), "acc_max"),
         (dict(alpha_max=np.inf), "alpha_max"),
-        (dict(lead_distance=-1.0), "lead_distance"),
         (dict(rest_speed=-1.0), "rest_speed"),
     ],
 )

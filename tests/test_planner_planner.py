@@ -132,6 +132,50 @@ def test_bay_one_direction_change_whole_train_valid():
     assert np.abs(err).max() <= res.max_heading_error + 1e-9
 
 
+@pytest.mark.parametrize("seed", [1, 3, 4])
+def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
+    """The planner's pull rules, checked independently on its result: at every pull's end
+    (cusp or goal) the train drawn out straight ahead of the last trailer is free, and the
+    first pull, drawn back from that straight end, needs a chain within the tolerance of the
+    straight start chain (robot offset measured with cosim.kinematics)."""
+    case = worlds.bay()
+    world = World.from_dict(case["world"])
+    cfg = PlannerConfig(seed=seed, check_train=False, max_attempts=4)
+    path = plan(world, case["start"], case["goal"], TRAIN, cfg)
+    region = world.eroded(cfg.inflation)
+    geom = TRAIN.geometry
+    ref = Reference.from_segments(path.start, path.segments, speed=0.08, cusp_dwell=0.0)
+    pos, runs = 0.0, []
+    for k, seg in enumerate(path.segments):
+        if seg.direction == PULL:
+            if runs and abs(runs[-1][1] - pos) < 1e-12:
+                runs[-1][1] = pos + seg.length
+            else:
+                runs.append([pos, pos + seg.length])
+        pos += seg.length
+    assert runs, "the bay needs a pull"
+    for a, b in runs:
+        x, y, th, _, _ = ref.sample([(b - 1e-9) / 0.08])
+        straight = np.full(TRAIN.n + 1, th[0])
+        bx, by = body_positions_from_last(x[0], y[0], straight, geom)
+        for i, fp in enumerate(TRAIN.bodies):
+            assert region.contains(Polygon(_corners(fp, bx[i], by[i], th[0]))), (i, b)
+    a, b = runs[0]
+    s = np.linspace(a, b - 1e-9, 800)
+    x, y, th, _, _ = ref.sample(s / 0.08)
+    theta = np.full(TRAIN.n + 1, th[-1])
+    for j in range(s.size - 1, 0, -1):  # drawn back: pushing the last trailer (scipy)
+        ds = s[j] - s[j - 1]
+        w = (th[j] - th[j - 1]) / ds
+        sol = solve_ivp(lambda _s, q: -heading_rates_from_last(q, 1.0, w, geom), (0.0, ds),
+                        theta, rtol=1e-10, atol=1e-12)
+        theta = sol.y[:, -1]
+        theta[-1] = th[j - 1]
+    bx, by = body_positions_from_last(0.0, 0.0, theta, geom)
+    sx, sy = body_positions_from_last(0.0, 0.0, np.full(TRAIN.n + 1, th[0]), geom)
+    assert np.hypot(bx - sx, by - sy).max() <= cfg.pull_start_tolerance + 0.02
+
+
 def test_replanning_changes_what_the_failure_calls_for():
     from pushtrain.planner.planner import _Attempt, _next_attempt
 

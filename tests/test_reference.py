@@ -89,30 +89,6 @@ def test_sample_at_equals_sample():
         assert s.direction == ref.direction_at(t)[0]
 
 
-def test_sample_ahead_within_and_beyond_a_run():
-    ref = mixed_reference(0.0)
-    # inside the first run the look-ahead is the sample at a later time
-    s = ref.sample_ahead(3.0, 0.5)
-    assert s[:5] == pytest.approx(tuple(ref.sample_at(3.0 + 0.5 / 0.1)[:5]), abs=1e-12)
-    # beyond the run's end (t = 22 s at the cusp) it continues backward along the next segment:
-    # the next (pulling) arc has curvature -0.3, so the extension lies on that arc's circle
-    cusp = ref.sample_at(22.0)
-    ahead = ref.sample_ahead(21.0, 0.1 + 0.6)  # 0.5 m past the cusp
-    kappa_next = -0.3
-    centre = np.array([cusp.x, cusp.y]) + np.array([-np.sin(cusp.theta), np.cos(cusp.theta)]) / (
-        kappa_next
-    )
-    assert np.hypot(ahead.x - centre[0], ahead.y - centre[1]) == pytest.approx(
-        1 / abs(kappa_next), abs=1e-9
-    )
-    assert ahead.direction == PUSH
-    assert np.hypot(ahead.x - cusp.x, ahead.y - cusp.y) == pytest.approx(0.6, abs=0.01)
-    # at rest the look-ahead is the current sample
-    assert ref.sample_ahead(-1.0, 2.0) == ref.sample_at(-1.0)
-    with pytest.raises(ReferenceError, match="distance"):
-        ref.sample_ahead(1.0, -0.1)
-
-
 def test_sampled_reference_reproduces_the_analytic_one():
     ref = mixed_reference()
     sampled = SampledReference.from_reference(ref, 0.01)
@@ -124,9 +100,6 @@ def test_sampled_reference_reproduces_the_analytic_one():
     for tk in (3.0, 30.0, 45.0, 60.0):
         assert sampled.sample_at(tk)[:3] == pytest.approx(ref.sample_at(tk)[:3], abs=1e-5)
         assert sampled.sample_at(tk).direction == ref.sample_at(tk).direction
-        a, b = sampled.sample_ahead(tk, 1.5), ref.sample_ahead(tk, 1.5)
-        assert a[:3] == pytest.approx(b[:3], abs=3e-3)
-        assert a.direction == b.direction
 
 
 def _sampled_line(m=200, dt=0.01, speed=0.1):
