@@ -4,7 +4,8 @@ Usage: python benchmarks/bench_planner.py [--seeds 20] [--best-seeds 5] [--anyti
 
 Reports per world, over the seeds:
 - success rate of the default planner (RRTConnect + simplification, last trailer only) within
-  0.1 s and 0.5 s budgets, and the median time to its first solution;
+  0.1 s and 0.5 s budgets (without the train check; a solve whose path breaks the pull-end
+  rule is re-solved within the budget), and the median time plan() takes to return it;
 - path length of RRTConnect and of the anytime planner after 0.5 s, relative to the best
   length found by the anytime planner with a 2 s budget (over --best-seeds seeds);
 - median number of cusps;
@@ -43,11 +44,12 @@ def bench(name: str, seeds: int, best_seeds: int, anytime: str) -> dict:
     for budget in (0.1, 0.5):
         ok, first, lengths, cusps = 0, [], [], []
         for seed in range(1, seeds + 1):
-            cfg = PlannerConfig(seed=seed, time_budget=budget, check_train=False, max_attempts=1)
+            # no train check, so the only re-solves are those of the pull-end rule
+            cfg = PlannerConfig(seed=seed, time_budget=budget, check_train=False)
             path, _, _ = _run(world, case, train, cfg)
             if path is not None:
                 ok += 1
-                first.append(path.info["attempts"][0]["planner_time"])
+                first.append(path.info["time"])  # includes re-solves of the pull-end rule
                 lengths.append(path.length)
                 cusps.append(path.n_cusps)
         out[f"success_{budget}"] = ok / seeds
@@ -59,8 +61,7 @@ def bench(name: str, seeds: int, best_seeds: int, anytime: str) -> dict:
         lengths = []
         for seed in range(1, n_seeds + 1):
             cfg = PlannerConfig(planner=anytime, seed=seed, anytime_time=solve_time,
-                                time_budget=budget,
-                                check_train=False, max_attempts=1)
+                                time_budget=budget, check_train=False)
             path, _, _ = _run(world, case, train, cfg)
             if path is not None:
                 lengths.append(path.length)
