@@ -18,6 +18,12 @@ switching between opposite arcs does: up to 1.46x the steady angle for 3 trailer
 10 (r = 0.9 .. 1.5 m, D = 0.52 m), so the default margin 0.6 covers both; tracking transients
 of the closed loop need the rest. With phi_max = 90 deg and D = 0.52 m this gives r = 0.975 m.
 
+Pulls: while pulling the robot leads on a reference of its own, computed backward in time from
+a straight chain at the pull's end (:class:`~pushtrain.cosim.pulling.PullGuide`). Two rules keep
+planned pulls within what that can do: the straight train at every pull's end must be free
+(``straight_pull_ends``), and a pull must start near the chain it needs
+(``pull_start_tolerance``).
+
 Whole-train check and replanning: every plan is checked by simulating the co-simulation's
 controller in closed loop with the chain (:mod:`pushtrain.planner.train_check`); a failure
 changes the next attempt (larger radius, or a blocked region and more inflation, see
@@ -153,9 +159,23 @@ class PlannerConfig:
         straight ahead of the last trailer to be free (with ``inflation``): the controller's
         look-ahead continues straight past the run's end
         (:meth:`~pushtrain.cosim.reference.Reference.sample_ahead`), so that is where the robot
-        leads the chain. Default on; without it the sampling planner happily ends a pull on an
-        arc whose tangent points into a wall, and the closed-loop check fails at the robot
-        (examples/bay.toml: 0 of 20 seeds pass the first check; see the note in the benchmark).
+        leads the chain (:class:`~pushtrain.cosim.pulling.PullGuide`). Checked inside a local
+        curve, at the goal, and at the junctions of the finished path; a path that breaks it at
+        a junction is re-solved with the next seed (``PlanningError`` reason
+        ``pull_end_blocked`` if none is left). Without it the sampling planner ends pulls on
+        arcs whose tangent points into a wall (bay, seeds 1-20: 0 first plans passed the
+        closed-loop check).
+    pull_start_tolerance : float or None
+        Largest distance [m] between a body of the chain a pull needs at its start (drawn back
+        from a straight chain at the pull's end, see
+        :func:`~pushtrain.cosim.pulling.straight_chain_mismatch`) and the same body of the
+        chain it starts from: the start
+        headings at the start state, a straight chain elsewhere. Checked for pulls that start a
+        local curve. The robot cannot make up this difference while pulling (the chain behind
+        it only follows), so the last trailer would leave its path by about as much. 0.4 m
+        passed the most first plans on the bay when it was chosen (seeds 1-20: 0.15 m 70 %,
+        0.4 m 90 %, 0.7 m 70 %, rule off 65 %).
+        None switches the rule off.
     """
 
     turning_radius: float | None = None
@@ -196,6 +216,13 @@ class PlannerConfig:
             value = getattr(self, key)
             if not (math.isfinite(value) and value >= 0.0):
                 raise PlanningInputError(f"{key} = {value!r}: must be finite and >= 0")
+        if self.pull_start_tolerance is not None and not (
+            isinstance(self.pull_start_tolerance, (int, float))
+            and math.isfinite(self.pull_start_tolerance) and self.pull_start_tolerance >= 0.0
+        ):
+            raise PlanningInputError(
+                f"pull_start_tolerance = {self.pull_start_tolerance!r} m: must be None or finite "
+                "and >= 0")
         if self.turning_radius is not None and not (
             math.isfinite(self.turning_radius) and self.turning_radius > 0.0
         ):

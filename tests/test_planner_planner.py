@@ -330,6 +330,8 @@ def test_config_validation():
         PlannerConfig(check_resolution=0.02)
     with pytest.raises(PlanningInputError, match="seed"):
         PlannerConfig(seed=0)
+    with pytest.raises(PlanningInputError, match="pull_start_tolerance"):
+        PlannerConfig(pull_start_tolerance=-0.1)
 
 
 @pytest.mark.parametrize("name", ["rrtstar", "bitstar"])
