@@ -39,7 +39,8 @@ from dataclasses import asdict, dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
-from shapely.geometry import Point
+import shapely
+from shapely.geometry import Point, Polygon
 
 from pushtrain.cosim.controller import ControllerConfig
 from pushtrain.cosim.pulling import straight_chain_mismatch
@@ -348,10 +349,10 @@ class _TrailerMotionValidator(ob.MotionValidator):
     curve, located to 1e-6 of the curve by bisection (see :attr:`PlannerConfig.straight_pull_ends`).
     """
 
-    def __init__(self, si, space, is_valid, step: float, allow_pull_arcs: bool,
+    def __init__(self, si, space, valid_many, step: float, allow_pull_arcs: bool,
                  pull_end_valid=None, pull_start_valid=None):
         super().__init__(si)
-        self._space, self._valid, self._step = space, is_valid, float(step)
+        self._space, self._valid_many, self._step = space, valid_many, float(step)
         self._allow = bool(allow_pull_arcs)
         self._pull_end_valid = pull_end_valid
         self._pull_start_valid = pull_start_valid
@@ -386,41 +387,39 @@ class _TrailerMotionValidator(ob.MotionValidator):
     def checkMotion(self, s1, s2):  # noqa: N802 (OMPL API)
         length = self._space.distance(s1, s2)
         m = max(1, int(math.ceil(length / self._step)))
-        x0, y0, yaw0 = s1.getX(), s1.getY(), s1.getYaw()
         tmp = self._tmp
-        was_backward = False
-        # the curve's leading pulling run, as samples (x, y, yaw), while it lasts
-        leading = [(x0, y0, yaw0)] if self._pull_start_valid is not None else None
+        interpolate, get_x, get_y, get_yaw = self._space.interpolate, tmp.getX, tmp.getY, tmp.getYaw
+        rows = [(s1.getX(), s1.getY(), s1.getYaw())]
         for k in range(1, m + 1):
-            self._space.interpolate(s1, s2, k / m, tmp)
-            if not self._valid(tmp):
-                return False
-            x1, y1, yaw1 = tmp.getX(), tmp.getY(), tmp.getYaw()
-            dyaw = (yaw1 - yaw0 + math.pi) % (2.0 * math.pi) - math.pi
-            mid = yaw0 + 0.5 * dyaw
-            backward = (x1 - x0) * math.cos(mid) + (y1 - y0) * math.sin(mid) < 0.0
-            if backward and not self._allow and abs(dyaw) > 1e-9:
-                return False
-            if self._pull_end_valid is not None and was_backward and not backward:
-                # a backward run ended within the last two samples
-                if not self._pull_end_ok(s1, s2, (k - 2) / m, k / m, length):
-                    return False
-            if leading is not None:
-                if backward:
-                    leading.append((x1, y1, yaw1))
-                else:
-                    if len(leading) > 1 and not self._pull_start_valid(s1, leading):
-                        return False
-                    leading = None
-            was_backward = backward
-            x0, y0, yaw0 = x1, y1, yaw1
-        if leading is not None and len(leading) > 1 and not self._pull_start_valid(s1, leading):
+            interpolate(s1, s2, k / m, tmp)
+            rows.append((get_x(), get_y(), get_yaw()))
+        pts = np.array(rows)
+        # every sample's footprint at once (vectorized shapely); s1 is valid already
+        if not self._valid_many(pts[1:]):
             return False
-        if self._pull_end_valid is not None and was_backward and self._is_goal(s2):
+        # travel direction between consecutive samples: backward[k - 1] is sample k-1 -> k
+        dyaw = (np.diff(pts[:, 2]) + math.pi) % (2.0 * math.pi) - math.pi
+        mid = pts[:-1, 2] + 0.5 * dyaw
+        d = np.diff(pts[:, :2], axis=0)
+        backward = d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid) < 0.0
+        if not self._allow and np.any(backward & (np.abs(dyaw) > 1e-9)):
+            return False
+        if self._pull_end_valid is not None:
+            # a backward run ending between samples k - 1 and k + 1 (k = 1..m-1)
+            for k in np.flatnonzero(backward[:-1] & ~backward[1:]) + 1:
+                if not self._pull_end_ok(s1, s2, (k - 1) / m, (k + 1) / m, length):
+                    return False
+        if self._pull_start_valid is not None and backward[0]:
+            # the curve starts pulling: its leading pull, samples 0..end
+            forward = np.flatnonzero(~backward)
+            end = int(forward[0]) if forward.size else m
+            if not self._pull_start_valid(s1, pts[: end + 1]):
+                return False
+        if self._pull_end_valid is not None and backward[-1] and self._is_goal(s2):
             # the path ends pulling: at the goal the chain is drawn out straight
             return bool(self._pull_end_valid(s2.getX(), s2.getY(), s2.getYaw()))
         # A curve ending backward elsewhere may go on pulling in the next curve: that junction
-        # is checked on the finished path (_pull_ends_at_junctions).
+        # is checked on the finished path (junction_pull_end_ok).
         return True
 
     def _is_goal(self, state) -> bool:
@@ -459,12 +458,18 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
     last = train.last
     planning_world = world.with_obstacles(attempt.blocks) if attempt.blocks else world
     region = planning_world.eroded(attempt.inflation + config.offtrack_allowance)
+    shapely.prepare(region)
     contains = region.contains
-    polygons = last.polygons
+    corners_of = last.corner_points
 
     def is_valid(state) -> bool:
-        theta = state.getYaw() + math.pi
-        return bool(contains(polygons(state.getX(), state.getY(), theta)))
+        return bool(contains(Polygon(corners_of(state.getX(), state.getY(),
+                                                state.getYaw() + math.pi))))
+
+    def valid_many(pts: np.ndarray) -> bool:
+        """Every (x, y, yaw) row's footprint inside the region."""
+        polys = shapely.polygons(last.corners(pts[:, 0], pts[:, 1], pts[:, 2] + math.pi))
+        return bool(shapely.contains(region, polys).all())
 
     if seed is not None:
         _set_seed(seed)
@@ -477,12 +482,13 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         # bodies 0..n-1 on the straight line ahead of the last trailer, at their link distances
         ahead = np.cumsum((train.geometry.front + train.geometry.rear)[::-1])[::-1]
         chain_region = planning_world.eroded(attempt.inflation)
+        shapely.prepare(chain_region)
         leading_bodies = train.bodies[:-1]
 
         def pull_end_valid(x, y, yaw):
             theta = yaw + math.pi
             c, s = math.cos(theta), math.sin(theta)
-            return all(chain_region.contains(body.polygons(x + d * c, y + d * s, theta))
+            return all(chain_region.contains(Polygon(body.corner_points(x + d * c, y + d * s, theta)))
                        for body, d in zip(leading_bodies, ahead))
 
     pull_start_valid = None
@@ -491,12 +497,12 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         start_xy = (float(start_yaw[0]), float(start_yaw[1]))
 
         def pull_start_valid(s1, samples):
-            pts = [(x, y, yaw + math.pi) for x, y, yaw in samples]
+            pts = np.column_stack((samples[:, :2], samples[:, 2] + math.pi))
             at_start = math.hypot(s1.getX() - start_xy[0], s1.getY() - start_xy[1]) < 1e-9
             target = start_headings if at_start else None
             return straight_chain_mismatch(train.geometry, pts, target) <= tolerance
 
-    validator = _TrailerMotionValidator(si, space, is_valid, config.planning_resolution,
+    validator = _TrailerMotionValidator(si, space, valid_many, config.planning_resolution,
                                         config.allow_pull_arcs, pull_end_valid, pull_start_valid)
     si.setMotionValidator(validator)
     validator.goal = (float(goal_yaw[0]), float(goal_yaw[1]))
