@@ -94,7 +94,7 @@ class MapSection(_Section):
 
 
 class PlannerSection(_Section):
-    planner: Literal["rrtconnect", "rrtstar", "bitstar", "prmstar"] = "rrtconnect"
+    planner: Literal["rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"] = "rrtconnect"
     time_budget: PositiveFloat = 1.0
     turning_radius: PositiveFloat | None = None  # None: from train.phi_max_deg and the margin
     transient_margin: NonNegFloat = 0.6

@@ -12,6 +12,7 @@ REASONS = (
     "approximate_only",
     "train_check_failed",
     "pull_end_blocked",
+    "pull_start_mismatch",
     "invalid_input",
 )
 """Allowed values of :attr:`PlanningError.reason`."""

@@ -71,10 +71,11 @@ log = logging.getLogger(__name__)
 # (invalid start/goal, no or approximate solution) becomes a PlanningError instead.
 ou.setLogLevel(ou.LOG_NONE)
 
-PLANNERS = ("rrtconnect", "rrtstar", "bitstar", "prmstar")
+PLANNERS = ("rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar")
 """Planner names: ``rrtconnect`` stops at its first solution; the others are anytime optimal."""
 
-_ANYTIME = {"rrtstar", "bitstar", "prmstar"}
+_ANYTIME = {"restarts", "rrtstar", "bitstar", "prmstar"}
+_OPTIMIZING = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
 
 
 def _allocate_planner(name: str, si):
@@ -114,7 +115,10 @@ class PlannerConfig:
         Margin of the radius rule (0.6: steady joint angle = phi_max / 1.6).
     planner : str
         One of :data:`PLANNERS`; ``rrtconnect`` (default) returns its first solution fast,
-        the others improve the path for ``anytime_time`` seconds.
+        the others improve the path for ``anytime_time`` seconds: ``restarts`` repeats
+        RRTConnect, simplification and a local search on the path's states with new seeds and
+        keeps the shortest; ``rrtstar``,
+        ``bitstar`` and ``prmstar`` are OMPL's asymptotically optimal planners.
     time_budget : float
         Wall-clock budget [s] for planning and all replanning together.
     anytime_time : float
@@ -166,6 +170,11 @@ class PlannerConfig:
         ``pull_end_blocked`` if none is left). Without it the sampling planner ends pulls on
         arcs whose tangent points into a wall (bay, seeds 1-20: 0 first plans passed the
         closed-loop check).
+    rrt_range : float or None
+        Longest tree extension [m] of RRTConnect (OMPL's ``range``); None: 1.3 turning radii.
+        OMPL's default (a fifth of the map's extent, about 2.5 m here) makes most extensions
+        in a narrow corridor fail late: on the 1.5 m L-corridor 1.3 radii found a plan within
+        0.1 s for 40 of 40 seeds against 35 of 40 (``benchmarks/bench_planner.py``).
     pull_start_tolerance : float or None
         Largest distance [m] between a body of the chain a pull needs at its start (drawn back
         from a straight chain at the pull's end, see
@@ -201,6 +210,7 @@ class PlannerConfig:
     cusp_dwell: float = 1.0
     straight_pull_ends: bool = True
     pull_start_tolerance: float | None = 0.4
+    rrt_range: float | None = None
 
     def __post_init__(self):
         name = str(self.planner).lower()
@@ -217,6 +227,11 @@ class PlannerConfig:
             value = getattr(self, key)
             if not (math.isfinite(value) and value >= 0.0):
                 raise PlanningInputError(f"{key} = {value!r}: must be finite and >= 0")
+        if self.rrt_range is not None and not (
+            isinstance(self.rrt_range, (int, float)) and math.isfinite(self.rrt_range)
+            and self.rrt_range > 0.0
+        ):
+            raise PlanningInputError(f"rrt_range = {self.rrt_range!r} m: must be None or > 0")
         if self.pull_start_tolerance is not None and not (
             isinstance(self.pull_start_tolerance, (int, float))
             and math.isfinite(self.pull_start_tolerance) and self.pull_start_tolerance >= 0.0
@@ -242,6 +257,12 @@ class PlannerConfig:
         """What the whole-train check simulates: controller, reference speed and cusp dwell."""
         return TrackerConfig(controller=self.controller, speed=self.speed,
                              cusp_dwell=self.cusp_dwell)
+
+    def extension_for(self, radius: float) -> float:
+        """RRTConnect's longest tree extension [m] for turning ``radius`` [m]."""
+        if self.rrt_range is not None:
+            return float(self.rrt_range)
+        return 1.3 * float(radius)
 
     def radius_for(self, train: Train) -> float:
         """The turning radius [m] used for ``train``."""
@@ -386,6 +407,8 @@ class _TrailerMotionValidator(ob.MotionValidator):
 
     def checkMotion(self, s1, s2):  # noqa: N802 (OMPL API)
         length = self._space.distance(s1, s2)
+        if length <= 0.0:
+            return bool(self._valid_many(np.array([[s2.getX(), s2.getY(), s2.getYaw()]])))
         m = max(1, int(math.ceil(length / self._step)))
         tmp = self._tmp
         interpolate, get_x, get_y, get_yaw = self._space.interpolate, tmp.getX, tmp.getY, tmp.getYaw
@@ -404,10 +427,20 @@ class _TrailerMotionValidator(ob.MotionValidator):
         backward = d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid) < 0.0
         if not self._allow and np.any(backward & (np.abs(dyaw) > 1e-9)):
             return False
+        end_backward = bool(backward[-1])
         if self._pull_end_valid is not None:
             # a backward run ending between samples k - 1 and k + 1 (k = 1..m-1)
             for k in np.flatnonzero(backward[:-1] & ~backward[1:]) + 1:
                 if not self._pull_end_ok(s1, s2, (k - 1) / m, (k + 1) / m, length):
+                    return False
+            # the sign of a whole interval misses a cusp close to either end of the curve:
+            # compare with the exact direction there
+            if self._backward_at(s1, s2, 0.0, length) and not backward[0]:
+                if not self._pull_end_ok(s1, s2, 0.0, 1.0 / m, length):
+                    return False
+            end_backward = self._backward_at(s1, s2, max(0.0, 1.0 - 1e-6 / length), length)
+            if backward[-1] and not end_backward:
+                if not self._pull_end_ok(s1, s2, (m - 1) / m, 1.0, length):
                     return False
         if self._pull_start_valid is not None and backward[0]:
             # the curve starts pulling: its leading pull, samples 0..end
@@ -415,7 +448,7 @@ class _TrailerMotionValidator(ob.MotionValidator):
             end = int(forward[0]) if forward.size else m
             if not self._pull_start_valid(s1, pts[: end + 1]):
                 return False
-        if self._pull_end_valid is not None and backward[-1] and self._is_goal(s2):
+        if self._pull_end_valid is not None and end_backward and self._is_goal(s2):
             # the path ends pulling: at the goal the chain is drawn out straight
             return bool(self._pull_end_valid(s2.getX(), s2.getY(), s2.getYaw()))
         # A curve ending backward elsewhere may go on pulling in the next curve: that junction
@@ -453,8 +486,12 @@ class _Attempt:
 
 
 def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
-                attempt: _Attempt, solve_time: float, seed: int | None, start_headings=None):
-    """One OMPL solve of the last trailer. Returns (states (M,3), info) or raises PlanningError."""
+                attempt: _Attempt, solve_time: float, seed: int | None, start_headings=None,
+                refine_time: float = 0.0):
+    """One OMPL solve of the last trailer. Returns (states (M,3), info) or raises PlanningError.
+
+    ``refine_time`` [s] > 0 shortens the simplified path further by a local search on its
+    states (:func:`_local_search`) until it stops gaining or ``refine_time`` has passed."""
     last = train.last
     planning_world = world.with_obstacles(attempt.blocks) if attempt.blocks else world
     region = planning_world.eroded(attempt.inflation + config.offtrack_allowance)
@@ -512,9 +549,12 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         state.setY(float(pose[1]))
         state.setYaw(_yaw_wrap(pose[2]))
     ss.setStartAndGoalStates(start, goal)
-    if config.planner in _ANYTIME:
+    if config.planner in _OPTIMIZING:
         ss.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
-    ss.setPlanner(_allocate_planner(config.planner, si))
+    planner = _allocate_planner(config.planner, si)
+    if config.planner == "rrtconnect":
+        planner.setRange(config.extension_for(attempt.radius))
+    ss.setPlanner(planner)
     ss.setup()
     t0 = time.perf_counter()
     if si.isValid(start) and si.isValid(goal) and si.checkMotion(start, goal):
@@ -553,18 +593,204 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         og.PathSimplifier(si).simplifyMax(path)
         path = _greedy_shortcut(si, path)
         info["simplify_time"] = time.perf_counter() - t1
+    if refine_time > 0.0:
+        t1 = time.perf_counter()
+        path = _local_search(si, space, validator, path, refine_time,
+                             np.random.default_rng(seed))
+        info["refine_time"] = time.perf_counter() - t1
     path_states = list(path.getStates())
-    for a, b, c in zip(path_states[:-2], path_states[1:-1], path_states[2:]):
-        if not validator.junction_pull_end_ok(a, b, b, c):
+    repaired, blocked = _repair_pull_ends(si, space, validator, path_states,
+                                          0 if seed is None else int(seed))
+    info["pull_end_repairs"] = repaired
+    if blocked is not None:
+        raise PlanningError(
+            "pull_end_blocked",
+            f"{config.planner}'s path ends a pull at ({blocked[0]:.3f}, {blocked[1]:.3f}), where "
+            "the train drawn out straight ahead of the last trailer does not fit, and no "
+            "nearby cusp does",
+            where=blocked, details=info,
+        )
+    if config.pull_start_tolerance is not None:
+        bad = _pull_start_outside(space, path_states, train, config.pull_start_tolerance,
+                                  start_headings)
+        if bad is not None:
             raise PlanningError(
-                "pull_end_blocked",
-                f"{config.planner}'s path ends a pull at ({b.getX():.3f}, {b.getY():.3f}), where "
-                "the train drawn out straight ahead of the last trailer does not fit",
-                where=(b.getX(), b.getY()), details=info,
+                "pull_start_mismatch",
+                f"{config.planner}'s path starts a pull at ({bad[0]:.3f}, {bad[1]:.3f}) that "
+                f"needs a chain {bad[2]:.3f} m from the one it starts from (allowed "
+                f"{config.pull_start_tolerance} m)",
+                where=bad[:2], details=info,
             )
-    states = np.array([[s.getX(), s.getY(), s.getYaw()] for s in path.getStates()])
-    info["length_ompl"] = float(path.length())
+    states = np.array([[s.getX(), s.getY(), s.getYaw()] for s in path_states])
+    info["length_ompl"] = float(sum(space.distance(a, b)
+                                    for a, b in zip(path_states[:-1], path_states[1:])))
     return states, info
+
+
+def _solve_restarts(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
+                    attempt: _Attempt, solve_time: float, seed: int | None, start_headings=None):
+    """Anytime planning by restarts: RRTConnect, simplification and a local search on the
+    path's states (:func:`_local_search`, until it stops gaining) again and again, each with its
+    own seed (derived from ``seed``), for ``solve_time`` seconds; the shortest path wins.
+
+    Not asymptotically optimal like RRT* or BIT*, but each restart is a complete, locally
+    shortest path within about 0.1 s, which in corridors beats the optimizing planners at
+    short budgets (``benchmarks/bench_planner.py``). At least one restart runs to its end.
+    Returns (states, info) of the shortest; raises the last PlanningError if none succeeded.
+    """
+    t0 = time.perf_counter()
+    single = replace(config, planner="rrtconnect")
+    rng = np.random.default_rng(seed)
+    best, runs, first_time, last_error = None, 0, None, None
+    while True:
+        remaining = solve_time - (time.perf_counter() - t0)
+        if runs and remaining <= 0.0:
+            break
+        run_seed = None if seed is None else int(rng.integers(1, 2**31 - 1))
+        try:
+            states, info = _solve_once(world, train, start_yaw, goal_yaw, single, attempt,
+                                       max(remaining, 1e-3), run_seed, start_headings,
+                                       refine_time=max(remaining, 1e-3))
+        except PlanningError as exc:
+            last_error = exc
+        else:
+            if first_time is None:
+                first_time = time.perf_counter() - t0
+            if best is None or info["length_ompl"] < best[1]["length_ompl"]:
+                best = (states, info)
+        runs += 1
+    if best is None:
+        raise last_error
+    states, info = best
+    info = {**info, "restarts": runs, "planner_time": first_time,
+            "solve_time": time.perf_counter() - t0}
+    return states, info
+
+
+def _pull_start_outside(space, states: list, train: Train, tolerance: float, start_headings,
+                        step: float = 0.02):
+    """The first pull of the path (a whole run over any number of local curves) that starts
+    farther than ``tolerance`` from the chain it needs, as (x, y, mismatch), or None.
+
+    The motion validator checks the part of a pull inside one local curve; this checks whole
+    runs on the finished path, sampled every ``step`` metres. The chain a run starts from is
+    ``start_headings`` at the start (None: straight) and a straight chain after a cusp."""
+    tmp = space.allocState()
+    rows = [(states[0].getX(), states[0].getY(), states[0].getYaw())]
+    for a, b in zip(states[:-1], states[1:]):
+        m = max(1, int(math.ceil(space.distance(a, b) / step)))
+        for k in range(1, m + 1):
+            space.interpolate(a, b, k / m, tmp)
+            rows.append((tmp.getX(), tmp.getY(), tmp.getYaw()))
+    pts = np.array(rows)
+    if pts.shape[0] < 2:
+        return None
+    dyaw = (np.diff(pts[:, 2]) + math.pi) % (2.0 * math.pi) - math.pi
+    mid = pts[:-1, 2] + 0.5 * dyaw
+    d = np.diff(pts[:, :2], axis=0)
+    moving = np.hypot(d[:, 0], d[:, 1]) > 1e-12
+    backward = (d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid) < 0.0) & moving
+    edges = np.diff(np.concatenate(([0], backward.astype(int), [0])))
+    for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        run = pts[i0:i1 + 1]
+        chain = np.column_stack((run[:, :2], run[:, 2] + math.pi))
+        target = start_headings if i0 == 0 else None
+        mismatch = straight_chain_mismatch(train.geometry, chain, target)
+        if mismatch > tolerance:
+            return float(run[0, 0]), float(run[0, 1]), mismatch
+    return None
+
+
+def _repair_pull_ends(si, space, validator, states: list, seed: int, tries: int = 200):
+    """Move every cusp of the path where a pull ends with a blocked straight train.
+
+    The motion validator checks the straight train at pull ends inside a local curve; a pull
+    that ends exactly at a state between two curves is only seen here. Each such state is
+    dropped if its neighbours connect directly, else replaced by the first of ``tries``
+    random states near it (0.25 m, 0.35 rad; numpy generator seeded with ``seed``) whose two
+    curves are free and whose own and neighbouring junctions pass. ``states`` is edited in
+    place. Returns (number of repairs, (x, y) of a junction that could not be repaired or
+    None).
+    """
+    rng = np.random.default_rng(seed)
+
+    def junction_ok(k_prev, new, k_next) -> bool:
+        return validator.junction_pull_end_ok(k_prev, new, new, k_next)
+
+    def fits(i: int, middle: list) -> bool:
+        """states[i - 1] -> middle... -> states[i + 1] free, with all junctions passing."""
+        seq = [states[i - 1], *middle, states[i + 1]]
+        if not all(si.checkMotion(a, b) for a, b in zip(seq[:-1], seq[1:])):
+            return False
+        if i - 2 >= 0:
+            seq.insert(0, states[i - 2])
+        if i + 2 < len(states):
+            seq.append(states[i + 2])
+        return all(junction_ok(a, b, c) for a, b, c in zip(seq[:-2], seq[1:-1], seq[2:]))
+
+    repairs, i = 0, 1
+    while i < len(states) - 1:
+        a, b, c = states[i - 1], states[i], states[i + 1]
+        if junction_ok(a, b, c):
+            i += 1
+            continue
+        if fits(i, []):
+            del states[i]
+            repairs += 1
+            continue
+        found = None
+        for _ in range(tries):
+            cand = space.allocState()
+            cand.setX(b.getX() + 0.25 * rng.standard_normal())
+            cand.setY(b.getY() + 0.25 * rng.standard_normal())
+            cand.setYaw(_yaw_wrap(b.getYaw() + 0.35 * rng.standard_normal()))
+            if si.isValid(cand) and fits(i, [cand]):
+                found = cand
+                break
+        if found is None:
+            return repairs, (b.getX(), b.getY())
+        states[i] = found
+        repairs += 1
+        i += 1
+    return repairs, None
+
+
+def _local_search(si, space, validator, path, budget: float, rng, sigma=(0.3, 0.3, 0.3)):
+    """Shorten ``path`` by moving one interior state at a time: Gaussian proposals (``sigma``
+    in x [m], y [m], yaw [rad], halved after 30 proposals in a row without a gain), accepted
+    when the path gets shorter, both adjacent curves are free and the pull-end rule holds at
+    the moved state and its neighbours; for ``budget`` seconds."""
+    t0 = time.perf_counter()
+    states = list(path.getStates())
+    scale, misses = 1.0, 0
+    while len(states) > 2 and time.perf_counter() - t0 < budget and scale > 0.01:
+        i = int(rng.integers(1, len(states) - 1))
+        a, b, c = states[i - 1], states[i], states[i + 1]
+        old = space.distance(a, b) + space.distance(b, c)
+        cand = space.allocState()
+        cand.setX(b.getX() + scale * sigma[0] * rng.standard_normal())
+        cand.setY(b.getY() + scale * sigma[1] * rng.standard_normal())
+        cand.setYaw(_yaw_wrap(b.getYaw() + scale * sigma[2] * rng.standard_normal()))
+        new = space.distance(a, cand) + space.distance(cand, c)
+        if (new < old - 1e-6 and si.isValid(cand) and si.checkMotion(a, cand)
+                and si.checkMotion(cand, c) and _junctions_ok(validator, states, i, cand)):
+            states[i] = cand
+            misses = 0
+        else:
+            misses += 1
+            if misses >= 30:
+                scale, misses = 0.5 * scale, 0
+    out = og.PathGeometric(si, states[0])
+    for st in states[1:]:
+        out.append(st)
+    return _greedy_shortcut(si, out)
+
+
+def _junctions_ok(validator, states: list, i: int, cand) -> bool:
+    """The pull-end rule at states i-1, i, i+1 with ``cand`` in place of ``states[i]``."""
+    seq = states[max(0, i - 2):i] + [cand] + states[i + 1:i + 3]
+    return all(validator.junction_pull_end_ok(a, b, b, c)
+               for a, b, c in zip(seq[:-2], seq[1:-1], seq[2:]))
 
 
 def _greedy_shortcut(si, path):
@@ -730,20 +956,26 @@ def plan(
         remaining = config.time_budget - (time.perf_counter() - t_begin)
         if remaining <= 0.0:
             break
-        solve_time = min(config.anytime_time, remaining) if config.planner in _ANYTIME else remaining
+        if config.planner in _ANYTIME:
+            solve_time = min(config.anytime_time, remaining)
+        else:
+            # a replan may find nothing (e.g. a block closed the corridor): it gets half of
+            # what is left, so that another try remains
+            solve_time = remaining if k == 0 else 0.5 * remaining
         seed = None if config.seed is None else int(config.seed) + k
         try:
-            states, info = _solve_once(world, train, _chain_to_yaw(start), _chain_to_yaw(goal),
-                                       config, attempt, solve_time, seed, start_headings)
+            solve = _solve_restarts if config.planner == "restarts" else _solve_once
+            states, info = solve(world, train, _chain_to_yaw(start), _chain_to_yaw(goal),
+                                 config, attempt, solve_time, seed, start_headings)
         except PlanningError as exc:
             last_error = exc
             history.append({"attempt": k, "radius": attempt.radius, "inflation": attempt.inflation,
                             "blocks": len(attempt.blocks), "error": exc.reason})
-            if exc.reason == "pull_end_blocked":
-                continue  # a constraint of the planner's own, not of the train check: next seed
-            if k == 0 or exc.reason != "unreachable":
+            if exc.reason in ("pull_end_blocked", "pull_start_mismatch"):
+                continue  # a rule of the planner's own, not of the train check: next seed
+            if k == 0 or exc.reason not in ("unreachable", "approximate_only"):
                 break
-            # a replanning change made it unreachable: undo the last change and try again
+            # a replanning change made the goal unreachable: undo the changes, try a new seed
             attempt = _Attempt(config.radius_for(train), config.inflation)
             continue
         segments, deviation = _segments_from_states(states, attempt.radius)

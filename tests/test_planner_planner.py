@@ -330,6 +330,8 @@ def test_config_validation():
         PlannerConfig(check_resolution=0.02)
     with pytest.raises(PlanningInputError, match="seed"):
         PlannerConfig(seed=0)
+    with pytest.raises(PlanningInputError, match="rrt_range"):
+        PlannerConfig(rrt_range=0.0)
     with pytest.raises(PlanningInputError, match="pull_start_tolerance"):
         PlannerConfig(pull_start_tolerance=-0.1)
 
@@ -341,3 +343,62 @@ def test_anytime_planners(name):
     path = plan(world, case["start"], case["goal"], TRAIN,
                 PlannerConfig(planner=name, anytime_time=1.0, time_budget=3.0))
     assert path.info["planner"] == name and path.length > 9.0
+
+
+@pytest.mark.parametrize("name", ["l_2.0", "bay"])
+def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
+    """The restarts planner (RRTConnect + simplification + local search, best of several)
+    returns a path no longer than RRTConnect's first solution with the same seed and no
+    shorter than the Reeds-Shepp distance; plan() checks the whole train on it as usual."""
+    case = worlds.CASES[name]()
+    world = World.from_dict(case["world"])
+    first = plan(world, case["start"], case["goal"], TRAIN,
+                 PlannerConfig(seed=3, check_train=False))
+    best = plan(world, case["start"], case["goal"], TRAIN,
+                PlannerConfig(planner="restarts", seed=3, anytime_time=0.5, check_train=False))
+    assert best.info["planner"] == "restarts"
+    assert best.info["attempts"][-1]["restarts"] >= 1
+    assert best.length <= first.length + 1e-9
+    # with the train check (the shortest bay paths hug the corners, so it may replan)
+    checked = plan(world, case["start"], case["goal"], TRAIN,
+                   PlannerConfig(planner="restarts", seed=3, anytime_time=0.5, time_budget=6.0))
+    assert checked.info["attempts"][-1]["train_ok"]
+    from pushtrain.planner.planner import rs_distance
+    radius = best.turning_radius
+    yaw = lambda p: (p[0], p[1], p[2] + math.pi)  # noqa: E731
+    assert best.length >= rs_distance(radius, yaw(case["start"]), yaw(case["goal"])) - 1e-9
+
+
+def test_local_search_keeps_the_path_valid_and_never_longer():
+    from pushtrain.planner import planner as P
+
+    case = worlds.bay()
+    world = World.from_dict(case["world"])
+    cfg = PlannerConfig(check_train=False)
+    attempt = P._Attempt(cfg.radius_for(TRAIN), cfg.inflation)
+    pairs = []
+    for seed in range(5, 15):  # seeds whose plain solve passes the planner's pull rules
+        args = (world, TRAIN, P._chain_to_yaw(case["start"]), P._chain_to_yaw(case["goal"]),
+                cfg, attempt, 1.0, seed)
+        try:
+            plain, _ = P._solve_once(*args)
+            refined, info = P._solve_once(*args, refine_time=1.0)
+        except PlanningError:
+            continue
+        assert info["refine_time"] < 1.0  # it stops when it stops gaining
+        lengths = [sum(g.length for g in P._segments_from_states(st, attempt.radius)[0])
+                   for st in (plain, refined)]
+        assert lengths[1] <= lengths[0] + 1e-9
+        pairs.append((lengths[0] - lengths[1], refined))
+    assert len(pairs) >= 3
+    gain, refined = max(pairs, key=lambda p: p[0])
+    assert gain > 0.3  # e.g. 7.80 m -> 6.77 m
+    # the refined path is collision-free for the last trailer at 1 cm (independent shapely
+    # check with the planner's clearance)
+    segments, _ = P._segments_from_states(refined, attempt.radius)
+    length = sum(g.length for g in segments)
+    ref = Reference.from_segments(case["start"], segments, speed=1.0, cusp_dwell=0.0)
+    x, y, th, _, _ = ref.sample(np.linspace(0.0, ref.t_end - 1e-9, int(length / 0.01) + 2))
+    region = world.eroded(cfg.inflation + cfg.offtrack_allowance)
+    for xi, yi, ti in zip(x, y, th):
+        assert region.contains(Polygon(_corners(TRAIN.last, xi, yi, ti)))
