@@ -75,6 +75,7 @@ PLANNERS = ("rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar")
 """Planner names: ``rrtconnect`` stops at its first solution; the others are anytime optimal."""
 
 _ANYTIME = {"restarts", "rrtstar", "bitstar", "prmstar"}
+_REFINE_RATIO = 1.2
 _OPTIMIZING = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
 
 
@@ -489,11 +490,12 @@ class _Attempt:
 
 def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
                 attempt: _Attempt, solve_time: float, seed: int | None, start_headings=None,
-                refine_time: float = 0.0):
+                refine_time: float = 0.0, refine_below: float = math.inf):
     """One OMPL solve of the last trailer. Returns (states (M,3), info) or raises PlanningError.
 
     ``refine_time`` [s] > 0 shortens the simplified path further by a local search on its
-    states (:func:`_local_search`) until it stops gaining or ``refine_time`` has passed."""
+    states (:func:`_local_search`) until it stops gaining or ``refine_time`` has passed, if
+    the simplified path is shorter than ``refine_below`` [m]."""
     last = train.last
     planning_world = world.with_obstacles(attempt.blocks) if attempt.blocks else world
     region = planning_world.eroded(attempt.inflation + config.offtrack_allowance)
@@ -597,7 +599,7 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         og.PathSimplifier(si).reduceVertices(path)
         path = _greedy_shortcut(si, path)
         info["simplify_time"] = time.perf_counter() - t1
-    if refine_time > 0.0:
+    if refine_time > 0.0 and path.length() < refine_below:
         t1 = time.perf_counter()
         path = _local_search(si, space, validator, path, refine_time,
                              np.random.default_rng(seed))
@@ -654,9 +656,12 @@ def _solve_restarts(world: World, train: Train, start_yaw, goal_yaw, config: Pla
         # than the default planner's path for the same seed
         run_seed = seed if (seed is None or runs == 0) else int(rng.integers(1, 2**31 - 1))
         try:
+            # the local search gains 5-15 %: a restart far longer than the best so far is
+            # not worth it
+            below = math.inf if best is None else _REFINE_RATIO * best[1]["length_ompl"]
             states, info = _solve_once(world, train, start_yaw, goal_yaw, single, attempt,
                                        max(remaining, 1e-3), run_seed, start_headings,
-                                       refine_time=max(remaining, 1e-3))
+                                       refine_time=max(remaining, 1e-3), refine_below=below)
         except PlanningError as exc:
             last_error = exc
         else:
