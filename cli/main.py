@@ -165,6 +165,11 @@ def cli(verbose: int):
       pushtrain validate examples/circle.toml
       pushtrain build-fmu --trailers 3 -o TrailerTrain.fmu
     """
+    _log_to_stderr(verbose)
+
+
+def _log_to_stderr(verbose: int) -> None:
+    """Log pushtrain's messages on stderr (warnings; -v info, -vv debug)."""
     level = logging.WARNING if verbose == 0 else logging.INFO if verbose == 1 else logging.DEBUG
     handler = logging.StreamHandler(sys.stderr)
     handler.setLevel(level)
@@ -446,7 +451,9 @@ def slip_study_cmd(trailers, alphas, w_max, payload, out):
 
 def plan_and_run_main():
     """Console script ``plan-and-run SCENARIO``: the main job on its own."""
-    cli.main(args=["plan-and-run", *sys.argv[1:]], prog_name="plan-and-run")
+    _log_to_stderr(0)
+    plan_and_run.main(args=sys.argv[1:], prog_name="plan-and-run",
+                      help_option_names=["-h", "--help"])
 
 
 from .sweep import sweep_cmd  # noqa: E402

@@ -158,3 +158,17 @@ def test_unreachable_goal_exits_1_with_a_diagnostic_picture(runner, tmp_path):
     assert "planning failed" in result.output
     assert (out / "planning_failure.png").is_file()
     assert (out / "run.log").is_file()
+
+
+def test_plan_and_run_console_script_usage_and_bad_option():
+    import subprocess
+    import sys
+
+    exe = Path(sys.executable).with_name("plan-and-run")
+    help_text = subprocess.run([str(exe), "-h"], capture_output=True, text=True)
+    assert help_text.returncode == 0
+    assert help_text.stdout.startswith("Usage: plan-and-run [OPTIONS] SCENARIO")
+    bad = subprocess.run([str(exe), str(EXAMPLES / "bay.toml"), "--seed", "0"],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2
+    assert "Usage: plan-and-run [OPTIONS] SCENARIO" in bad.stderr and "--seed" in bad.stderr
