@@ -181,21 +181,7 @@ class PullGuide:
         if pulling[-1]:
             lasts.append(m - 1)
 
-        def is_pull(t: float) -> bool:
-            return int(ref.direction_at(np.array([t]))[0]) == PULL
-
-        def edge(lo: float, hi: float, pull_at_lo: bool) -> float:
-            # the switch between lo and hi; returns the side that pulls
-            for _ in range(60):
-                if hi - lo < 1e-9:
-                    break
-                mid = 0.5 * (lo + hi)
-                if is_pull(mid) == pull_at_lo:
-                    lo = mid
-                else:
-                    hi = mid
-            return lo if pull_at_lo else hi
-
+        edge = self._edge
         out = []
         for i, j in zip(firsts, lasts):
             a = grid[i] if i == 0 else edge(grid[i - 1], grid[i], False)
@@ -203,6 +189,40 @@ class PullGuide:
             if b > a:
                 out.append((float(a), float(b)))
         return out
+
+    def _is_pull(self, t: float) -> bool:
+        return int(self.reference.direction_at(np.array([t]))[0]) == PULL
+
+    def _edge(self, lo: float, hi: float, pull_at_lo: bool) -> float:
+        """The switch of direction between ``lo`` and ``hi`` [s] (to 1e-9 s); returns the side
+        that pulls."""
+        for _ in range(80):
+            if hi - lo < 1e-9:
+                break
+            mid = 0.5 * (lo + hi)
+            if self._is_pull(mid) == pull_at_lo:
+                lo = mid
+            else:
+                hi = mid
+        return lo if pull_at_lo else hi
+
+    def _run_around(self, t: float) -> PullRun:
+        """The backward run of the pull containing ``t`` (a pull shorter than the search grid's
+        ``step``, found on first use), added to :attr:`runs`."""
+        t0, t1 = float(self.reference.t0), float(self.reference.t_end)
+        lo, width = t, self.step
+        while lo > t0 and self._is_pull(max(lo - width, t0)):
+            lo, width = max(lo - width, t0), 2.0 * width
+        a = lo if lo <= t0 else self._edge(max(lo - width, t0), lo, False)
+        hi, width = t, self.step
+        while hi < t1 and self._is_pull(min(hi + width, t1)):
+            hi, width = min(hi + width, t1), 2.0 * width
+        b = hi if hi >= t1 else self._edge(hi, min(hi + width, t1), True)
+        run = self._backward_run(a, max(b, a + 1e-9))
+        k = bisect_right(self._starts, run.t[0])
+        self.runs.insert(k, run)
+        self._starts.insert(k, run.t[0])
+        return run
 
     # -------------------------------------------------------------------- the backward run
     def _rates(self, theta, v_n: float, w_n: float) -> list[float]:
@@ -264,20 +284,23 @@ class PullGuide:
     def sample_at(self, t: float) -> ReferenceSample:
         """The robot's reference ``(x0, y0, theta0, v0, w0, PULL)`` at time ``t`` [s].
 
-        ``t`` must lie in a pulling run (times a hair outside are clamped to the nearest run);
-        linear interpolation between the backward run's samples.
+        ``t`` must lie in a pulling run (times a hair outside are clamped to the nearest run;
+        a pull too short for the search grid is found here); linear interpolation between the
+        backward run's samples.
         """
-        if not self.runs:
-            raise ReferenceError(f"t = {t!r} s: the reference has no pulling run")
         t = float(t)
-        j = max(bisect_right(self._starts, t) - 1, 0)
-        if j + 1 < len(self.runs) and t - self.runs[j].t[-1] > self.runs[j + 1].t[0] - t:
-            j += 1
-        run = self.runs[j]
+        run = None
+        if self.runs:
+            j = max(bisect_right(self._starts, t) - 1, 0)
+            if j + 1 < len(self.runs) and t - self.runs[j].t[-1] > self.runs[j + 1].t[0] - t:
+                j += 1
+            if self.runs[j].t[0] - 1e-6 <= t <= self.runs[j].t[-1] + 1e-6:
+                run = self.runs[j]
+        if run is None:
+            if not self._is_pull(t):
+                raise ReferenceError(f"t = {t!r} s is not in a pulling run of the reference")
+            run = self._run_around(t)
         ts = run.t
-        if not (ts[0] - 1e-6 <= t <= ts[-1] + 1e-6):
-            raise ReferenceError(
-                f"t = {t!r} s is not in a pulling run (nearest: [{ts[0]:.3f}, {ts[-1]:.3f}] s)")
         tc = min(max(t, ts[0]), ts[-1])
         k = min(max(int(np.searchsorted(ts, tc, side="right")) - 1, 0), ts.size - 2)
         a = (tc - ts[k]) / (ts[k + 1] - ts[k]) if ts[k + 1] > ts[k] else 0.0
