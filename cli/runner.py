@@ -170,7 +170,8 @@ def plan_path(sc: Scenario):
 
     p = sc.planner
     config = PlannerConfig(
-        planner=p.planner, time_budget=p.time_budget, turning_radius=p.turning_radius,
+        planner=p.planner, time_budget=p.time_budget, anytime_time=p.anytime_time,
+        pull_start_tolerance=p.pull_start_tolerance, turning_radius=p.turning_radius,
         transient_margin=p.transient_margin, inflation=p.inflation, seed=sc.seed,
         controller=controller_of(sc), speed=p.speed, cusp_dwell=p.cusp_dwell,
     )

@@ -96,6 +96,8 @@ class MapSection(_Section):
 class PlannerSection(_Section):
     planner: Literal["rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"] = "rrtconnect"
     time_budget: PositiveFloat = 1.0
+    anytime_time: PositiveFloat = 0.5  # per attempt, for restarts/rrtstar/bitstar/prmstar
+    pull_start_tolerance: NonNegFloat | None = 0.4  # m; None: off (see PlannerConfig)
     turning_radius: PositiveFloat | None = None  # None: from train.phi_max_deg and the margin
     transient_margin: NonNegFloat = 0.6
     inflation: NonNegFloat = 0.05

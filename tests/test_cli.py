@@ -42,6 +42,9 @@ BAD_SCENARIOS = {
     "negative_mass": ('[train]\nn = 3\nmass = [42.1, -5.0, 42.1]\n', ["train.mass[1]", "-5.0"]),
     "unknown_key": ('[train]\nn = 3\nmas = 3.0\n', ["train.mas", "unknown key"]),
     "n_zero": ('[train]\nn = 0\n', ["train.n", "0"]),
+    "anytime_time": ('[planner]\nanytime_time = 0\n', ["planner.anytime_time", "greater than 0"]),
+    "pull_start": ('[planner]\npull_start_tolerance = -0.1\n',
+                   ["planner.pull_start_tolerance", "-0.1"]),
 }
 
 
@@ -172,3 +175,25 @@ def test_plan_and_run_console_script_usage_and_bad_option():
                          capture_output=True, text=True)
     assert bad.returncode == 2
     assert "Usage: plan-and-run [OPTIONS] SCENARIO" in bad.stderr and "--seed" in bad.stderr
+
+
+def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
+    """[planner] anytime_time and pull_start_tolerance are what plan() is given (monkeypatched
+    plan records its configuration)."""
+    import pushtrain.planner as planner_pkg
+    from pushtrain.cli.runner import plan_path
+    from pushtrain.cli.scenario import load_scenario
+
+    text = (EXAMPLES / "l_corridor.toml").read_text().replace(
+        'time_budget = 3.0', 'time_budget = 3.0\nanytime_time = 0.25\npull_start_tolerance = 0.2')
+    sc = load_scenario(_write(tmp_path, text, "settings.toml"))
+    seen = {}
+
+    def fake_plan(world, start, goal, train, config, start_headings=None):
+        seen["config"] = config
+        return "planned"
+
+    monkeypatch.setattr(planner_pkg, "plan", fake_plan)
+    assert plan_path(sc) == "planned"
+    cfg = seen["config"]
+    assert (cfg.planner, cfg.anytime_time, cfg.pull_start_tolerance) == ("restarts", 0.25, 0.2)
