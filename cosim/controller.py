@@ -88,7 +88,7 @@ MODE_REST = "rest"
 MODE_PUSH = "push"
 """Last trailer leads: Kanayama on trailer n in its direction-of-travel frame + inverse map."""
 MODE_PULL = "pull"
-"""Robot leads: Kanayama on the robot toward the look-ahead point of the reference path."""
+"""Robot leads: Kanayama on the robot along its own pulling reference (PullGuide)."""
 
 
 class ControllerError(ValueError):

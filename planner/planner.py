@@ -163,13 +163,12 @@ class PlannerConfig:
         Rest [s] of the reference at each direction change in the co-simulation.
     straight_pull_ends : bool
         Require, at the end of every pulling run (a cusp, or the goal), the train drawn out
-        straight ahead of the last trailer to be free (with ``inflation``): the controller's
-        look-ahead continues straight past the run's end
-        (:meth:`~pushtrain.cosim.reference.Reference.sample_ahead`), so that is where the robot
-        leads the chain (:class:`~pushtrain.cosim.pulling.PullGuide`). Checked inside a local
-        curve, at the goal, and at the junctions of the finished path; a path that breaks it at
-        a junction is re-solved with the next seed (``PlanningError`` reason
-        ``pull_end_blocked`` if none is left). Without it the sampling planner ends pulls on
+        straight ahead of the last trailer to be free (with ``inflation``): the robot's pulling
+        reference ends with the chain straight there
+        (:class:`~pushtrain.cosim.pulling.PullGuide`). Checked inside a local curve, at the
+        goal, and at the junctions of the finished path; a junction that breaks it is repaired
+        (its state dropped or moved nearby), else the path is re-solved with the next seed
+        (``PlanningError`` reason ``pull_end_blocked`` if none is left). Without it the sampling planner ends pulls on
         arcs whose tangent points into a wall (bay, seeds 1-20: 0 first plans passed the
         closed-loop check).
     rrt_range : float or None
