@@ -364,6 +364,26 @@ def _merge(segments: Sequence[Segment]) -> list[Segment]:
     return out
 
 
+def _sample_into(rows: list, space, a, b, m: int, tmp) -> None:
+    """Append to ``rows`` the states (x, y, yaw) of OMPL's curve ``a -> b`` at the fractions
+    k/m, k = 1..m (``tmp``: a scratch state of ``space``)."""
+    interpolate, get_x, get_y, get_yaw = space.interpolate, tmp.getX, tmp.getY, tmp.getYaw
+    for k in range(1, m + 1):
+        interpolate(a, b, k / m, tmp)
+        rows.append((get_x(), get_y(), get_yaw()))
+
+
+def _travel_backward(pts: np.ndarray):
+    """Travel between consecutive planner states ``pts`` (K, 3) = (x, y, yaw): whether each step
+    k -> k+1 goes backward (against the yaw at its middle), its yaw change [rad] and its
+    length [m], each (K-1,)."""
+    dyaw = (np.diff(pts[:, 2]) + math.pi) % (2.0 * math.pi) - math.pi
+    mid = pts[:-1, 2] + 0.5 * dyaw
+    d = np.diff(pts[:, :2], axis=0)
+    backward = d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid) < 0.0
+    return backward, dyaw, np.hypot(d[:, 0], d[:, 1])
+
+
 class _TrailerMotionValidator(ob.MotionValidator):
     """Motion check along OMPL's Reeds-Shepp curve at ``step`` metres: every sampled state
     valid; unless ``allow_pull_arcs``, no heading change while travelling backward; and, with
@@ -411,21 +431,14 @@ class _TrailerMotionValidator(ob.MotionValidator):
         if length <= 0.0:
             return bool(self._valid_many(np.array([[s2.getX(), s2.getY(), s2.getYaw()]])))
         m = max(1, int(math.ceil(length / self._step)))
-        tmp = self._tmp
-        interpolate, get_x, get_y, get_yaw = self._space.interpolate, tmp.getX, tmp.getY, tmp.getYaw
         rows = [(s1.getX(), s1.getY(), s1.getYaw())]
-        for k in range(1, m + 1):
-            interpolate(s1, s2, k / m, tmp)
-            rows.append((get_x(), get_y(), get_yaw()))
+        _sample_into(rows, self._space, s1, s2, m, self._tmp)
         pts = np.array(rows)
         # every sample's footprint at once (vectorized shapely); s1 is valid already
         if not self._valid_many(pts[1:]):
             return False
         # travel direction between consecutive samples: backward[k - 1] is sample k-1 -> k
-        dyaw = (np.diff(pts[:, 2]) + math.pi) % (2.0 * math.pi) - math.pi
-        mid = pts[:-1, 2] + 0.5 * dyaw
-        d = np.diff(pts[:, :2], axis=0)
-        backward = d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid) < 0.0
+        backward, dyaw, _ = _travel_backward(pts)
         if not self._allow and np.any(backward & (np.abs(dyaw) > 1e-9)):
             return False
         end_backward = bool(backward[-1])
@@ -688,18 +701,12 @@ def _pull_start_outside(space, states: list, train: Train, tolerance: float, sta
     tmp = space.allocState()
     rows = [(states[0].getX(), states[0].getY(), states[0].getYaw())]
     for a, b in zip(states[:-1], states[1:]):
-        m = max(1, int(math.ceil(space.distance(a, b) / step)))
-        for k in range(1, m + 1):
-            space.interpolate(a, b, k / m, tmp)
-            rows.append((tmp.getX(), tmp.getY(), tmp.getYaw()))
+        _sample_into(rows, space, a, b, max(1, int(math.ceil(space.distance(a, b) / step))), tmp)
     pts = np.array(rows)
     if pts.shape[0] < 2:
         return None
-    dyaw = (np.diff(pts[:, 2]) + math.pi) % (2.0 * math.pi) - math.pi
-    mid = pts[:-1, 2] + 0.5 * dyaw
-    d = np.diff(pts[:, :2], axis=0)
-    moving = np.hypot(d[:, 0], d[:, 1]) > 1e-12
-    backward = (d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid) < 0.0) & moving
+    backward, _, step_length = _travel_backward(pts)
+    backward &= step_length > 1e-12
     edges = np.diff(np.concatenate(([0], backward.astype(int), [0])))
     for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
         run = pts[i0:i1 + 1]
