@@ -68,7 +68,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .kinematics import ChainGeometry, wrap_scalar
+from .kinematics import ChainGeometry, robot_velocity_from_last, wrap_scalar
 from .reference import PULL, PUSH, REST
 
 __all__ = [
@@ -243,12 +243,7 @@ class BackwardController:
 
     def robot_velocity(self, phi, v_n: float, w_n: float) -> tuple:
         """Robot (v0 [m/s], w0 [rad/s]) making trailer n move with (v_n, w_n) (Step 3, Eq. 5)."""
-        v, w = float(v_n), float(w_n)
-        front, rear = self._front, self._rear
-        for i in range(self.n - 1, -1, -1):
-            c, s = cos(phi[i]), sin(phi[i])
-            v, w = c * v + front[i] * s * w, (s * v - front[i] * c * w) / rear[i]
-        return v, w
+        return robot_velocity_from_last(phi, v_n, w_n, self._front, self._rear)
 
     # -- the control law --
 

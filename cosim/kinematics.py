@@ -40,6 +40,8 @@ __all__ = [
     "inverse_velocities",
     "body_positions",
     "body_positions_from_last",
+    "body_positions_along",
+    "robot_velocity_from_last",
     "heading_rates_from_robot",
     "heading_rates_from_last",
     "steady_joint_angle",
@@ -174,6 +176,37 @@ def body_positions_from_last(x_n: float, y_n: float, theta, geom: ChainGeometry)
     """Positions of every body [m] given the last trailer's axle midpoint and all headings."""
     x, y = body_positions(0.0, 0.0, theta, geom)
     return x + (x_n - x[-1]), y + (y_n - y[-1])
+
+
+def body_positions_along(poses: np.ndarray, headings: np.ndarray, geometry: ChainGeometry):
+    """Positions [m] of every body from the last trailer's poses (N, 3) and headings (N, n+1).
+
+    Vectorized form of :func:`body_positions_from_last`: P_{i-1} = P_i + F_i e_i +
+    R_{i-1} e_{i-1}. Returns ``(x, y)``, each (N, n+1).
+    """
+    c, s = np.cos(headings), np.sin(headings)
+    # step k (k = 0..n-1): vector from P_{k+1} to P_k
+    step_x = geometry.front * c[:, 1:] + geometry.rear * c[:, :-1]
+    step_y = geometry.front * s[:, 1:] + geometry.rear * s[:, :-1]
+    x = np.empty_like(headings)
+    y = np.empty_like(headings)
+    x[:, -1], y[:, -1] = poses[:, 0], poses[:, 1]
+    x[:, :-1] = poses[:, :1] + np.cumsum(step_x[:, ::-1], axis=1)[:, ::-1]
+    y[:, :-1] = poses[:, 1:2] + np.cumsum(step_y[:, ::-1], axis=1)[:, ::-1]
+    return x, y
+
+
+def robot_velocity_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[float, float]:
+    """Robot (v0 [m/s], w0 [rad/s]) making trailer n move with (v_n, w_n) (Step 3, Eq. 5).
+
+    The scalar form of :func:`inverse_velocities` for per-step loops: ``phi`` (n,) joint
+    angles [rad], ``front``/``rear`` the links F_i, R_{i-1} [m] as sequences of floats.
+    """
+    v, w = float(v_n), float(w_n)
+    for i in range(len(front) - 1, -1, -1):
+        c, s = math.cos(phi[i]), math.sin(phi[i])
+        v, w = c * v + front[i] * s * w, (s * v - front[i] * c * w) / rear[i]
+    return v, w
 
 
 def steady_joint_angle(radius: float, link: float = 0.52) -> float:

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import ChainGeometry
+from .kinematics import ChainGeometry, body_positions_along, robot_velocity_from_last
 from .reference import PULL, ReferenceError, ReferenceSample
 
 __all__ = ["PullGuide", "PullRun", "rates_driven_by_last", "straight_chain_mismatch"]
@@ -90,15 +90,9 @@ def straight_chain_mismatch(geometry: ChainGeometry, path, target_headings=None)
         theta[-1] = float(th_last[j - 1])
     target = (np.full(n + 1, th_last[0]) if target_headings is None
               else np.asarray(target_headings, dtype=float))
-    front, rear = geometry.front, geometry.rear
-
-    def offsets(th):
-        th = np.asarray(th, dtype=float)
-        steps = (front * np.stack((np.cos(th[1:]), np.sin(th[1:])))
-                 + rear * np.stack((np.cos(th[:-1]), np.sin(th[:-1]))))
-        return np.cumsum(steps[:, ::-1], axis=1)[:, ::-1]  # body i - last trailer, i = 0..n-1
-
-    return float(np.hypot(*(offsets(theta) - offsets(target))).max())
+    # both chains with the last trailer at the origin
+    x, y = body_positions_along(np.zeros((2, 3)), np.array([theta, target]), geometry)
+    return float(np.hypot(x[0] - x[1], y[0] - y[1]).max())
 
 
 @dataclass(frozen=True)
@@ -225,19 +219,6 @@ class PullGuide:
         return run
 
     # -------------------------------------------------------------------- the backward run
-    def _rates(self, theta, v_n: float, w_n: float) -> list[float]:
-        return self._driven(theta, v_n, w_n)
-
-    def _robot_velocity(self, theta, v_n: float, w_n: float) -> tuple[float, float]:
-        n = len(theta) - 1
-        v, w = v_n, w_n
-        for i in range(n, 0, -1):
-            phi = theta[i - 1] - theta[i]
-            c, s = math.cos(phi), math.sin(phi)
-            f = self._front[i - 1]
-            v, w = c * v + f * s * w, (s * v - f * c * w) / self._rear[i - 1]
-        return v, w
-
     def _backward_run(self, t_a: float, t_b: float) -> PullRun:
         ref = self.reference
         eps = 1e-9 * max(1.0, abs(t_b))
@@ -257,10 +238,10 @@ class PullGuide:
             v1, w1 = vw(t)
             vm, wm = vw(t + 0.5 * h)
             v2, w2 = vw(t + h)
-            k1 = self._rates(theta, v1, w1)
-            k2 = self._rates([a + 0.5 * h * b for a, b in zip(theta, k1)], vm, wm)
-            k3 = self._rates([a + 0.5 * h * b for a, b in zip(theta, k2)], vm, wm)
-            k4 = self._rates([a + h * b for a, b in zip(theta, k3)], v2, w2)
+            k1 = self._driven(theta, v1, w1)
+            k2 = self._driven([a + 0.5 * h * b for a, b in zip(theta, k1)], vm, wm)
+            k3 = self._driven([a + 0.5 * h * b for a, b in zip(theta, k2)], vm, wm)
+            k4 = self._driven([a + h * b for a, b in zip(theta, k3)], v2, w2)
             theta = [a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
                      for a, b1, b2, b3, b4 in zip(theta, k1, k2, k3, k4)]
             theta[-1] = float(ref.sample_at(min(max(times[k + 1], t_a), t_b - eps)).theta)
@@ -268,17 +249,16 @@ class PullGuide:
         rows.reverse()
         times = times[::-1].copy()
         headings = np.array(rows)
-        xs, ys, vs, ws = [], [], [], []
-        for t, th in zip(times, rows):
-            s = ref.sample_at(min(max(t, t_a), t_b - eps))
-            x, y = s.x, s.y
-            for i in range(n, 0, -1):  # P_{i-1} = P_i + F_i e_i + R_{i-1} e_{i-1}
-                x += self._front[i - 1] * math.cos(th[i]) + self._rear[i - 1] * math.cos(th[i - 1])
-                y += self._front[i - 1] * math.sin(th[i]) + self._rear[i - 1] * math.sin(th[i - 1])
-            v0, w0 = self._robot_velocity(th, s.v, s.w)
-            xs.append(x), ys.append(y), vs.append(v0), ws.append(w0)
-        return PullRun(times, np.array(xs), np.array(ys), headings[:, 0].copy(), np.array(vs),
-                       np.array(ws), headings)
+        last = [ref.sample_at(min(max(t, t_a), t_b - eps)) for t in times]
+        x, y = body_positions_along(np.array([(s.x, s.y, s.theta) for s in last]), headings,
+                                    self.geometry)
+        velocities = np.array([
+            robot_velocity_from_last([th[i - 1] - th[i] for i in range(1, n + 1)], s.v, s.w,
+                                     self._front, self._rear)
+            for th, s in zip(rows, last)
+        ])
+        return PullRun(times, x[:, 0].copy(), y[:, 0].copy(), headings[:, 0].copy(),
+                       velocities[:, 0].copy(), velocities[:, 1].copy(), headings)
 
     # -------------------------------------------------------------------- sampling
     def sample_at(self, t: float) -> ReferenceSample:

@@ -53,7 +53,7 @@ import numpy as np
 import shapely
 
 from pushtrain.cosim.controller import BackwardController, ControllerConfig
-from pushtrain.cosim.kinematics import ChainGeometry, joint_angles
+from pushtrain.cosim.kinematics import ChainGeometry, body_positions_along, joint_angles
 from pushtrain.cosim.pulling import PullGuide
 from pushtrain.cosim.reference import PULL, Reference, Segment
 
@@ -168,24 +168,6 @@ def towed_rates(geometry: ChainGeometry):
         return w
 
     return rates
-
-
-def body_positions_along(poses: np.ndarray, headings: np.ndarray, geometry: ChainGeometry):
-    """Positions [m] of every body from the last trailer's poses (N, 3) and headings (N, n+1).
-
-    Vectorized form of ``kinematics.body_positions_from_last``: P_{i-1} = P_i + F_i e_i +
-    R_{i-1} e_{i-1}. Returns ``(x, y)``, each (N, n+1).
-    """
-    c, s = np.cos(headings), np.sin(headings)
-    # step k (k = 0..n-1): vector from P_{k+1} to P_k
-    step_x = geometry.front * c[:, 1:] + geometry.rear * c[:, :-1]
-    step_y = geometry.front * s[:, 1:] + geometry.rear * s[:, :-1]
-    x = np.empty_like(headings)
-    y = np.empty_like(headings)
-    x[:, -1], y[:, -1] = poses[:, 0], poses[:, 1]
-    x[:, :-1] = poses[:, :1] + np.cumsum(step_x[:, ::-1], axis=1)[:, ::-1]
-    y[:, :-1] = poses[:, 1:2] + np.cumsum(step_y[:, ::-1], axis=1)[:, ::-1]
-    return x, y
 
 
 def _robot_positions(state: np.ndarray, geometry: ChainGeometry):
