@@ -131,8 +131,7 @@ def _summary_text(summary: dict) -> str:
 def _run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gif: bool) -> int:
     from .runner import run_scenario, world_of
 
-    outcome = run_scenario(sc, out_dir, reference=reference, path=path)
-    result = outcome.result
+    result = run_scenario(sc, out_dir, reference=reference)
     if plots:
         from pushtrain.cosim import plots as plotting
 

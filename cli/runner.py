@@ -8,7 +8,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +30,7 @@ from pushtrain.fmu import build_fmu
 
 from .scenario import Scenario, ScenarioError
 
-__all__ = ["RunOutcome", "train_of", "plant_of", "controller_of", "sensors_of", "events_of",
+__all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "events_of",
            "scripted_reference", "plan_path", "run_scenario", "atomic_write_text"]
 
 log = logging.getLogger(__name__)
@@ -180,16 +179,6 @@ def plan_path(sc: Scenario):
                 start_headings=_start_headings(sc))
 
 
-@dataclass
-class RunOutcome:
-    """What :func:`run_scenario` produced."""
-
-    result: Result
-    reference: Reference | None
-    path: object | None = None  # PlannedPath
-    files: dict = field(default_factory=dict)
-
-
 def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:
     geom = geometry_of(sc)
     if sc.mission.kind == "rotation":
@@ -208,7 +197,7 @@ def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:
 
 
 def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Reference | None = None,
-                 path=None, progress: bool | None = None, fmu=None) -> RunOutcome:
+                 progress: bool | None = None, fmu=None) -> Result:
     """Co-simulate ``sc`` along ``reference`` (or its scripted reference / the rotation profile).
 
     ``fmu`` is the TrailerTrain FMU to use (default: built for ``train.n``). With ``out_dir``,
@@ -252,7 +241,7 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
             result.summary["status"], result.summary["message"] = result.status, result.message
     if out_dir is not None:
         result.save(out_dir)
-    return RunOutcome(result, reference, path, dict(result.files))
+    return result
 
 
 def check_run_clearance(sc: Scenario, data, resolution: float = 0.01) -> dict | None:

@@ -110,7 +110,7 @@ def run_task(payload: dict, shared: dict):
 
         reference = PlannedPath.from_dict(payload["path"]).to_reference(
             speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
-    return run_scenario(sc, None, reference=reference, progress=False, fmu=fmu).result
+    return run_scenario(sc, None, reference=reference, progress=False, fmu=fmu)
 
 
 def _base_dict(sc: Scenario, spec: SweepSpec) -> dict:
