@@ -37,8 +37,7 @@ def _run(world, case, train, cfg):
 
 
 def bench(name: str, seeds: int, best_seeds: int) -> dict:
-    case = {"l_1.5": lambda: worlds.l_corridor(1.5), "l_2.0": lambda: worlds.l_corridor(2.0),
-            "bay": worlds.bay}[name]()
+    case = worlds.CASES[name]()
     world = World.from_dict(case["world"])
     train = Train.uniform(3)
     out = {"world": name}

@@ -35,7 +35,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -43,6 +43,7 @@ import shapely
 from shapely.geometry import Point, Polygon
 
 from pushtrain.cosim.controller import ControllerConfig
+from pushtrain.cosim.kinematics import body_positions_along
 from pushtrain.cosim.pulling import straight_chain_mismatch
 from pushtrain.cosim.reference import PULL, PUSH, Segment
 
@@ -441,7 +442,7 @@ class _TrailerMotionValidator(ob.MotionValidator):
         backward, dyaw, _ = _travel_backward(pts)
         if not self._allow and np.any(backward & (np.abs(dyaw) > 1e-9)):
             return False
-        end_backward = bool(backward[-1])
+        end_backward = False
         if self._pull_end_valid is not None:
             # a backward run ending between samples k - 1 and k + 1 (k = 1..m-1)
             for k in np.flatnonzero(backward[:-1] & ~backward[1:]) + 1:
@@ -511,7 +512,6 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
     last = train.last
     planning_world = world.with_obstacles(attempt.blocks) if attempt.blocks else world
     region = planning_world.eroded(attempt.inflation + config.offtrack_allowance)
-    shapely.prepare(region)
     contains = region.contains
     corners_of = last.corner_points
 
@@ -535,7 +535,6 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         # bodies 0..n-1 on the straight line ahead of the last trailer, at their link distances
         ahead = np.cumsum((train.geometry.front + train.geometry.rear)[::-1])[::-1]
         chain_region = planning_world.eroded(attempt.inflation)
-        shapely.prepare(chain_region)
         leading_bodies = train.bodies[:-1]
 
         def pull_end_valid(x, y, yaw):
@@ -868,7 +867,6 @@ def _check_endpoints(world: World, train: Train, start, goal, start_headings, in
     region = world.eroded(inflation)
     theta0 = (np.full(train.n + 1, float(start[2])) if start_headings is None
               else np.asarray(start_headings, dtype=float))
-    from .train_check import body_positions_along
 
     x, y = body_positions_along(np.asarray(start, dtype=float)[None, :], theta0[None, :], train.geometry)
     for i, body in enumerate(train.bodies):
@@ -965,8 +963,9 @@ def plan(
 
     tracker = config.tracker()
     tracker.controller_for(train.geometry)  # a controller for another n fails here, not later
-    attempt = _Attempt(config.radius_for(train), config.inflation,
+    initial = _Attempt(config.radius_for(train), config.inflation,
                        pull_start_tolerance=config.pull_start_tolerance)
+    attempt = initial
     history = []
     last_error: PlanningError | None = None
     last_result = None
@@ -994,8 +993,7 @@ def plan(
             if k == 0 or exc.reason not in ("unreachable", "approximate_only"):
                 break
             # a replanning change made the goal unreachable: undo the changes, try a new seed
-            attempt = _Attempt(config.radius_for(train), config.inflation,
-                       pull_start_tolerance=config.pull_start_tolerance)
+            attempt = replace(initial)
             continue
         segments, deviation = _segments_from_states(states, attempt.radius)
         if deviation > 1e-6:
@@ -1029,7 +1027,7 @@ def plan(
                 },
             }
             path = PlannedPath(start, tuple(segments), attempt.radius,
-                               None if start_headings is None else start_headings,
+                               start_headings,
                                config.check_resolution, info_all)
             if result is not None:
                 path.headings = _resample_headings(result, path, tracker)
@@ -1118,8 +1116,3 @@ def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: Planne
     log.info("train check: %s of body %d while %s; radius %.3f m", failure["kind"],
              failure["body"], "pulling" if failure["direction"] == PULL else "pushing", radius)
     return replace(attempt, radius=radius)
-
-
-def config_dict(config: PlannerConfig) -> dict:
-    """Plain-data form of a configuration."""
-    return asdict(config)

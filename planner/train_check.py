@@ -445,7 +445,6 @@ def check_train(
     start_headings: Sequence[float] | None = None,
     margin: float = 0.0,
     resolution: float = 0.01,
-    free_eroded=None,
     tracker: TrackerConfig | None = None,
 ) -> TrainCheckResult:
     """Simulate the co-simulation's closed loop along the path and test footprints, joints, goal.
@@ -462,8 +461,6 @@ def check_train(
         Clearance [m] every body must keep from the blocked space.
     resolution : float
         Largest corner travel [m] of any body between checked samples.
-    free_eroded : shapely geometry or None
-        Precomputed ``world.eroded(margin)``.
     tracker : TrackerConfig or None
         Controller, reference speed, cusp dwell and simulation settings; None: the defaults.
     """
@@ -479,7 +476,7 @@ def check_train(
     if not (math.isfinite(resolution) and resolution > 0.0):
         raise PlanningInputError(f"resolution = {resolution!r} m: must be finite and > 0")
     controller = tracker.controller_for(train.geometry)
-    region = world.eroded(margin) if free_eroded is None else free_eroded
+    region = world.eroded(margin)
     reference = Reference.from_segments(start, segments, tracker.speed, tracker.cusp_dwell)
     traj = simulate_tracking(train.geometry, reference, theta0, controller, tracker.step,
                              tracker.settle_time)
