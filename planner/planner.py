@@ -474,21 +474,20 @@ class _TrailerMotionValidator(ob.MotionValidator):
         g = self.goal
         return g is not None and abs(state.getX() - g[0]) < 1e-9 and abs(state.getY() - g[1]) < 1e-9
 
-    def junction_pull_end_ok(self, before_a, before_b, after_a, after_b) -> bool:
-        """True unless the curve ``before_a -> before_b`` ends backward, the next one
-        ``after_a -> after_b`` (with ``after_a`` = ``before_b``) starts forward, and the straight
-        train at that cusp is not free."""
+    def junction_pull_end_ok(self, a, b, c) -> bool:
+        """True unless the curve ``a -> b`` ends backward, the next one ``b -> c`` starts
+        forward, and the straight train at that cusp ``b`` is not free."""
         if self._pull_end_valid is None:
             return True
-        la = self._space.distance(before_a, before_b)
-        lb = self._space.distance(after_a, after_b)
+        la = self._space.distance(a, b)
+        lb = self._space.distance(b, c)
         if la <= 0.0 or lb <= 0.0:
             return True
-        ends_backward = self._backward_at(before_a, before_b, max(0.0, 1.0 - 1e-6 / la), la)
-        starts_forward = not self._backward_at(after_a, after_b, 0.0, lb)
+        ends_backward = self._backward_at(a, b, max(0.0, 1.0 - 1e-6 / la), la)
+        starts_forward = not self._backward_at(b, c, 0.0, lb)
         if not (ends_backward and starts_forward):
             return True
-        return bool(self._pull_end_valid(after_a.getX(), after_a.getY(), after_a.getYaw()))
+        return bool(self._pull_end_valid(b.getX(), b.getY(), b.getYaw()))
 
 
 @dataclass
@@ -717,6 +716,26 @@ def _pull_start_outside(space, states: list, train: Train, tolerance: float, sta
     return None
 
 
+def _near(space, state, rng, sigma_xy: float, sigma_yaw: float):
+    """A new state at a Gaussian distance from ``state`` (sigmas in m and rad)."""
+    cand = space.allocState()
+    cand.setX(state.getX() + sigma_xy * rng.standard_normal())
+    cand.setY(state.getY() + sigma_xy * rng.standard_normal())
+    cand.setYaw(_yaw_wrap(state.getYaw() + sigma_yaw * rng.standard_normal()))
+    return cand
+
+
+def _fits(si, validator, states: list, i: int, middle: list) -> bool:
+    """``states[i - 1] -> middle... -> states[i + 1]`` (in place of ``states[i]``) is free, and
+    the pull-end rule holds at every junction it touches."""
+    seq = [states[i - 1], *middle, states[i + 1]]
+    if not all(si.checkMotion(a, b) for a, b in zip(seq[:-1], seq[1:])):
+        return False
+    seq = states[max(0, i - 2):i - 1] + seq + states[i + 2:i + 3]
+    return all(validator.junction_pull_end_ok(a, b, c)
+               for a, b, c in zip(seq[:-2], seq[1:-1], seq[2:]))
+
+
 def _repair_pull_ends(si, space, validator, states: list, seed: int, tries: int = 40):
     """Move every cusp of the path where a pull ends with a blocked straight train.
 
@@ -729,38 +748,20 @@ def _repair_pull_ends(si, space, validator, states: list, seed: int, tries: int 
     None).
     """
     rng = np.random.default_rng(seed)
-
-    def junction_ok(k_prev, new, k_next) -> bool:
-        return validator.junction_pull_end_ok(k_prev, new, new, k_next)
-
-    def fits(i: int, middle: list) -> bool:
-        """states[i - 1] -> middle... -> states[i + 1] free, with all junctions passing."""
-        seq = [states[i - 1], *middle, states[i + 1]]
-        if not all(si.checkMotion(a, b) for a, b in zip(seq[:-1], seq[1:])):
-            return False
-        if i - 2 >= 0:
-            seq.insert(0, states[i - 2])
-        if i + 2 < len(states):
-            seq.append(states[i + 2])
-        return all(junction_ok(a, b, c) for a, b, c in zip(seq[:-2], seq[1:-1], seq[2:]))
-
     repairs, i = 0, 1
     while i < len(states) - 1:
-        a, b, c = states[i - 1], states[i], states[i + 1]
-        if junction_ok(a, b, c):
+        b = states[i]
+        if validator.junction_pull_end_ok(states[i - 1], b, states[i + 1]):
             i += 1
             continue
-        if fits(i, []):
+        if _fits(si, validator, states, i, []):
             del states[i]
             repairs += 1
             continue
         found = None
         for _ in range(tries):
-            cand = space.allocState()
-            cand.setX(b.getX() + 0.25 * rng.standard_normal())
-            cand.setY(b.getY() + 0.25 * rng.standard_normal())
-            cand.setYaw(_yaw_wrap(b.getYaw() + 0.35 * rng.standard_normal()))
-            if si.isValid(cand) and fits(i, [cand]):
+            cand = _near(space, b, rng, 0.25, 0.35)
+            if si.isValid(cand) and _fits(si, validator, states, i, [cand]):
                 found = cand
                 break
         if found is None:
@@ -771,9 +772,9 @@ def _repair_pull_ends(si, space, validator, states: list, seed: int, tries: int 
     return repairs, None
 
 
-def _local_search(si, space, validator, path, budget: float, rng, sigma=(0.3, 0.3, 0.3)):
+def _local_search(si, space, validator, path, budget: float, rng, sigma=(0.3, 0.3)):
     """Shorten ``path`` by moving one interior state at a time: Gaussian proposals (``sigma``
-    in x [m], y [m], yaw [rad], halved after 30 proposals in a row without a gain), accepted
+    in x and y [m] and yaw [rad], halved after 30 proposals in a row without a gain), accepted
     when the path gets shorter, both adjacent curves are free and the pull-end rule holds at
     the moved state and its neighbours; for ``budget`` seconds."""
     t0 = time.perf_counter()
@@ -783,13 +784,9 @@ def _local_search(si, space, validator, path, budget: float, rng, sigma=(0.3, 0.
         i = int(rng.integers(1, len(states) - 1))
         a, b, c = states[i - 1], states[i], states[i + 1]
         old = space.distance(a, b) + space.distance(b, c)
-        cand = space.allocState()
-        cand.setX(b.getX() + scale * sigma[0] * rng.standard_normal())
-        cand.setY(b.getY() + scale * sigma[1] * rng.standard_normal())
-        cand.setYaw(_yaw_wrap(b.getYaw() + scale * sigma[2] * rng.standard_normal()))
+        cand = _near(space, b, rng, scale * sigma[0], scale * sigma[1])
         new = space.distance(a, cand) + space.distance(cand, c)
-        if (new < old - 1e-6 and si.isValid(cand) and si.checkMotion(a, cand)
-                and si.checkMotion(cand, c) and _junctions_ok(validator, states, i, cand)):
+        if new < old - 1e-6 and si.isValid(cand) and _fits(si, validator, states, i, [cand]):
             states[i] = cand
             misses = 0
         else:
@@ -800,13 +797,6 @@ def _local_search(si, space, validator, path, budget: float, rng, sigma=(0.3, 0.
     for st in states[1:]:
         out.append(st)
     return _greedy_shortcut(si, out)
-
-
-def _junctions_ok(validator, states: list, i: int, cand) -> bool:
-    """The pull-end rule at states i-1, i, i+1 with ``cand`` in place of ``states[i]``."""
-    seq = states[max(0, i - 2):i] + [cand] + states[i + 1:i + 3]
-    return all(validator.junction_pull_end_ok(a, b, b, c)
-               for a, b, c in zip(seq[:-2], seq[1:-1], seq[2:]))
 
 
 def _greedy_shortcut(si, path):
