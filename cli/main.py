@@ -201,7 +201,7 @@ def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif):
     out_dir = _out_dir(out, sc)
     handler = _attach_log(out_dir)
     try:
-        from .runner import atomic_write_text
+        from pushtrain.files import atomic_write_text
 
         atomic_write_text(out_dir / "scenario.json", sc.model_dump_json(indent=2))
         reference, path = None, None
@@ -306,7 +306,7 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif):
     out_dir = _out_dir(out, sc)
     handler = _attach_log(out_dir)
     try:
-        from .runner import atomic_write_text
+        from pushtrain.files import atomic_write_text
 
         atomic_write_text(out_dir / "scenario.json", sc.model_dump_json(indent=2))
         code = _run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif)

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -31,16 +30,9 @@ from pushtrain.fmu import build_fmu
 from .scenario import Scenario, ScenarioError
 
 __all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "events_of",
-           "scripted_reference", "plan_path", "run_scenario", "atomic_write_text"]
+           "scripted_reference", "plan_path", "run_scenario"]
 
 log = logging.getLogger(__name__)
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename."""
-    partial = path.with_name(f".{path.name}.{os.getpid()}.part")
-    partial.write_text(text)
-    os.replace(partial, path)
 
 
 def _per_trailer(value, n: int) -> np.ndarray:

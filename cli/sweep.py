@@ -34,6 +34,8 @@ from pathlib import Path
 import click
 import numpy as np
 
+from pushtrain.files import atomic_write_bytes
+
 from pushtrain.cosim.sweep import (
     SweepError,
     SweepOutcome,
@@ -88,9 +90,7 @@ def _materialize(ref: FmuRef, shared: dict) -> str:
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / f"TrailerTrain-n{ref.n}-{ref.sha256[:16]}.fmu"
     if not target.is_file() or _sha256(target) != ref.sha256:
-        partial = target.with_name(f".{target.name}.{os.getpid()}.part")
-        partial.write_bytes(blob)
-        os.replace(partial, target)
+        atomic_write_bytes(target, blob)
     return str(target)
 
 

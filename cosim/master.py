@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
 import sys
 import time as _time
 from dataclasses import dataclass, field
@@ -24,6 +23,8 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+
+from pushtrain.files import atomic_write
 
 from .controller import BackwardController, ControllerConfig, ControllerError
 from .fmu_slave import CosimError, TrailerTrainSlave
@@ -243,15 +244,12 @@ def _write_csv(f, data: np.ndarray) -> None:
 
 
 def _atomic_write(path: Path, writer, binary: bool = True) -> None:
-    """Write through a temporary file in the same folder, then rename over ``path``."""
-    partial = path.with_name(f".{path.name}.{os.getpid()}.part")
-    try:
+    """``writer(f)`` on an open file, written atomically over ``path``."""
+    def write(partial: Path) -> None:
         with open(partial, "wb" if binary else "w") as f:
             writer(f)
-        os.replace(partial, path)
-    finally:
-        if partial.exists():
-            partial.unlink()
+
+    atomic_write(path, write)
 
 
 def _columns(n: int) -> list[str]:

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import time as _time
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -34,6 +33,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.patches import Polygon as PolygonPatch
 from PIL import Image
+
+from pushtrain.files import atomic_write
 
 __all__ = [
     "PlotError",
@@ -153,13 +154,7 @@ def _atomic(path: Path, write) -> Path:
     removed whatever happens, so a failure leaves neither a partial file nor a changed ``path``.
     """
     path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(f".{path.stem}.{os.getpid()}.part{path.suffix}")
-    try:
-        write(partial)
-        os.replace(partial, path)
-    finally:
-        partial.unlink(missing_ok=True)
-    return path
+    return atomic_write(path, write, keep_suffix=True)
 
 
 def _save(fig: Figure, out_path, dpi: float = DPI) -> Path:

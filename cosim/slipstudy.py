@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from pushtrain.files import atomic_write
 
 from .master import InitialState, PlantConfig, simulate
 from .openloop import RotationProfile
@@ -101,18 +102,17 @@ def run_slip_study(cfg: SlipStudyConfig, fmu_for=None, progress=None) -> list[Sl
 
 def write_csv(rows: list[SlipRow], path) -> Path:
     """One line per run and trailer; written atomically."""
-    path = Path(path)
-    partial = path.with_name(f".{path.name}.{os.getpid()}.part")
-    with open(partial, "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(["sweep", "n", "alpha_deg", "payload_on", "trailer", "peak_F_lat_N",
-                         "limit_N", "ratio"])
-        for row in rows:
-            for i, (p, lim) in enumerate(zip(row.peak, row.limit), start=1):
-                writer.writerow([row.sweep, row.n, row.alpha_deg, row.payload_on, i,
-                                 f"{p:.6g}", f"{lim:.6g}", f"{p / lim:.6g}"])
-    os.replace(partial, path)
-    return path
+    def write(partial: Path) -> None:
+        with open(partial, "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(["sweep", "n", "alpha_deg", "payload_on", "trailer", "peak_F_lat_N",
+                             "limit_N", "ratio"])
+            for row in rows:
+                for i, (p, lim) in enumerate(zip(row.peak, row.limit), start=1):
+                    writer.writerow([row.sweep, row.n, row.alpha_deg, row.payload_on, i,
+                                     f"{p:.6g}", f"{lim:.6g}", f"{p / lim:.6g}"])
+
+    return atomic_write(path, write)
 
 
 def plot_slip_study(rows: list[SlipRow], path) -> Path:
@@ -151,8 +151,4 @@ def plot_slip_study(rows: list[SlipRow], path) -> Path:
         ax.legend(fontsize=7, loc="upper right" if sweep == "payload" else "lower right")
     fig.suptitle("Pure robot rotation: lateral wheel forces against friction (slip_mode 0 estimate)")
     fig.tight_layout()
-    path = Path(path)
-    partial = path.with_name(f".{path.stem}.{os.getpid()}.part{path.suffix}")
-    fig.savefig(partial, dpi=120)
-    os.replace(partial, path)
-    return path
+    return atomic_write(path, lambda partial: fig.savefig(partial, dpi=120), keep_suffix=True)

@@ -42,6 +42,7 @@ from pydantic import (BaseModel, ConfigDict, Field, StrictBool, StrictInt, Valid
                       model_validator)
 
 from pushtrain.errors import FieldErrors
+from pushtrain.files import atomic_write_text
 from pushtrain.validation import Problems, field_errors, read_toml
 
 __all__ = [
@@ -496,13 +497,7 @@ def write_rows_csv(path: Path, rows: Sequence[dict], columns: Sequence[str]) -> 
     writer.writerow(columns)
     for row in rows:
         writer.writerow([_encode(row.get(c)) for c in columns])
-    partial = path.with_name(f".{path.name}.{os.getpid()}.part")
-    try:
-        partial.write_text(buf.getvalue())
-        os.replace(partial, path)
-    finally:
-        if partial.exists():
-            partial.unlink()
+    atomic_write_text(path, buf.getvalue())
 
 
 _TEXT_COLUMNS = ("key", "status", "error")
@@ -611,9 +606,7 @@ def _check_manifest(out_dir: Path, manifest: dict | None) -> None:
         return
     text = json.dumps({"format": SPEC_FORMAT, "fingerprint": digest, **manifest}, indent=2,
                       default=str)
-    partial = path.with_name(f".{path.name}.{os.getpid()}.part")
-    partial.write_text(text)
-    os.replace(partial, path)
+    atomic_write_text(path, text)
 
 
 def _existing_rows(chunk_dir: Path) -> dict[str, dict]:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
 import re
 from pathlib import Path
 from typing import Sequence
@@ -24,6 +23,8 @@ from typing import Sequence
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+
+from pushtrain.files import atomic_write, atomic_write_text
 
 __all__ = ["summarize", "table_text", "parameter_figure", "bias_figure", "write_report"]
 
@@ -342,14 +343,7 @@ def _slug(path: str) -> str:
 
 
 def _save(fig: Figure, path: Path) -> Path:
-    partial = path.with_name(f".{path.name}.{os.getpid()}.part")
-    try:
-        fig.savefig(partial, format="png", dpi=DPI)
-        os.replace(partial, path)
-    finally:
-        if partial.exists():
-            partial.unlink()
-    return path
+    return atomic_write(path, lambda partial: fig.savefig(partial, format="png", dpi=DPI))
 
 
 def write_report(out_dir, rows: Sequence[dict], parameters: Sequence[dict], *,
@@ -381,7 +375,5 @@ def write_report(out_dir, rows: Sequence[dict], parameters: Sequence[dict], *,
                 log.exception("plotting bias_offset.png failed")
     report["files"] = files
     text = json.dumps(report, indent=2, default=lambda v: None)
-    partial = out / f".report.json.{os.getpid()}.part"
-    partial.write_text(text)
-    os.replace(partial, out / "report.json")
+    atomic_write_text(out / "report.json", text)
     return report

@@ -22,6 +22,8 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
+from pushtrain.files import atomic_write
+
 from .variables import MAX_TRAILERS, variables_for
 
 __all__ = ["FmuBuildError", "build_fmu", "render_model_description", "cache_dir", "MODEL_IDENTIFIER"]
@@ -270,12 +272,13 @@ def _build_into(n: int, target: Path, strict: bool, guid: str) -> None:
         binary = unzipdir / "binaries" / fmpy.platform / f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
         if not binary.is_file():
             raise FmuBuildError(f"the build produced no {binary.relative_to(unzipdir)}")
-        partial = target.with_name(f".{target.name}.{os.getpid()}.part")
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
-            for path in sorted(unzipdir.rglob("*")):
-                if path.is_file():
-                    zf.write(path, path.relative_to(unzipdir).as_posix())
-        os.replace(partial, target)
+        def write_zip(partial: Path) -> None:
+            with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
+                for path in sorted(unzipdir.rglob("*")):
+                    if path.is_file():
+                        zf.write(path, path.relative_to(unzipdir).as_posix())
+
+        atomic_write(target, write_zip)
 
 
 def build_fmu(n_trailers: int, output_path=None, *, strict: bool = False, force: bool = False) -> Path:
@@ -318,7 +321,4 @@ def build_fmu(n_trailers: int, output_path=None, *, strict: bool = False, force:
     if out.is_dir():
         out = out / f"{MODEL_IDENTIFIER}.fmu"
     out.parent.mkdir(parents=True, exist_ok=True)
-    partial = out.with_name(f".{out.name}.{os.getpid()}.part")
-    shutil.copyfile(cached, partial)
-    os.replace(partial, out)
-    return out
+    return atomic_write(out, lambda partial: shutil.copyfile(cached, partial))
