@@ -463,11 +463,9 @@ def simulate(
                 meas = sens.measure(x0, y0, th0, phi, (y[n], y[2 * (n + 1) - 1], th_n))
             else:
                 meas = sens.measure(x0, y0, th0, phi)
-            if ref_dir[k] == PULL and guide is not None:
-                v_cmd, w_cmd, _ = ctrl.command(t, meas, reference.sample_at(t), guide.sample_at(t))
-            else:
-                v_cmd, w_cmd, _ = ctrl.command(
-                    t, meas, (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k]))
+            leader = guide.sample_at(t) if ref_dir[k] == PULL and guide is not None else None
+            v_cmd, w_cmd, _ = ctrl.command(
+                t, meas, (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k]), leader)
             push_x = push_y = 0.0
             for p in pushes:
                 if p.t - 1e-12 <= t < p.t + p.duration - 1e-12:
