@@ -151,7 +151,6 @@ class Reference:
     _kappa: np.ndarray = field(init=False, repr=False)
     _speed: np.ndarray = field(init=False, repr=False)
     _t_end: float = field(init=False, repr=False)
-    _length: np.ndarray = field(init=False, repr=False)  # distance travelled per phase [m]
     _rows: tuple = field(init=False, repr=False)  # plain-float copy of the tables for sample_at
 
     @classmethod
@@ -181,7 +180,6 @@ class Reference:
             raise ReferenceError(f"cusp_dwell = {self.cusp_dwell!r} s: must be finite and >= 0")
         t, pose = self.t0, np.array(self.start, dtype=float)
         rows_t, rows_pose, rows_sigma, rows_kappa, rows_speed = [], [], [], [], []
-        rows_length = []
         previous_direction = None
         for seg in self.segments:
             if not isinstance(seg, Segment):
@@ -190,13 +188,11 @@ class Reference:
                 if self.cusp_dwell > 0.0:
                     rows_t.append(t), rows_pose.append(pose.copy())
                     rows_sigma.append(0.0), rows_kappa.append(0.0), rows_speed.append(0.0)
-                    rows_length.append(0.0)
                     t += self.cusp_dwell
             speed = self.speed if seg.speed is None else seg.speed
             rows_t.append(t), rows_pose.append(pose.copy())
             rows_sigma.append(-float(seg.direction)), rows_kappa.append(float(seg.curvature))
             rows_speed.append(speed)
-            rows_length.append(float(seg.length))
             x, y, th = _advance(*pose, -float(seg.direction), float(seg.curvature), seg.length)
             pose = np.array([float(x), float(y), float(th)])
             t += seg.length / speed
@@ -207,14 +203,11 @@ class Reference:
         self._kappa = np.array(rows_kappa)
         self._speed = np.array(rows_speed)
         self._t_end = t
-        self._length = np.array(rows_length)
         self._rows = (
             [float(a) for a in self._t_start],
             tuple(
-                (float(p[0]), float(p[1]), float(p[2]), float(sg), float(kp), float(sp), float(ln))
-                for p, sg, kp, sp, ln in zip(
-                    self._pose0, self._sigma, self._kappa, self._speed, self._length
-                )
+                (float(p[0]), float(p[1]), float(p[2]), float(sg), float(kp), float(sp))
+                for p, sg, kp, sp in zip(self._pose0, self._sigma, self._kappa, self._speed)
             ),
         )
 
@@ -290,7 +283,7 @@ class Reference:
         """
         t = float(t)
         k, tau = self._row_at(t)
-        x0, y0, th0, sigma, kappa, speed, _ = self._rows[1][k]
+        x0, y0, th0, sigma, kappa, speed = self._rows[1][k]
         s = speed * tau
         x, y, th = _advance_scalar(x0, y0, th0, sigma, kappa, s)
         if self.t0 <= t < self._t_end and sigma != 0.0:
@@ -432,7 +425,6 @@ class SampledReference:
             v.tolist(),
             w.tolist(),
             self._direction.tolist(),
-            self._s.tolist(),
         )
 
     @classmethod
@@ -500,7 +492,7 @@ class SampledReference:
         """Reference at one time ``t`` [s] as plain floats (fast scalar form of :meth:`sample`)."""
         t = float(t)
         k, a = self._interval(t)
-        x, y, th, v, w, d, _ = self._cols
+        x, y, th, v, w, d = self._cols
         pose = [(1.0 - a) * c[k] + a * c[k + 1] for c in (x, y, th)]
         if self._t_list[0] <= t < self._t_list[-1]:
             kd = k if a < 1.0 else k + 1
