@@ -42,6 +42,7 @@ __all__ = [
     "body_positions_from_last",
     "body_positions_along",
     "robot_velocity_from_last",
+    "velocities_from_last",
     "heading_rates_from_robot",
     "heading_rates_from_last",
     "steady_joint_angle",
@@ -196,17 +197,27 @@ def body_positions_along(poses: np.ndarray, headings: np.ndarray, geometry: Chai
     return x, y
 
 
-def robot_velocity_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[float, float]:
-    """Robot (v0 [m/s], w0 [rad/s]) making trailer n move with (v_n, w_n) (Step 3, Eq. 5).
+def velocities_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[float, list]:
+    """Scalar form of :func:`inverse_velocities` for per-step loops: the robot's speed v0
+    [m/s] and the yaw rates [w_0, ..., w_n] [rad/s] that make trailer n move with (v_n, w_n).
 
-    The scalar form of :func:`inverse_velocities` for per-step loops: ``phi`` (n,) joint
-    angles [rad], ``front``/``rear`` the links F_i, R_{i-1} [m] as sequences of floats.
+    ``phi`` (n,) joint angles [rad]; ``front``/``rear`` the links F_i, R_{i-1} [m] as sequences
+    of floats.
     """
-    v, w = float(v_n), float(w_n)
-    for i in range(len(front) - 1, -1, -1):
+    n = len(front)
+    w = [0.0] * (n + 1)
+    v, w[n] = float(v_n), float(w_n)
+    for i in range(n - 1, -1, -1):
         c, s = math.cos(phi[i]), math.sin(phi[i])
-        v, w = c * v + front[i] * s * w, (s * v - front[i] * c * w) / rear[i]
+        v, w[i] = c * v + front[i] * s * w[i + 1], (s * v - front[i] * c * w[i + 1]) / rear[i]
     return v, w
+
+
+def robot_velocity_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[float, float]:
+    """Robot (v0 [m/s], w0 [rad/s]) making trailer n move with (v_n, w_n) (Step 3, Eq. 5);
+    arguments as :func:`velocities_from_last`."""
+    v, w = velocities_from_last(phi, v_n, w_n, front, rear)
+    return v, w[0]
 
 
 def steady_joint_angle(radius: float, link: float = 0.52) -> float:

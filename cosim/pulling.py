@@ -32,7 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import ChainGeometry, body_positions_along, robot_velocity_from_last
+from .kinematics import (ChainGeometry, body_positions_along, robot_velocity_from_last,
+                         velocities_from_last)
 from .reference import PULL, ReferenceError, ReferenceSample
 
 __all__ = ["PullGuide", "PullRun", "rates_driven_by_last", "straight_chain_mismatch"]
@@ -50,14 +51,8 @@ def rates_driven_by_last(geometry: ChainGeometry):
     n = geometry.n
 
     def rates(theta, v_n: float, w_n: float) -> list[float]:
-        w = [0.0] * (n + 1)
-        v, w[n] = v_n, w_n
-        for i in range(n, 0, -1):
-            phi = theta[i - 1] - theta[i]
-            c, s = math.cos(phi), math.sin(phi)
-            f = front[i - 1]
-            v, w[i - 1] = c * v + f * s * w[i], (s * v - f * c * w[i]) / rear[i - 1]
-        return w
+        phi = [theta[i] - theta[i + 1] for i in range(n)]
+        return velocities_from_last(phi, v_n, w_n, front, rear)[1]
 
     return rates
 
