@@ -347,16 +347,13 @@ def analyze_cmd(scenario):
     Example:
       pushtrain analyze examples/joint_bias_5deg.toml
     """
-    import numpy as np
-
     from pushtrain.cosim import analysis
+
+    from .runner import bias_model
 
     sc = _scenario(scenario)
     c = sc.controller
-    speed = sc.reference.speed if sc.reference is not None else sc.planner.speed
-    link = c.model_link or sc.train.link
-    bias = np.radians(np.broadcast_to(np.asarray(sc.sensors.joint_bias_deg, float), (sc.train.n,)))
-    eps = analysis.effective_bias(bias)
+    link, speed, bias, eps = bias_model(sc)
     click.echo(f"controller gains: K_x = {c.k_x}, K_y = {c.k_y}, K_theta = {c.k_theta}; D = {link} m")
     for v_d, label in ((speed, "pushing, direction-of-travel frame"), (-speed, "chain frame (v_d < 0)")):
         poles = analysis.closed_loop_poles(c.k_x, c.k_y, c.k_theta, v_d)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 import math
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -45,6 +46,27 @@ def geometry_of(sc: Scenario) -> ChainGeometry:
     front = sc.train.front if sc.train.front is not None else [sc.train.link] * n
     rear = sc.train.rear if sc.train.rear is not None else [sc.train.link] * n
     return ChainGeometry(np.array(front, float), np.array(rear, float))
+
+
+class BiasModel(NamedTuple):
+    """What the closed-form offset analysis (:mod:`pushtrain.cosim.analysis`) takes from a
+    scenario: the controller's link [m], the reference speed [m/s], the joint biases (n,)
+    [rad] and their effective (alternating) sum [rad]."""
+
+    link: float
+    speed: float
+    bias: np.ndarray
+    eps: float
+
+
+def bias_model(sc: Scenario) -> BiasModel:
+    """The :class:`BiasModel` of ``sc`` (the ``analyze`` command and the sweeps' predictions)."""
+    from pushtrain.cosim import analysis
+
+    link = sc.controller.model_link or sc.train.link
+    speed = sc.reference.speed if sc.reference is not None else sc.planner.speed
+    bias = np.radians(_per_trailer(sc.sensors.joint_bias_deg, sc.train.n))
+    return BiasModel(link, speed, bias, analysis.effective_bias(bias))
 
 
 def train_of(sc: Scenario):

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import click
-import numpy as np
 
 from pushtrain.files import atomic_write_bytes
 
@@ -159,11 +158,10 @@ def _predicted(sc: Scenario) -> dict:
     """eps_eff [deg] and the closed-form steady offset [m] (cosim.analysis, as `analyze`)."""
     from pushtrain.cosim import analysis
 
+    from .runner import bias_model
+
     c = sc.controller
-    link = c.model_link or sc.train.link
-    speed = sc.reference.speed if sc.reference is not None else sc.planner.speed
-    bias = np.radians(np.broadcast_to(np.asarray(sc.sensors.joint_bias_deg, float), (sc.train.n,)))
-    eps = analysis.effective_bias(bias)
+    link, speed, bias, eps = bias_model(sc)
     if sc.sensors.localize == "last_trailer":
         pred = analysis.steady_lateral_error(eps, link, c.k_y)
     else:
