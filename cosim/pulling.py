@@ -121,11 +121,13 @@ class PullGuide:
     Parameters
     ----------
     reference : Reference or SampledReference
-        Anything with ``t0``, ``t_end``, ``direction_at(t)`` (array) and ``sample_at(t)``.
+        Anything with ``pull_intervals()`` (start and end times of the pulling runs) and
+        ``sample_at(t)``.
     geometry : ChainGeometry
         The chain model (the controller's).
     step : float
-        Integration step [s] of the backward run (RK4), > 0. The default 0.02 s is 1.6 mm of
+        Integration step [s] of the backward run (RK4), > 0 (shorter runs take one step). The
+        default 0.02 s is 1.6 mm of
         travel at 0.08 m/s; the guide's error is far below the tracking errors.
 
     Raises
@@ -147,71 +149,9 @@ class PullGuide:
         self._front = [float(a) for a in geometry.front]
         self._rear = [float(a) for a in geometry.rear]
         self._driven = rates_driven_by_last(geometry)
-        self.runs: list[PullRun] = [self._backward_run(a, b) for a, b in self._pull_intervals()]
+        self.runs: list[PullRun] = [self._backward_run(a, b)
+                                    for a, b in reference.pull_intervals()]
         self._starts = [run.t[0] for run in self.runs]
-
-    # -------------------------------------------------------------------- finding the runs
-    def _pull_intervals(self) -> list[tuple[float, float]]:
-        """[t_a, t_b] of every maximal pulling run, its ends located to 1e-9 s."""
-        ref = self.reference
-        t0, t1 = float(ref.t0), float(ref.t_end)
-        if not t1 > t0:
-            return []
-        m = max(2, int(math.ceil((t1 - t0) / self.step)) + 1)
-        grid = np.linspace(t0, t1, m)
-        pulling = np.asarray(ref.direction_at(grid)) == PULL
-        if not pulling.any():
-            return []
-        edges = np.diff(pulling.astype(int))
-        firsts = list(np.flatnonzero(edges == 1) + 1)
-        lasts = list(np.flatnonzero(edges == -1))
-        if pulling[0]:
-            firsts.insert(0, 0)
-        if pulling[-1]:
-            lasts.append(m - 1)
-
-        edge = self._edge
-        out = []
-        for i, j in zip(firsts, lasts):
-            a = grid[i] if i == 0 else edge(grid[i - 1], grid[i], False)
-            b = grid[j] if j == m - 1 else edge(grid[j], grid[j + 1], True)
-            if b > a:
-                out.append((float(a), float(b)))
-        return out
-
-    def _is_pull(self, t: float) -> bool:
-        return int(self.reference.direction_at(np.array([t]))[0]) == PULL
-
-    def _edge(self, lo: float, hi: float, pull_at_lo: bool) -> float:
-        """The switch of direction between ``lo`` and ``hi`` [s] (to 1e-9 s); returns the side
-        that pulls."""
-        for _ in range(80):
-            if hi - lo < 1e-9:
-                break
-            mid = 0.5 * (lo + hi)
-            if self._is_pull(mid) == pull_at_lo:
-                lo = mid
-            else:
-                hi = mid
-        return lo if pull_at_lo else hi
-
-    def _run_around(self, t: float) -> PullRun:
-        """The backward run of the pull containing ``t`` (a pull shorter than the search grid's
-        ``step``, found on first use), added to :attr:`runs`."""
-        t0, t1 = float(self.reference.t0), float(self.reference.t_end)
-        lo, width = t, self.step
-        while lo > t0 and self._is_pull(max(lo - width, t0)):
-            lo, width = max(lo - width, t0), 2.0 * width
-        a = lo if lo <= t0 else self._edge(max(lo - width, t0), lo, False)
-        hi, width = t, self.step
-        while hi < t1 and self._is_pull(min(hi + width, t1)):
-            hi, width = min(hi + width, t1), 2.0 * width
-        b = hi if hi >= t1 else self._edge(hi, min(hi + width, t1), True)
-        run = self._backward_run(a, max(b, a + 1e-9))
-        k = bisect_right(self._starts, run.t[0])
-        self.runs.insert(k, run)
-        self._starts.insert(k, run.t[0])
-        return run
 
     # -------------------------------------------------------------------- the backward run
     def _backward_run(self, t_a: float, t_b: float) -> PullRun:
@@ -259,9 +199,8 @@ class PullGuide:
     def sample_at(self, t: float) -> ReferenceSample:
         """The robot's reference ``(x0, y0, theta0, v0, w0, PULL)`` at time ``t`` [s].
 
-        ``t`` must lie in a pulling run (times a hair outside are clamped to the nearest run;
-        a pull too short for the search grid is found here); linear interpolation between the
-        backward run's samples.
+        ``t`` must lie in a pulling run (times a hair outside are clamped to the nearest run);
+        linear interpolation between the backward run's samples.
         """
         t = float(t)
         run = None
@@ -272,9 +211,7 @@ class PullGuide:
             if self.runs[j].t[0] - 1e-6 <= t <= self.runs[j].t[-1] + 1e-6:
                 run = self.runs[j]
         if run is None:
-            if not self._is_pull(t):
-                raise ReferenceError(f"t = {t!r} s is not in a pulling run of the reference")
-            run = self._run_around(t)
+            raise ReferenceError(f"t = {t!r} s is not in a pulling run of the reference")
         ts = run.t
         tc = min(max(t, ts[0]), ts[-1])
         k = min(max(int(np.searchsorted(ts, tc, side="right")) - 1, 0), ts.size - 2)

@@ -265,6 +265,10 @@ class Reference:
         moving = (t >= self.t0) & (t < self._t_end)
         return np.where(moving, -self._sigma[k], 0.0).astype(int)
 
+    def pull_intervals(self) -> list[tuple[float, float]]:
+        """Start and end times [s] of every maximal pulling run (consecutive pulling segments)."""
+        return _pull_intervals(np.append(self._t_start, self._t_end), -self._sigma)
+
     def _row_at(self, t: float):
         """Index of the phase active at time ``t`` (clipped to the table) and the clipped time."""
         t_start, rows = self._rows
@@ -289,6 +293,16 @@ class Reference:
         if self.t0 <= t < self._t_end and sigma != 0.0:
             return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
         return ReferenceSample(x, y, th, 0.0, 0.0, REST)
+
+
+def _pull_intervals(bounds, directions) -> list[tuple[float, float]]:
+    """Maximal intervals [bounds[i], bounds[j]] [s] over consecutive phases i..j-1 whose
+    direction is PULL; phase k lasts from ``bounds[k]`` to ``bounds[k + 1]``."""
+    pulling = np.asarray(directions) == PULL
+    edges = np.diff(np.concatenate(([0], pulling.astype(int), [0])))
+    return [(float(bounds[i]), float(bounds[j]))
+            for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))
+            if bounds[j] > bounds[i]]
 
 
 def _advance_scalar(x, y, theta, sigma, kappa, s):
@@ -480,6 +494,11 @@ class SampledReference:
         k = np.clip(np.searchsorted(self._t, t, side="right") - 1, 0, self._t.size - 1)
         inside = (t >= self._t[0]) & (t < self._t[-1])
         return np.where(inside, self._direction[k], REST).astype(int)
+
+    def pull_intervals(self) -> list[tuple[float, float]]:
+        """Start and end times [s] of every maximal run of pulling samples (a sample's direction
+        holds until the next sample)."""
+        return _pull_intervals(self._t, self._direction[:-1])
 
     def _interval(self, t: float):
         """Index k and weight a with t = (1 - a) t_k + a t_{k+1}, clipped to the sampled span."""

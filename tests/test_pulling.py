@@ -148,10 +148,9 @@ def test_closed_loop_pull_from_the_guides_start_tracks_the_s_curve():
     assert max(err_straight) > 10 * max(err)
 
 
-def test_a_pull_shorter_than_the_search_grid_is_found_when_sampled():
-    # 0.08 mm of pulling at 0.08 m/s: 1 ms between two pushes, which a 0.05 s search grid
-    # (points 6.2256 s and 6.2754 s) steps over; a co-simulation sampling every 5 ms may land
-    # in it
+def test_a_pull_shorter_than_the_integration_step_has_its_run():
+    # 0.08 mm of pulling at 0.08 m/s: 1 ms between two pushes, far shorter than the guide's
+    # 0.05 s step; a co-simulation sampling every 5 ms may land in it
     ref = Reference.from_segments(
         (0.0, 0.0, math.pi),
         [Segment("line", 0.5, 0.0, PUSH), Segment("arc", 0.00008, 1.0, PULL),
@@ -161,12 +160,12 @@ def test_a_pull_shorter_than_the_search_grid_is_found_when_sampled():
     t_pull = 0.5 / 0.08 + 0.0005
     assert ref.sample_at(t_pull).direction == PULL
     guide = PullGuide(ref, GEOM, step=0.05)
-    assert guide.runs == []  # not seen by the grid
+    assert len(guide.runs) == 1
+    run = guide.runs[0]
+    assert run.t[0] == pytest.approx(0.5 / 0.08, abs=1e-9)
+    assert run.t[-1] == pytest.approx(0.5 / 0.08 + 0.001, abs=1e-9)
     s = guide.sample_at(t_pull)
     assert s.direction == PULL and s.v > 0.0
-    run = guide.runs[0]
-    assert run.t[0] == pytest.approx(0.5 / 0.08, abs=1e-6)
-    assert run.t[-1] == pytest.approx(0.5 / 0.08 + 0.001, abs=1e-6)
     # the robot stands the chain length ahead of the last trailer, the chain straight
     last = ref.sample_at(t_pull)
     assert math.hypot(s.x - last.x, s.y - last.y) == pytest.approx(CHAIN, abs=1e-3)
