@@ -53,7 +53,8 @@ import numpy as np
 import shapely
 
 from pushtrain.cosim.controller import BackwardController, ControllerConfig
-from pushtrain.cosim.kinematics import ChainGeometry, body_positions_along, joint_angles
+from pushtrain.cosim.kinematics import (ChainGeometry, body_positions_along, joint_angles,
+                                        wrap_angle, wrap_scalar)
 from pushtrain.cosim.pulling import PullGuide
 from pushtrain.cosim.reference import PULL, Reference, Segment
 
@@ -492,13 +493,13 @@ def check_train(
     dx, dy = last[:, 0] - traj.reference[:, 0], last[:, 1] - traj.reference[:, 1]
     c, s_ = np.cos(traj.reference[:, 2]), np.sin(traj.reference[:, 2])
     lateral = -s_ * dx + c * dy
-    heading_err = np.angle(np.exp(1j * (last[:, 2] - traj.reference[:, 2])))
+    heading_err = wrap_angle(last[:, 2] - traj.reference[:, 2])
     # goal test as the master's: the first control instant at or after t_end within tolerance
     # (the co-simulation stops there), else the end of the run
     goal = reference.goal
     after = np.flatnonzero(traj.control & (traj.t >= reference.t_end - 1e-12))
     dist = np.hypot(last[after, 0] - goal[0], last[after, 1] - goal[1])
-    head = np.abs(np.angle(np.exp(1j * (last[after, 2] - goal[2]))))
+    head = np.abs(wrap_angle(last[after, 2] - goal[2]))
     k_goal = after[-1] if after.size else traj.t.size - 1
     if tracker.goal_tolerance is not None and after.size:
         tol_pos, tol_head = tracker.goal_tolerance
@@ -506,7 +507,7 @@ def check_train(
         if within.size:
             k_goal = after[within[0]]
     goal_dist = float(math.hypot(last[k_goal, 0] - goal[0], last[k_goal, 1] - goal[1]))
-    goal_head = float(abs(math.remainder(last[k_goal, 2] - goal[2], 2.0 * math.pi)))
+    goal_head = abs(wrap_scalar(last[k_goal, 2] - goal[2]))
 
     # footprints at the checked samples, joints at every sample
     polys = shapely.polygons(corners[keep])  # (N, n+1)
