@@ -15,9 +15,9 @@ import time
 
 from bench_fmu import bench
 
-from pushtrain.cosim.controller import ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.cosim.master import simulate
-from pushtrain.cosim.reference import Reference, Segment
+from pushtrain.core.reference import Reference, Segment
 from pushtrain.fmu import build_fmu
 
 

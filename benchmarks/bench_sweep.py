@@ -23,9 +23,9 @@ import os
 import tempfile
 import time
 
-from pushtrain.cli.scenario import parse_scenario
+from pushtrain.mission.scenario import parse_scenario
 from pushtrain.cli.sweep import prepare_runs, run_task
-from pushtrain.cosim.sweep import parse_sweep_spec, run_sweep
+from pushtrain.studies.sweep import parse_sweep_spec, run_sweep
 
 BASE = {
     "name": "bench_60s",

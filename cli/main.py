@@ -14,39 +14,10 @@ from pathlib import Path
 
 import click
 
-from .scenario import Scenario, ScenarioError, load_scenario
+from pushtrain.mission.scenario import Scenario, ScenarioError, load_scenario
 
-EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
-_INPUT_REASONS = {"start_in_collision", "goal_in_collision", "no_free_space", "bad_input"}
-
-log = logging.getLogger("pushtrain")
-
-
-class BadInput(click.ClickException):
-    exit_code = EXIT_BAD_INPUT
-
-
-def _scenario(path: str, trailers: int | None = None, seed: int | None = None) -> Scenario:
-    try:
-        sc = load_scenario(path)
-        if trailers is not None or seed is not None:
-            data = sc.model_dump()
-            if trailers is not None:
-                data["train"]["n"] = trailers
-                for key in ("front", "rear"):
-                    data["train"][key] = None
-                for key in ("mass", "inertia", "payload", "mu"):
-                    if isinstance(data["train"][key], list):
-                        raise ScenarioError(path, [(f"train.{key}", data["train"][key],
-                                                    "a single value when --trailers overrides n")])
-            if seed is not None:
-                data["seed"] = seed
-            from .scenario import parse_scenario
-
-            sc = parse_scenario(data, path)
-        return sc
-    except ScenarioError as exc:
-        raise BadInput(str(exc)) from None
+from .common import (_INPUT_REASONS, EXIT_BAD_INPUT, EXIT_NOT_REACHED, EXIT_OK, BadInput,  # noqa: F401
+                     _scenario, log)
 
 
 def _out_dir(out: str | None, sc: Scenario) -> Path:
@@ -72,7 +43,7 @@ def _plan(sc: Scenario, out_dir: Path | None):
     """Plan; on failure save a diagnostic picture and raise the right click exception."""
     from pushtrain.planner import PlanningError
 
-    from .runner import plan_path, train_of, world_of
+    from pushtrain.mission.runner import plan_path, train_of, world_of
 
     t0 = time.perf_counter()
     try:
@@ -129,17 +100,17 @@ def _summary_text(summary: dict) -> str:
 
 
 def _run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gif: bool) -> int:
-    from .runner import run_scenario, world_of
+    from pushtrain.mission.runner import run_scenario, world_of
 
     result = run_scenario(sc, out_dir, reference=reference)
     if plots:
-        from pushtrain.cosim import plots as plotting
+        from pushtrain.report import plots as plotting
 
         footprints = {"robot": (sc.train.robot_size.length, sc.train.robot_size.width),
                       "trailer": (sc.train.trailer_size.length, sc.train.trailer_size.width)}
         path_xy = None if path is None else path.poses[:, :2]
         try:
-            from .runner import geometry_of
+            from pushtrain.mission.runner import geometry_of
 
             written = plotting.plot_all(result, sc.train.n, out_dir, world=world_of(sc),
                                         path_xy=path_xy, footprints=footprints, gif=gif,
@@ -218,7 +189,7 @@ def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif):
 
 
 def _check_map(sc: Scenario) -> None:
-    from .runner import check_start_in_map
+    from pushtrain.mission.runner import check_start_in_map
 
     try:
         check_start_in_map(sc)
@@ -257,7 +228,7 @@ def plan_cmd(scenario, out, seed, plot_path):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from .runner import world_of
+        from pushtrain.mission.runner import world_of
 
         fig, ax = plt.subplots(figsize=(8, 6))
         world_of(sc).plot(ax)
@@ -347,9 +318,9 @@ def analyze_cmd(scenario):
     Example:
       pushtrain analyze examples/joint_bias_5deg.toml
     """
-    from pushtrain.cosim import analysis
+    from pushtrain.core import analysis
 
-    from .runner import bias_model
+    from pushtrain.mission.runner import bias_model
 
     sc = _scenario(scenario)
     c = sc.controller
@@ -421,7 +392,7 @@ def slip_study_cmd(trailers, alphas, w_max, payload, out):
     Example:
       pushtrain slip-study --trailers 1-10 --alphas 5,15,30,50 --out runs/slip
     """
-    from pushtrain.cosim.slipstudy import SlipStudyConfig, plot_slip_study, run_slip_study, write_csv
+    from pushtrain.studies.slipstudy import SlipStudyConfig, plot_slip_study, run_slip_study, write_csv
 
     try:
         cfg = SlipStudyConfig(trailers=_int_list(trailers),

@@ -1,7 +1,7 @@
 """``pushtrain sweep``: robustness sweeps of a scenario on Dask (or serially).
 
-The scenario layer of :mod:`pushtrain.cosim.sweep`: it turns a base :class:`Scenario` and a
-:class:`~pushtrain.cosim.sweep.SweepSpec` into runs (every resolved scenario validated before
+The scenario layer of :mod:`pushtrain.studies.sweep`: it turns a base :class:`Scenario` and a
+:class:`~pushtrain.studies.sweep.SweepSpec` into runs (every resolved scenario validated before
 anything runs), plans ``plan`` missions once per distinct train geometry in the client (OMPL
 objects are not picklable: the path travels as ``PlannedPath.to_dict()`` data), builds one FMU per
 distinct number of trailers in the client, and provides the task function :func:`run_task` that a
@@ -35,7 +35,7 @@ import click
 
 from pushtrain.files import atomic_write_bytes
 
-from pushtrain.cosim.sweep import (
+from pushtrain.studies.sweep import (
     SweepError,
     SweepOutcome,
     SweepSpec,
@@ -48,7 +48,7 @@ from pushtrain.cosim.sweep import (
     set_path,
 )
 
-from .scenario import Scenario, ScenarioError, load_scenario, parse_scenario
+from pushtrain.mission.scenario import Scenario, ScenarioError, load_scenario, parse_scenario
 
 __all__ = ["FmuRef", "prepare_runs", "run_task", "sweep", "sweep_cmd"]
 
@@ -99,7 +99,7 @@ def run_task(payload: dict, shared: dict):
     ``payload`` holds ``scenario`` (a resolved, validated scenario dict), ``fmu`` (an
     :class:`FmuRef`) and ``path`` (``PlannedPath.to_dict()`` data for ``plan`` missions, else None).
     """
-    from .runner import run_scenario
+    from pushtrain.mission.runner import run_scenario
 
     sc = parse_scenario(payload["scenario"], payload["scenario"].get("name", "<run>"))
     fmu = _materialize(payload["fmu"], shared)
@@ -155,10 +155,10 @@ def _bias_swept(spec: SweepSpec) -> bool:
 
 
 def _predicted(sc: Scenario) -> dict:
-    """eps_eff [deg] and the closed-form steady offset [m] (cosim.analysis, as `analyze`)."""
-    from pushtrain.cosim import analysis
+    """eps_eff [deg] and the closed-form steady offset [m] (core.analysis, as `analyze`)."""
+    from pushtrain.core import analysis
 
-    from .runner import bias_model
+    from pushtrain.mission.runner import bias_model
 
     c = sc.controller
     link, speed, bias, eps = bias_model(sc)
@@ -253,7 +253,7 @@ def prepare_runs(sc: Scenario, spec: SweepSpec, *, fmus: dict | None = None,
 def _plan(sc: Scenario):
     from pushtrain.planner import PlanningError
 
-    from .runner import plan_path
+    from pushtrain.mission.runner import plan_path
 
     try:
         return plan_path(sc).to_dict(), None
@@ -335,7 +335,7 @@ def sweep(scenario, spec, out_dir, *, serial: bool = False, client=None,
                 own.run(_quiet_worker_logs)
                 outcome = run_sweep(runs, run_task, out_dir, client=own, **kwargs)
     elapsed = time.perf_counter() - t0
-    from pushtrain.cosim.sweep_report import write_report
+    from pushtrain.studies.sweep_report import write_report
 
     parameters = [{"path": p.path, "label": p.label} for p in spec.parameters]
     extra = {"mode": spec.mode, "new_runs": outcome.new, "resumed_runs": outcome.skipped,
@@ -388,7 +388,7 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, no_plots):
 
     from pushtrain.fmu import FmuBuildError
 
-    from .main import BadInput, EXIT_OK, _scenario
+    from .common import EXIT_OK, BadInput, _scenario
 
     sc = _scenario(scenario)
     try:
@@ -432,7 +432,7 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, no_plots):
 
 
 def _print_outcome(outcome: SweepOutcome, spec: SweepSpec) -> None:
-    from pushtrain.cosim.sweep_report import table_text
+    from pushtrain.studies.sweep_report import table_text
 
     report = outcome.report
     parameters = [{"path": p.path, "label": p.label} for p in spec.parameters]

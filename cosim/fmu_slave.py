@@ -27,14 +27,12 @@ from fmpy.fmi2 import (
     fmi2ValueReference,
 )
 
+from pushtrain.errors import CosimError, CosimInputError
+
 __all__ = ["CosimError", "TrailerTrainSlave"]
 
 log = logging.getLogger(__name__)
 _STATUS = ["OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING"]
-
-
-class CosimError(RuntimeError):
-    """The co-simulation cannot start or continue (bad configuration, FMU error)."""
 
 
 class _FmuLog:
@@ -79,15 +77,15 @@ class TrailerTrainSlave:
     def __init__(self, fmu_path, instance_name: str = "train"):
         self.fmu_path = Path(fmu_path)
         if not self.fmu_path.is_file():
-            raise CosimError(f"FMU file {str(self.fmu_path)!r} does not exist")
+            raise CosimInputError(f"FMU file {str(self.fmu_path)!r} does not exist")
         self.md = read_model_description(str(self.fmu_path))
         if self.md.coSimulation is None:
-            raise CosimError(f"{self.fmu_path} has no Co-Simulation interface")
+            raise CosimInputError(f"{self.fmu_path} has no Co-Simulation interface")
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self._types = {v.name: v.type for v in self.md.modelVariables}
         n_var = next((v for v in self.md.modelVariables if v.name == "n"), None)
         if n_var is None:
-            raise CosimError(f"{self.fmu_path} is not a TrailerTrain FMU (no variable 'n')")
+            raise CosimInputError(f"{self.fmu_path} is not a TrailerTrain FMU (no variable 'n')")
         self.n = int(n_var.start)
         self._unzipdir = tempfile.mkdtemp(prefix="pushtrain-fmu-")
         extract(str(self.fmu_path), self._unzipdir)

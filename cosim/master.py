@@ -26,11 +26,11 @@ import numpy as np
 
 from pushtrain.files import atomic_write
 
-from .controller import BackwardController, ControllerConfig, ControllerError
-from .fmu_slave import CosimError, TrailerTrainSlave
-from .kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
-from .pulling import PullGuide
-from .reference import PULL, Reference
+from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
+from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
+from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
+from pushtrain.core.pulling import PullGuide
+from pushtrain.core.reference import PULL, Reference
 from .sensors import SensorConfig, Sensors
 
 __all__ = [
@@ -63,7 +63,7 @@ def _positive(name: str, value, allow_zero=False) -> float:
     ok = isinstance(value, (int, float)) and math.isfinite(value)
     ok = ok and (value >= 0 if allow_zero else value > 0)
     if not ok:
-        raise CosimError(f"{name} = {value!r}: must be a finite number {'>= 0' if allow_zero else '> 0'}")
+        raise CosimInputError(f"{name} = {value!r}: must be a finite number {'>= 0' if allow_zero else '> 0'}")
     return float(value)
 
 
@@ -156,7 +156,7 @@ class InitialState:
         n = geometry.n
         phi = np.zeros(n) if joint_angles is None else np.asarray(joint_angles, dtype=float)
         if phi.shape != (n,):
-            raise CosimError(f"joint_angles has shape {phi.shape}; expected ({n},)")
+            raise CosimInputError(f"joint_angles has shape {phi.shape}; expected ({n},)")
         # theta_{i-1} = theta_i + phi_i, from the last trailer forward
         theta = th_n + np.concatenate((np.cumsum(phi[::-1])[::-1], [0.0]))
         xs, ys = body_positions_from_last(x, y, theta, geometry)
@@ -275,16 +275,16 @@ def _validate_events(events, n: int, t_end: float):
             _positive(f"{where}.duration", ev.duration)
             trailer = n if ev.trailer is None else ev.trailer
             if not (isinstance(trailer, int) and 1 <= trailer <= n):
-                raise CosimError(f"{where}.trailer = {ev.trailer!r}: allowed are 1..{n}")
+                raise CosimInputError(f"{where}.trailer = {ev.trailer!r}: allowed are 1..{n}")
             slides.append(ev)
         elif isinstance(ev, SetBias):
             if not (isinstance(ev.joint, int) and 1 <= ev.joint <= n):
-                raise CosimError(f"{where}.joint = {ev.joint!r}: allowed are 1..{n}")
+                raise CosimInputError(f"{where}.joint = {ev.joint!r}: allowed are 1..{n}")
             biases.append(ev)
         else:
-            raise CosimError(f"{where} = {ev!r}: allowed are Push, Slide and SetBias events")
+            raise CosimInputError(f"{where} = {ev!r}: allowed are Push, Slide and SetBias events")
         if not (isinstance(ev.t, (int, float)) and math.isfinite(ev.t) and ev.t >= 0):
-            raise CosimError(f"{where}.t = {ev.t!r} s: must be finite and >= 0")
+            raise CosimInputError(f"{where}.t = {ev.t!r} s: must be finite and >= 0")
         if ev.t > t_end:
             log.warning("%s at t = %.3f s is after the end of the run (%.3f s)", where, ev.t, t_end)
     return pushes, slides, sorted(biases, key=lambda e: e.t)
@@ -294,7 +294,7 @@ def _steps(horizon: float, step: float) -> int:
     ratio = horizon / step
     k = round(ratio)
     if abs(ratio - k) > 1e-9 * max(1.0, ratio) or k < 1:
-        raise CosimError(
+        raise CosimInputError(
             f"step = {step!r} s does not divide the horizon {horizon!r} s into whole steps "
             f"(ratio {ratio:.9g}); choose a step that divides it"
         )
@@ -360,10 +360,10 @@ def simulate(
     settle_time = _positive("settle_time", settle_time, allow_zero=True)
     if reference is None:
         if horizon is None or initial is None:
-            raise CosimError("a run without a reference (open loop) needs a horizon and an initial state")
+            raise CosimInputError("a run without a reference (open loop) needs a horizon and an initial state")
         check_goal = False
     elif not (hasattr(reference, "sample") and hasattr(reference, "t_end")):
-        raise CosimError(f"reference = {reference!r}: need a Reference or SampledReference")
+        raise CosimInputError(f"reference = {reference!r}: need a Reference or SampledReference")
     t0 = float(getattr(reference, "t0", 0.0))
     if horizon is None:
         horizon = float(reference.t_end) - t0 + settle_time
@@ -378,22 +378,22 @@ def simulate(
     elif hasattr(controller, "command") and hasattr(controller, "n"):
         ctrl = controller  # BackwardController or an open-loop command profile
     else:
-        raise CosimError(f"controller = {controller!r}: need a ControllerConfig or BackwardController")
+        raise CosimInputError(f"controller = {controller!r}: need a ControllerConfig or BackwardController")
     n = ctrl.n
     sens = sensors if isinstance(sensors, Sensors) else Sensors(sensors or SensorConfig(n_joints=n))
     if sens.n != n:
-        raise CosimError(f"sensors measure {sens.n} joints; the controller's chain has {n}")
+        raise CosimInputError(f"sensors measure {sens.n} joints; the controller's chain has {n}")
     plant = plant or PlantConfig(n_trailers=n)
     if plant.n_trailers != n:
-        raise CosimError(f"plant.n_trailers = {plant.n_trailers}; the controller's chain has {n}")
+        raise CosimInputError(f"plant.n_trailers = {plant.n_trailers}; the controller's chain has {n}")
     pushes, slides, biases = _validate_events(events, n, t0 + horizon)
     if slides and plant.slip_mode == 1:
-        raise CosimError("Slide events impose a kinematic slide (slip_mode 0); with "
+        raise CosimInputError("Slide events impose a kinematic slide (slip_mode 0); with "
                          "slip_mode = 1 the wheels slide physically: use Push events instead")
     if initial is None:
         initial = InitialState.behind_reference(reference, plant.geometry())
     if len(initial.theta) != n + 1:
-        raise CosimError(f"initial.theta has {len(initial.theta)} headings; need n + 1 = {n + 1}")
+        raise CosimInputError(f"initial.theta has {len(initial.theta)} headings; need n + 1 = {n + 1}")
 
     if hasattr(ctrl, "reset"):
         # rate limits start from the robot's initial velocity one step before t0
@@ -419,7 +419,7 @@ def simulate(
     slave = TrailerTrainSlave(fmu)
     if slave.n != n:
         slave.close()
-        raise CosimError(f"the FMU {Path(fmu).name} has n = {slave.n} trailers; the controller's chain has {n}")
+        raise CosimInputError(f"the FMU {Path(fmu).name} has n = {slave.n} trailers; the controller's chain has {n}")
     cols = _columns(n)
     rec = np.full((n_steps + 1, len(cols)), np.nan)
     status, message = STATUS_TIME_LIMIT, ""

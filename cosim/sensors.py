@@ -29,13 +29,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+
+from pushtrain.errors import SensorError
 __all__ = ["Measurement", "SensorConfig", "SensorError", "Sensors"]
 
 logger = logging.getLogger(__name__)
-
-
-class SensorError(ValueError):
-    """Invalid sensor configuration or call (negative std, wrong joint index, bad shape)."""
 
 
 class Measurement(NamedTuple):
@@ -45,7 +43,7 @@ class Measurement(NamedTuple):
     ``last_pose``: optional direct measurement ``(x_n, y_n, theta_n)`` of the last trailer
     [m, m, rad] (e.g. localization on the last trailer). When it is ``None`` the controller
     computes the last trailer's pose from the robot pose and the joint angles, so joint biases
-    then also bias the pose estimate (see :mod:`pushtrain.cosim.analysis`).
+    then also bias the pose estimate (see :mod:`pushtrain.core.analysis`).
     """
 
     x0: float

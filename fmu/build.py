@@ -22,6 +22,7 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
+from pushtrain.errors import FmuBuildError, FmuInputError
 from pushtrain.files import atomic_write
 
 from .variables import MAX_TRAILERS, variables_for
@@ -51,10 +52,6 @@ _BASE_UNITS = {
 }
 
 
-class FmuBuildError(ValueError):
-    """The FMU cannot be built: bad request (n out of range) or the compiler failed."""
-
-
 def cache_dir() -> Path:
     """Folder of cached FMUs: ``$PUSHTRAIN_CACHE`` or ``~/.cache/pushtrain/fmu``."""
     root = os.environ.get("PUSHTRAIN_CACHE")
@@ -70,12 +67,12 @@ def _check_n(n_trailers) -> int:
     if isinstance(n_trailers, bool) or not isinstance(n_trailers, (int,)) and not (
         hasattr(n_trailers, "__index__")
     ):
-        raise FmuBuildError(
+        raise FmuInputError(
             f"n_trailers = {n_trailers!r}: must be an integer from 1 to {MAX_TRAILERS}"
         )
     n = int(n_trailers)
     if not 1 <= n <= MAX_TRAILERS:
-        raise FmuBuildError(f"n_trailers = {n}: must be from 1 to {MAX_TRAILERS}")
+        raise FmuInputError(f"n_trailers = {n}: must be from 1 to {MAX_TRAILERS}")
     return n
 
 

@@ -9,7 +9,8 @@ Public API::
     PlanningError(reason, message, where)
 """
 
-from .errors import REASONS, PlanningError, PlanningInputError
+from pushtrain.errors import PLANNING_REASONS as REASONS
+from pushtrain.errors import PlanningError, PlanningInputError
 from .path import PlannedPath
 from .planner import (
     PLANNERS,

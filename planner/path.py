@@ -1,8 +1,8 @@
 """The planner's result: a line-and-arc path of the last trailer (:class:`PlannedPath`).
 
-Poses use the chain convention of :mod:`pushtrain.cosim.kinematics` (theta points toward the
-robot). Segments are :class:`pushtrain.cosim.reference.Segment` objects, so the path turns into
-the co-simulation master's :class:`~pushtrain.cosim.reference.Reference` directly.
+Poses use the chain convention of :mod:`pushtrain.core.kinematics` (theta points toward the
+robot). Segments are :class:`pushtrain.core.reference.Segment` objects, so the path turns into
+the co-simulation master's :class:`~pushtrain.core.reference.Reference` directly.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from pushtrain.cosim.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 
-from .errors import PlanningInputError
+from pushtrain.errors import PlanningInputError
 
 __all__ = ["PlannedPath", "dense_samples", "FORMAT_VERSION"]
 
@@ -146,7 +146,7 @@ class PlannedPath:
         """Joint angles phi_i = theta_{i-1} - theta_i [rad] along the path, (N, n), if checked."""
         if self.headings is None:
             return None
-        from pushtrain.cosim.kinematics import joint_angles
+        from pushtrain.core.kinematics import joint_angles
 
         return joint_angles(self.headings)
 

@@ -5,8 +5,8 @@ are converted to numpy at once.
 
 Planner state: the last trailer's axle midpoint (x, y) and ``yaw`` = its direction of travel
 when pushing, yaw = theta + pi (theta: chain heading, toward the robot). Reeds-Shepp "forward"
-is therefore pushing (:data:`~pushtrain.cosim.reference.PUSH`, trailer leads) and "backward"
-pulling (:data:`~pushtrain.cosim.reference.PULL`, robot leads).
+is therefore pushing (:data:`~pushtrain.core.reference.PUSH`, trailer leads) and "backward"
+pulling (:data:`~pushtrain.core.reference.PULL`, robot leads).
 
 Turning-radius rule (when :attr:`PlannerConfig.turning_radius` is None)::
 
@@ -19,7 +19,7 @@ switching between opposite arcs does: up to 1.46x the steady angle for 3 trailer
 of the closed loop need the rest. With phi_max = 90 deg and D = 0.52 m this gives r = 0.975 m.
 
 Pulls: while pulling the robot leads on a reference of its own, computed backward in time from
-a straight chain at the pull's end (:class:`~pushtrain.cosim.pulling.PullGuide`). Two rules keep
+a straight chain at the pull's end (:class:`~pushtrain.core.pulling.PullGuide`). Two rules keep
 planned pulls within what that can do: the straight train at every pull's end must be free
 (``straight_pull_ends``), and a pull must start near the chain it needs
 (``pull_start_tolerance``).
@@ -42,12 +42,12 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
-from pushtrain.cosim.controller import ControllerConfig
-from pushtrain.cosim.kinematics import body_positions_along
-from pushtrain.cosim.pulling import straight_chain_mismatch
-from pushtrain.cosim.reference import PULL, PUSH, Segment
+from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.kinematics import body_positions_along
+from pushtrain.core.pulling import straight_chain_mismatch
+from pushtrain.core.reference import PULL, PUSH, Segment
 
-from .errors import PlanningError, PlanningInputError
+from pushtrain.errors import PlanningError, PlanningInputError
 from .path import PlannedPath
 from .reeds_shepp import Primitive, recover_primitives
 from .train_check import TrackerConfig, check_train, reference_times
@@ -166,7 +166,7 @@ class PlannerConfig:
         Require, at the end of every pulling run (a cusp, or the goal), the train drawn out
         straight ahead of the last trailer to be free (with ``inflation``): the robot's pulling
         reference ends with the chain straight there
-        (:class:`~pushtrain.cosim.pulling.PullGuide`). Checked inside a local curve, at the
+        (:class:`~pushtrain.core.pulling.PullGuide`). Checked inside a local curve, at the
         goal, and at the junctions of the finished path; a junction that breaks it is repaired
         (its state dropped or moved nearby), else the path is re-solved with the next seed
         (``PlanningError`` reason ``pull_end_blocked`` if none is left). Without it the sampling planner ends pulls on
@@ -180,7 +180,7 @@ class PlannerConfig:
     pull_start_tolerance : float or None
         Largest distance [m] between a body of the chain a pull needs at its start (drawn back
         from a straight chain at the pull's end, see
-        :func:`~pushtrain.cosim.pulling.straight_chain_mismatch`) and the same body of the
+        :func:`~pushtrain.core.pulling.straight_chain_mismatch`) and the same body of the
         chain it starts from: the start
         headings at the start state, a straight chain elsewhere. Checked for pulls that start a
         local curve. The robot cannot make up this difference while pulling (the chain behind
@@ -1071,7 +1071,7 @@ def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: Planne
     """Change what the last failure of the closed-loop train check calls for.
 
     - A leading body (robot or trailer 1..n-1) collides while pulling: a larger radius. The
-      robot leads on its own reference (:class:`~pushtrain.cosim.pulling.PullGuide`), which
+      robot leads on its own reference (:class:`~pushtrain.core.pulling.PullGuide`), which
       swings wide of the last trailer's path where the pull turns; the last trailer never
       goes there, so blocking the spot changes nothing, while a larger radius narrows the
       swing.

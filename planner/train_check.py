@@ -2,7 +2,7 @@
 
 The planner plans the last trailer only. Here the whole train's motion along the plan is
 predicted by running the co-simulation's own controller,
-:class:`~pushtrain.cosim.controller.BackwardController`, in closed loop with the kinematic chain:
+:class:`~pushtrain.core.controller.BackwardController`, in closed loop with the kinematic chain:
 
 Reference
     ``Reference.from_segments(start, segments, tracker.speed, tracker.cusp_dwell)``, the same
@@ -11,15 +11,15 @@ Reference
 Controller
     ``BackwardController(tracker.controller)`` (gains, robot limits, rate limits and its own
     chain model, from which the robot's pulling reference, a
-    :class:`~pushtrain.cosim.pulling.PullGuide`, is built), called every ``tracker.step``
+    :class:`~pushtrain.core.pulling.PullGuide`, is built), called every ``tracker.step``
     seconds at ``t_k = k * step`` with a perfect measurement (robot pose and joint angles ``phi_i = theta_{i-1} - theta_i``) exactly
     as the master calls it; the command is held over the step (zero-order hold) and the rate
     limits start from rest one step before t = 0, as in the master.
 Plant
     The robot moves along its heading with the commanded ``(v0, w0)`` (no first-order velocity
     lag: the FMU's ``tau`` = 0.05 s is ignored, no slip), the trailers are towed:
-    ``d(theta)/dt`` from the forward velocity map of :mod:`pushtrain.cosim.kinematics`
-    (:func:`~pushtrain.cosim.kinematics.forward_velocities`, here as the fast scalar
+    ``d(theta)/dt`` from the forward velocity map of :mod:`pushtrain.core.kinematics`
+    (:func:`~pushtrain.core.kinematics.forward_velocities`, here as the fast scalar
     :func:`towed_rates`), with the train's own geometry (the controller's model may differ).
     The state ``(x0, y0, theta_0..theta_n)`` is integrated with RK4 over each step (the
     command is constant within a step). The error is that of the zero-order hold, first
@@ -52,13 +52,13 @@ from typing import Sequence
 import numpy as np
 import shapely
 
-from pushtrain.cosim.controller import BackwardController, ControllerConfig
-from pushtrain.cosim.kinematics import (ChainGeometry, body_positions_along, joint_angles,
+from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.kinematics import (ChainGeometry, body_positions_along, joint_angles,
                                         wrap_angle, wrap_scalar)
-from pushtrain.cosim.pulling import PullGuide
-from pushtrain.cosim.reference import PULL, Reference, Segment
+from pushtrain.core.pulling import PullGuide
+from pushtrain.core.reference import PULL, Reference, Segment
 
-from .errors import PlanningInputError
+from pushtrain.errors import PlanningInputError
 from .world import Train, World
 
 __all__ = [
@@ -77,10 +77,10 @@ log = logging.getLogger(__name__)
 
 
 def default_controller(geometry: ChainGeometry) -> ControllerConfig:
-    """The scenario defaults of :class:`~pushtrain.cosim.controller.ControllerConfig` for a chain.
+    """The scenario defaults of :class:`~pushtrain.core.controller.ControllerConfig` for a chain.
 
     Default gains (K_x = 1 1/s, K_y = 4 1/m², K_theta = 4 1/m), v_max = 0.1 m/s,
-    w_max = 0.1 rad/s, acc_max = 0.2 m/s², alpha_max = 10 deg/s² (``cli/scenario.py``'s
+    w_max = 0.1 rad/s, acc_max = 0.2 m/s², alpha_max = 10 deg/s² (``mission/scenario.py``'s
     robot and controller sections) and ``geometry`` as the controller's chain model.
     """
     return ControllerConfig(geometry=geometry, v_max=0.1, w_max=0.1, acc_max=0.2,
@@ -147,7 +147,7 @@ class TrackerConfig:
 
 
 def towed_rates(geometry: ChainGeometry):
-    """A fast scalar form of :func:`pushtrain.cosim.kinematics.forward_velocities` (yaw rates).
+    """A fast scalar form of :func:`pushtrain.core.kinematics.forward_velocities` (yaw rates).
 
     Returns ``f(theta, v0, w0) -> list`` of d(theta_i)/dt [rad/s], i = 0..n, for headings
     ``theta`` (n+1,) [rad] and the robot's (v0 [m/s], w0 [rad/s]): the same recursion
@@ -184,7 +184,7 @@ def _robot_positions(state: np.ndarray, geometry: ChainGeometry):
 
 
 def reference_times(segments: Sequence[Segment], speed: float, cusp_dwell: float, s):
-    """Time [s] at which the reference of :class:`~pushtrain.cosim.reference.Reference` (t0 = 0)
+    """Time [s] at which the reference of :class:`~pushtrain.core.reference.Reference` (t0 = 0)
     reaches the travelled distance ``s`` [m] (array); at a cusp the arrival (start of the dwell).
 
     Returns ``(t, knots)`` where ``knots = (t_knots, s_knots)`` is the piecewise-linear map

@@ -7,7 +7,7 @@ Everything is plain data (lists of ``[x, y]`` points, metres) so a scenario file
 Bodies are rectangles attached to their axle midpoints (the robot's centre for body 0): a
 :class:`BodyFootprint` is ``length`` along the body heading, ``width`` across it, and ``offset``,
 the signed distance [m] from the axle midpoint to the rectangle's centre along the heading
-``theta`` (positive toward the robot, the chain convention of :mod:`pushtrain.cosim.kinematics`).
+``theta`` (positive toward the robot, the chain convention of :mod:`pushtrain.core.kinematics`).
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ import shapely
 from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
 
-from pushtrain.cosim.kinematics import ChainGeometry
+from pushtrain.core.kinematics import ChainGeometry
 
-from .errors import PlanningInputError
+from pushtrain.errors import PlanningInputError
 
 __all__ = ["World", "BodyFootprint", "Train", "save_diagnostic", "draw_poses"]
 

@@ -8,15 +8,9 @@ fits no branch gets one line.
 
 from __future__ import annotations
 
-__all__ = ["Problems", "field_errors", "read_toml"]
+from pushtrain.errors import FieldErrors
 
-
-class Problems(ValueError):
-    """Raised inside a model validator to report several (where, value, allowed) problems."""
-
-    def __init__(self, problems: list[tuple[str, object, str]]):
-        self.problems = problems
-        super().__init__("; ".join(f"{p} = {v!r}: {a}" for p, v, a in problems))
+__all__ = ["field_errors", "read_toml"]
 
 
 def _is_branch(part) -> bool:
@@ -58,8 +52,8 @@ def field_errors(exc) -> list[tuple[str, object, str]]:
     lines, index = [], {}
     for err in exc.errors():
         inner = (err.get("ctx") or {}).get("error")
-        if isinstance(inner, Problems):
-            lines += inner.problems
+        if isinstance(inner, FieldErrors):
+            lines += inner.errors
             continue
         if _wrong_branch(err):
             continue

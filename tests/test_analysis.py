@@ -1,10 +1,10 @@
-"""Tests of the closed-form analysis (pushtrain.cosim.analysis)."""
+"""Tests of the closed-form analysis (pushtrain.core.analysis)."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from pushtrain.cosim.analysis import (
+from pushtrain.core.analysis import (
     AnalysisError,
     characteristic_polynomial,
     closed_loop_poles,
@@ -16,13 +16,13 @@ from pushtrain.cosim.analysis import (
     steady_lateral_error,
     steady_lateral_error_estimated_pose,
 )
-from pushtrain.cosim.controller import BackwardController, ControllerConfig
-from pushtrain.cosim.kinematics import (
+from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions_from_last,
     forward_velocities,
 )
-from pushtrain.cosim.reference import PUSH, ReferenceSample
+from pushtrain.core.reference import PUSH, ReferenceSample
 from pushtrain.cosim.sensors import Measurement
 
 gains = st.floats(0.1, 20.0)

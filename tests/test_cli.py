@@ -181,8 +181,8 @@ def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
     """[planner] anytime_time and pull_start_tolerance are what plan() is given (monkeypatched
     plan records its configuration)."""
     import pushtrain.planner as planner_pkg
-    from pushtrain.cli.runner import plan_path
-    from pushtrain.cli.scenario import load_scenario
+    from pushtrain.mission.runner import plan_path
+    from pushtrain.mission.scenario import load_scenario
 
     text = (EXAMPLES / "l_corridor.toml").read_text().replace(
         'time_budget = 3.0', 'time_budget = 3.0\nanytime_time = 0.25\npull_start_tolerance = 0.2')

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from pushtrain.cosim.analysis import (
+from pushtrain.core.analysis import (
     effective_bias,
     steady_lateral_error,
     steady_lateral_error_estimated_pose,
 )
-from pushtrain.cosim.controller import (
+from pushtrain.core.controller import (
     MODE_PULL,
     MODE_PUSH,
     MODE_REST,
@@ -21,7 +21,7 @@ from pushtrain.cosim.controller import (
     ControllerConfig,
     ControllerError,
 )
-from pushtrain.cosim.kinematics import (
+from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
     body_positions_from_last,
@@ -30,7 +30,7 @@ from pushtrain.cosim.kinematics import (
     joint_angles,
     wrap_angle,
 )
-from pushtrain.cosim.reference import PULL, PUSH, REST, Reference, ReferenceSample, Segment
+from pushtrain.core.reference import PULL, PUSH, REST, Reference, ReferenceSample, Segment
 from pushtrain.cosim.sensors import Measurement, SensorConfig, Sensors
 
 H = 0.005

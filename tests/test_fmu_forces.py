@@ -93,7 +93,7 @@ def lag(cmd, value, tau, limit):
 
 
 def test_reference_velocity_map_matches_kinematics_module():
-    from pushtrain.cosim.kinematics import ChainGeometry, forward_velocities, joint_angles
+    from pushtrain.core.kinematics import ChainGeometry, forward_velocities, joint_angles
 
     rng = np.random.default_rng(2)
     n = 4

@@ -1,6 +1,6 @@
 """Chain kinematics of the TrailerTrain FMU against independent computations.
 
-References: ``pushtrain.cosim.kinematics`` (numpy, written apart from the C code), the paper's
+References: ``pushtrain.core.kinematics`` (numpy, written apart from the C code), the paper's
 Eq. (5), closed-form steady circles, finite differences of the FMU's own positions, and a
 scipy integration of the model's ODE written here.
 """
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from pushtrain.cosim.kinematics import (
+from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
     eq5_matrix,

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from pushtrain.cosim.controller import ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.cosim.master import InitialState, PlantConfig, Push, simulate
-from pushtrain.cosim.openloop import ConstantCommand, RotationProfile
-from pushtrain.cosim.reference import Reference, Segment
+from pushtrain.core.openloop import ConstantCommand, RotationProfile
+from pushtrain.core.reference import Reference, Segment
 
 M, I = 42.1, 3.5083
 

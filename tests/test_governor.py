@@ -9,8 +9,8 @@ from click.testing import CliRunner
 
 from pushtrain.cli.main import cli
 from pushtrain.cosim.fmu_slave import TrailerTrainSlave
-from pushtrain.cosim.governor import GovernorConfig, SlipGovernor, lateral_forces
-from pushtrain.cosim.kinematics import ChainGeometry
+from pushtrain.core.governor import GovernorConfig, SlipGovernor, lateral_forces
+from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.fmu import build_fmu
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "slip_governor.toml"

@@ -1,10 +1,10 @@
-"""Tests of the chain kinematics (pushtrain.cosim.kinematics)."""
+"""Tests of the chain kinematics (pushtrain.core.kinematics)."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from pushtrain.cosim.kinematics import (
+from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
     body_positions_from_last,

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from pushtrain.cosim.controller import ControllerConfig, ControllerError
+from pushtrain.core.controller import ControllerConfig, ControllerError
 from pushtrain.cosim.master import (
     CosimError,
     InitialState,
@@ -16,8 +16,8 @@ from pushtrain.cosim.master import (
     Slide,
     simulate,
 )
-from pushtrain.cosim.openloop import ConstantCommand
-from pushtrain.cosim.reference import Reference, ReferenceError, Segment
+from pushtrain.core.openloop import ConstantCommand
+from pushtrain.core.reference import Reference, ReferencePathError, Segment
 from pushtrain.cosim.sensors import SensorConfig
 
 D = 0.52
@@ -112,17 +112,17 @@ def test_bad_configuration_is_refused_before_any_stepping(fmu3):
         simulate(fmu3, ref, ControllerConfig.uniform(2))
     with pytest.raises(CosimError, match="trailer"):
         simulate(fmu3, ref, ControllerConfig.uniform(3), events=[Slide(1.0, 1.0, 0.1, trailer=4)])
-    with pytest.raises(ReferenceError):
+    with pytest.raises(ReferencePathError):
         Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", -1.0)])
 
 
 def test_reference_with_a_jump_is_refused():
-    from pushtrain.cosim.reference import SampledReference
+    from pushtrain.core.reference import SampledReference
 
     t = np.arange(0.0, 2.0, 0.1)
     x = -0.08 * t
     x[10:] += 0.5  # a jump of 0.5 m
-    with pytest.raises(ReferenceError):
+    with pytest.raises(ReferencePathError):
         SampledReference(t, x, np.zeros_like(t), np.full_like(t, math.pi), np.full_like(t, -0.08),
                          np.zeros_like(t), np.ones_like(t, dtype=int))
 
@@ -140,7 +140,7 @@ def test_jackknife_stops_the_run_with_a_clear_status(fmu3):
 
 @pytest.mark.parametrize("bias_deg, joint", [(5.0, 3), (10.0, 3), (5.0, 2)])
 def test_joint_bias_steady_offset_matches_the_analysis_fig14(fmu3, bias_deg, joint):
-    from pushtrain.cosim import analysis
+    from pushtrain.core import analysis
 
     biases = np.zeros(3)
     biases[joint - 1] = math.radians(bias_deg)
@@ -158,7 +158,7 @@ def test_joint_bias_steady_offset_matches_the_analysis_fig14(fmu3, bias_deg, joi
 
 
 def test_a_sampled_reference_drives_the_same_run_as_its_segments(fmu3):
-    from pushtrain.cosim.reference import SampledReference
+    from pushtrain.core.reference import SampledReference
 
     ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 0.5), Segment("arc", 0.5, 0.8)],
                                   speed=0.08)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from pushtrain.cosim.master import InitialState, simulate
-from pushtrain.cosim.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.planner import Train, World, check_train
 from pushtrain.planner.train_check import TrackerConfig, default_controller
 

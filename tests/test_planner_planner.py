@@ -8,13 +8,13 @@ import pytest
 from scipy.integrate import solve_ivp
 from shapely.geometry import Polygon
 
-from pushtrain.cosim.kinematics import (
+from pushtrain.core.kinematics import (
     body_positions_from_last,
     heading_rates_from_last,
     heading_rates_from_robot,
     joint_angles,
 )
-from pushtrain.cosim.reference import PULL, PUSH, Reference
+from pushtrain.core.reference import PULL, PUSH, Reference
 from pushtrain.planner import (
     PlannedPath,
     PlannerConfig,
@@ -138,7 +138,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
     """The planner's pull rules, checked independently on its result: at every pull's end
     (cusp or goal) the train drawn out straight ahead of the last trailer is free, and the
     first pull, drawn back from that straight end, needs a chain within the tolerance of the
-    straight start chain (robot offset measured with cosim.kinematics)."""
+    straight start chain (robot offset measured with core.kinematics)."""
     case = worlds.bay()
     world = World.from_dict(case["world"])
     cfg = PlannerConfig(seed=seed, check_train=False, max_attempts=4)
@@ -201,7 +201,7 @@ def test_replanning_changes_what_the_failure_calls_for():
 
 
 def test_planner_checks_with_the_given_tracker():
-    from pushtrain.cosim.controller import ControllerConfig
+    from pushtrain.core.controller import ControllerConfig
 
     case = worlds.straight_corridor()
     world = World.from_dict(case["world"])
@@ -266,7 +266,7 @@ def test_radius_rule_and_transient_margin():
     assert 2 * math.atan(d / r) == pytest.approx(phi_max / 1.6)
     assert PlannerConfig().radius_for(TRAIN) == pytest.approx(r)
     # kinematic worst case: steady left arc, then a right arc (3 trailers, pushing)
-    from pushtrain.cosim.reference import Segment
+    from pushtrain.core.reference import Segment
 
     world = World.from_dict({"bounds": [-50, -50, 50, 50]})
     segs = [Segment("arc", 2 * math.pi * r, 1 / r, PUSH), Segment("arc", 2 * math.pi * r, -1 / r, PUSH)]

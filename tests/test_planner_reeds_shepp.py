@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from pushtrain.cosim.reference import PULL, PUSH, Reference
+from pushtrain.core.reference import PULL, PUSH, Reference
 from pushtrain.planner import ReedsSheppCurve, primitives_to_segments
 from pushtrain.planner.reeds_shepp import Primitive, advance_yaw, evaluate_primitives
 

@@ -1,4 +1,4 @@
-"""Closed-loop whole-train check: agreement with cosim.kinematics and with an independent loop,
+"""Closed-loop whole-train check: agreement with core.kinematics and with an independent loop,
 tracking on lines and arcs, collisions, joint limits, the goal test, and a plan that the
 open-loop model (last trailer exactly on the path) passes but the closed loop does not."""
 
@@ -9,8 +9,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from shapely.ops import unary_union
 
-from pushtrain.cosim.controller import BackwardController, ControllerConfig
-from pushtrain.cosim.kinematics import (
+from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
     body_positions_from_last,
@@ -19,7 +19,7 @@ from pushtrain.cosim.kinematics import (
     joint_angles,
     steady_joint_angle,
 )
-from pushtrain.cosim.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.planner import PlanningInputError, Train, World, check_train
 from pushtrain.planner.train_check import (
     TrackerConfig,

@@ -1,4 +1,4 @@
-"""Tests of pushtrain.cosim.plots: files written atomically, artists where the data put them.
+"""Tests of pushtrain.report.plots: files written atomically, artists where the data put them.
 
 Data come from a short real co-simulation (3 trailers, line then arc, a joint bias and an imposed
 slide) and from a synthetic run integrated here with the chain kinematics (known, unequal hitch
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from pushtrain.cosim import plots
-from pushtrain.cosim.kinematics import ChainGeometry, body_positions, forward_velocities
+from pushtrain.report import plots
+from pushtrain.core.kinematics import ChainGeometry, body_positions, forward_velocities
 from pushtrain.cosim.master import _columns
 
 D = 0.52
@@ -27,9 +27,9 @@ D = 0.52
 @pytest.fixture(scope="module")
 def run3(built_fmu):
     """A real co-simulation: robot + 3 trailers pushing along a line then an arc."""
-    from pushtrain.cosim.controller import ControllerConfig
+    from pushtrain.core.controller import ControllerConfig
     from pushtrain.cosim.master import Slide, simulate
-    from pushtrain.cosim.reference import Reference, Segment
+    from pushtrain.core.reference import Reference, Segment
     from pushtrain.cosim.sensors import SensorConfig
 
     reference = Reference.from_segments((0, 0, 0), [Segment("line", 1.0), Segment("arc", 1.0, 0.4)])
@@ -425,7 +425,7 @@ def test_bad_arguments_raise_plot_errors(run3, tmp_path):
 
 
 def test_module_imports_neither_pyplot_nor_fmpy():
-    code = ("import sys, pushtrain.cosim.plots; "
+    code = ("import sys, pushtrain.report.plots; "
             "print(sorted(m for m in ('matplotlib.pyplot', 'fmpy') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from pushtrain.cosim.kinematics import (
+from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
     forward_velocities,
     joint_angles,
 )
-from pushtrain.cosim.pulling import PullGuide, straight_chain_mismatch
-from pushtrain.cosim.reference import PULL, PUSH, Reference, ReferenceError, SampledReference, Segment
+from pushtrain.core.pulling import PullGuide, straight_chain_mismatch
+from pushtrain.core.reference import PULL, PUSH, Reference, ReferencePathError, SampledReference, Segment
 from pushtrain.planner.train_check import default_controller, simulate_tracking
 
 GEOM = ChainGeometry.uniform(3, 0.52)
@@ -89,13 +89,13 @@ def test_runs_are_found_between_pushes_and_cusp_dwells():
     assert [(r.t[0], r.t[-1]) for r in guide.runs] == [
         pytest.approx(e, abs=1e-6) for e in expected]
     assert guide.sample_at(15.0).direction == PULL
-    with pytest.raises(ReferenceError, match="not in a pulling run"):
+    with pytest.raises(ReferencePathError, match="not in a pulling run"):
         guide.sample_at(5.0)
     # the same runs from the sampled form of the reference
     sampled = SampledReference.from_reference(ref, 0.01)
     runs = PullGuide(sampled, GEOM).runs
     assert [(r.t[0], r.t[-1]) for r in runs] == [pytest.approx(e, abs=0.011) for e in expected]
-    with pytest.raises(ReferenceError, match="step"):
+    with pytest.raises(ReferencePathError, match="step"):
         PullGuide(ref, GEOM, step=0.0)
 
 
@@ -169,5 +169,5 @@ def test_a_pull_shorter_than_the_integration_step_has_its_run():
     # the robot stands the chain length ahead of the last trailer, the chain straight
     last = ref.sample_at(t_pull)
     assert math.hypot(s.x - last.x, s.y - last.y) == pytest.approx(CHAIN, abs=1e-3)
-    with pytest.raises(ReferenceError, match="not in a pulling run"):
+    with pytest.raises(ReferencePathError, match="not in a pulling run"):
         guide.sample_at(1.0)

@@ -1,13 +1,13 @@
-"""Tests of the last trailer's reference (pushtrain.cosim.reference)."""
+"""Tests of the last trailer's reference (pushtrain.core.reference)."""
 
 import numpy as np
 import pytest
-from pushtrain.cosim.reference import (
+from pushtrain.core.reference import (
     PULL,
     PUSH,
     REST,
     Reference,
-    ReferenceError,
+    ReferencePathError,
     SampledReference,
     Segment,
 )
@@ -120,23 +120,23 @@ def test_sampled_reference_detects_jumps():
     SampledReference(**_sampled_line())  # the clean line is accepted
     bad = _sampled_line()
     bad["y"][100:] += 0.05  # 5 cm lateral step
-    with pytest.raises(ReferenceError, match="position jumps"):
+    with pytest.raises(ReferencePathError, match="position jumps"):
         SampledReference(**bad)
     bad = _sampled_line()
     bad["theta"][50:] += 0.2
-    with pytest.raises(ReferenceError, match="heading jumps"):
+    with pytest.raises(ReferencePathError, match="heading jumps"):
         SampledReference(**bad)
     bad = _sampled_line()
     bad["t"][10] = bad["t"][9]
-    with pytest.raises(ReferenceError, match="strictly increase"):
+    with pytest.raises(ReferencePathError, match="strictly increase"):
         SampledReference(**bad)
     bad = _sampled_line()
     bad["direction"][20] = PULL
-    with pytest.raises(ReferenceError, match="contradicts direction"):
+    with pytest.raises(ReferencePathError, match="contradicts direction"):
         SampledReference(**bad)
     bad = _sampled_line()
     bad["x"][5] = np.nan
-    with pytest.raises(ReferenceError, match="finite"):
+    with pytest.raises(ReferencePathError, match="finite"):
         SampledReference(**bad)
 
 

@@ -6,7 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from pushtrain.cli.main import cli
-from pushtrain.cosim.slipstudy import SlipStudyConfig, run_slip_study
+from pushtrain.studies.slipstudy import SlipStudyConfig, run_slip_study
 
 I, D = 3.5083, 0.52
 

@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from pushtrain.cli.scenario import parse_scenario
+from pushtrain.mission.scenario import parse_scenario
 from pushtrain.cli.sweep import FmuRef, _materialize, prepare_runs, sweep
-from pushtrain.cosim.sweep import (
+from pushtrain.studies.sweep import (
     TIMING_COLUMNS,
     SweepError,
     expand_runs,
@@ -294,8 +294,8 @@ def test_example_joint_bias_sweep_reproduces_fig14(tmp_path):
 
 
 def test_example_alternating_sign_spec_predicts_the_alternating_sum():
-    from pushtrain.cli.scenario import load_scenario
-    from pushtrain.cosim.sweep import load_sweep_spec
+    from pushtrain.mission.scenario import load_scenario
+    from pushtrain.studies.sweep import load_sweep_spec
 
     spec = load_sweep_spec(EXAMPLES / "sweeps" / "alternating_sign.toml")
     runs, _, _ = prepare_runs(load_scenario(EXAMPLES / "joint_bias_5deg.toml"), spec)
@@ -308,7 +308,7 @@ def test_example_alternating_sign_spec_predicts_the_alternating_sum():
 
 
 def test_plan_missions_are_planned_once_per_train_geometry_as_plain_data():
-    from pushtrain.cli.scenario import load_scenario
+    from pushtrain.mission.scenario import load_scenario
 
     spec = parse_sweep_spec({"parameters": [{"path": "train.n", "values": [2, 3]},
                                             {"path": "controller.k_y", "values": [3.0, 4.0]}]})

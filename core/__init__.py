@@ -1,0 +1,9 @@
+"""The train model and the control law: what the planner and the co-simulation both stand on.
+
+Chain kinematics (:mod:`.kinematics`), line/arc reference paths (:mod:`.reference`), the backward
+controller (Kanayama tracking in the travel frame + inverse chain, :mod:`.controller`), the pull
+guide (:mod:`.pulling`), the slip-aware governor (:mod:`.governor`), open-loop command profiles
+(:mod:`.openloop`) and the closed-form analysis of the law (:mod:`.analysis`, Eq. 9, 12, 13).
+
+This package imports numpy and scipy only: never the planner, the co-simulation, fmpy or ompl.
+"""

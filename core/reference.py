@@ -1,0 +1,531 @@
+"""Time-parameterized reference for the last trailer (Step 1 of the paper).
+
+The reference is the contract between :mod:`pushtrain.planner` (which fills it from a Reeds-Shepp
+path) and the co-simulation master (which samples it every communication step).
+
+Conventions are the chain's (see :mod:`pushtrain.core.kinematics`): ``theta`` is the last
+trailer's heading pointing toward the robot, ``v`` its signed longitudinal speed (negative when
+pushing: the trailer leads), ``w = d(theta)/dt``. Eq. (1) of the paper in this +x convention::
+
+    dx/dt = v cos(theta),  dy/dt = v sin(theta),  d(theta)/dt = w
+
+A :class:`Segment` is a line or an arc travelled at constant speed in one direction. Its
+``curvature`` is d(theta)/ds per metre *travelled* (s increases in both directions), so
+``w = curvature * |v|``. Direction changes (cusps) are stops: the reference rests for
+``cusp_dwell`` seconds and continues the other way.
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from math import cos, sin
+from typing import Literal, NamedTuple
+
+import numpy as np
+
+from pushtrain.errors import ReferencePathError
+
+from .kinematics import wrap_angle
+
+__all__ = [
+    "PULL",
+    "PUSH",
+    "REST",
+    "Reference",
+    "ReferencePathError",
+    "ReferenceSample",
+    "SampledReference",
+    "Segment",
+]
+
+PUSH = +1
+"""Direction of a segment travelled trailer first (the robot pushes): v < 0."""
+PULL = -1
+"""Direction of a segment travelled robot first (the robot pulls): v > 0."""
+
+
+REST = 0
+"""Direction value while the reference rests (cusp dwell, before the start, after the goal)."""
+
+
+class ReferenceSample(NamedTuple):
+    """The last trailer's reference at one time (chain conventions, see the module docstring).
+
+    Attributes
+    ----------
+    x, y : float
+        Axle-midpoint position [m].
+    theta : float
+        Heading [rad], pointing toward the robot, continuous (not wrapped).
+    v : float
+        Signed longitudinal speed [m/s]: < 0 when pushing, > 0 when pulling, 0 at rest.
+    w : float
+        Yaw rate d(theta)/dt [rad/s].
+    direction : int
+        :data:`PUSH` (+1), :data:`PULL` (-1) or :data:`REST` (0).
+    """
+
+    x: float
+    y: float
+    theta: float
+    v: float
+    w: float
+    direction: int
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One line or arc of the last trailer's path.
+
+    Parameters
+    ----------
+    kind : "line" or "arc"
+    length : float
+        Distance travelled along the segment [m], > 0.
+    curvature : float
+        d(theta)/ds [1/m] per metre travelled; 0 for a line, CCW positive.
+    direction : int
+        :data:`PUSH` (+1, trailer leads, v < 0) or :data:`PULL` (-1, robot leads, v > 0).
+    speed : float or None
+        Travel speed |v| [m/s]; ``None`` takes the reference's default speed.
+    """
+
+    kind: Literal["line", "arc"]
+    length: float
+    curvature: float = 0.0
+    direction: int = PUSH
+    speed: float | None = None
+
+    def __post_init__(self):
+        if self.kind not in ("line", "arc"):
+            raise ReferencePathError(f"segment kind = {self.kind!r}: allowed are 'line' and 'arc'")
+        if not (np.isfinite(self.length) and self.length > 0.0):
+            raise ReferencePathError(f"segment length = {self.length!r} m: must be finite and > 0")
+        if not np.isfinite(self.curvature):
+            raise ReferencePathError(f"segment curvature = {self.curvature!r} 1/m: must be finite")
+        if self.kind == "line" and self.curvature != 0.0:
+            raise ReferencePathError(f"a line has curvature 0, got {self.curvature!r} 1/m")
+        if self.kind == "arc" and self.curvature == 0.0:
+            raise ReferencePathError("an arc needs a non-zero curvature")
+        if self.direction not in (PUSH, PULL):
+            raise ReferencePathError(
+                f"segment direction = {self.direction!r}: allowed are +1 (push) and -1 (pull)"
+            )
+        if self.speed is not None and not (np.isfinite(self.speed) and self.speed > 0.0):
+            raise ReferencePathError(f"segment speed = {self.speed!r} m/s: must be finite and > 0")
+
+
+def _advance(x, y, theta, sigma, kappa, s):
+    """Pose after travelling distance ``s`` [m] with the sign of v ``sigma`` and curvature kappa."""
+    s = np.asarray(s, dtype=float)
+    if kappa == 0.0:
+        return x + sigma * s * np.cos(theta), y + sigma * s * np.sin(theta), theta + 0.0 * s
+    th = theta + kappa * s
+    return (
+        x + sigma * (np.sin(th) - np.sin(theta)) / kappa,
+        y - sigma * (np.cos(th) - np.cos(theta)) / kappa,
+        th,
+    )
+
+
+@dataclass
+class Reference:
+    """Piecewise line/arc reference of the last trailer, evaluated analytically at any time.
+
+    Build it with :meth:`from_segments`. Times are seconds from ``t0``.
+    """
+
+    start: tuple[float, float, float]
+    segments: tuple[Segment, ...]
+    speed: float = 0.1
+    cusp_dwell: float = 1.0
+    t0: float = 0.0
+    # Derived tables (one row per phase: a segment or a dwell at a cusp).
+    _t_start: np.ndarray = field(init=False, repr=False)
+    _pose0: np.ndarray = field(init=False, repr=False)
+    _sigma: np.ndarray = field(init=False, repr=False)  # sign of v: -direction, 0 at rest
+    _kappa: np.ndarray = field(init=False, repr=False)
+    _speed: np.ndarray = field(init=False, repr=False)
+    _t_end: float = field(init=False, repr=False)
+    _rows: tuple = field(init=False, repr=False)  # plain-float copy of the tables for sample_at
+
+    @classmethod
+    def from_segments(
+        cls,
+        start: Sequence[float],
+        segments: Sequence[Segment],
+        speed: float = 0.1,
+        cusp_dwell: float = 1.0,
+        t0: float = 0.0,
+    ) -> Reference:
+        """Reference starting at ``start = (x, y, theta)`` [m, m, rad] through ``segments``.
+
+        ``speed`` [m/s] applies to segments without their own; ``cusp_dwell`` [s] is the rest at
+        every direction change.
+        """
+        return cls(tuple(float(a) for a in start), tuple(segments), speed, cusp_dwell, t0)
+
+    def __post_init__(self):
+        if len(self.start) != 3 or not np.all(np.isfinite(self.start)):
+            raise ReferencePathError(f"start = {self.start!r}: need three finite numbers (x, y, theta)")
+        if not self.segments:
+            raise ReferencePathError("a reference needs at least one segment")
+        if not (np.isfinite(self.speed) and self.speed > 0.0):
+            raise ReferencePathError(f"speed = {self.speed!r} m/s: must be finite and > 0")
+        if not (np.isfinite(self.cusp_dwell) and self.cusp_dwell >= 0.0):
+            raise ReferencePathError(f"cusp_dwell = {self.cusp_dwell!r} s: must be finite and >= 0")
+        t, pose = self.t0, np.array(self.start, dtype=float)
+        rows_t, rows_pose, rows_sigma, rows_kappa, rows_speed = [], [], [], [], []
+        previous_direction = None
+        for seg in self.segments:
+            if not isinstance(seg, Segment):
+                raise ReferencePathError(f"segments must be Segment objects, got {type(seg).__name__}")
+            if previous_direction is not None and seg.direction != previous_direction:
+                if self.cusp_dwell > 0.0:
+                    rows_t.append(t), rows_pose.append(pose.copy())
+                    rows_sigma.append(0.0), rows_kappa.append(0.0), rows_speed.append(0.0)
+                    t += self.cusp_dwell
+            speed = self.speed if seg.speed is None else seg.speed
+            rows_t.append(t), rows_pose.append(pose.copy())
+            rows_sigma.append(-float(seg.direction)), rows_kappa.append(float(seg.curvature))
+            rows_speed.append(speed)
+            x, y, th = _advance(*pose, -float(seg.direction), float(seg.curvature), seg.length)
+            pose = np.array([float(x), float(y), float(th)])
+            t += seg.length / speed
+            previous_direction = seg.direction
+        self._t_start = np.array(rows_t)
+        self._pose0 = np.array(rows_pose)
+        self._sigma = np.array(rows_sigma)
+        self._kappa = np.array(rows_kappa)
+        self._speed = np.array(rows_speed)
+        self._t_end = t
+        self._rows = (
+            [float(a) for a in self._t_start],
+            tuple(
+                (float(p[0]), float(p[1]), float(p[2]), float(sg), float(kp), float(sp))
+                for p, sg, kp, sp in zip(self._pose0, self._sigma, self._kappa, self._speed)
+            ),
+        )
+
+    @property
+    def t_end(self) -> float:
+        """Time [s] at which the reference reaches its goal and stops."""
+        return self._t_end
+
+    @property
+    def goal(self) -> np.ndarray:
+        """Final pose (x, y, theta) [m, m, rad], theta wrapped to (-pi, pi]."""
+        x, y, th, _, _ = self.sample(np.array([self._t_end]))
+        return np.array([x[0], y[0], wrap_angle(th[0])])
+
+    @property
+    def length(self) -> float:
+        """Total travelled distance [m]."""
+        return float(sum(seg.length for seg in self.segments))
+
+    def sample(self, t):
+        """Reference at times ``t`` [s] (array): ``(x, y, theta, v, w)``.
+
+        ``theta`` is continuous (not wrapped). Before ``t0`` the reference rests at the start,
+        after :attr:`t_end` at the goal with v = w = 0.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        tc = np.clip(t, self.t0, self._t_end)
+        k = np.clip(np.searchsorted(self._t_start, tc, side="right") - 1, 0, len(self._t_start) - 1)
+        tau = tc - self._t_start[k]
+        sigma, kappa, speed = self._sigma[k], self._kappa[k], self._speed[k]
+        s = speed * tau
+        x0, y0, th0 = self._pose0[k, 0], self._pose0[k, 1], self._pose0[k, 2]
+        th = th0 + kappa * s
+        straight = np.abs(kappa) < 1e-12
+        safe_kappa = np.where(straight, 1.0, kappa)
+        x = np.where(
+            straight,
+            x0 + sigma * s * np.cos(th0),
+            x0 + sigma * (np.sin(th) - np.sin(th0)) / safe_kappa,
+        )
+        y = np.where(
+            straight,
+            y0 + sigma * s * np.sin(th0),
+            y0 - sigma * (np.cos(th) - np.cos(th0)) / safe_kappa,
+        )
+        moving = (t >= self.t0) & (t < self._t_end)
+        v = np.where(moving, sigma * speed, 0.0)
+        w = np.where(moving, kappa * speed, 0.0)
+        return x, y, th, v, w
+
+    def direction_at(self, t) -> np.ndarray:
+        """Direction at times ``t``: +1 push, -1 pull, 0 at rest (dwell, before start, after goal)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        k = np.clip(np.searchsorted(self._t_start, t, side="right") - 1, 0, len(self._t_start) - 1)
+        moving = (t >= self.t0) & (t < self._t_end)
+        return np.where(moving, -self._sigma[k], 0.0).astype(int)
+
+    def pull_intervals(self) -> list[tuple[float, float]]:
+        """Start and end times [s] of every maximal pulling run (consecutive pulling segments)."""
+        return _pull_intervals(np.append(self._t_start, self._t_end), -self._sigma)
+
+    def _row_at(self, t: float):
+        """Index of the phase active at time ``t`` (clipped to the table) and the clipped time."""
+        t_start, rows = self._rows
+        tc = min(max(t, self.t0), self._t_end)
+        k = min(max(bisect_right(t_start, tc) - 1, 0), len(rows) - 1)
+        return k, tc - t_start[k]
+
+    def sample_at(self, t: float) -> ReferenceSample:
+        """Reference at one time ``t`` [s] as plain floats (fast scalar form of :meth:`sample`).
+
+        Returns
+        -------
+        ReferenceSample
+            Pose, velocities and direction (:data:`REST` during a cusp dwell, before ``t0`` and
+            from :attr:`t_end` on, where v = w = 0).
+        """
+        t = float(t)
+        k, tau = self._row_at(t)
+        x0, y0, th0, sigma, kappa, speed = self._rows[1][k]
+        s = speed * tau
+        x, y, th = _advance_scalar(x0, y0, th0, sigma, kappa, s)
+        if self.t0 <= t < self._t_end and sigma != 0.0:
+            return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
+        return ReferenceSample(x, y, th, 0.0, 0.0, REST)
+
+
+def _pull_intervals(bounds, directions) -> list[tuple[float, float]]:
+    """Maximal intervals [bounds[i], bounds[j]] [s] over consecutive phases i..j-1 whose
+    direction is PULL; phase k lasts from ``bounds[k]`` to ``bounds[k + 1]``."""
+    pulling = np.asarray(directions) == PULL
+    edges = np.diff(np.concatenate(([0], pulling.astype(int), [0])))
+    return [(float(bounds[i]), float(bounds[j]))
+            for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))
+            if bounds[j] > bounds[i]]
+
+
+def _advance_scalar(x, y, theta, sigma, kappa, s):
+    """Scalar :func:`_advance` with plain floats (used on every communication step)."""
+    if abs(kappa) < 1e-12:
+        return x + sigma * s * cos(theta), y + sigma * s * sin(theta), theta
+    th = theta + kappa * s
+    return (
+        x + sigma * (sin(th) - sin(theta)) / kappa,
+        y - sigma * (cos(th) - cos(theta)) / kappa,
+        th,
+    )
+
+
+class SampledReference:
+    """Reference of the last trailer given as samples (e.g. from a planner), linearly interpolated.
+
+    The samples must describe a continuous motion: between consecutive samples the position may
+    move at most ``max(|v_k|, |v_k+1|) dt (1 + rel_tol) + pos_tol`` and the (unwrapped) heading at
+    most ``max(|w_k|, |w_k+1|) dt (1 + rel_tol) + angle_tol``; anything more is a jump and raises
+    :class:`ReferencePathError`. The sign of ``v`` must agree with ``direction`` (v <= 0 when pushing,
+    >= 0 when pulling, 0 at rest, within ``speed_tol``). The same query methods as
+    :class:`Reference` are offered (:meth:`sample`, :meth:`sample_at`,
+    :meth:`direction_at`, :attr:`t_end`, :attr:`goal`, :attr:`length`).
+
+    Parameters
+    ----------
+    t : array of shape (m,)
+        Strictly increasing sample times [s], m >= 2.
+    x, y : arrays of shape (m,)
+        Axle-midpoint positions [m].
+    theta : array of shape (m,)
+        Headings [rad]; wrapped values are unwrapped first.
+    v, w : arrays of shape (m,)
+        Signed longitudinal speed [m/s] and yaw rate [rad/s].
+    direction : array of shape (m,)
+        :data:`PUSH`, :data:`PULL` or :data:`REST`; held from a sample to the next one.
+    pos_tol : float
+        Absolute position allowance per step [m] (default 1 mm).
+    angle_tol : float
+        Absolute heading allowance per step [rad] (default 1 mrad).
+    rel_tol : float
+        Relative allowance on the speed bounds (default 0.05).
+    speed_tol : float
+        Tolerance of the sign check of ``v`` against ``direction`` [m/s] (default 1e-9).
+    """
+
+    def __init__(
+        self,
+        t,
+        x,
+        y,
+        theta,
+        v,
+        w,
+        direction,
+        pos_tol: float = 1e-3,
+        angle_tol: float = 1e-3,
+        rel_tol: float = 0.05,
+        speed_tol: float = 1e-9,
+    ):
+        names = ("t", "x", "y", "theta", "v", "w", "direction")
+        arrays = [np.asarray(a, dtype=float).reshape(-1) for a in (t, x, y, theta, v, w, direction)]
+        m = arrays[0].size
+        if m < 2:
+            raise ReferencePathError(f"a sampled reference needs at least 2 samples, got {m}")
+        for name, a in zip(names, arrays):
+            if a.size != m:
+                raise ReferencePathError(f"{name} has {a.size} samples, t has {m}: sizes must agree")
+            bad = np.flatnonzero(~np.isfinite(a))
+            if bad.size:
+                raise ReferencePathError(f"{name}[{bad[0]}] = {a[bad[0]]!r}: samples must be finite")
+        for name, value in (
+            ("pos_tol", pos_tol),
+            ("angle_tol", angle_tol),
+            ("rel_tol", rel_tol),
+            ("speed_tol", speed_tol),
+        ):
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ReferencePathError(f"{name} = {value!r}: must be finite and >= 0")
+        t, x, y, theta, v, w, direction = arrays
+        dt = np.diff(t)
+        bad = np.flatnonzero(dt <= 0.0)
+        if bad.size:
+            k = int(bad[0])
+            raise ReferencePathError(
+                f"t[{k + 1}] = {t[k + 1]!r} s <= t[{k}] = {t[k]!r} s: times must strictly increase"
+            )
+        bad = np.flatnonzero(~np.isin(direction, (PUSH, PULL, REST)))
+        if bad.size:
+            k = int(bad[0])
+            raise ReferencePathError(
+                f"direction[{k}] = {direction[k]!r}: allowed are +1 (push), -1 (pull), 0 (rest)"
+            )
+        wrong_sign = (
+            ((direction == PUSH) & (v > speed_tol))
+            | ((direction == PULL) & (v < -speed_tol))
+            | ((direction == REST) & (np.abs(v) > speed_tol))
+        )
+        bad = np.flatnonzero(wrong_sign)
+        if bad.size:
+            k = int(bad[0])
+            raise ReferencePathError(
+                f"v[{k}] = {v[k]!r} m/s at t = {t[k]!r} s contradicts direction"
+                f" {int(direction[k])}: pushing needs v <= 0, pulling v >= 0, rest v = 0"
+            )
+        theta = np.unwrap(theta)
+        step = np.hypot(np.diff(x), np.diff(y))
+        allowed = np.maximum(np.abs(v[:-1]), np.abs(v[1:])) * dt * (1.0 + rel_tol) + pos_tol
+        bad = np.flatnonzero(step > allowed)
+        if bad.size:
+            k = int(bad[0])
+            raise ReferencePathError(
+                f"position jumps by {step[k]:.6g} m between t = {t[k]!r} s and {t[k + 1]!r} s;"
+                f" at most {allowed[k]:.6g} m is allowed by the sampled speeds"
+            )
+        turn = np.abs(np.diff(theta))
+        allowed = np.maximum(np.abs(w[:-1]), np.abs(w[1:])) * dt * (1.0 + rel_tol) + angle_tol
+        bad = np.flatnonzero(turn > allowed)
+        if bad.size:
+            k = int(bad[0])
+            raise ReferencePathError(
+                f"heading jumps by {turn[k]:.6g} rad between t = {t[k]!r} s and {t[k + 1]!r} s;"
+                f" at most {allowed[k]:.6g} rad is allowed by the sampled yaw rates"
+            )
+        self._t, self._x, self._y, self._theta = t, x, y, theta
+        self._v, self._w, self._direction = v, w, direction.astype(int)
+        self._s = np.concatenate(([0.0], np.cumsum(step)))  # distance travelled [m]
+        self._t_list = t.tolist()
+        self._cols = (
+            x.tolist(),
+            y.tolist(),
+            theta.tolist(),
+            v.tolist(),
+            w.tolist(),
+            self._direction.tolist(),
+        )
+
+    @classmethod
+    def from_reference(cls, reference: Reference, dt: float, **tolerances) -> SampledReference:
+        """Sample a :class:`Reference` every ``dt`` [s] from its ``t0`` to its :attr:`t_end`."""
+        if not (np.isfinite(dt) and dt > 0.0):
+            raise ReferencePathError(f"dt = {dt!r} s: must be finite and > 0")
+        m = int(np.ceil((reference.t_end - reference.t0) / dt)) + 1
+        t = reference.t0 + dt * np.arange(m)
+        x, y, theta, v, w = reference.sample(t)
+        direction = reference.direction_at(t)
+        return cls(t, x, y, theta, v, w, direction, **tolerances)
+
+    @property
+    def start(self) -> tuple[float, float, float]:
+        """First pose (x, y, theta) [m, m, rad]."""
+        return (float(self._x[0]), float(self._y[0]), float(self._theta[0]))
+
+    @property
+    def t0(self) -> float:
+        """Time of the first sample [s]."""
+        return self._t_list[0]
+
+    @property
+    def t_end(self) -> float:
+        """Time of the last sample [s]; the reference rests there afterwards."""
+        return self._t_list[-1]
+
+    @property
+    def goal(self) -> np.ndarray:
+        """Final pose (x, y, theta) [m, m, rad], theta wrapped to (-pi, pi]."""
+        return np.array([self._x[-1], self._y[-1], wrap_angle(self._theta[-1])])
+
+    @property
+    def length(self) -> float:
+        """Total travelled distance [m] (sum of the sample-to-sample distances)."""
+        return float(self._s[-1])
+
+    def sample(self, t):
+        """Reference at times ``t`` [s] (array): ``(x, y, theta, v, w)``, linearly interpolated.
+
+        Outside the sampled span the reference rests at its first or last pose with v = w = 0.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        inside = (t >= self._t[0]) & (t < self._t[-1])
+        out = [np.interp(t, self._t, col) for col in (self._x, self._y, self._theta)]
+        out += [np.where(inside, np.interp(t, self._t, col), 0.0) for col in (self._v, self._w)]
+        return tuple(out)
+
+    def direction_at(self, t) -> np.ndarray:
+        """Direction held from the preceding sample; :data:`REST` outside the sampled span."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        k = np.clip(np.searchsorted(self._t, t, side="right") - 1, 0, self._t.size - 1)
+        inside = (t >= self._t[0]) & (t < self._t[-1])
+        return np.where(inside, self._direction[k], REST).astype(int)
+
+    def pull_intervals(self) -> list[tuple[float, float]]:
+        """Start and end times [s] of every maximal run of pulling samples (a sample's direction
+        holds until the next sample)."""
+        return _pull_intervals(self._t, self._direction[:-1])
+
+    def _interval(self, t: float):
+        """Index k and weight a with t = (1 - a) t_k + a t_{k+1}, clipped to the sampled span."""
+        ts = self._t_list
+        tc = min(max(t, ts[0]), ts[-1])
+        k = min(max(bisect_right(ts, tc) - 1, 0), len(ts) - 2)
+        return k, (tc - ts[k]) / (ts[k + 1] - ts[k])
+
+    def sample_at(self, t: float) -> ReferenceSample:
+        """Reference at one time ``t`` [s] as plain floats (fast scalar form of :meth:`sample`)."""
+        t = float(t)
+        k, a = self._interval(t)
+        x, y, th, v, w, d = self._cols
+        pose = [(1.0 - a) * c[k] + a * c[k + 1] for c in (x, y, th)]
+        if self._t_list[0] <= t < self._t_list[-1]:
+            kd = k if a < 1.0 else k + 1
+            return ReferenceSample(
+                *pose, (1.0 - a) * v[k] + a * v[k + 1], (1.0 - a) * w[k] + a * w[k + 1], int(d[kd])
+            )
+        return ReferenceSample(*pose, 0.0, 0.0, REST)
+
+
+def __getattr__(name: str):
+    """``ReferenceError`` was this module's name of :class:`ReferencePathError` (it shadowed
+    the builtin); it keeps working for one release with a DeprecationWarning."""
+    if name == "ReferenceError":
+        import warnings
+
+        warnings.warn("pushtrain.core.reference.ReferenceError is deprecated: use "
+                      "pushtrain.errors.ReferencePathError", DeprecationWarning, stacklevel=2)
+        return ReferencePathError
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,317 @@
+"""From a validated :class:`~pushtrain.mission.scenario.Scenario` to plans, runs and result folders.
+
+Library code for the CLI: it raises typed errors and logs, it never prints or exits.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.cosim.master import (
+    InitialState,
+    PlantConfig,
+    Push,
+    Result,
+    SetBias,
+    Slide,
+    simulate,
+)
+from pushtrain.core.openloop import RotationProfile
+from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.cosim.sensors import SensorConfig
+from pushtrain.fmu import build_fmu
+
+from .scenario import Scenario, ScenarioError
+
+__all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "events_of",
+           "scripted_reference", "plan_path", "run_scenario"]
+
+log = logging.getLogger(__name__)
+
+
+def _per_trailer(value, n: int) -> np.ndarray:
+    return np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+
+
+def geometry_of(sc: Scenario) -> ChainGeometry:
+    """The plant's hitch geometry from ``train`` (``front``/``rear`` lists or one ``link``)."""
+    n = sc.train.n
+    front = sc.train.front if sc.train.front is not None else [sc.train.link] * n
+    rear = sc.train.rear if sc.train.rear is not None else [sc.train.link] * n
+    return ChainGeometry(np.array(front, float), np.array(rear, float))
+
+
+class BiasModel(NamedTuple):
+    """What the closed-form offset analysis (:mod:`pushtrain.core.analysis`) takes from a
+    scenario: the controller's link [m], the reference speed [m/s], the joint biases (n,)
+    [rad] and their effective (alternating) sum [rad]."""
+
+    link: float
+    speed: float
+    bias: np.ndarray
+    eps: float
+
+
+def bias_model(sc: Scenario) -> BiasModel:
+    """The :class:`BiasModel` of ``sc`` (the ``analyze`` command and the sweeps' predictions)."""
+    from pushtrain.core import analysis
+
+    link = sc.controller.model_link or sc.train.link
+    speed = sc.reference.speed if sc.reference is not None else sc.planner.speed
+    bias = np.radians(_per_trailer(sc.sensors.joint_bias_deg, sc.train.n))
+    return BiasModel(link, speed, bias, analysis.effective_bias(bias))
+
+
+def train_of(sc: Scenario):
+    """The planner's :class:`~pushtrain.planner.world.Train` (geometry, footprints, joint limit)."""
+    from pushtrain.planner.world import BodyFootprint, Train
+
+    t = sc.train
+    trailer = BodyFootprint(t.trailer_size.length, t.trailer_size.width, t.trailer_size.offset)
+    robot = BodyFootprint(t.robot_size.length, t.robot_size.width, t.robot_size.offset)
+    return Train(geometry_of(sc), robot, (trailer,) * t.n, math.radians(t.phi_max_deg))
+
+
+def plant_of(sc: Scenario) -> PlantConfig:
+    t, r = sc.train, sc.robot
+    geom = geometry_of(sc)
+    return PlantConfig(
+        n_trailers=t.n, front=geom.front, rear=geom.rear, mass=_per_trailer(t.mass, t.n),
+        inertia=_per_trailer(t.inertia, t.n), payload=_per_trailer(t.payload, t.n),
+        mu=_per_trailer(t.mu, t.n), robot_tau=r.tau, robot_acc_max=r.acc_max,
+        robot_alpha_max=math.radians(r.alpha_max_deg), phi_max=math.radians(t.phi_max_deg),
+        slip_mode=sc.fmu.slip_mode, max_substep=sc.fmu.max_substep,
+    )
+
+
+def controller_of(sc: Scenario) -> ControllerConfig:
+    """Gains, robot limits and the controller's own chain model (``model_link`` or the plant's)."""
+    c = sc.controller
+    geom = geometry_of(sc) if c.model_link is None else ChainGeometry.uniform(sc.train.n, c.model_link)
+    return ControllerConfig(
+        geometry=geom, k_x=c.k_x, k_y=c.k_y, k_theta=c.k_theta, v_max=sc.robot.v_max,
+        w_max=math.radians(sc.robot.w_max_deg), acc_max=c.acc_max,
+        alpha_max=None if c.alpha_max_deg is None else math.radians(c.alpha_max_deg),
+    )
+
+
+def governed(sc: Scenario, config: ControllerConfig):
+    """The tracking controller behind a slip-aware governor built from the scenario's train."""
+    from pushtrain.core.controller import BackwardController
+    from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
+
+    t, r = sc.train, sc.robot
+    gov = SlipGovernor(GovernorConfig(
+        config.geometry, _per_trailer(t.mass, t.n) + _per_trailer(t.payload, t.n),
+        _per_trailer(t.inertia, t.n), _per_trailer(t.mu, t.n), fraction=sc.controller.governor_fraction,
+        tau=r.tau, acc_max=r.acc_max, alpha_max=math.radians(r.alpha_max_deg)))
+    return GovernedController(BackwardController(config), gov, dt=sc.sim.step)
+
+
+def sensors_of(sc: Scenario) -> SensorConfig:
+    s = sc.sensors
+    return SensorConfig(
+        n_joints=sc.train.n, joint_bias=np.radians(_per_trailer(s.joint_bias_deg, sc.train.n)),
+        joint_noise_std=math.radians(s.joint_noise_deg),
+        joint_quantization=math.radians(s.joint_quantization_deg),
+        joint_backlash=math.radians(s.joint_backlash_deg), pos_noise_std=s.position_noise,
+        heading_noise_std=math.radians(s.heading_noise_deg),
+        measure_last_pose=s.localize == "last_trailer", seed=sc.seed,
+    )
+
+
+def events_of(sc: Scenario) -> list:
+    out = []
+    for ev in sc.events:
+        if ev.type == "push":
+            out.append(Push(ev.t, ev.duration, ev.lateral, ev.fx, ev.fy))
+        elif ev.type == "slide":
+            out.append(Slide(ev.t, ev.duration, ev.distance, ev.trailer))
+        else:
+            out.append(SetBias(ev.t, ev.joint, math.radians(ev.bias_deg)))
+    return out
+
+
+def _start_pose(sc: Scenario) -> tuple[float, float, float]:
+    return (sc.start.x, sc.start.y, math.radians(sc.start.theta_deg))
+
+
+def scripted_reference(sc: Scenario) -> Reference:
+    """The scripted line/arc reference of a ``scripted`` mission."""
+    segments = []
+    for spec in sc.reference.segments:
+        curvature = 0.0
+        if spec.kind == "arc":
+            curvature = (1.0 if spec.turn == "left" else -1.0) / spec.radius
+        segments.append(Segment(spec.kind, spec.length, curvature,
+                                PUSH if spec.direction == "push" else PULL, spec.speed))
+    return Reference.from_segments(_start_pose(sc), segments, speed=sc.reference.speed,
+                                   cusp_dwell=sc.reference.cusp_dwell)
+
+
+def world_of(sc: Scenario):
+    from pushtrain.planner.world import World
+
+    if sc.map is None:
+        return None
+    data = {k: v for k, v in sc.map.model_dump().items() if v not in (None, [])}
+    return World.from_dict(data)
+
+
+def _start_headings(sc: Scenario) -> np.ndarray:
+    """Headings of robot and trailers at the start: the last trailer's heading plus the joints."""
+    n = sc.train.n
+    th_n = math.radians(sc.start.theta_deg)
+    phi = np.zeros(n) if sc.start.joint_angles_deg is None else np.radians(sc.start.joint_angles_deg)
+    return th_n + np.concatenate((np.cumsum(phi[::-1])[::-1], [0.0]))
+
+
+def plan_path(sc: Scenario):
+    """Plan the last trailer's path of a ``plan`` mission (raises PlanningError).
+
+    The whole-train check simulates the scenario's own controller at the reference speed and
+    cusp dwell the co-simulation will use.
+    """
+    from pushtrain.planner import PlannerConfig, plan
+
+    p = sc.planner
+    config = PlannerConfig(
+        planner=p.planner, time_budget=p.time_budget, anytime_time=p.anytime_time,
+        pull_start_tolerance=p.pull_start_tolerance, turning_radius=p.turning_radius,
+        transient_margin=p.transient_margin, inflation=p.inflation, seed=sc.seed,
+        controller=controller_of(sc), speed=p.speed, cusp_dwell=p.cusp_dwell,
+    )
+    goal = (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg))
+    return plan(world_of(sc), _start_pose(sc), goal, train_of(sc), config,
+                start_headings=_start_headings(sc))
+
+
+def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:
+    geom = geometry_of(sc)
+    if sc.mission.kind == "rotation":
+        if sc.start is None:
+            theta = np.zeros(sc.train.n + 1)
+            return InitialState(0.0, 0.0, theta)
+        theta = _start_headings(sc)
+        from pushtrain.core.kinematics import body_positions_from_last
+
+        xs, ys = body_positions_from_last(sc.start.x, sc.start.y, theta, geom)
+        return InitialState(float(xs[0]), float(ys[0]), theta)
+    joints = None if sc.start.joint_angles_deg is None else np.radians(sc.start.joint_angles_deg)
+    return InitialState.behind_reference(
+        reference, geom, lateral_offset=sc.start.lateral_offset,
+        heading_offset=math.radians(sc.start.heading_offset_deg), joint_angles=joints)
+
+
+def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Reference | None = None,
+                 progress: bool | None = None, fmu=None) -> Result:
+    """Co-simulate ``sc`` along ``reference`` (or its scripted reference / the rotation profile).
+
+    ``fmu`` is the TrailerTrain FMU to use (default: built for ``train.n``). With ``out_dir``,
+    writes ``results.csv``, ``results.npz`` and ``summary.json`` there; without, writes nothing.
+    The recorded motion is checked against the map (status ``collision`` if a body leaves it).
+    """
+    if fmu is None:
+        fmu = build_fmu(sc.train.n)
+    plant = plant_of(sc)
+    if sc.mission.kind == "rotation":
+        rot = sc.rotation
+        controller = RotationProfile(sc.train.n, math.radians(rot.w_max_deg),
+                                     math.radians(rot.alpha_deg), rot.hold)
+        horizon = sc.sim.horizon or rot.duration
+        reference = None
+    else:
+        if reference is None:
+            reference = scripted_reference(sc)
+        controller = controller_of(sc)
+        if sc.controller.governor:
+            controller = governed(sc, controller)
+        horizon = sc.sim.horizon
+    initial = initial_of(sc, reference)
+    result = simulate(
+        fmu, reference, controller, sensors_of(sc), events_of(sc), plant=plant, initial=initial,
+        step=sc.sim.step, horizon=horizon, settle_time=sc.sim.settle_time,
+        goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
+        progress=progress,
+    )
+    result.summary["scenario"] = sc.name
+    result.summary["mission"] = sc.mission.kind
+    clearance = check_run_clearance(sc, result.data)
+    if clearance is not None:
+        result.summary["map_check"] = clearance
+        if clearance["collisions"] and result.status != "fmu_error":
+            first = min(clearance["collisions"].items(), key=lambda kv: kv[1]["t"])
+            result.status = "collision"
+            result.message = (f"{first[0]} leaves the free space at t = {first[1]['t']:.2f} s "
+                              f"near ({first[1]['x']:.2f}, {first[1]['y']:.2f}) m; "
+                              f"the run itself ended: {result.message}")
+            result.summary["status"], result.summary["message"] = result.status, result.message
+    if out_dir is not None:
+        result.save(out_dir)
+    return result
+
+
+def check_run_clearance(sc: Scenario, data, resolution: float = 0.01) -> dict | None:
+    """Check every body's footprint along the co-simulated motion against the map.
+
+    Samples are taken so that no body moves more than ``resolution`` [m] (plus half a footprint
+    rotation) between checks. Returns ``None`` without a map, else a dict with the first contact
+    of each body (time, position) and the smallest clearance to the walls [m].
+    """
+    import shapely
+
+    world = world_of(sc)
+    if world is None or len(data) == 0:
+        return None
+    train = train_of(sc)
+    n = sc.train.n
+    xs = np.column_stack([data[f"x{i}"] for i in range(n + 1)])
+    ys = np.column_stack([data[f"y{i}"] for i in range(n + 1)])
+    ths = np.column_stack([data[f"theta{i}"] for i in range(n + 1)])
+    reach = max(max(b.length, b.width) for b in train.bodies)
+    motion = np.max(np.hypot(np.diff(xs, axis=0), np.diff(ys, axis=0))
+                    + 0.5 * reach * np.abs(np.diff(ths, axis=0)), axis=1)
+    keep = [0]
+    travelled = 0.0
+    for k, step in enumerate(motion, start=1):
+        travelled += step
+        if travelled >= resolution:
+            keep.append(k)
+            travelled = 0.0
+    if keep[-1] != len(data) - 1:
+        keep.append(len(data) - 1)
+    keep = np.array(keep)
+    boundary = world.free.boundary
+    first_contact, clearance = {}, np.inf
+    for i, body in enumerate(train.bodies):
+        polys = body.polygons(xs[keep, i], ys[keep, i], ths[keep, i])
+        inside = shapely.covers(world.free, polys)
+        clearance = min(clearance, float(np.min(shapely.distance(polys, boundary))))
+        bad = np.flatnonzero(~inside)
+        if bad.size:
+            k = keep[bad[0]]
+            name = "robot" if i == 0 else f"trailer {i}"
+            first_contact[name] = {"t": float(data["t"][k]), "x": float(xs[k, i]),
+                                   "y": float(ys[k, i])}
+    return {"collisions": first_contact, "min_clearance_m": 0.0 if first_contact else clearance,
+            "checked_samples": int(keep.size)}
+
+
+def check_start_in_map(sc: Scenario) -> None:
+    """Raise ScenarioError when the start or goal lies outside the free space of the map."""
+    world = world_of(sc)
+    if world is None:
+        return
+    problems = []
+    for name, pose in (("start", sc.start), ("goal", sc.goal)):
+        if pose is not None and not world.contains_point(pose.x, pose.y):
+            problems.append((name, f"({pose.x}, {pose.y})", "must lie in the map's free space"))
+    if problems:
+        raise ScenarioError(sc.name, problems)

@@ -1,0 +1,272 @@
+"""Scenario files (TOML): what to plan and co-simulate, validated field by field.
+
+Every field has a default where the paper gives one (Table 1: 42.1 kg, D = 0.52 m, 0.6 m x 0.8 m,
+mu = 0.09, 0.005 s; robot limits 0.1 m/s and 0.1 rad/s). Unknown keys are errors, and all bad
+fields are reported at once with their path (``train.mass[2]``), the value and what is allowed.
+Angles in files are in degrees (``*_deg``); everything inside is SI and radians.
+
+Three kinds of mission (``mission.kind``):
+
+``plan``
+    plan a path for the last trailer from ``start`` to ``goal`` through ``map`` (OMPL
+    Reeds-Shepp), then co-simulate the controller tracking it.
+``scripted``
+    track a scripted line/arc reference (``reference.segments``) from ``start``.
+``rotation``
+    open-loop pure robot rotation (the paper's Sec. 4.4 slip experiment); no controller.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from pushtrain.errors import FieldErrors, ScenarioError
+from pushtrain.validation import field_errors, read_toml
+
+__all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
+
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+Point = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Size(_Section):
+    length: PositiveFloat
+    width: PositiveFloat
+    offset: FiniteFloat = 0.0
+
+
+class TrainSection(_Section):
+    """The robot's trailers: links, masses and footprints (per trailer lists or one value)."""
+
+    n: Annotated[int, Field(ge=1, le=50)] = 3
+    link: PositiveFloat = 0.52
+    front: list[PositiveFloat] | None = None
+    rear: list[PositiveFloat] | None = None
+    mass: PositiveFloat | list[PositiveFloat] = 42.1
+    inertia: PositiveFloat | list[PositiveFloat] = 3.5083
+    payload: NonNegFloat | list[NonNegFloat] = 0.0
+    mu: NonNegFloat | list[NonNegFloat] = 0.09
+    trailer_size: Size = Size(length=0.8, width=0.6)
+    robot_size: Size = Size(length=0.6, width=0.5)
+    phi_max_deg: Annotated[float, Field(gt=0, lt=180)] = 90.0
+
+
+class RobotSection(_Section):
+    v_max: PositiveFloat = 0.1
+    w_max_deg: PositiveFloat = math.degrees(0.1)
+    tau: PositiveFloat = 0.05
+    acc_max: PositiveFloat = 1.0
+    alpha_max_deg: PositiveFloat = math.degrees(2.0)
+
+
+class Pose(_Section):
+    x: FiniteFloat
+    y: FiniteFloat
+    theta_deg: FiniteFloat = 0.0
+
+
+class StartSection(Pose):
+    """The last trailer's start pose (heading toward the robot) and the chain's shape."""
+
+    joint_angles_deg: list[FiniteFloat] | None = None
+    lateral_offset: FiniteFloat = 0.0
+    heading_offset_deg: FiniteFloat = 0.0
+
+
+class MapSection(_Section):
+    free: list[Point] | None = None
+    bounds: Annotated[list[FiniteFloat], Field(min_length=4, max_length=4)] | None = None
+    obstacles: list[list[Point]] = []
+    walls: list[list[Point]] = []
+
+
+class PlannerSection(_Section):
+    planner: Literal["rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"] = "rrtconnect"
+    time_budget: PositiveFloat = 1.0
+    anytime_time: PositiveFloat = 0.5  # per attempt, for restarts/rrtstar/bitstar/prmstar
+    pull_start_tolerance: NonNegFloat | None = 0.4  # m; None: off (see PlannerConfig)
+    turning_radius: PositiveFloat | None = None  # None: from train.phi_max_deg and the margin
+    transient_margin: NonNegFloat = 0.6
+    inflation: NonNegFloat = 0.05
+    speed: PositiveFloat = 0.08  # below the robot's 0.1 m/s so along-track lag can be made up
+    cusp_dwell: NonNegFloat = 1.0
+
+
+class SegmentSpec(_Section):
+    kind: Literal["line", "arc"]
+    length: PositiveFloat
+    radius: PositiveFloat | None = None
+    turn: Literal["left", "right"] | None = None
+    direction: Literal["push", "pull"] = "push"
+    speed: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _arc_fields(self):
+        if self.kind == "arc" and (self.radius is None or self.turn is None):
+            raise ValueError("an arc needs 'radius' and 'turn' ('left' or 'right')")
+        if self.kind == "line" and (self.radius is not None or self.turn is not None):
+            raise ValueError("a line takes no 'radius' or 'turn'")
+        return self
+
+
+class ReferenceSection(_Section):
+    speed: PositiveFloat = 0.08
+    cusp_dwell: NonNegFloat = 1.0
+    segments: Annotated[list[SegmentSpec], Field(min_length=1)]
+
+
+class ControllerSection(_Section):
+    k_x: PositiveFloat = 1.0
+    k_y: PositiveFloat = 4.0
+    k_theta: PositiveFloat = 4.0
+    model_link: PositiveFloat | None = None  # the controller's own D (None: the plant's links)
+    # Command rate limits; the paper keeps |alpha| <= 10 deg/s^2 to avoid lateral slip (Sec. 4.4).
+    acc_max: PositiveFloat | None = 0.2
+    alpha_max_deg: PositiveFloat | None = 10.0
+    # slip-aware governor: limit command changes so the predicted lateral wheel forces stay below
+    # governor_fraction of friction (computed with the controller's own model of the train)
+    governor: bool = False
+    governor_fraction: Annotated[float, Field(gt=0, le=1)] = 0.8
+
+
+class SensorSection(_Section):
+    # "robot": localize the robot, compute the last trailer from the joint angles (the paper's
+    # prototype); "last_trailer": localize the last trailer directly (the setting of Eq. 6-9)
+    localize: Literal["robot", "last_trailer"] = "robot"
+    joint_bias_deg: FiniteFloat | list[FiniteFloat] = 0.0
+    joint_noise_deg: NonNegFloat = 0.0
+    joint_quantization_deg: NonNegFloat = 0.0
+    joint_backlash_deg: NonNegFloat = 0.0
+    position_noise: NonNegFloat = 0.0
+    heading_noise_deg: NonNegFloat = 0.0
+
+
+class EventSpec(_Section):
+    type: Literal["push", "slide", "bias"]
+    t: NonNegFloat
+    duration: PositiveFloat | None = None
+    lateral: FiniteFloat = 0.0
+    fx: FiniteFloat = 0.0
+    fy: FiniteFloat = 0.0
+    distance: FiniteFloat | None = None
+    trailer: Annotated[int, Field(ge=1)] | None = None
+    joint: Annotated[int, Field(ge=1)] | None = None
+    bias_deg: FiniteFloat | None = None
+
+    @model_validator(mode="after")
+    def _fields_for_type(self):
+        if self.type in ("push", "slide") and self.duration is None:
+            raise ValueError(f"a {self.type} event needs 'duration' (s, > 0)")
+        if self.type == "slide" and self.distance is None:
+            raise ValueError("a slide event needs 'distance' (m, lateral)")
+        if self.type == "bias" and (self.joint is None or self.bias_deg is None):
+            raise ValueError("a bias event needs 'joint' (1..n) and 'bias_deg'")
+        return self
+
+
+class RotationSection(_Section):
+    w_max_deg: PositiveFloat = 20.0
+    alpha_deg: PositiveFloat = 5.0
+    hold: NonNegFloat = 0.0
+    duration: PositiveFloat = 30.0
+
+
+class FmuSection(_Section):
+    slip_mode: Literal[0, 1] = 0
+    max_substep: PositiveFloat = 0.005
+
+
+class SimSection(_Section):
+    step: PositiveFloat = 0.005
+    horizon: PositiveFloat | None = None
+    settle_time: NonNegFloat = 20.0
+    goal_tolerance: PositiveFloat = 0.05
+    goal_heading_tolerance_deg: PositiveFloat = 5.0
+
+
+class MissionSection(_Section):
+    kind: Literal["plan", "scripted", "rotation"] = "plan"
+
+
+class Scenario(_Section):
+    """A whole scenario file."""
+
+    name: str = "scenario"
+    description: str = ""
+    seed: Annotated[int, Field(ge=1)] = 1
+    mission: MissionSection = MissionSection()
+    train: TrainSection = TrainSection()
+    robot: RobotSection = RobotSection()
+    map: MapSection | None = None
+    start: StartSection | None = None
+    goal: Pose | None = None
+    planner: PlannerSection = PlannerSection()
+    reference: ReferenceSection | None = None
+    rotation: RotationSection = RotationSection()
+    controller: ControllerSection = ControllerSection()
+    sensors: SensorSection = SensorSection()
+    events: list[EventSpec] = []
+    fmu: FmuSection = FmuSection()
+    sim: SimSection = SimSection()
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        problems = []
+        n = self.train.n
+        for name in ("front", "rear"):
+            values = getattr(self.train, name)
+            if values is not None and len(values) != n:
+                problems.append((f"train.{name}", values, f"a list of n = {n} lengths"))
+        for name in ("mass", "inertia", "payload", "mu"):
+            values = getattr(self.train, name)
+            if isinstance(values, list) and len(values) != n:
+                problems.append((f"train.{name}", values, f"one value or a list of n = {n}"))
+        bias = self.sensors.joint_bias_deg
+        if isinstance(bias, list) and len(bias) != n:
+            problems.append(("sensors.joint_bias_deg", bias, f"one value or a list of n = {n}"))
+        if self.start is not None and self.start.joint_angles_deg is not None:
+            if len(self.start.joint_angles_deg) != n:
+                problems.append(("start.joint_angles_deg", self.start.joint_angles_deg,
+                                 f"a list of n = {n} angles"))
+        for k, ev in enumerate(self.events):
+            if ev.trailer is not None and ev.trailer > n:
+                problems.append((f"events[{k}].trailer", ev.trailer, f"1..{n}"))
+            if ev.joint is not None and ev.joint > n:
+                problems.append((f"events[{k}].joint", ev.joint, f"1..{n}"))
+        kind = self.mission.kind
+        if kind == "plan":
+            for name in ("map", "start", "goal"):
+                if getattr(self, name) is None:
+                    problems.append((name, None, "required when mission.kind = 'plan'"))
+            if self.map is not None and self.map.free is None and self.map.bounds is None:
+                problems.append(("map", "no free/bounds", "give 'free' (outline) or 'bounds'"))
+        elif kind == "scripted":
+            if self.reference is None:
+                problems.append(("reference", None, "required when mission.kind = 'scripted'"))
+            if self.start is None:
+                problems.append(("start", None, "required when mission.kind = 'scripted'"))
+        if problems:
+            raise FieldErrors("", problems)
+        return self
+
+
+def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
+    """Validate plain data (a parsed TOML document) into a :class:`Scenario`."""
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(source, field_errors(exc)) from None
+
+
+def load_scenario(path) -> Scenario:
+    """Read and validate a scenario TOML file."""
+    return parse_scenario(read_toml(path, ScenarioError), str(path))

@@ -1,0 +1,1 @@
+"""Pictures of runs: maps, time series and the train animation (:mod:`.plots`)."""
