@@ -16,6 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
 from matplotlib.colors import BoundaryNorm, LinearSegmentedColormap, ListedColormap
 from matplotlib.figure import Figure
+from matplotlib.layout_engine import ConstrainedLayoutEngine
 
 from pushtrain.errors import PlotError
 from pushtrain.files import atomic_write
@@ -154,9 +155,17 @@ def save(fig: Figure, out_path, dpi: float = DPI) -> Path:
     return path
 
 
-def new_figure(width: float, height: float, dpi: float = DPI) -> Figure:
-    """A ``width`` x ``height`` [in] Figure on an Agg canvas with constrained layout."""
-    fig = Figure(figsize=(width, height), dpi=dpi, layout="constrained")
+def new_figure(width: float, height: float, dpi: float = DPI, *,
+               fixed_aspect: bool = False) -> Figure:
+    """A ``width`` x ``height`` [in] Figure on an Agg canvas with constrained layout.
+
+    ``fixed_aspect`` (for maps with equal axis scales) lets the layout compress the margins
+    around axes that the aspect has shrunk (``compress=True``); without it the layout does not
+    converge when a legend beside such axes is anchored to them, and on wide maps the y label
+    and the legend end up outside the figure.
+    """
+    layout = ConstrainedLayoutEngine(compress=True) if fixed_aspect else "constrained"
+    fig = Figure(figsize=(width, height), dpi=dpi, layout=layout)
     FigureCanvasAgg(fig)
     return fig
 

@@ -39,7 +39,7 @@ def map_figure(data, n: int, *, world=None, path_xy=None, footprints=None, snaps
                         np.stack([run.xd, run.yd], axis=1), run.path, goal_box,
                         *corners.values()], world)
     size, extent = map_size(extent, 6.8, 2.6, 1.5)
-    fig = new_figure(*size)
+    fig = new_figure(*size, fixed_aspect=True)
     ax = fig.add_subplot()
     if world is not None:
         world.plot(ax)
