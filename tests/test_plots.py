@@ -200,6 +200,30 @@ def test_map_with_world_path_and_custom_footprints(run3, tmp_path):
     png_size(out)
 
 
+@pytest.mark.parametrize("width", [6.0, 14.0, 28.0])
+def test_map_labels_and_legend_stay_inside_the_figure(width):
+    """Wide and tall maps alike: nothing of the axes (y label, tick labels, the legend beside
+    them, the colour bar below) lies outside the figure (bay's y label was clipped)."""
+
+    class Walls:
+        bounds = (0.0, -1.5, width, 6.0)
+
+        def plot(self, ax):
+            ax.fill([0, width, width, 0], [-1.5, -1.5, 6, 6], color="0.4", zorder=0)
+
+    data = synthetic(3, ChainGeometry(np.full(3, D), np.full(3, D)))
+    path_xy = np.column_stack([data["x_d"], data["y_d"]])
+    fig = plots.map_figure(data, 3, world=Walls(), path_xy=path_xy,
+                           title="Robot with 3 trailers: goal reached")
+    fig.canvas.draw()  # one layout pass from scratch, as savefig does
+    renderer = fig.canvas.get_renderer()
+    inside = fig.bbox.padded(0.5)  # half a pixel for rounding
+    for ax in fig.axes:
+        box = ax.get_tightbbox(renderer)
+        assert inside.containsx(box.x0) and inside.containsx(box.x1), (ax, box, fig.bbox)
+        assert inside.containsy(box.y0) and inside.containsy(box.y1), (ax, box, fig.bbox)
+
+
 def test_hitch_links_recovers_unequal_links_from_a_bent_chain():
     geometry = ChainGeometry(np.array([0.4, 0.6]), np.array([0.5, 0.3]))
     data = synthetic(2, geometry, t_end=5.0)

@@ -1,0 +1,217 @@
+"""What every figure of :mod:`pushtrain.report` shares: resolution and colours, argument checks,
+access to the columns of ``Result.data``, new figures and atomic saving.
+
+Nothing here imports pyplot: figures use the Agg canvas directly, so they never reach a GUI and
+the global pyplot state is untouched.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import BoundaryNorm, LinearSegmentedColormap, ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+from pushtrain.errors import PlotError
+from pushtrain.files import atomic_write
+
+__all__ = [
+    "DPI",
+    "GIF_DPI",
+    "C_ROBOT",
+    "C_LAST",
+    "C_REF",
+    "C_PATH",
+    "C_SLIP",
+    "C_JACK",
+    "C_DIST",
+    "DIRECTION_BANDS",
+    "SNAPSHOT_CMAP",
+    "check_n",
+    "check_data",
+    "col",
+    "bodies",
+    "pose_columns",
+    "output_path",
+    "atomic",
+    "save",
+    "new_figure",
+    "series_colors",
+    "index_colorbar",
+    "intervals",
+    "disturbance_mask",
+    "shade",
+]
+
+DPI = 120
+"""Resolution of the PNG figures [dots per inch]."""
+
+GIF_DPI = 80
+"""Resolution of the animation frames [dots per inch] (kept low so 150 frames render in seconds)."""
+
+# colours shared by the figures
+C_ROBOT = "tab:red"
+C_LAST = "tab:blue"
+C_REF = "black"
+C_PATH = "0.55"
+C_SLIP = "tab:orange"
+C_JACK = "magenta"
+C_DIST = "tab:red"
+DIRECTION_BANDS = ((1, "#d5e5f6", "push (trailer first)"), (-1, "#fbe0c3", "pull (robot first)"),
+                   (0, "#e6e6e6", "rest"))
+"""(direction value, background colour, legend label) of the reference's direction bands."""
+SNAPSHOT_CMAP = LinearSegmentedColormap.from_list("snapshot_fade", ["#b9c8d8", "#17324d"])
+"""Train snapshots fade from light (early) to dark (late)."""
+
+
+# ---------------------------------------------------------------------------------------------
+# validation and data access
+# ---------------------------------------------------------------------------------------------
+def check_n(n) -> int:
+    """``n`` as an int, or :class:`PlotError` unless it is an integer >= 1."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise PlotError(f"n = {n!r}: the number of trailers must be an integer >= 1")
+    return int(n)
+
+
+def check_data(data, n, columns: Sequence[str]) -> int:
+    """Check that ``data`` is a non-empty structured array with ``columns`` for ``n`` trailers."""
+    n = check_n(n)
+    names = getattr(getattr(data, "dtype", None), "names", None)
+    if names is None:
+        raise PlotError(
+            f"data is a {type(data).__name__}: need the structured array of Result.data "
+            "(one named column per recorded variable)"
+        )
+    missing = [c for c in columns if c not in names]
+    if missing:
+        raise PlotError(
+            f"data lacks the column(s) {missing[:6]}{' ...' if len(missing) > 6 else ''} needed "
+            f"for n = {n} trailers; it has {len(names)} columns ({', '.join(names[:6])}, ...)"
+        )
+    if f"x{n + 1}" in names:
+        raise PlotError(
+            f"n = {n} but data has a column x{n + 1}: it records more than {n} trailers"
+        )
+    if len(data) == 0:
+        raise PlotError("data has no rows: nothing to plot")
+    return n
+
+
+def col(data, name: str) -> np.ndarray:
+    """Column ``name`` of ``data`` as a float array."""
+    return np.asarray(data[name], dtype=float)
+
+
+def bodies(data, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions and headings of bodies 0..n, each of shape (rows, n+1) [m, m, rad]."""
+    x = np.stack([col(data, f"x{i}") for i in range(n + 1)], axis=1)
+    y = np.stack([col(data, f"y{i}") for i in range(n + 1)], axis=1)
+    th = np.stack([col(data, f"theta{i}") for i in range(n + 1)], axis=1)
+    return x, y, th
+
+
+def pose_columns(n: int) -> list[str]:
+    """The columns of time and of the poses of bodies 0..n."""
+    return ["t"] + [f"{b}{i}" for b in ("x", "y", "theta") for i in range(n + 1)]
+
+
+# ---------------------------------------------------------------------------------------------
+# figures and files
+# ---------------------------------------------------------------------------------------------
+def output_path(out_path, allowed: Sequence[str] | None = None) -> Path:
+    """``out_path`` as a Path whose suffix names a format this package can write."""
+    path = Path(out_path)
+    fmt = path.suffix.lower().lstrip(".")
+    if allowed is None:
+        allowed = sorted(FigureCanvasAgg(Figure()).get_supported_filetypes())
+    if fmt not in allowed:
+        raise PlotError(f"out_path = {str(out_path)!r}: the suffix must be one of "
+                        f"{', '.join('.' + a for a in allowed)}")
+    return path
+
+
+def atomic(path: Path, write) -> Path:
+    """Call ``write(partial)`` on a temporary name in ``path``'s folder, then rename it to ``path``.
+
+    The temporary name keeps the suffix (matplotlib and Pillow choose the format by it); it is
+    removed whatever happens, so a failure leaves neither a partial file nor a changed ``path``.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return atomic_write(path, write, keep_suffix=True)
+
+
+def save(fig: Figure, out_path, dpi: float = DPI) -> Path:
+    """Save ``fig`` atomically in the format named by the suffix of ``out_path``."""
+    path = output_path(out_path)
+    fmt = path.suffix.lower().lstrip(".")
+    atomic(path, lambda partial: fig.savefig(partial, format=fmt, dpi=dpi))
+    return path
+
+
+def new_figure(width: float, height: float, dpi: float = DPI, *,
+               fixed_aspect: bool = False) -> Figure:
+    """A ``width`` x ``height`` [in] Figure on an Agg canvas with constrained layout.
+
+    ``fixed_aspect`` (for maps with equal axis scales) lets the layout compress the margins
+    around axes that the aspect has shrunk (``compress=True``); without it the layout does not
+    converge when a legend beside such axes is anchored to them, and on wide maps the y label
+    and the legend end up outside the figure.
+    """
+    layout = ConstrainedLayoutEngine(compress=True) if fixed_aspect else "constrained"
+    fig = Figure(figsize=(width, height), dpi=dpi, layout=layout)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def series_colors(count: int, categorical: bool = True) -> list:
+    """Colours of ``count`` series: tab10 when ``categorical`` and count <= 10, else viridis."""
+    if categorical and count <= 10:
+        return [colormaps["tab10"](k) for k in range(count)]
+    return [colormaps["viridis"](v) for v in np.linspace(0.0, 0.9, count)]
+
+
+def index_colorbar(fig, ax, colors: list, label: str) -> None:
+    """A discrete colour bar mapping colors[k] to index k + 1."""
+    count = len(colors)
+    norm = BoundaryNorm(np.arange(0.5, count + 1.0), count)
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=ListedColormap(colors)), ax=ax, pad=0.01)
+    bar.set_ticks(np.unique(np.linspace(1, count, min(count, 10)).round()))
+    bar.set_label(label)
+
+
+# ---------------------------------------------------------------------------------------------
+# time intervals
+# ---------------------------------------------------------------------------------------------
+def intervals(t: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
+    """Time intervals [s] where ``mask`` holds; each lasts until the next sample after it ends."""
+    mask = np.asarray(mask, dtype=bool)
+    if not mask.any():
+        return []
+    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    starts = np.flatnonzero(edges == 1)
+    stops = np.flatnonzero(edges == -1)  # first index after each run
+    last = len(t) - 1
+    return [(float(t[a]), float(t[min(b, last)])) for a, b in zip(starts, stops)]
+
+
+def disturbance_mask(data) -> np.ndarray:
+    """Rows with an external push force or an imposed slide."""
+    names = data.dtype.names
+    mask = np.zeros(len(data), dtype=bool)
+    for name in ("push_x", "push_y", "slide"):
+        if name in names:
+            mask |= np.abs(col(data, name)) > 0.0
+    return mask
+
+
+def shade(ax, spans, color, alpha, label=None, **kwargs) -> None:
+    """Shade the time ``spans`` of ``ax``; only the first span carries ``label``."""
+    for k, (a, b) in enumerate(spans):
+        ax.axvspan(a, b, color=color, alpha=alpha, lw=0, label=label if k == 0 else None, **kwargs)
