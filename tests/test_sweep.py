@@ -14,17 +14,20 @@ import pytest
 from click.testing import CliRunner
 
 from pushtrain.mission.scenario import parse_scenario
-from pushtrain.cli.sweep import FmuRef, _materialize, prepare_runs, sweep
 from pushtrain.studies.sweep import (
     TIMING_COLUMNS,
+    FmuRef,
     SweepError,
     expand_runs,
     parse_path,
     parse_sweep_spec,
+    prepare_runs,
     read_results,
     run_key,
     set_path,
+    sweep,
 )
+from pushtrain.studies.sweep_task import _materialize
 
 BASE = {
     "name": "short_bias",
@@ -317,3 +320,12 @@ def test_plan_missions_are_planned_once_per_train_geometry_as_plain_data():
     assert texts[0] == texts[1] and texts[2] == texts[3] and texts[0] != texts[2]
     assert all(r.failure is None for r in runs)
     assert [r.payload["fmu"].n for r in runs] == [2, 2, 3, 3]
+
+
+def test_old_cli_import_path_of_the_library_forwards_with_a_warning():
+    import pushtrain.cli.sweep as cli_sweep
+    import pushtrain.studies.sweep as library
+
+    for name in ("sweep", "prepare_runs", "run_task", "FmuRef"):
+        with pytest.warns(DeprecationWarning, match=f"moved to pushtrain.studies.sweep.{name}"):
+            assert getattr(cli_sweep, name) is getattr(library, name)
