@@ -33,6 +33,57 @@ def __getattr__(name: str):
 
 
 # ------------------------------------------------------------------------------------------ CLI
+PIPE_INTERVAL_S = 10.0
+"""Seconds between progress lines when stderr is not a terminal (a pipe, a log file)."""
+
+
+class _Progress:
+    """Progress of the runs on stderr: a tqdm bar on a terminal; elsewhere one line at most every
+    ``interval`` seconds and one when the last run is done. ``start`` and ``row`` are
+    :func:`~pushtrain.studies.sweep.sweep`'s ``on_start`` and ``on_row``."""
+
+    def __init__(self, *, tty: bool, interval: float = PIPE_INTERVAL_S, clock=time.monotonic):
+        self.tty, self.interval, self.clock = tty, interval, clock
+        self.bar = None
+        self.done = self.total = self.failed = 0
+        self.t0 = self.last = 0.0
+
+    def start(self, n_runs: int) -> None:
+        self.t0 = self.last = self.clock()
+        if self.tty:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=n_runs, unit="run", desc="sweep", file=sys.stderr,
+                            mininterval=0.2)
+
+    def row(self, row: dict, done: int, total: int) -> None:
+        self.done, self.total = done, total
+        self.failed += not row["ok"]
+        if self.bar is not None:
+            if self.bar.total != total:
+                self.bar.reset(total=total)
+            self.bar.update(1)
+            if self.failed:
+                self.bar.set_postfix_str(f"{self.failed} failed")
+            return
+        now = self.clock()
+        if done == total or now - self.last >= self.interval:
+            self.last = now
+            click.echo(self.line(now), err=True)
+
+    def line(self, now: float) -> str:
+        elapsed = now - self.t0
+        text = (f"sweep: {self.done}/{self.total} new runs done, {self.failed} failed, "
+                f"{elapsed:.0f} s")
+        if 0 < self.done < self.total:
+            text += f", about {elapsed / self.done * (self.total - self.done):.0f} s left"
+        return text
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
 @click.command("sweep")
 @click.argument("scenario", type=click.Path(exists=True, dir_okay=False))
 @click.option("--spec", "spec_path", type=click.Path(exists=True, dir_okay=False), required=True,
@@ -47,13 +98,17 @@ def __getattr__(name: str):
                    "interrupted sweep to resume it.")
 @click.option("--max-runs", type=click.IntRange(min=1), metavar="N",
               help="Run at most N new runs, then stop (resume later with the same --out).")
+@click.option("--max-total", type=click.IntRange(min=1), default=sweep_lib.DEFAULT_MAX_TOTAL,
+              show_default=True, metavar="N",
+              help="Refuse a spec that makes more than N runs (counted before anything runs).")
 @click.option("--no-plots", is_flag=True, help="Skip the PNG plots.")
-def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, no_plots):
+def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total, no_plots):
     """Robustness sweep of SCENARIO over the parameters of a sweep spec, on Dask.
 
     Every run is one co-simulation; failures (jackknife, errors) are recorded, not fatal.
     Results go to DIR/results.csv (and chunks/ as they finish), report.json and plots of
-    success rate, tracking error and F_lat against each parameter.
+    success rate, tracking error and F_lat against each parameter. The number of runs is
+    printed before anything runs; progress goes to stderr.
 
     \b
     Examples:
@@ -63,8 +118,6 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, no_plots):
       pushtrain sweep SCENARIO --spec SWEEP.toml --scheduler tcp://host:8786 --out runs/s
     Run the same command with the same --out again to resume an interrupted sweep.
     """
-    from tqdm import tqdm
-
     from pushtrain.fmu import FmuBuildError
 
     from .common import EXIT_OK, BadInput, _scenario
@@ -77,35 +130,20 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, no_plots):
     if scheduler is not None and workers is not None and workers > 0:
         raise BadInput("--workers N starts a local cluster; it cannot be combined with --scheduler")
     out_dir = Path(out) if out else Path("runs") / f"{spec.name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    bar = None
-    failed = 0
-
-    def on_start(n_runs):
-        nonlocal bar
-        bar = tqdm(total=n_runs, unit="run", desc="sweep", file=sys.stderr,
-                   disable=not sys.stderr.isatty(), mininterval=0.2)
-
-    def on_row(row, done, total):
-        nonlocal failed
-        if bar is not None:
-            if bar.total != total:
-                bar.reset(total=total)
-            bar.update(1)
-            if not row["ok"]:
-                failed += 1
-                bar.set_postfix_str(f"{failed} failed")
-
+    click.echo(f"sweep {spec.name}: {sweep_lib.count_runs(spec)} runs ({spec.size_text}) "
+               f"-> {out_dir}")
+    progress = _Progress(tty=sys.stderr.isatty())
     try:
         outcome = sweep_lib.sweep(sc, spec, out_dir, serial=workers == 0, scheduler=scheduler,
                                   workers=workers or None, max_runs=max_runs,
-                                  plots=not no_plots, on_row=on_row, on_start=on_start)
+                                  plots=not no_plots, max_total=max_total, on_row=progress.row,
+                                  on_start=progress.start)
     except (SweepError, ScenarioError) as exc:
         raise BadInput(str(exc)) from None
     except FmuBuildError as exc:
         raise click.ClickException(str(exc)) from None
     finally:
-        if bar is not None:
-            bar.close()
+        progress.close()
     _print_outcome(outcome, spec)
     sys.exit(EXIT_OK)
 

@@ -38,9 +38,10 @@ from pushtrain.mission.scenario import Scenario, load_scenario
 from .sweep_results import (ChunkWriter, SweepOutcome, check_manifest, columns_of, combine,
                             existing_rows, finish_row, read_results, write_rows_csv)
 from .sweep_runs import SweepRun, bias_swept, expand_runs, prepare_runs, run_key
-from .sweep_spec import (DEFAULT_METRICS, METRICS, OK_STATUSES, STATUS_ERROR, STATUS_LOST,
-                         TIMING_COLUMNS, ParameterSpec, RangeSpec, SweepSpec, count_runs, get_path,
-                         load_sweep_spec, parse_path, parse_sweep_spec, resolve, set_path)
+from .sweep_spec import (DEFAULT_MAX_TOTAL, DEFAULT_METRICS, METRICS, OK_STATUSES, STATUS_ERROR,
+                         STATUS_LOST, TIMING_COLUMNS, ParameterSpec, RangeSpec, SweepSpec,
+                         check_size, count_runs, get_path, load_sweep_spec, parse_path,
+                         parse_sweep_spec, resolve, set_path)
 from .sweep_task import FmuRef, execute, failure_row, metrics_of, run_task
 
 __all__ = [
@@ -53,6 +54,7 @@ __all__ = [
     "FmuRef",
     "METRICS",
     "DEFAULT_METRICS",
+    "DEFAULT_MAX_TOTAL",
     "TIMING_COLUMNS",
     "OK_STATUSES",
     "STATUS_ERROR",
@@ -63,6 +65,7 @@ __all__ = [
     "parse_sweep_spec",
     "load_sweep_spec",
     "count_runs",
+    "check_size",
     "expand_runs",
     "run_key",
     "resolve",
@@ -243,7 +246,7 @@ def _run_on_dask(runs, out_dir, kwargs, *, client, scheduler, workers) -> SweepO
 def sweep(scenario, spec, out_dir, *, serial: bool = False, client=None,
           scheduler: str | None = None, workers: int | None = None, max_runs: int | None = None,
           fmus: dict | None = None, ship_fmu: bool | None = None, plots: bool = True,
-          on_row=None, on_start=None) -> SweepOutcome:
+          max_total: int | None = DEFAULT_MAX_TOTAL, on_row=None, on_start=None) -> SweepOutcome:
     """Run a sweep and write its report.
 
     Parameters
@@ -270,6 +273,9 @@ def sweep(scenario, spec, out_dir, *, serial: bool = False, client=None,
         Ship the FMU bytes to the workers (default: only with ``scheduler`` or ``client``).
     plots : bool
         Write the PNG plots besides ``report.json``.
+    max_total : int or None
+        Refuse a spec that makes more runs than this (checked before any run is made; None: no
+        limit).
     on_row : callable, optional
         ``on_row(row, done, total)`` after each finished run.
     on_start : callable, optional
@@ -279,9 +285,16 @@ def sweep(scenario, spec, out_dir, *, serial: bool = False, client=None,
     -------
     SweepOutcome
         With ``report`` (the report dict) and ``files`` (results, report, plots, chunks).
+
+    Raises
+    ------
+    SweepError
+        A bad spec, more runs than ``max_total``, invalid runs, or ``out_dir`` holding another
+        sweep.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     spec = spec if isinstance(spec, SweepSpec) else load_sweep_spec(spec)
+    check_size(spec, max_total)
     if ship_fmu is None:
         ship_fmu = not serial and (client is not None or scheduler is not None)
     runs, shared, manifest = prepare_runs(sc, spec, fmus=fmus, ship_fmu=ship_fmu)

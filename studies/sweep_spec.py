@@ -42,6 +42,8 @@ __all__ = [
     "parse_sweep_spec",
     "load_sweep_spec",
     "count_runs",
+    "check_size",
+    "DEFAULT_MAX_TOTAL",
     "plain_value",
 ]
 
@@ -53,6 +55,8 @@ OK_STATUSES = ("goal_reached", "completed")
 STATUS_ERROR = "error"  # the task raised (bad combination found at run time, FMU load failure, ...)
 STATUS_LOST = "lost"  # the worker died or the task was cancelled: run again on resume
 SPEC_FORMAT = "pushtrain.sweep"
+DEFAULT_MAX_TOTAL = 100_000
+"""Most runs a sweep makes unless the caller raises the limit (``max_total``, ``--max-total``)."""
 
 METRICS = {
     "rms_lat_m": "RMS lateral error of the last trailer [m]",
@@ -318,6 +322,13 @@ class SweepSpec(_Section):
         """Number of runs, computed from :attr:`shape` (nothing is expanded)."""
         return math.prod(self.shape)
 
+    @property
+    def size_text(self) -> str:
+        """``"grid 3 x 100000"`` or ``"monte_carlo, 500 samples"``."""
+        if self.mode == "monte_carlo":
+            return f"monte_carlo, {self.samples} samples"
+        return "grid " + " x ".join(str(n) for n in self.shape)
+
 
 def parse_sweep_spec(data: dict, source: str = "<sweep>") -> SweepSpec:
     """Validate plain data (a parsed TOML document) into a :class:`SweepSpec`.
@@ -345,3 +356,20 @@ def count_runs(spec: SweepSpec) -> int:
     Cheap for any size (no run is made), so a caller can refuse a huge sweep before expanding it.
     """
     return spec.n_runs
+
+
+def check_size(spec: SweepSpec, max_total: int | None = DEFAULT_MAX_TOTAL) -> int:
+    """The number of runs of ``spec`` (:func:`count_runs`), refused above ``max_total``.
+
+    Raises
+    ------
+    SweepError
+        The spec makes more than ``max_total`` runs (None: no limit); nothing was expanded.
+    """
+    n_runs = count_runs(spec)
+    if max_total is not None and n_runs > max_total:
+        raise SweepError(spec.name, [(
+            f"runs ({spec.size_text})", n_runs,
+            f"more than the limit of {max_total} runs (max_total, --max-total): use fewer "
+            "values or samples, or raise the limit")])
+    return n_runs

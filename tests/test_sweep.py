@@ -265,10 +265,101 @@ def test_cli_sweep(tmp_path, workers):
                                       str(tmp_path / "spec.toml"), "--workers", workers,
                                       "--out", str(out), "--no-plots"])
     assert result.exit_code == 0, result.output
+    assert result.stdout.startswith(f"sweep bias_gain: 8 runs (grid 4 x 2) -> {out}\n")
     assert "success: 8/8" in result.output
     assert "steady[cm]" in result.output
+    # stderr is not a terminal here: progress comes as lines, the last one when all are done
+    assert "sweep: 8/8 new runs done, 0 failed" in result.stderr
     assert len(read_results(out / "results.csv")) == 8
     assert not list(out.glob("*.png"))
+
+
+HUGE = {"name": "huge", "parameters": [
+    {"path": "controller.k_y", "values": [3.0, 4.0, 5.0]},
+    {"path": "controller.k_x", "range": {"start": 0.5, "stop": 2.0, "num": 100_000}}]}
+HUGE_TOML = """
+name = "huge"
+[[parameters]]
+path = "controller.k_y"
+values = [3.0, 4.0, 5.0]
+[[parameters]]
+path = "controller.k_x"
+range = { start = 0.5, stop = 2.0, num = 100000 }
+"""
+
+
+def _no_expansion(monkeypatch):
+    """Make expanding runs fail, to show that a check happens before any run is made."""
+    import pushtrain.studies.sweep_runs as sweep_runs
+
+    def refuse(spec):
+        raise AssertionError("the runs were expanded")
+
+    monkeypatch.setattr(sweep_runs, "expand_runs", refuse)
+
+
+def test_runs_are_counted_without_expanding_them(monkeypatch):
+    from pushtrain.studies.sweep import count_runs
+
+    _no_expansion(monkeypatch)
+    assert count_runs(parse_sweep_spec(HUGE)) == 300_000
+    cube = {"parameters": [{"path": f"controller.k_{k}", "range": {"start": 0.0, "stop": 1.0,
+                                                                  "num": 100_000}}
+                           for k in ("x", "y", "theta")]}
+    assert count_runs(parse_sweep_spec(cube)) == 10**15
+    small = parse_sweep_spec(SPEC8)
+    assert count_runs(small) == len(expand_runs(small)) == 8  # this module's own reference
+    mc = {"mode": "monte_carlo", "samples": 250_000,
+          "parameters": [{"path": "controller.k_y", "dist": "normal", "mean": 4.0, "std": 0.1}]}
+    assert count_runs(parse_sweep_spec(mc)) == 250_000
+
+
+def test_a_sweep_over_the_limit_is_refused_before_any_run_is_made(base, tmp_path, monkeypatch):
+    _no_expansion(monkeypatch)
+    with pytest.raises(SweepError) as err:
+        sweep(base, parse_sweep_spec(HUGE), tmp_path / "out", serial=True)
+    assert err.value.errors == [("runs (grid 3 x 100000)", 300_000, err.value.errors[0][2])]
+    assert "limit of 100000 runs" in str(err.value)
+    with pytest.raises(SweepError, match="limit of 7 runs"):
+        sweep(base, parse_sweep_spec(SPEC8), tmp_path / "out", serial=True, max_total=7)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("spec_toml, options, count, limit", [
+    (HUGE_TOML, [], "300000", "100000"),
+    (SPEC8_TOML, ["--max-total", "5"], "8", "5"),
+])
+def test_cli_refuses_a_sweep_over_max_total_with_exit_2(tmp_path, monkeypatch, spec_toml,
+                                                        options, count, limit):
+    from pushtrain.cli.main import cli
+
+    _no_expansion(monkeypatch)
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(spec_toml)
+    result = CliRunner().invoke(cli, ["sweep", str(tmp_path / "base.toml"), "--spec",
+                                      str(tmp_path / "spec.toml"), "--workers", "0",
+                                      "--out", str(tmp_path / "out"), *options])
+    assert result.exit_code == 2, result.output
+    assert result.stdout.startswith(f"sweep {'huge' if count == '300000' else 'bias_gain'}: "
+                                    f"{count} runs")
+    assert f"= {count}: more than the limit of {limit} runs" in result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_progress_on_a_pipe_is_a_line_every_interval_and_one_at_the_end(capsys):
+    from pushtrain.cli.sweep import _Progress
+
+    now = [100.0]
+    progress = _Progress(tty=False, interval=10.0, clock=lambda: now[0])
+    progress.start(40)
+    for done in range(1, 41):  # a run every 0.75 s: lines at 10.5 s, 21 s (10 s later), 30 s
+        now[0] += 0.75
+        progress.row({"ok": done % 10 != 0}, done, 40)
+    progress.close()
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ["sweep: 14/40 new runs done, 1 failed, 10 s, about 20 s left",
+                     "sweep: 28/40 new runs done, 2 failed, 21 s, about 9 s left",
+                     "sweep: 40/40 new runs done, 4 failed, 30 s"]
 
 
 def test_cli_bad_spec_exits_2_naming_the_field(tmp_path):
