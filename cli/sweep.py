@@ -33,6 +33,9 @@ def __getattr__(name: str):
 
 
 # ------------------------------------------------------------------------------------------ CLI
+EXIT_INTERRUPTED = 130
+"""Exit code after Ctrl-C (128 + SIGINT, as a shell reports it); the rows done are kept."""
+
 PIPE_INTERVAL_S = 10.0
 """Seconds between progress lines when stderr is not a terminal (a pipe, a log file)."""
 
@@ -82,6 +85,7 @@ class _Progress:
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
+            self.bar = None
 
 
 @click.command("sweep")
@@ -108,7 +112,8 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
     Every run is one co-simulation; failures (jackknife, errors) are recorded, not fatal.
     Results go to DIR/results.csv (and chunks/ as they finish), report.json and plots of
     success rate, tracking error and F_lat against each parameter. The number of runs is
-    printed before anything runs; progress goes to stderr.
+    printed before anything runs; progress goes to stderr. Ctrl-C stops the sweep, keeps the
+    rows done and exits with 130.
 
     \b
     Examples:
@@ -142,6 +147,11 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
         raise BadInput(str(exc)) from None
     except FmuBuildError as exc:
         raise click.ClickException(str(exc)) from None
+    except KeyboardInterrupt:
+        progress.close()
+        click.echo(f"interrupted: {progress.done} new run(s) kept in {out_dir}; run the same "
+                   "command with the same --out to resume", err=True)
+        sys.exit(EXIT_INTERRUPTED)
     finally:
         progress.close()
     _print_outcome(outcome, spec)

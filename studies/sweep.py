@@ -24,9 +24,12 @@ Units: lengths [m], times [s], angles in degrees only in ``*_deg`` columns.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
+import signal
+import threading
 import time
 from pathlib import Path
 from typing import Callable, Sequence
@@ -170,7 +173,7 @@ def run_sweep(
         _execute_all(todo, task_fn, client, serial, shared or {}, steady_window, collect)
     except KeyboardInterrupt:
         interrupted = True
-        log.warning("sweep interrupted: %d new rows kept; run again to resume", len(new_rows))
+        log.info("sweep interrupted: %d new rows kept; run again to resume", len(new_rows))
         raise
     finally:
         writer.flush()
@@ -221,25 +224,66 @@ def _run_distributed(client, runs, task_fn, shared, steady_window, collect) -> N
 
 
 # ------------------------------------------------------------------------------------ the job
-def _quiet_worker_logs():  # runs on each worker of our own LocalCluster
+def _quiet_worker() -> None:
+    """On each worker of our own LocalCluster: no pushtrain log output, and SIGINT ignored.
+
+    Ctrl-C in a terminal reaches the whole process group; the client alone handles it (it
+    closes the cluster), so the workers do not each print a KeyboardInterrupt traceback.
+    """
     logging.getLogger("pushtrain").addHandler(logging.NullHandler())
     logging.getLogger("pushtrain").propagate = False
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _quiet_worker_plugin():
+    """A WorkerPlugin running :func:`_quiet_worker` on every worker, also on restarted ones."""
+    from distributed import WorkerPlugin
+
+    class QuietWorker(WorkerPlugin):
+        name = "pushtrain-quiet-worker"
+
+        def setup(self, worker):
+            _quiet_worker()
+
+    return QuietWorker()
+
+
+@contextlib.contextmanager
+def _local_client(n_workers: int):
+    """A client of a LocalCluster whose workers ignore SIGINT (see :func:`_quiet_worker`).
+
+    The workers are started with SIGINT ignored in this process, which they inherit; a Ctrl-C
+    during those seconds of start-up is therefore lost. The plugin covers restarted workers.
+    """
+    from distributed import Client, LocalCluster
+
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGINT)
+    if main:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR)
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, signal.default_int_handler if previous is None
+                          else previous)
+    with cluster, Client(cluster) as client:
+        client.register_plugin(_quiet_worker_plugin())
+        yield client
 
 
 def _run_on_dask(runs, out_dir, kwargs, *, client, scheduler, workers) -> SweepOutcome:
     """:func:`run_sweep` on ``client``, on a client of ``scheduler``, or on a LocalCluster."""
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if client is not None:
         return run_sweep(runs, run_task, out_dir, client=client, **kwargs)
     if scheduler is not None:
         with Client(scheduler) as own:
             return run_sweep(runs, run_task, out_dir, client=own, **kwargs)
-    n_workers = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
-            Client(cluster) as own:
-        own.run(_quiet_worker_logs)
+    with _local_client(workers or os.cpu_count() or 1) as own:
         return run_sweep(runs, run_task, out_dir, client=own, **kwargs)
 
 

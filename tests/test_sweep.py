@@ -362,6 +362,64 @@ def test_progress_on_a_pipe_is_a_line_every_interval_and_one_at_the_end(capsys):
                      "sweep: 40/40 new runs done, 4 failed, 30 s"]
 
 
+SPEC16_TOML = """
+name = "bias_gain_16"
+steady_window = 5.0
+chunk_size = 1
+[overrides]
+"reference.segments[0].length" = 8.0
+[[parameters]]
+path = "sensors.joint_bias_deg[2]"
+values = [-6.0, -2.0, 2.0, 6.0]
+[[parameters]]
+path = "controller.k_y"
+values = [3.0, 4.0, 5.0, 6.0]
+"""
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
+    """Ctrl-C as a terminal sends it: SIGINT to the process group, the workers included."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from pushtrain.cli.main import cli
+
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(SPEC16_TOML)
+    out = tmp_path / "out"
+    args = ["sweep", str(tmp_path / "base.toml"), "--spec", str(tmp_path / "spec.toml"),
+            "--out", str(out), "--no-plots"]
+    exe = str(Path(sys.executable).parent / "pushtrain")
+    proc = subprocess.Popen([exe, *args, "--workers", "2"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 600
+    while not list(out.glob("chunks/chunk-*.csv")) and proc.poll() is None:
+        assert time.monotonic() < deadline, "no run finished in 600 s"
+        time.sleep(0.1)
+    os.killpg(proc.pid, signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 130, stdout + stderr
+    assert "Traceback" not in stderr, stderr
+    others = [line for line in stderr.splitlines() if not line.startswith("sweep: ")]
+    assert len(others) == 1 and others[0].startswith("interrupted: "), stderr
+    assert "run the same command with the same --out to resume" in others[0]
+    kept = {r["key"]: r for p in sorted(out.glob("chunks/chunk-*.csv")) for r in read_results(p)}
+    assert 1 <= len(kept) < 16
+
+    result = CliRunner().invoke(cli, [*args, "--workers", "0"])
+    assert result.exit_code == 0, result.output
+    assert f"{16 - len(kept)} run now, {len(kept)} resumed from earlier chunks" in result.output
+    assert "success: 16/16" in result.output
+    rows = read_results(out / "results.csv")
+    assert len(rows) == 16 and all(r["ok"] for r in rows)
+    assert [r for r in rows if r["key"] in kept] == [kept[r["key"]] for r in rows
+                                                     if r["key"] in kept]
+
+
 def test_cli_bad_spec_exits_2_naming_the_field(tmp_path):
     from pushtrain.cli.main import cli
 
