@@ -183,6 +183,6 @@ def _print_outcome(outcome: SweepOutcome, spec: SweepSpec) -> None:
         if len(failures) > 8:
             click.echo(f"  ... and {len(failures) - 8} more (report.json)")
     if not outcome.complete:
-        click.echo(f"incomplete: {outcome.n_runs - len(outcome.rows)} run(s) still to do; "
+        click.echo(f"incomplete: {outcome.remaining} run(s) still to do; "
                    "run the same command with the same --out to resume")
     click.echo(f"results: {outcome.out_dir}")

@@ -85,7 +85,7 @@ def read_results(path) -> list[dict]:
 class SweepOutcome:
     """What :func:`run_sweep` did.
 
-    ``rows`` holds one row per run that has a result (all runs when ``complete``), sorted by index;
+    ``rows`` holds the row of each run done so far (all runs when ``complete``), in run order;
     ``new`` counts the runs executed by this call, ``skipped`` the runs resumed from earlier chunks.
     """
 
@@ -100,8 +100,14 @@ class SweepOutcome:
     report: dict = field(default_factory=dict)
 
     @property
+    def remaining(self) -> int:
+        """Runs still to do: those without a row, and those whose row is ``lost``."""
+        return self.n_runs - sum(1 for r in self.rows if r["status"] != STATUS_LOST)
+
+    @property
     def complete(self) -> bool:
-        return len(self.rows) == self.n_runs
+        """Every run has a row, and none was lost (a lost run runs again on resume)."""
+        return self.remaining == 0
 
     @property
     def failures(self) -> list[dict]:

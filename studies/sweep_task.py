@@ -130,9 +130,10 @@ def metrics_of(result, steady_window: float) -> dict:
 
 
 def failure_row(status: str, message: str) -> dict:
-    """The metric part of a row for a run that produced no result."""
+    """The metric part of a row for a run that produced no result: every metric NaN (unknown,
+    not zero: a run that never ran had no slip events and took no steps we could count)."""
     row = {name: math.nan for name in METRICS}
-    row.update(status=status, message=message, slip_events=0, steps=0)
+    row.update(status=status, message=message)
     return row
 
 

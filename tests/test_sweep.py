@@ -7,7 +7,9 @@ steps) with a bias on joint 3; the Dask cluster (2 worker processes) is started 
 from __future__ import annotations
 
 import json
+import logging
 import math
+import os
 from pathlib import Path
 
 import pytest
@@ -15,6 +17,7 @@ from click.testing import CliRunner
 
 from pushtrain.mission.scenario import parse_scenario
 from pushtrain.studies.sweep import (
+    METRICS,
     TIMING_COLUMNS,
     FmuRef,
     SweepError,
@@ -24,6 +27,8 @@ from pushtrain.studies.sweep import (
     prepare_runs,
     read_results,
     run_key,
+    run_sweep,
+    run_task,
     set_path,
     sweep,
 )
@@ -228,6 +233,69 @@ def test_interrupted_sweep_resumes_to_the_same_table(base, serial8, tmp_path):
     changed = parse_sweep_spec({**SPEC8, "steady_window": 6.0})
     with pytest.raises(SweepError, match="different sweep"):
         sweep(base, changed, tmp_path, serial=True, plots=False)
+
+
+def _chunk_rows(out: Path) -> list[dict]:
+    return [r for p in sorted(out.glob("chunks/chunk-*.csv")) for r in read_results(p)]
+
+
+def test_a_run_that_raises_is_an_error_row_with_nan_metrics_not_zeros(base, tmp_path):
+    spec = parse_sweep_spec({"metrics": list(METRICS), "chunk_size": 1, "parameters": [
+        {"path": "sim.horizon", "values": [50.0025, 50.0075]}]})  # the 5 ms step divides neither
+    outcome = sweep(base, spec, tmp_path, serial=True, plots=False)
+    resumed = sweep(base, spec, tmp_path, serial=True, plots=False)
+    assert outcome.complete and outcome.new == 2 and resumed.skipped == 2 and resumed.new == 0
+    for where, rows in [("returned", outcome.rows), ("resumed", resumed.rows),
+                        ("results.csv", read_results(tmp_path / "results.csv")),
+                        ("chunks", _chunk_rows(tmp_path))]:
+        assert len(rows) == 2, where
+        for row in rows:
+            assert row["status"] == "error" and row["ok"] is False, (where, row)
+            assert "does not divide the horizon" in row["error"], (where, row)
+            numbers = {m: row[m] for m in METRICS}
+            assert all(isinstance(v, float) and math.isnan(v) for v in numbers.values()), \
+                (where, numbers)
+
+
+def _die_when_asked(payload, shared):
+    """Task function whose worker process dies (as on a crash inside the FMU) when asked."""
+    if payload.get("die"):
+        os._exit(3)
+    return run_task(payload, shared)
+
+
+@pytest.mark.slow
+def test_a_resumed_sweep_runs_a_lost_run_again(base, tmp_path):
+    import dask
+    from distributed import Client, LocalCluster
+
+    spec = parse_sweep_spec({"steady_window": 5.0, "parameters": [
+        {"path": "controller.k_y", "values": [3.0, 4.0, 5.0]}]})
+    runs, shared, manifest = prepare_runs(base, spec)
+    kwargs = dict(steady_window=5.0, chunk_size=8, shared=shared, manifest=manifest)
+    payload = runs[2].payload
+    runs[2].payload = {**payload, "die": True}
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                         dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as client:
+        first = run_sweep(runs, _die_when_asked, tmp_path, client=client, **kwargs)
+    # a run that finished just before the worker died may not have been reported: lost as well
+    statuses = [r["status"] for r in first.rows]
+    assert statuses[2] == "lost" and set(statuses[:2]) <= {"goal_reached", "lost"}, statuses
+    assert "KilledWorker" in first.rows[2]["error"]
+    assert all(math.isnan(first.rows[2][m]) for m in spec.kept_metrics)
+    n_lost = statuses.count("lost")
+    assert not first.complete and first.remaining == n_lost
+    assert [r["status"] for r in _chunk_rows(tmp_path)] == statuses  # the chunk holds the lost row
+
+    runs[2].payload = payload
+    second = run_sweep(runs, run_task, tmp_path, serial=True, **kwargs)
+    assert second.complete and second.new == n_lost and second.skipped == 3 - n_lost
+    assert [r["status"] for r in second.rows] == ["goal_reached"] * 3
+    kept = [k for k, status in enumerate(statuses) if status != "lost"]
+    assert [second.rows[k] for k in kept] == [first.rows[k] for k in kept]  # as written
+    assert [r["status"] for r in read_results(tmp_path / "results.csv")] == ["goal_reached"] * 3
 
 
 def test_fmu_bytes_are_written_on_a_worker_without_the_file(tmp_path, serial8):
