@@ -24,8 +24,7 @@ import tempfile
 import time
 
 from pushtrain.mission.scenario import parse_scenario
-from pushtrain.cli.sweep import prepare_runs, run_task
-from pushtrain.studies.sweep import parse_sweep_spec, run_sweep
+from pushtrain.studies.sweep import parse_sweep_spec, prepare_runs, run_sweep, run_task
 
 BASE = {
     "name": "bench_60s",

@@ -7,24 +7,32 @@ steps) with a bias on joint 3; the Dask cluster (2 worker processes) is started 
 from __future__ import annotations
 
 import json
+import logging
 import math
+import os
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from pushtrain.mission.scenario import parse_scenario
-from pushtrain.cli.sweep import FmuRef, _materialize, prepare_runs, sweep
 from pushtrain.studies.sweep import (
+    METRICS,
     TIMING_COLUMNS,
+    FmuRef,
     SweepError,
     expand_runs,
     parse_path,
     parse_sweep_spec,
+    prepare_runs,
     read_results,
     run_key,
+    run_sweep,
+    run_task,
     set_path,
+    sweep,
 )
+from pushtrain.studies.sweep_task import _materialize
 
 BASE = {
     "name": "short_bias",
@@ -227,6 +235,69 @@ def test_interrupted_sweep_resumes_to_the_same_table(base, serial8, tmp_path):
         sweep(base, changed, tmp_path, serial=True, plots=False)
 
 
+def _chunk_rows(out: Path) -> list[dict]:
+    return [r for p in sorted(out.glob("chunks/chunk-*.csv")) for r in read_results(p)]
+
+
+def test_a_run_that_raises_is_an_error_row_with_nan_metrics_not_zeros(base, tmp_path):
+    spec = parse_sweep_spec({"metrics": list(METRICS), "chunk_size": 1, "parameters": [
+        {"path": "sim.horizon", "values": [50.0025, 50.0075]}]})  # the 5 ms step divides neither
+    outcome = sweep(base, spec, tmp_path, serial=True, plots=False)
+    resumed = sweep(base, spec, tmp_path, serial=True, plots=False)
+    assert outcome.complete and outcome.new == 2 and resumed.skipped == 2 and resumed.new == 0
+    for where, rows in [("returned", outcome.rows), ("resumed", resumed.rows),
+                        ("results.csv", read_results(tmp_path / "results.csv")),
+                        ("chunks", _chunk_rows(tmp_path))]:
+        assert len(rows) == 2, where
+        for row in rows:
+            assert row["status"] == "error" and row["ok"] is False, (where, row)
+            assert "does not divide the horizon" in row["error"], (where, row)
+            numbers = {m: row[m] for m in METRICS}
+            assert all(isinstance(v, float) and math.isnan(v) for v in numbers.values()), \
+                (where, numbers)
+
+
+def _die_when_asked(payload, shared):
+    """Task function whose worker process dies (as on a crash inside the FMU) when asked."""
+    if payload.get("die"):
+        os._exit(3)
+    return run_task(payload, shared)
+
+
+@pytest.mark.slow
+def test_a_resumed_sweep_runs_a_lost_run_again(base, tmp_path):
+    import dask
+    from distributed import Client, LocalCluster
+
+    spec = parse_sweep_spec({"steady_window": 5.0, "parameters": [
+        {"path": "controller.k_y", "values": [3.0, 4.0, 5.0]}]})
+    runs, shared, manifest = prepare_runs(base, spec)
+    kwargs = dict(steady_window=5.0, chunk_size=8, shared=shared, manifest=manifest)
+    payload = runs[2].payload
+    runs[2].payload = {**payload, "die": True}
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                         dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as client:
+        first = run_sweep(runs, _die_when_asked, tmp_path, client=client, **kwargs)
+    # a run that finished just before the worker died may not have been reported: lost as well
+    statuses = [r["status"] for r in first.rows]
+    assert statuses[2] == "lost" and set(statuses[:2]) <= {"goal_reached", "lost"}, statuses
+    assert "KilledWorker" in first.rows[2]["error"]
+    assert all(math.isnan(first.rows[2][m]) for m in spec.kept_metrics)
+    n_lost = statuses.count("lost")
+    assert not first.complete and first.remaining == n_lost
+    assert [r["status"] for r in _chunk_rows(tmp_path)] == statuses  # the chunk holds the lost row
+
+    runs[2].payload = payload
+    second = run_sweep(runs, run_task, tmp_path, serial=True, **kwargs)
+    assert second.complete and second.new == n_lost and second.skipped == 3 - n_lost
+    assert [r["status"] for r in second.rows] == ["goal_reached"] * 3
+    kept = [k for k, status in enumerate(statuses) if status != "lost"]
+    assert [second.rows[k] for k in kept] == [first.rows[k] for k in kept]  # as written
+    assert [r["status"] for r in read_results(tmp_path / "results.csv")] == ["goal_reached"] * 3
+
+
 def test_fmu_bytes_are_written_on_a_worker_without_the_file(tmp_path, serial8):
     from pushtrain.fmu import build_fmu
 
@@ -262,10 +333,159 @@ def test_cli_sweep(tmp_path, workers):
                                       str(tmp_path / "spec.toml"), "--workers", workers,
                                       "--out", str(out), "--no-plots"])
     assert result.exit_code == 0, result.output
+    assert result.stdout.startswith(f"sweep bias_gain: 8 runs (grid 4 x 2) -> {out}\n")
     assert "success: 8/8" in result.output
     assert "steady[cm]" in result.output
+    # stderr is not a terminal here: progress comes as lines, the last one when all are done
+    assert "sweep: 8/8 new runs done, 0 failed" in result.stderr
     assert len(read_results(out / "results.csv")) == 8
     assert not list(out.glob("*.png"))
+
+
+HUGE = {"name": "huge", "parameters": [
+    {"path": "controller.k_y", "values": [3.0, 4.0, 5.0]},
+    {"path": "controller.k_x", "range": {"start": 0.5, "stop": 2.0, "num": 100_000}}]}
+HUGE_TOML = """
+name = "huge"
+[[parameters]]
+path = "controller.k_y"
+values = [3.0, 4.0, 5.0]
+[[parameters]]
+path = "controller.k_x"
+range = { start = 0.5, stop = 2.0, num = 100000 }
+"""
+
+
+def _no_expansion(monkeypatch):
+    """Make expanding runs fail, to show that a check happens before any run is made."""
+    import pushtrain.studies.sweep_runs as sweep_runs
+
+    def refuse(spec):
+        raise AssertionError("the runs were expanded")
+
+    monkeypatch.setattr(sweep_runs, "expand_runs", refuse)
+
+
+def test_runs_are_counted_without_expanding_them(monkeypatch):
+    from pushtrain.studies.sweep import count_runs
+
+    _no_expansion(monkeypatch)
+    assert count_runs(parse_sweep_spec(HUGE)) == 300_000
+    cube = {"parameters": [{"path": f"controller.k_{k}", "range": {"start": 0.0, "stop": 1.0,
+                                                                  "num": 100_000}}
+                           for k in ("x", "y", "theta")]}
+    assert count_runs(parse_sweep_spec(cube)) == 10**15
+    small = parse_sweep_spec(SPEC8)
+    assert count_runs(small) == len(expand_runs(small)) == 8  # this module's own reference
+    mc = {"mode": "monte_carlo", "samples": 250_000,
+          "parameters": [{"path": "controller.k_y", "dist": "normal", "mean": 4.0, "std": 0.1}]}
+    assert count_runs(parse_sweep_spec(mc)) == 250_000
+
+
+def test_a_sweep_over_the_limit_is_refused_before_any_run_is_made(base, tmp_path, monkeypatch):
+    _no_expansion(monkeypatch)
+    with pytest.raises(SweepError) as err:
+        sweep(base, parse_sweep_spec(HUGE), tmp_path / "out", serial=True)
+    assert err.value.errors == [("runs (grid 3 x 100000)", 300_000, err.value.errors[0][2])]
+    assert "limit of 100000 runs" in str(err.value)
+    with pytest.raises(SweepError, match="limit of 7 runs"):
+        sweep(base, parse_sweep_spec(SPEC8), tmp_path / "out", serial=True, max_total=7)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("spec_toml, options, count, limit", [
+    (HUGE_TOML, [], "300000", "100000"),
+    (SPEC8_TOML, ["--max-total", "5"], "8", "5"),
+])
+def test_cli_refuses_a_sweep_over_max_total_with_exit_2(tmp_path, monkeypatch, spec_toml,
+                                                        options, count, limit):
+    from pushtrain.cli.main import cli
+
+    _no_expansion(monkeypatch)
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(spec_toml)
+    result = CliRunner().invoke(cli, ["sweep", str(tmp_path / "base.toml"), "--spec",
+                                      str(tmp_path / "spec.toml"), "--workers", "0",
+                                      "--out", str(tmp_path / "out"), *options])
+    assert result.exit_code == 2, result.output
+    assert result.stdout.startswith(f"sweep {'huge' if count == '300000' else 'bias_gain'}: "
+                                    f"{count} runs")
+    assert f"= {count}: more than the limit of {limit} runs" in result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_progress_on_a_pipe_is_a_line_every_interval_and_one_at_the_end(capsys):
+    from pushtrain.cli.sweep import _Progress
+
+    now = [100.0]
+    progress = _Progress(tty=False, interval=10.0, clock=lambda: now[0])
+    progress.start(40)
+    for done in range(1, 41):  # a run every 0.75 s: lines at 10.5 s, 21 s (10 s later), 30 s
+        now[0] += 0.75
+        progress.row({"ok": done % 10 != 0}, done, 40)
+    progress.close()
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ["sweep: 14/40 new runs done, 1 failed, 10 s, about 20 s left",
+                     "sweep: 28/40 new runs done, 2 failed, 21 s, about 9 s left",
+                     "sweep: 40/40 new runs done, 4 failed, 30 s"]
+
+
+SPEC16_TOML = """
+name = "bias_gain_16"
+steady_window = 5.0
+chunk_size = 1
+[overrides]
+"reference.segments[0].length" = 8.0
+[[parameters]]
+path = "sensors.joint_bias_deg[2]"
+values = [-6.0, -2.0, 2.0, 6.0]
+[[parameters]]
+path = "controller.k_y"
+values = [3.0, 4.0, 5.0, 6.0]
+"""
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
+    """Ctrl-C as a terminal sends it: SIGINT to the process group, the workers included."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from pushtrain.cli.main import cli
+
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(SPEC16_TOML)
+    out = tmp_path / "out"
+    args = ["sweep", str(tmp_path / "base.toml"), "--spec", str(tmp_path / "spec.toml"),
+            "--out", str(out), "--no-plots"]
+    exe = str(Path(sys.executable).parent / "pushtrain")
+    proc = subprocess.Popen([exe, *args, "--workers", "2"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 600
+    while not list(out.glob("chunks/chunk-*.csv")) and proc.poll() is None:
+        assert time.monotonic() < deadline, "no run finished in 600 s"
+        time.sleep(0.1)
+    os.killpg(proc.pid, signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 130, stdout + stderr
+    assert "Traceback" not in stderr, stderr
+    others = [line for line in stderr.splitlines() if not line.startswith("sweep: ")]
+    assert len(others) == 1 and others[0].startswith("interrupted: "), stderr
+    assert "run the same command with the same --out to resume" in others[0]
+    kept = {r["key"]: r for p in sorted(out.glob("chunks/chunk-*.csv")) for r in read_results(p)}
+    assert 1 <= len(kept) < 16
+
+    result = CliRunner().invoke(cli, [*args, "--workers", "0"])
+    assert result.exit_code == 0, result.output
+    assert f"{16 - len(kept)} run now, {len(kept)} resumed from earlier chunks" in result.output
+    assert "success: 16/16" in result.output
+    rows = read_results(out / "results.csv")
+    assert len(rows) == 16 and all(r["ok"] for r in rows)
+    assert [r for r in rows if r["key"] in kept] == [kept[r["key"]] for r in rows
+                                                     if r["key"] in kept]
 
 
 def test_cli_bad_spec_exits_2_naming_the_field(tmp_path):
@@ -317,3 +537,12 @@ def test_plan_missions_are_planned_once_per_train_geometry_as_plain_data():
     assert texts[0] == texts[1] and texts[2] == texts[3] and texts[0] != texts[2]
     assert all(r.failure is None for r in runs)
     assert [r.payload["fmu"].n for r in runs] == [2, 2, 3, 3]
+
+
+def test_old_cli_import_path_of_the_library_forwards_with_a_warning():
+    import pushtrain.cli.sweep as cli_sweep
+    import pushtrain.studies.sweep as library
+
+    for name in ("sweep", "prepare_runs", "run_task", "FmuRef"):
+        with pytest.warns(DeprecationWarning, match=f"moved to pushtrain.studies.sweep.{name}"):
+            assert getattr(cli_sweep, name) is getattr(library, name)
