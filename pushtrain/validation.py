@@ -73,21 +73,32 @@ def field_errors(exc) -> list[tuple[str, object, str]]:
 
 
 def read_toml(path, error_cls) -> dict:
-    """The TOML document at ``path`` with ``name`` defaulting to the file's stem.
+    """The TOML document at ``path`` (UTF-8) with ``name`` defaulting to the file's stem.
 
-    A file that cannot be read or parsed raises ``error_cls(source, [(where, value, allowed)])``.
+    A file that cannot be read, decoded or parsed raises
+    ``error_cls(source, [(where, value, allowed)])``.
     """
     import tomllib
     from pathlib import Path
 
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
-        raise error_cls(str(path), [("(file)", str(path), f"cannot be read: {exc.strerror}")]) from None
+        raise error_cls(str(path), [("(file)", str(path),
+                                     f"cannot be read: {exc.strerror}")]) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise error_cls(str(path), [(f"(encoding) line {line}", raw[exc.start:exc.end],
+                                     "TOML files must be UTF-8 text")]) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error_cls(str(path), [("(syntax)", None, f"not valid TOML: {exc}")]) from None
+    except RecursionError:
+        raise error_cls(str(path), [("(syntax)", None,
+                                     "not valid TOML: nested too deeply")]) from None
     data.setdefault("name", path.stem)
     return data

@@ -7,6 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from pushtrain.cli.main import cli
+from pushtrain.files import RUN_MARKER
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 PLOTS = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
@@ -32,4 +33,6 @@ def test_example_runs_end_to_end(path, tmp_path):
     if path.stem == "straight_push":
         assert (out / "train.gif").stat().st_size > 10_000
     assert (out / "results.npz").is_file() and (out / "run.log").is_file()
+    assert (out / RUN_MARKER).is_file()
+    assert (out / "path.json").is_file() == (summary["mission"] == "plan")
     assert not list(out.glob(".*.part"))

@@ -1,0 +1,1 @@
+"""One module per ``pushtrain`` command; :mod:`pushtrain.cli.main` adds them to the group."""

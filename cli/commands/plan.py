@@ -1,0 +1,77 @@
+"""``pushtrain plan``: plan the last trailer's path only."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from pushtrain.files import atomic_write
+
+from ..common import BadInput, _scenario, check_map, click_errors, scenario_argument
+from ..runs import describe_path, plan_or_fail, write_path
+
+
+def _plot_path(sc, path, png: Path) -> None:
+    """Draw the map and the planned path of the last trailer into ``png``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pushtrain.mission.runner import world_of
+
+    fig, ax = plt.subplots(figsize=(8, 6))
+    try:
+        world_of(sc).plot(ax)
+        ax.plot(path.poses[:, 0], path.poses[:, 1], "-", color="tab:blue",
+                label="planned path (last trailer)")
+        ax.plot(*path.poses[0, :2], "go", label="start")
+        ax.plot(*path.poses[-1, :2], "r*", markersize=12, label="goal")
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.legend(loc="best")
+        ax.set_title(f"{sc.name}: {path.length:.2f} m, {path.n_cusps} cusp(s)")
+        fig.tight_layout()
+        atomic_write(png, lambda partial: fig.savefig(partial, dpi=120), keep_suffix=True)
+    finally:
+        plt.close(fig)
+
+
+def _written(option: str, target: str, write) -> None:
+    try:
+        write(Path(target))
+    except OSError as exc:
+        raise BadInput(f"{option} {target}: cannot be written: {exc.strerror or exc}; allowed: "
+                       "a file path in an existing, writable folder") from None
+
+
+@click.command("plan")
+@scenario_argument
+@click.option("--out", "-o", "out", type=click.Path(dir_okay=False), metavar="FILE",
+              help="Write the path as JSON (default: print a description only).")
+@click.option("--seed", type=click.IntRange(min=1), metavar="S", help="Override the scenario seed.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), metavar="PNG",
+              help="Draw the map and the planned path.")
+def plan_cmd(scenario, out, seed, plot_path):
+    """Plan the last trailer's path only (no co-simulation).
+
+    \b
+    Example:
+      pushtrain plan examples/bay.toml --out bay_path.json --plot bay_path.png
+    """
+    sc = _scenario(scenario, seed=seed)
+    if sc.mission.kind != "plan":
+        raise BadInput(f"{scenario}: mission.kind = {sc.mission.kind!r}: 'plan' needs "
+                       "mission.kind = 'plan'")
+    check_map(sc)
+    with click_errors():
+        path = plan_or_fail(sc, None)
+    click.echo(describe_path(path))
+    if out:
+        _written("--out", out, lambda target: write_path(path, target))
+        click.echo(f"path: {out}")
+    if plot_path:
+        _written("--plot", plot_path, lambda target: _plot_path(sc, path, target))
+        click.echo(f"plot: {plot_path}")

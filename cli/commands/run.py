@@ -1,0 +1,58 @@
+"""``pushtrain run``: co-simulate a saved path or a scripted reference."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from ..common import BadInput, _scenario, out_dir_option, scenario_argument
+from ..rundir import run_folder
+from ..runs import run_and_report, write_path, write_scenario
+
+
+def _load_path(path_file: str):
+    from pushtrain.planner.path import PlannedPath
+
+    try:
+        return PlannedPath.from_json(path_file)
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise BadInput(f"--path {path_file}: not a usable path file (from `pushtrain plan "
+                       f"--out`): {exc}") from None
+    except OSError as exc:
+        raise BadInput(f"--path {path_file}: cannot be read: {exc.strerror}") from None
+
+
+@click.command("run")
+@scenario_argument
+@click.option("--path", "path_file", type=click.Path(exists=True, dir_okay=False),
+              metavar="PATH.json",
+              help="A saved path (from `plan --out`); default: the scenario's scripted reference.")
+@out_dir_option
+@click.option("--no-plots", is_flag=True, help="Skip the PNG plots and the GIF.")
+@click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
+def run_cmd(scenario, path_file, out, no_plots, no_gif):
+    """Co-simulate a saved path or the scenario's scripted line/arc reference.
+
+    \b
+    Examples:
+      pushtrain run examples/circle.toml
+      pushtrain run examples/bay.toml --path bay_path.json
+    Writes scenario.json, path.json (with --path), results.csv/.npz, summary.json, run.log
+    and plots.
+    """
+    sc = _scenario(scenario)
+    path = None
+    if path_file:
+        path = _load_path(path_file)
+    elif sc.mission.kind == "plan":
+        raise BadInput(f"{scenario}: mission.kind = 'plan' has no scripted reference: give "
+                       "--path PATH.json or use plan-and-run")
+    with run_folder(out, sc.name, sc) as out_dir:
+        write_scenario(sc, out_dir)
+        reference = None
+        if path is not None:
+            write_path(path, out_dir / "path.json")
+            reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
+        code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif)
+    sys.exit(code)

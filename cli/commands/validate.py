@@ -1,0 +1,21 @@
+"""``pushtrain validate``: check a scenario file."""
+
+from __future__ import annotations
+
+import click
+
+from ..common import _scenario, check_map, scenario_argument
+
+
+@click.command("validate")
+@scenario_argument
+def validate_cmd(scenario):
+    """Check a scenario file: every bad field is reported with its path; exit 2 if any.
+
+    \b
+    Example:
+      pushtrain validate examples/l_corridor.toml
+    """
+    sc = _scenario(scenario)
+    check_map(sc)
+    click.echo(f"{scenario}: ok ({sc.mission.kind} mission, n = {sc.train.n} trailers)")

@@ -1,0 +1,127 @@
+"""What ``plan``, ``run`` and ``plan-and-run`` share: planning with a diagnostic picture on
+failure, running a scenario into its folder, and the text they print."""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+
+import click
+
+from pushtrain.files import atomic_write_text
+from pushtrain.mission.scenario import Scenario
+
+from .common import EXIT_NOT_REACHED, EXIT_OK
+
+__all__ = ["plan_or_fail", "write_path", "write_scenario", "describe_path", "summary_text",
+           "run_and_report"]
+
+log = logging.getLogger(__name__)
+
+
+def plan_or_fail(sc: Scenario, out_dir: Path | None):
+    """Plan ``sc``'s path; on a PlanningError save ``planning_failure.png`` in ``out_dir`` (if
+    given) and re-raise it."""
+    from pushtrain.errors import PlanningError
+    from pushtrain.mission.runner import plan_path
+
+    t0 = time.perf_counter()
+    try:
+        path = plan_path(sc)
+    except PlanningError:
+        if out_dir is not None:
+            _save_diagnostic(sc, out_dir / "planning_failure.png")
+        raise
+    log.info("planned %d segments, %.2f m, %d cusps in %.2f s", len(path.segments), path.length,
+             path.n_cusps, time.perf_counter() - t0)
+    return path
+
+
+def _save_diagnostic(sc: Scenario, png: Path) -> None:
+    from pushtrain.mission.runner import train_of, world_of
+    from pushtrain.planner.world import save_diagnostic
+
+    try:
+        save_diagnostic(png, world_of(sc),
+                        (sc.start.x, sc.start.y, math.radians(sc.start.theta_deg)),
+                        (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg)), train_of(sc))
+    except Exception as exc:  # the diagnosis must not hide the planning error
+        log.warning("could not save the diagnostic picture: %s", exc)
+
+
+def write_path(path, target: Path) -> None:
+    """Write a planned path as JSON (atomically)."""
+    atomic_write_text(target, path.to_json() + "\n")
+
+
+def write_scenario(sc: Scenario, out_dir: Path) -> None:
+    """Write the resolved scenario (every default filled in) as ``scenario.json``."""
+    atomic_write_text(out_dir / "scenario.json", sc.model_dump_json(indent=2))
+
+
+def describe_path(path) -> str:
+    """A few lines describing a planned path: length, cusps, one line per segment."""
+    lines = [f"path: {path.length:.2f} m, {len(path.segments)} segments, {path.n_cusps} cusp(s), "
+             f"turning radius {path.turning_radius:.2f} m"]
+    for seg in path.segments:
+        if seg.kind == "line":
+            kind = "line"
+        else:
+            side = "left" if seg.curvature > 0 else "right"
+            kind = f"arc r={1 / abs(seg.curvature):.2f} m {side}"
+        lines.append(f"  {'push' if seg.direction > 0 else 'pull'} {kind:<22} {seg.length:6.2f} m")
+    return "\n".join(lines)
+
+
+def summary_text(summary: dict) -> str:
+    """The one-screen summary of a run: status, tracking errors, joint angles, forces, slip."""
+    lines = [f"status: {summary['status']} - {summary['message']}"]
+    if "lateral_error_m" in summary and summary.get("mission") != "rotation":
+        lat, head = summary["lateral_error_m"], summary["heading_error_rad"]
+        lines.append(f"lateral error of the last trailer: rms {lat['rms'] * 100:.2f} cm, "
+                     f"max {lat['max'] * 100:.2f} cm, final {lat['final'] * 100:.2f} cm")
+        lines.append(f"heading error: rms {math.degrees(head['rms']):.2f} deg, "
+                     f"max {math.degrees(head['max']):.2f} deg")
+    if "max_abs_phi_deg" in summary:
+        lines.append("max |joint angle| [deg]: "
+                     + ", ".join(f"{a:.1f}" for a in summary["max_abs_phi_deg"]))
+        ratios = summary["max_F_lat_ratio"]
+        lines.append("max |F_lat| / friction limit: " + ", ".join(
+            f"{r:.2f}" if r is not None else "-" for r in ratios))
+        slips = [s for s in summary["slip"] if s["events"]]
+        lines.append("slip: " + (", ".join(f"trailer {s['trailer']} from t = {s['first_t']:.2f} s"
+                                           for s in slips) if slips else "none"))
+    lines.append(f"{summary.get('steps', 0)} steps in {summary.get('wall_time_s', 0):.2f} s")
+    return "\n".join(lines)
+
+
+def _plot(result, sc: Scenario, out_dir: Path, path, gif: bool) -> None:
+    from pushtrain.mission.runner import geometry_of, world_of
+    from pushtrain.report import plots as plotting
+
+    footprints = {"robot": (sc.train.robot_size.length, sc.train.robot_size.width),
+                  "trailer": (sc.train.trailer_size.length, sc.train.trailer_size.width)}
+    path_xy = None if path is None else path.poses[:, :2]
+    try:
+        written = plotting.plot_all(result, sc.train.n, out_dir, world=world_of(sc),
+                                    path_xy=path_xy, footprints=footprints, gif=gif,
+                                    geometry=geometry_of(sc))
+        log.info("plots: %s", ", ".join(p.name for p in written))
+    except Exception as exc:  # plots must never lose the results already written
+        log.exception("plotting failed")
+        click.echo(f"warning: plotting failed ({exc}); results are in {out_dir}", err=True)
+
+
+def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gif: bool) -> int:
+    """Co-simulate ``sc`` into ``out_dir``, plot, print the summary; the exit code (0 if the
+    goal was reached or the fixed-horizon run completed, else 1)."""
+    from pushtrain.mission.runner import run_scenario
+
+    result = run_scenario(sc, out_dir, reference=reference)
+    if plots:
+        _plot(result, sc, out_dir, path, gif)
+    click.echo(summary_text(result.summary))
+    click.echo(f"results: {out_dir}")
+    return EXIT_OK if result.ok else EXIT_NOT_REACHED
