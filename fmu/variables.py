@@ -1,10 +1,11 @@
-"""The TrailerTrain FMU's variables: one table that renders ``modelDescription.xml``.
+"""The TrailerTrain FMU's variables: the one table that describes them.
 
-Value references: scalars have ``vr < 100``; element ``i`` of array block ``b`` has
-``vr = 100 * b + i`` with ``i`` the body index (0 = robot, 1..n trailers). The C side mirrors the
-block numbers in ``src/model.h`` (``enum Block``) and a test checks that the two agree. Start
-values here must equal what the C code sets in ``model_set_defaults`` (also tested, through the
-built FMU).
+The builder renders ``modelDescription.xml`` and the C header ``variables.h`` (value-reference
+enums, names, types, causalities) from it, so adding a variable means a row here plus its place in
+the C model (``src/variables.c``; the compiler names a missing one). Value references: scalars have
+``vr < 100``; element ``i`` of array block ``b`` has ``vr = 100 * b + i`` with ``i`` the body index
+(0 = robot, 1..n trailers). Start values here must equal what the C code sets in
+``model_set_defaults`` (tested through the built FMU).
 """
 
 from __future__ import annotations

@@ -199,6 +199,20 @@ def test_values_in_initialization_mode_equal_xml_start(built_fmu_sim, n_trailers
     assert sim.get(["n"]) == [n_trailers]
 
 
+def test_every_variable_reads_with_its_type_and_is_named_by_the_c_side(built_fmu_sim):
+    """Every variable of the XML has a place in the C model (read through its type's getter)."""
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.initialize({"theta_start[1]": 0.3}, {"v_cmd": -0.1})
+    values = sim.get([v.name for v in sim.md.modelVariables])
+    assert len(values) == len(sim.md.modelVariables)
+    assert all(np.isfinite(float(value)) for value in values)
+    # a getter of another type refuses, naming the variable and both types
+    with pytest.raises(FMICallException):
+        sim.fmu.getReal([sim.vr("slipping[2]")])
+    assert any("slipping[2]" in message and "Boolean" in message and "Real" in message
+               for status, _, message in sim.messages if status >= 3), sim.messages
+
+
 def test_outputs_are_finite_after_exit_initialization(built_fmu_sim):
     sim = built_fmu_sim(N_DEFAULT)
     sim.initialize({"theta_start[1]": 0.3, "v_start": -0.05, "w_start": 0.02},

@@ -131,108 +131,6 @@ static fmi2Status ensure_outputs(Instance *inst, const char *function) {
     return fmi2OK;
 }
 
-/* ---------------------------------------------------------------- value references */
-
-typedef struct {
-    int block;  /* 0 for scalars */
-    int index;  /* body index, or the scalar vr */
-} VrRef;
-
-static bool decode(fmi2ValueReference vr, VrRef *out) {
-    out->block = (int)(vr / VR_STRIDE);
-    out->index = (int)(vr % VR_STRIDE);
-    switch (out->block) {
-    case 0: return out->index >= 1 && out->index <= vr_slip_substep;
-    case blk_rear: return out->index <= N_TRAILERS - 1;
-    case blk_theta_start: case blk_x: case blk_y: case blk_theta: case blk_v: case blk_w:
-        return out->index <= N_TRAILERS;
-    case blk_front: case blk_mass: case blk_inertia: case blk_payload: case blk_mu:
-    case blk_phi: case blk_F_lat: case blk_F_lat_max: case blk_slipping: case blk_slide:
-    case blk_hitch_fx: case blk_hitch_fy: case blk_slide_speed:
-        return out->index >= 1 && out->index <= N_TRAILERS;
-    default: return false;
-    }
-}
-
-/* "name" or "name[i]" of a value reference, for messages. */
-static const char *vr_name(fmi2ValueReference vr, char *buffer, size_t len) {
-    static const char *const scalars[] = {
-        "?", "v_cmd", "w_cmd", "push_x", "push_y", "g", "robot_tau", "robot_acc_max",
-        "robot_alpha_max", "slip_mode", "phi_max", "x0_start", "y0_start", "v_start", "w_start",
-        "max_substep", "n", "jackknifed", "slip_substep"};
-    static const char *const blocks[] = {
-        "?", "front", "rear", "mass", "inertia", "payload", "mu", "theta_start", "x", "y",
-        "theta", "phi", "v", "w", "F_lat", "F_lat_max", "slipping", "slide", "hitch_fx",
-        "hitch_fy", "slide_speed"};
-    VrRef r;
-    if (!decode(vr, &r)) {
-        snprintf(buffer, len, "(unknown value reference %u)", (unsigned)vr);
-    } else if (r.block == 0) {
-        snprintf(buffer, len, "%s", scalars[r.index]);
-    } else {
-        snprintf(buffer, len, "%s[%d]", blocks[r.block], r.index);
-    }
-    return buffer;
-}
-
-static double *real_parameter(ModelData *m, VrRef r) {
-    switch (r.block) {
-    case 0:
-        switch (r.index) {
-        case vr_g: return &m->g;
-        case vr_robot_tau: return &m->robot_tau;
-        case vr_robot_acc_max: return &m->robot_acc_max;
-        case vr_robot_alpha_max: return &m->robot_alpha_max;
-        case vr_phi_max: return &m->phi_max;
-        case vr_x0_start: return &m->x0_start;
-        case vr_y0_start: return &m->y0_start;
-        case vr_v_start: return &m->v_start;
-        case vr_w_start: return &m->w_start;
-        case vr_max_substep: return &m->max_substep;
-        case vr_slip_substep: return &m->slip_substep;
-        default: return NULL;
-        }
-    case blk_front: return &m->front[r.index];
-    case blk_rear: return &m->rear[r.index];
-    case blk_mass: return &m->mass[r.index];
-    case blk_inertia: return &m->inertia[r.index];
-    case blk_payload: return &m->payload[r.index];
-    case blk_mu: return &m->mu[r.index];
-    case blk_theta_start: return &m->theta_start[r.index];
-    default: return NULL;
-    }
-}
-
-static double *real_input(ModelData *m, VrRef r) {
-    if (r.block == 0) {
-        switch (r.index) {
-        case vr_v_cmd: return &m->v_cmd;
-        case vr_w_cmd: return &m->w_cmd;
-        case vr_push_x: return &m->push_x;
-        case vr_push_y: return &m->push_y;
-        default: return NULL;
-        }
-    }
-    return r.block == blk_slide ? &m->slide[r.index] : NULL;
-}
-
-static bool real_output(const ModelData *m, VrRef r, double *value) {
-    switch (r.block) {
-    case blk_x: *value = m->x[r.index]; return true;
-    case blk_y: *value = m->y[r.index]; return true;
-    case blk_theta: *value = m->q[IX_THETA + r.index]; return true;
-    case blk_phi: *value = m->phi[r.index]; return true;
-    case blk_v: *value = m->v[r.index]; return true;
-    case blk_w: *value = m->w[r.index]; return true;
-    case blk_F_lat: *value = m->F_lat[r.index]; return true;
-    case blk_F_lat_max: *value = m->F_lat_max[r.index]; return true;
-    case blk_hitch_fx: *value = m->hitch_fx[r.index]; return true;
-    case blk_hitch_fy: *value = m->hitch_fy[r.index]; return true;
-    case blk_slide_speed: *value = m->slide_speed[r.index]; return true;
-    default: return false;
-    }
-}
-
 /* ---------------------------------------------------------------- common functions */
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -406,6 +304,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                        fmi2Real value[]) {
     Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
     if (!allowed(inst, "fmi2GetReal", ANY_MODE | mode_error)) {
         return fmi2Error;
@@ -414,21 +313,11 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         return fail(inst, "fmi2GetReal", "vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        VrRef r;
-        double *p;
-        if (!decode(vr[k], &r)) {
-            return fail(inst, "fmi2GetReal", "unknown value reference %u", (unsigned)vr[k]);
-        }
-        if ((p = real_parameter(&inst->data, r)) != NULL || (p = real_input(&inst->data, r))) {
-            value[k] = *p;
-            continue;
-        }
-        if (ensure_outputs(inst, "fmi2GetReal") != fmi2OK) {
+        if (model_needs_outputs(vr[k]) && ensure_outputs(inst, "fmi2GetReal") != fmi2OK) {
             return fmi2Error;
         }
-        if (!real_output(&inst->data, r, &value[k])) {
-            return fail(inst, "fmi2GetReal", "value reference %u is not a Real",
-                        (unsigned)vr[k]);
+        if (!model_get_real(&inst->data, vr[k], &value[k], msg, sizeof(msg))) {
+            return fail(inst, "fmi2GetReal", "%s", msg);
         }
     }
     return fmi2OK;
@@ -437,6 +326,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           fmi2Integer value[]) {
     Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
     if (!allowed(inst, "fmi2GetInteger", ANY_MODE | mode_error)) {
         return fmi2Error;
@@ -445,14 +335,11 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
         return fail(inst, "fmi2GetInteger", "vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        if (vr[k] == vr_n) {
-            value[k] = N_TRAILERS;
-        } else if (vr[k] == vr_slip_mode) {
-            value[k] = inst->data.slip_mode;
-        } else {
-            return fail(inst, "fmi2GetInteger", "value reference %u is not an Integer",
-                        (unsigned)vr[k]);
+        int v;
+        if (!model_get_integer(&inst->data, vr[k], &v, msg, sizeof(msg))) {
+            return fail(inst, "fmi2GetInteger", "%s", msg);
         }
+        value[k] = v;
     }
     return fmi2OK;
 }
@@ -460,6 +347,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           fmi2Boolean value[]) {
     Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
     if (!allowed(inst, "fmi2GetBoolean", ANY_MODE | mode_error)) {
         return fmi2Error;
@@ -471,15 +359,11 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
         return fmi2Error;
     }
     for (k = 0; k < nvr; k++) {
-        VrRef r;
-        if (vr[k] == vr_jackknifed) {
-            value[k] = inst->data.jackknifed ? fmi2True : fmi2False;
-        } else if (decode(vr[k], &r) && r.block == blk_slipping) {
-            value[k] = inst->data.slipping[r.index] ? fmi2True : fmi2False;
-        } else {
-            return fail(inst, "fmi2GetBoolean", "value reference %u is not a Boolean",
-                        (unsigned)vr[k]);
+        bool v;
+        if (!model_get_boolean(&inst->data, vr[k], &v, msg, sizeof(msg))) {
+            return fail(inst, "fmi2GetBoolean", "%s", msg);
         }
+        value[k] = v ? fmi2True : fmi2False;
     }
     return fmi2OK;
 }
@@ -503,6 +387,7 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                        const fmi2Real value[]) {
     Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
     if (!allowed(inst, "fmi2SetReal", SETUP_MODES | mode_step_complete)) {
         return fmi2Error;
@@ -511,38 +396,8 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         return fail(inst, "fmi2SetReal", "vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        VrRef r;
-        double *p;
-        if (!decode(vr[k], &r)) {
-            return fail(inst, "fmi2SetReal", "unknown value reference %u", (unsigned)vr[k]);
-        }
-        if ((p = real_input(&inst->data, r)) != NULL) {
-            if (!isfinite(value[k])) {
-                char name[64];
-                return fail(inst, "fmi2SetReal", "input %s = %g: must be finite",
-                            vr_name(vr[k], name, sizeof(name)), value[k]);
-            }
-            if (r.block == blk_slide && value[k] != 0.0 && inst->data.slip_mode == 1) {
-                char name[64];
-                return fail(inst, "fmi2SetReal", "input %s = %g: an imposed slide is the "
-                            "kinematic disturbance of slip_mode 0; with slip_mode = 1 push the "
-                            "trailer with push_x, push_y instead",
-                            vr_name(vr[k], name, sizeof(name)), value[k]);
-            }
-            *p = value[k];
-            inst->data.outputs_valid = false; /* F_lat depends directly on the inputs */
-        } else if ((p = real_parameter(&inst->data, r)) != NULL) {
-            if (!setup_mode(inst)) {
-                char name[64];
-                return fail(inst, "fmi2SetReal", "parameter %s is fixed: it can be set only in "
-                            "Instantiated or InitializationMode, not %s",
-                            vr_name(vr[k], name, sizeof(name)), mode_name(inst->mode));
-            }
-            *p = value[k]; /* checked in fmi2ExitInitializationMode */
-        } else {
-            char name[64];
-            return fail(inst, "fmi2SetReal", "%s is an output or calculated parameter and "
-                        "cannot be set", vr_name(vr[k], name, sizeof(name)));
+        if (!model_set_real(&inst->data, vr[k], value[k], setup_mode(inst), msg, sizeof(msg))) {
+            return fail(inst, "fmi2SetReal", "%s", msg);
         }
     }
     return fmi2OK;
@@ -551,6 +406,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           const fmi2Integer value[]) {
     Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
     if (!allowed(inst, "fmi2SetInteger", SETUP_MODES)) {
         return fmi2Error;
@@ -559,14 +415,9 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
         return fail(inst, "fmi2SetInteger", "vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        if (vr[k] == vr_slip_mode) {
-            inst->data.slip_mode = value[k]; /* checked in fmi2ExitInitializationMode */
-        } else if (vr[k] == vr_n) {
-            return fail(inst, "fmi2SetInteger", "n is a constant fixed by the build (n = %d); "
-                        "build another FMU for another number of trailers", N_TRAILERS);
-        } else {
-            return fail(inst, "fmi2SetInteger", "value reference %u is not a settable Integer",
-                        (unsigned)vr[k]);
+        if (!model_set_integer(&inst->data, vr[k], value[k], setup_mode(inst), msg,
+                               sizeof(msg))) {
+            return fail(inst, "fmi2SetInteger", "%s", msg);
         }
     }
     return fmi2OK;
@@ -575,13 +426,19 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           const fmi2Boolean value[]) {
     Instance *inst = (Instance *)c;
-    (void)value;
+    char msg[MSG_LEN];
+    size_t k;
     if (!allowed(inst, "fmi2SetBoolean", ANY_MODE)) {
         return fmi2Error;
     }
-    if (nvr > 0) {
-        return fail(inst, "fmi2SetBoolean", "value reference %u: the Booleans are outputs and "
-                    "cannot be set", (unsigned)(vr ? vr[0] : 0));
+    if (nvr > 0 && (vr == NULL || value == NULL)) {
+        return fail(inst, "fmi2SetBoolean", "vr or value is NULL");
+    }
+    for (k = 0; k < nvr; k++) {
+        if (!model_set_boolean(&inst->data, vr[k], value[k] != fmi2False, setup_mode(inst), msg,
+                               sizeof(msg))) {
+            return fail(inst, "fmi2SetBoolean", "%s", msg);
+        }
     }
     return fmi2OK;
 }
