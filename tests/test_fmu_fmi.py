@@ -336,6 +336,124 @@ def test_variable_and_inexact_steps_land_exactly(built_fmu_sim):
     assert np.all(np.diff(points) > 0)
 
 
+# -- state machine after an error (FMI 2.0: only get, set state, reset and free) -------------------
+def _error_messages(sim):
+    return [message for status, _, message in sim.messages if status >= 3]
+
+
+REJECTED_CALLS = {
+    "nan_input": lambda sim: sim.fmu.setReal([sim.vr("v_cmd")], [float("nan")]),
+    "parameter_after_init": lambda sim: sim.fmu.setReal([sim.vr("mass[2]")], [50.0]),
+    "unknown_reference": lambda sim: sim.fmu.getReal([99]),
+    "wrong_type": lambda sim: sim.fmu.getInteger([sim.vr("x[0]")]),
+    "unsupported_function": lambda sim: sim.fmu.getDirectionalDerivative(
+        [sim.vr("x[0]")], [sim.vr("v_cmd")], [1.0]),
+}
+
+
+@pytest.mark.parametrize("rejected", sorted(REJECTED_CALLS))
+def test_after_a_rejected_call_the_instance_cannot_step_on(built_fmu_sim, rejected):
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1})
+    sim.step(0.01)
+    with pytest.raises(FMICallException) as info:
+        REJECTED_CALLS[rejected](sim)
+    assert info.value.status == 3
+    first = _error_messages(sim)
+    assert len(first) == 1
+    # the message starts with the name of the function that refused (from __func__)
+    assert first[0].startswith(info.value.function + ": "), (first, info.value.function)
+    with pytest.raises(FMICallException) as step:
+        sim.step(0.01)
+    assert step.value.status == 3
+    assert "fmi2DoStep" in _error_messages(sim)[-1] and "Error" in _error_messages(sim)[-1]
+    with pytest.raises(FMICallException):
+        sim.fmu.setReal([sim.vr("v_cmd")], [0.0])  # no more inputs either
+    with pytest.raises(FMICallException):
+        sim.fmu.terminate()
+    # values stay readable for diagnostics, and a reset starts a fresh, working run
+    assert np.all(np.isfinite(sim.array("x")))
+    sim.fmu.reset()
+    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1})
+    sim.step(0.01)
+    assert sim.real("v[0]") < 0.0
+
+
+def test_a_state_saved_before_an_error_restarts_the_run(built_fmu_sim):
+    """FMI 2.0: after fmi2Error the simulation may restart from a state saved before it."""
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.1})
+    sim.step(0.01)
+    saved = sim.fmu.getFMUstate()
+    sim.step(0.01)
+    expected = sim.array("theta")
+    with pytest.raises(FMICallException):
+        sim.fmu.setReal([sim.vr("push_x")], [float("inf")])
+    with pytest.raises(FMICallException):
+        sim.fmu.doStep(currentCommunicationPoint=sim.time, communicationStepSize=0.01)
+    sim.fmu.setFMUstate(saved)
+    sim.fmu.freeFMUstate(saved)
+    sim.time = 0.01
+    sim.step(0.01)
+    assert np.array_equal(sim.array("theta"), expected)
+
+
+def test_a_call_in_the_wrong_mode_is_an_error_state_too(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    with pytest.raises(FMICallException):
+        sim.fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=0.01)
+    assert "Instantiated" in _error_messages(sim)[-1]
+    with pytest.raises(FMICallException):
+        sim.fmu.setupExperiment(startTime=0.0)
+    assert _error_messages(sim)[-1].startswith("fmi2SetupExperiment: not allowed in mode Error")
+
+
+def test_unprovided_status_is_discard_and_stepping_goes_on(built_fmu_sim):
+    from fmpy.fmi2 import fmi2DoStepStatus, fmi2LastSuccessfulTime
+
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize(inputs={"v_cmd": -0.1})
+    sim.step(0.01)
+    with pytest.raises(FMICallException) as info:
+        sim.fmu.getStatus(fmi2DoStepStatus)
+    assert info.value.status == 2  # fmi2Discard: "cannot be retrieved by the slave"
+    assert sim.fmu.getRealStatus(fmi2LastSuccessfulTime) == pytest.approx(0.01)
+    sim.step(0.01)
+    assert sim.real("x[0]") < 0.0
+
+
+# -- stop time ------------------------------------------------------------------------------------
+def test_a_step_past_the_stop_time_is_refused(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.fmu.setupExperiment(startTime=0.0, stopTime=0.3)
+    sim.fmu.enterInitializationMode()
+    sim.fmu.exitInitializationMode()
+    for _ in range(3):  # summed floats: 0.30000000000000004 ends "at" the stop time
+        sim.step(0.1)
+    assert sim.time != 0.3 and sim.time == pytest.approx(0.3)
+    with pytest.raises(FMICallException) as info:
+        sim.step(1e-6)
+    assert info.value.status == 3
+    message = _error_messages(sim)[-1]
+    assert message.startswith("fmi2DoStep: ") and "stopTime = 0.2999999" in message
+
+
+def test_no_stop_time_means_no_limit_and_reset_clears_it(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.fmu.setupExperiment(startTime=0.0, stopTime=0.02)
+    sim.fmu.reset()
+    sim.initialize()  # setupExperiment without a stop time
+    for _ in range(10):
+        sim.step(0.01)
+    assert sim.time == pytest.approx(0.1)
+
+
+def test_simulate_fmu_with_its_stop_time_ends_there(built_fmu):
+    result = simulate_fmu(str(built_fmu(N_DEFAULT)), stop_time=0.5, output_interval=0.005,
+                          set_stop_time=True, output=["x[0]"])
+    assert result["time"][-1] == pytest.approx(0.5)
+
+
 def test_logging_on_does_not_log_every_step(built_fmu_sim):
     sim = built_fmu_sim(N_DEFAULT, logging_on=True)
     sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.05})
