@@ -135,8 +135,9 @@ static bool setup_mode(const Instance *inst) {
     return inst->mode == mode_instantiated || inst->mode == mode_initialization;
 }
 
-/* Makes the outputs current. Before initialization ends they follow the (possibly changed) start
-   parameters, which must then be valid; after an error with a non-finite state there are none. */
+/* Makes the outputs current: O(n), so the getters call it at most once per call. Before
+   initialization ends the outputs follow the (possibly changed) start parameters, which must then
+   be valid; after an error with a non-finite state there are none. */
 static fmi2Status ensure_outputs(Instance *inst, const char *function) {
     char msg[MSG_LEN];
     if (setup_mode(inst)) {
@@ -316,13 +317,17 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
                        fmi2Real value[]) {
     char msg[MSG_LEN];
     size_t k;
+    bool current = false; /* outputs made current in this call: once, at the first output */
     BEGIN(ERROR_MODES);
     if (nvr > 0 && (vr == NULL || value == NULL)) {
         FAIL("vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        if (model_needs_outputs(vr[k]) && ensure_outputs(inst, __func__) != fmi2OK) {
-            return fmi2Error;
+        if (!current && model_needs_outputs(vr[k])) {
+            if (ensure_outputs(inst, __func__) != fmi2OK) {
+                return fmi2Error;
+            }
+            current = true;
         }
         if (!model_get_real(&inst->data, vr[k], &value[k], msg, sizeof(msg))) {
             FAIL("%s", msg);
@@ -353,15 +358,19 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
                           fmi2Boolean value[]) {
     char msg[MSG_LEN];
     size_t k;
+    bool current = false;
     BEGIN(ERROR_MODES);
     if (nvr > 0 && (vr == NULL || value == NULL)) {
         FAIL("vr or value is NULL");
     }
-    if (nvr > 0 && ensure_outputs(inst, __func__) != fmi2OK) {
-        return fmi2Error;
-    }
     for (k = 0; k < nvr; k++) {
         bool v;
+        if (!current && model_needs_outputs(vr[k])) {
+            if (ensure_outputs(inst, __func__) != fmi2OK) {
+                return fmi2Error;
+            }
+            current = true;
+        }
         if (!model_get_boolean(&inst->data, vr[k], &v, msg, sizeof(msg))) {
             FAIL("%s", msg);
         }
