@@ -138,19 +138,31 @@ static double wrap_angle(double angle) {
     return (wrapped <= -PT_PI) ? PT_PI : wrapped;
 }
 
-void model_compute_outputs(ModelData *m) {
+/* Rolling outputs at the state: velocities, and the wheel and hitch forces rolling needs. */
+static void rolling_outputs(ModelData *m, double *F_lat, double *hitch_fx, double *hitch_fy) {
     double c[NB], s[NB], dv[NB], dw[NB];
     double dv0, dw0;
+    chain_velocities(m, m->q, c, s, m->v, m->w);
+    robot_accelerations(m, m->q, &dv0, &dw0);
+    chain_accelerations(m, c, s, m->v, m->w, dv0, dw0, dv, dw);
+    lateral_forces(m, m->q, m->v, m->w, dv, dw, F_lat, hitch_fx, hitch_fy);
+}
+
+void model_compute_outputs(ModelData *m) {
+    bool sliding = m->dynamic; /* the wheel forces follow Coulomb's law, not rolling */
     int i;
     if (m->dynamic) {
         slip_outputs(m); /* some wheel slides: velocities and forces from the dynamics */
     } else {
-        chain_velocities(m, m->q, c, s, m->v, m->w);
-        robot_accelerations(m, m->q, &dv0, &dw0);
-        chain_accelerations(m, c, s, m->v, m->w, dv0, dw0, dv, dw);
-        lateral_forces(m, m->q, m->v, m->w, dv, dw, m->F_lat, m->hitch_fx, m->hitch_fy);
+        rolling_outputs(m, m->F_lat, m->hitch_fx, m->hitch_fy);
         for (i = 1; i <= N_TRAILERS; i++) {
             m->slide_speed[i] = m->slide[i];
+            if (m->slip_mode == 1 && fabs(m->F_lat[i]) > m->F_lat_max[i]) {
+                sliding = true; /* rolling would need more than friction with these inputs */
+            }
+        }
+        if (sliding) {
+            slip_onset_outputs(m);
         }
     }
 
@@ -165,7 +177,7 @@ void model_compute_outputs(ModelData *m) {
         m->y[i] = m->y[i - 1] - r * sin(th_prev) - f * sin(th);
         m->phi[i] = wrap_angle(th_prev - th);
         m->F_lat_max[i] = m->mu[i] * (m->mass[i] + m->payload[i]) * m->g;
-        if (m->dynamic) {
+        if (sliding) {
             m->slipping[i] = fabs(m->slide_speed[i]) > 1e-6
                              || fabs(m->F_lat[i]) >= m->F_lat_max[i] * (1.0 - 1e-9);
         } else {
@@ -218,8 +230,10 @@ void model_rk4_step(const ModelData *m, double *q, double dt) {
 void model_integrate(ModelData *m, double h, double t_end) {
     if (m->slip_mode == 1) {
         double t_left = h;
+        /* the inputs may have changed since the last step: check the start again */
+        bool rolls = !m->dynamic && slip_wheels_roll(m, m->q);
         while (t_left > 0.0) {
-            t_left -= slip_advance(m, t_left);
+            t_left -= slip_advance(m, t_left, &rolls);
         }
     } else {
         /* Equal substeps no longer than max_substep; the guard keeps h = max_substep one step. */

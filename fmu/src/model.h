@@ -130,10 +130,17 @@ PT_INTERNAL void lateral_forces(const ModelData *m, const double *q, const doubl
 
 /* slip.c (slip_mode 1) */
 /* One substep within the t_left [s] still to go: kinematic RK4 (at most max_substep) while every
-   wheel can roll, else velocity-level time stepping with Coulomb friction impulses (at most
-   slip_substep). Returns the substep taken. */
-PT_INTERNAL double slip_advance(ModelData *m, double t_left);
+   wheel can roll at its start and end, else velocity-level time stepping with Coulomb friction
+   impulses (at most slip_substep). *rolls: every wheel is known to roll at the current state with
+   the current inputs (updated). Returns the substep taken. */
+PT_INTERNAL double slip_advance(ModelData *m, double t_left, bool *rolls);
+/* Can every wheel roll at state q with the current inputs? (the force rolling needs is within
+   friction) */
+PT_INTERNAL bool slip_wheels_roll(const ModelData *m, const double *q);
 /* Outputs of the dynamic regime: velocities, sliding speeds, wheel and hitch forces. */
 PT_INTERNAL void slip_outputs(ModelData *m);
+/* Outputs at the onset of sliding: the state rolls but rolling would need more than friction
+   with the current inputs; the wheel forces are the Coulomb forces of that instant. */
+PT_INTERNAL void slip_onset_outputs(ModelData *m);
 
 #endif
