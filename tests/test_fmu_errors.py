@@ -89,6 +89,53 @@ def test_slip_mode_1_initializes_and_its_substep_is_checked(built_fmu_sim):
     assert any("slip_substep" in m and "0" in m for m in error_messages(bad)), bad.messages
 
 
+SLIDE_WITH_SLIP_MODE_1 = {
+    "slip_mode_first": [{"slip_mode": 1}, {"slide[2]": 0.1}],
+    "slide_first": [{"slide[2]": 0.1}, {"slip_mode": 1}],
+}
+
+
+@pytest.mark.parametrize("when", ["before_enter", "after_enter"])
+@pytest.mark.parametrize("order", sorted(SLIDE_WITH_SLIP_MODE_1))
+def test_slide_with_slip_mode_1_fails_at_exit_whatever_the_order(built_fmu_sim, order, when):
+    """Each set is accepted; the combination is refused once, naming both variables."""
+    sim = built_fmu_sim(N, logging_on=True)
+    sim.fmu.setupExperiment(startTime=0.0)
+    if when == "after_enter":
+        sim.fmu.enterInitializationMode()
+    for values in SLIDE_WITH_SLIP_MODE_1[order]:
+        sim.set(values)  # no error at the set
+    assert error_messages(sim) == []
+    if when == "before_enter":
+        sim.fmu.enterInitializationMode()
+    with pytest.raises(FMICallException) as info:
+        sim.fmu.exitInitializationMode()
+    assert info.value.function == "fmi2ExitInitializationMode"
+    (message,) = error_messages(sim)
+    assert "slip_mode = 1" in message and "slide[2] = 0.1" in message, message
+
+
+@pytest.mark.parametrize("order", sorted(SLIDE_WITH_SLIP_MODE_1))
+def test_a_combination_corrected_before_exit_is_accepted(built_fmu_sim, order):
+    sim = built_fmu_sim(N, logging_on=True)
+    sim.fmu.setupExperiment(startTime=0.0)
+    sim.fmu.enterInitializationMode()
+    for values in SLIDE_WITH_SLIP_MODE_1[order] + [{"slide[2]": 0.0}]:
+        sim.set(values)  # one call each, in this order
+    sim.fmu.exitInitializationMode()
+    assert error_messages(sim) == []
+    assert sim.get(["slip_mode"]) == [1]
+
+
+def test_slide_with_slip_mode_0_is_accepted_in_both_orders(built_fmu_sim):
+    for params in ({"slip_mode": 0, "slide[2]": 0.1}, {"slide[2]": 0.1, "slip_mode": 0}):
+        sim = built_fmu_sim(N, logging_on=True)
+        sim.initialize(params)
+        sim.step(0.01)
+        assert error_messages(sim) == []
+        assert sim.real("slide_speed[2]") == 0.1
+
+
 def test_good_parameters_log_no_error(built_fmu_sim):
     sim = built_fmu_sim(N, logging_on=True)
     sim.initialize(params={"payload[1]": 0.0, "mu[2]": 0.0, "front[1]": 0.3})

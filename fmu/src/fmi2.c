@@ -283,7 +283,8 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     BEGIN(mode_initialization);
     /* Parameters may have been set after fmi2EnterInitializationMode (FMIL-based importers):
        everything is derived from them here. */
-    if (!model_check_parameters(&inst->data, msg, sizeof(msg))) {
+    if (!model_check_parameters(&inst->data, msg, sizeof(msg))
+        || !model_check_combinations(&inst->data, msg, sizeof(msg))) {
         FAIL("%s", msg);
     }
     model_state_from_start(&inst->data);

@@ -129,6 +129,19 @@ bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
     return true;
 }
 
+bool model_check_combinations(const ModelData *m, char *msg, size_t len) {
+    int i;
+    for (i = 1; i <= N_TRAILERS; i++) {
+        if (m->slip_mode == 1 && m->slide[i] != 0.0) {
+            snprintf(msg, len, "slip_mode = 1 with slide[%d] = %g: an imposed slide is the "
+                     "kinematic disturbance of slip_mode 0; with slip_mode = 1 push the trailer "
+                     "with push_x, push_y instead (or set slide[%d] = 0)", i, m->slide[i], i);
+            return false;
+        }
+    }
+    return true;
+}
+
 static double wrap_angle(double angle) {
     double wrapped = fmod(angle + PT_PI, 2.0 * PT_PI);
     if (wrapped < 0.0) {

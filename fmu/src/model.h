@@ -79,6 +79,9 @@ PT_INTERNAL void model_set_defaults(ModelData *m);
 PT_INTERNAL void model_state_from_start(ModelData *m);
 /* Checks parameters; on failure writes "name = value: what is allowed" into msg and returns false. */
 PT_INTERNAL bool model_check_parameters(const ModelData *m, char *msg, size_t len);
+/* Checks combinations of values that are each valid alone (slip_mode and the slide inputs), once,
+   when initialization ends: importers set start values in any order. Same contract as above. */
+PT_INTERNAL bool model_check_combinations(const ModelData *m, char *msg, size_t len);
 PT_INTERNAL void model_compute_outputs(ModelData *m);
 PT_INTERNAL bool model_state_is_finite(const ModelData *m);
 PT_INTERNAL bool model_outputs_are_finite(const ModelData *m);

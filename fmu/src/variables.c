@@ -225,7 +225,9 @@ bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *m
                      model_variable_name(vr, name, sizeof(name)), value);
             return false;
         }
-        if (r.block == blk_slide && value != 0.0 && m->slip_mode == 1) {
+        if (r.block == blk_slide && value != 0.0 && m->slip_mode == 1 && !setup) {
+            /* slip_mode is fixed now; before, the combination is checked when initialization
+               ends (model_check_combinations), whatever order the importer sets them in */
             snprintf(msg, len, "input %s = %g: an imposed slide is the kinematic disturbance of "
                      "slip_mode 0; with slip_mode = 1 push the trailer with push_x, push_y instead",
                      model_variable_name(vr, name, sizeof(name)), value);
