@@ -183,19 +183,16 @@ def render_model_description(n_trailers: int, guid: str) -> bytes:
         ET.SubElement(sv, var.type, type_attrs)
 
     index = {var.name: k + 1 for k, var in enumerate(variables)}
-    inputs = [var for var in variables if var.causality == "input"]
-    state_only = ("x[", "y[", "theta[", "phi[")
     structure = ET.SubElement(root, "ModelStructure")
     outputs = ET.SubElement(structure, "Outputs")
     for var in variables:
         if var.causality != "output":
             continue
-        attrs = {"index": str(index[var.name])}
-        if var.name == "n" or var.name == "jackknifed" or var.name.startswith(state_only):
-            attrs["dependencies"] = ""  # depend on the state only, not directly on inputs
-        else:
-            attrs["dependencies"] = " ".join(str(index[i.name]) for i in inputs)
-            attrs["dependenciesKind"] = " ".join("dependent" for _ in inputs)
+        # the inputs it depends on directly (the variable table's feedthrough); "" = state only
+        refs = sorted(index[name] for name in var.depends_on)
+        attrs = {"index": str(index[var.name]), "dependencies": " ".join(map(str, refs))}
+        if refs:
+            attrs["dependenciesKind"] = " ".join("dependent" for _ in refs)
         ET.SubElement(outputs, "Unknown", attrs)
     initial = ET.SubElement(structure, "InitialUnknowns")
     for var in variables:

@@ -12,7 +12,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Variable", "ArrayBlock", "SCALARS", "ARRAYS", "variables_for", "VR_STRIDE"]
+__all__ = [
+    "Variable",
+    "ArrayBlock",
+    "SCALARS",
+    "ARRAYS",
+    "FEEDTHROUGH",
+    "direct_inputs",
+    "variables_for",
+    "VR_STRIDE",
+]
 
 VR_STRIDE = 100
 MAX_TRAILERS = 50
@@ -22,6 +31,34 @@ TRAILER_MASS = 42.1
 TRAILER_INERTIA = round(TRAILER_MASS * (0.6**2 + 0.8**2) / 12.0, 4)  # 3.5083 kg m^2
 LINK = 0.52
 MU = 0.09
+
+
+# Direct feedthrough of an output (for element i of an array, n trailers): the inputs whose change
+# changes the output without a step, as the C code computes it in either slip_mode.
+# - "none": the state only (poses, joint angles, the robot's own velocities);
+# - "inputs": every input. The wheel and hitch forces (and the slipping flags made from them)
+#   follow the robot's commanded accelerations (v_cmd, w_cmd through its velocity loop), the
+#   push on the last trailer and, through the rolling kinematics, every imposed slide;
+# - "slides_before" / "slides_through": slide[1..i-1] / slide[1..i]: the rolling map
+#   v_i = c v_{i-1} + s (R_{i-1} w_{i-1} - u_{i-1}), w_i = (... - u_i) / F_i (chain.c);
+# - "own_slide": slide[i] (the rolling model reports the imposed slide as the sliding speed).
+FEEDTHROUGH = ("none", "inputs", "slides_before", "slides_through", "own_slide")
+
+
+def direct_inputs(feedthrough: str, i: int, n_trailers: int) -> list[str]:
+    """Names of the inputs an output depends on directly (see ``FEEDTHROUGH``)."""
+    slides = [f"slide[{k}]" for k in range(1, n_trailers + 1)]
+    if feedthrough == "none":
+        return []
+    if feedthrough == "inputs":
+        return ["v_cmd", "w_cmd", "push_x", "push_y", *slides]
+    if feedthrough == "slides_before":
+        return slides[: max(i - 1, 0)]
+    if feedthrough == "slides_through":
+        return slides[:i]
+    if feedthrough == "own_slide":
+        return [f"slide[{i}]"]
+    raise ValueError(f"feedthrough = {feedthrough!r}: allowed are {', '.join(FEEDTHROUGH)}")
 
 
 @dataclass(frozen=True)
@@ -37,6 +74,7 @@ class Variable:
     start: float | int | bool | None = None
     unit: str | None = None
     initial: str | None = None  # "exact", "approx", "calculated" or None (default)
+    depends_on: tuple[str, ...] = ()  # outputs: the inputs of their direct feedthrough
 
 
 @dataclass(frozen=True)
@@ -54,6 +92,7 @@ class ArrayBlock:
     start: float | int | bool | None = None
     unit: str | None = None
     initial: str | None = None
+    feedthrough: str = "none"  # outputs: see FEEDTHROUGH
 
 
 SCALARS: tuple[Variable, ...] = (
@@ -121,29 +160,29 @@ ARRAYS: tuple[ArrayBlock, ...] = (
                initial="calculated"),
     ArrayBlock("v", 12, "Real", "output", "continuous",
                "Longitudinal speed of body i along its heading", 0, unit="m/s",
-               initial="calculated"),
+               initial="calculated", feedthrough="slides_before"),
     ArrayBlock("w", 13, "Real", "output", "continuous", "Yaw rate of body i", 0, unit="rad/s",
-               initial="calculated"),
+               initial="calculated", feedthrough="slides_through"),
     ArrayBlock("F_lat", 14, "Real", "output", "continuous",
                "Lateral wheel force on trailer i along its left normal", 1, unit="N",
-               initial="calculated"),
+               initial="calculated", feedthrough="inputs"),
     ArrayBlock("F_lat_max", 15, "Real", "calculatedParameter", "fixed",
                "Lateral friction limit mu (mass + payload) g", 1, unit="N", initial="calculated"),
     ArrayBlock("slipping", 16, "Boolean", "output", "discrete",
                "Wheel of trailer i slides (slip_mode 1) or would slide (slip_mode 0)", 1,
-               initial="calculated"),
+               initial="calculated", feedthrough="inputs"),
     ArrayBlock("slide", 17, "Real", "input", "continuous",
                "Imposed lateral sliding speed of trailer i's wheel along its left normal "
                "(kinematic disturbance)", 1, start=0.0, unit="m/s"),
     ArrayBlock("hitch_fx", 18, "Real", "output", "continuous",
                "Force of body i-1 on trailer i at their hitch, world x", 1, unit="N",
-               initial="calculated"),
+               initial="calculated", feedthrough="inputs"),
     ArrayBlock("hitch_fy", 19, "Real", "output", "continuous",
                "Force of body i-1 on trailer i at their hitch, world y", 1, unit="N",
-               initial="calculated"),
+               initial="calculated", feedthrough="inputs"),
     ArrayBlock("slide_speed", 20, "Real", "output", "continuous",
                "Lateral sliding speed of trailer i's wheel along its left normal", 1, unit="m/s",
-               initial="calculated"),
+               initial="calculated", feedthrough="own_slide"),
 )
 
 
@@ -165,6 +204,7 @@ def variables_for(n_trailers: int) -> list[Variable]:
                     block.start,
                     block.unit,
                     block.initial,
+                    tuple(direct_inputs(block.feedthrough, i, n_trailers)),
                 )
             )
     return sorted(out, key=lambda v: v.vr)

@@ -222,6 +222,67 @@ def test_outputs_are_finite_after_exit_initialization(built_fmu_sim):
     assert sim.array("F_lat_max") == pytest.approx(0.09 * 42.1 * 9.81, rel=1e-12)
 
 
+# -- direct feedthrough ----------------------------------------------------------------------------
+# Regimes in which the dependencies are probed: (parameters, inputs held while stepping there).
+FEEDTHROUGH_REGIMES = {
+    "rolling, slip_mode 0": (
+        {"slip_mode": 0},
+        {"v_cmd": -0.1, "w_cmd": 0.2, "push_x": 3.0, "push_y": -2.0, "slide[1]": 0.01,
+         "slide[2]": -0.02, "slide[3]": 0.015}),
+    "rolling, slip_mode 1": (
+        {"slip_mode": 1, "mu[1]": 0.5, "mu[2]": 0.5, "mu[3]": 0.5},
+        {"v_cmd": -0.1, "w_cmd": 0.2, "push_x": 3.0, "push_y": -2.0}),
+    "sliding, slip_mode 1": (
+        {"slip_mode": 1},
+        {"v_cmd": -0.1, "w_cmd": 0.2, "push_x": 30.0, "push_y": -60.0}),
+}
+
+
+def _derived_dependencies(sim, inputs, outputs):
+    """{output: inputs whose change (without a step) changes it}, by perturbing each input
+    by small and large amounts from the current point and restoring it."""
+    found = {name: set() for name in outputs}
+    base = sim.get(outputs)
+    for name in inputs:
+        value = sim.real(name)
+        for delta in (1e-6, -1e-3, 0.5, -50.0, 2e3):
+            sim.set({name: value + delta})
+            for out, old, new in zip(outputs, base, sim.get(outputs)):
+                if new != old:
+                    found[out].add(name)
+        sim.set({name: value})
+        assert sim.get(outputs) == base  # restoring the input restores every output
+    return found
+
+
+def test_declared_direct_feedthrough_is_what_the_fmu_does(built_fmu_sim):
+    """For every output: the inputs listed in ModelStructure/Outputs are exactly those whose
+    change, without a step, changes the output in some regime (perturbation through fmpy)."""
+    md = built_fmu_sim(N_DEFAULT).md
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    inputs = [v.name for v in md.modelVariables if v.causality == "input"]
+    declared = {unknown.variable.name: {d.name for d in (unknown.dependencies or [])}
+                for unknown in md.outputs}
+    assert sorted(declared) == sorted(outputs)
+
+    derived = {name: set() for name in outputs}
+    geometry = {"theta_start[1]": 0.3, "theta_start[2]": -0.4, "theta_start[3]": 0.5,
+                "v_start": -0.1, "w_start": 0.2, "robot_acc_max": 50.0,
+                "robot_alpha_max": 50.0}
+    for regime, (params, held) in FEEDTHROUGH_REGIMES.items():
+        sim = built_fmu_sim(N_DEFAULT, instance_name=regime)
+        sim.initialize({**geometry, **params}, held)
+        for _ in range(40):
+            sim.step(0.005)
+        if regime.startswith("sliding"):
+            assert any(sim.array("slipping")) and max(abs(sim.array("slide_speed"))) > 1e-3
+        probed = [name for name in inputs if not (params["slip_mode"] == 1 and "slide" in name)]
+        for out, deps in _derived_dependencies(sim, probed, outputs).items():
+            assert deps <= declared[out], (regime, out, deps - declared[out])
+            derived[out] |= deps
+    assert derived == declared
+
+
 # -- instantiate ---------------------------------------------------------------------------------
 def test_wrong_guid_fails_instantiate_with_a_message(built_fmu_sim, built_fmu_unzipped):
     _, md = built_fmu_unzipped(N_DEFAULT)

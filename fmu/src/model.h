@@ -142,8 +142,9 @@ PT_INTERNAL double slip_advance(ModelData *m, double t_left, bool *rolls);
 PT_INTERNAL bool slip_wheels_roll(const ModelData *m, const double *q);
 /* Outputs of the dynamic regime: velocities, sliding speeds, wheel and hitch forces. */
 PT_INTERNAL void slip_outputs(ModelData *m);
-/* Outputs at the onset of sliding: the state rolls but rolling would need more than friction
-   with the current inputs; the wheel forces are the Coulomb forces of that instant. */
+/* Force outputs at the onset of sliding: the state rolls but rolling would need more than
+   friction with the current inputs; F_lat and the hitch forces become the Coulomb forces of that
+   instant (the velocity outputs stay those of rolling). */
 PT_INTERNAL void slip_onset_outputs(ModelData *m);
 
 #endif

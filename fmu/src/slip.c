@@ -382,13 +382,11 @@ double slip_advance(ModelData *m, double t_left, bool *rolls) {
     return dt;
 }
 
-/* Outputs from trailer yaw rates wt, yaw accelerations alpha and lateral wheel forces f (index
-   1..n) at the current state: velocities, sliding speeds, wheel and hitch forces. */
-static void write_outputs(ModelData *m, const double *wt, const double *alpha, const double *f) {
+/* Velocity outputs from the trailer yaw rates wt (index 1..n) at the current state. */
+static void write_velocities(ModelData *m, const double *wt) {
     const int n = N_TRAILERS;
     const double *q = m->q;
-    double vh[2], ah[2], next_fx = 0.0, next_fy = 0.0;
-    double ax[NB], ay[NB];
+    double vh[2], ah[2];
     int i, k;
     robot_hitch(m, q, vh, ah);
     m->v[0] = q[IX_V0];
@@ -397,20 +395,36 @@ static void write_outputs(ModelData *m, const double *wt, const double *alpha, c
         const double th_i = q[IX_THETA + i];
         const double ex = cos(th_i), ey = sin(th_i);
         double vx = vh[0], vy = vh[1];
+        for (k = 1; k <= i; k++) {
+            const double th_k = q[IX_THETA + k], l = link_sum(m, i, k);
+            vx += l * wt[k] * sin(th_k);  /* - L_ik wt_k n_k */
+            vy -= l * wt[k] * cos(th_k);
+        }
+        m->v[i] = vx * ex + vy * ey;
+        m->w[i] = wt[i];
+        m->slide_speed[i] = -vx * ey + vy * ex;
+    }
+}
+
+/* Force outputs from yaw rates wt, yaw accelerations alpha and lateral wheel forces f (index
+   1..n) at the current state: F_lat and, from the axle accelerations, the hitch forces. */
+static void write_forces(ModelData *m, const double *wt, const double *alpha, const double *f) {
+    const int n = N_TRAILERS;
+    const double *q = m->q;
+    double vh[2], ah[2], next_fx = 0.0, next_fy = 0.0;
+    double ax[NB], ay[NB];
+    int i, k;
+    robot_hitch(m, q, vh, ah);
+    for (i = 1; i <= n; i++) {
         ax[i] = ah[0];
         ay[i] = ah[1];
         for (k = 1; k <= i; k++) {
             const double th_k = q[IX_THETA + k], l = link_sum(m, i, k);
             const double nkx = -sin(th_k), nky = cos(th_k);
             const double w = wt[k], al = alpha[k];
-            vx -= l * w * nkx;
-            vy -= l * w * nky;
             ax[i] -= l * (al * nkx - w * w * cos(th_k));
             ay[i] -= l * (al * nky - w * w * sin(th_k));
         }
-        m->v[i] = vx * ex + vy * ey;
-        m->w[i] = wt[i];
-        m->slide_speed[i] = -vx * ey + vy * ex;
         m->F_lat[i] = f[i];
     }
     /* hitch forces from trailer n down: f_i = f_{i+1} + m_i a_i - F_d,i n_i - push (i = n) */
@@ -426,7 +440,8 @@ static void write_outputs(ModelData *m, const double *wt, const double *alpha, c
 }
 
 void slip_outputs(ModelData *m) {
-    write_outputs(m, m->wt, m->alpha_dyn, m->f_dyn);
+    write_velocities(m, m->wt);
+    write_forces(m, m->wt, m->alpha_dyn, m->f_dyn);
 }
 
 void slip_onset_outputs(ModelData *m) {
@@ -464,5 +479,5 @@ void slip_onset_outputs(ModelData *m) {
         for (i = 0; i < n; i++) alpha[k + 1] += minv_jt[k * n + i] * lam[i];
         f[k + 1] = lam[k];
     }
-    write_outputs(m, wt, alpha, f);
+    write_forces(m, wt, alpha, f); /* the velocities stay those of rolling */
 }
