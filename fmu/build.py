@@ -20,9 +20,11 @@ import tempfile
 import uuid
 import xml.etree.ElementTree as ET
 import zipfile
+from datetime import datetime, timezone
 from importlib import resources
 from pathlib import Path
 
+from pushtrain import __version__
 from pushtrain.files import atomic_write
 
 from .variables import ARRAYS, MAX_TRAILERS, SCALARS, VR_STRIDE, variables_for
@@ -95,7 +97,7 @@ def _fingerprint(n: int, strict: bool) -> str:
         digest.update(name.encode())
         digest.update((src / name).read_bytes())
     # what the tables render to (variables.py and everything it reads), not the date of a build
-    digest.update(render_model_description(n, "{guid}"))
+    digest.update(render_model_description(n, "{guid}", generated="{date}"))
     digest.update(render_variables_header().encode())
     return digest.hexdigest()
 
@@ -108,8 +110,20 @@ def _fmt(value) -> str:
     return str(value)
 
 
-def render_model_description(n_trailers: int, guid: str) -> bytes:
-    """The ``modelDescription.xml`` of a TrailerTrain FMU with ``n_trailers`` trailers."""
+def generation_time() -> str:
+    """When this build is made, ISO 8601 UTC (``$SOURCE_DATE_EPOCH`` if set, for reproducible
+    builds). It is written into the XML only: the cache key does not depend on it."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    moment = (datetime.fromtimestamp(int(epoch), timezone.utc) if epoch
+              else datetime.now(timezone.utc))
+    return moment.strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def render_model_description(n_trailers: int, guid: str, generated: str | None = None) -> bytes:
+    """The ``modelDescription.xml`` of a TrailerTrain FMU with ``n_trailers`` trailers.
+
+    ``generated`` is its generationDateAndTime (default: :func:`generation_time`).
+    """
     n = _check_n(n_trailers)
     root = ET.Element(
         "fmiModelDescription",
@@ -119,7 +133,8 @@ def render_model_description(n_trailers: int, guid: str) -> bytes:
             "guid": guid,
             "description": f"Holonomic robot pushing or pulling {n} passive off-hooked trailers "
             "(chain kinematics, robot velocity loop, lateral wheel forces)",
-            "generationTool": "pushtrain",
+            "generationTool": f"pushtrain {__version__}",
+            "generationDateAndTime": generated or generation_time(),
             "variableNamingConvention": "structured",
             "numberOfEventIndicators": "0",
         },
@@ -176,6 +191,10 @@ def render_model_description(n_trailers: int, guid: str) -> bytes:
         type_attrs = {}
         if var.unit:
             type_attrs["unit"] = var.unit
+        if var.min is not None:
+            type_attrs["min"] = _fmt(var.min)
+        if var.max is not None:
+            type_attrs["max"] = _fmt(var.max)
         if var.name == "n":
             type_attrs["start"] = str(n)
         elif var.start is not None:

@@ -18,6 +18,7 @@ __all__ = [
     "SCALARS",
     "ARRAYS",
     "FEEDTHROUGH",
+    "describe",
     "direct_inputs",
     "variables_for",
     "VR_STRIDE",
@@ -75,11 +76,16 @@ class Variable:
     unit: str | None = None
     initial: str | None = None  # "exact", "approx", "calculated" or None (default)
     depends_on: tuple[str, ...] = ()  # outputs: the inputs of their direct feedthrough
+    min: float | int | None = None
+    max: float | int | None = None
 
 
 @dataclass(frozen=True)
 class ArrayBlock:
-    """A family ``name[i]`` of variables, i from ``first`` to n (or n-1 if ``to_n_minus_1``)."""
+    """A family ``name[i]`` of variables, i from ``first`` to n (or n-1 if ``to_n_minus_1``).
+
+    ``description`` is a template for :func:`describe`.
+    """
 
     name: str
     block: int
@@ -93,6 +99,8 @@ class ArrayBlock:
     unit: str | None = None
     initial: str | None = None
     feedthrough: str = "none"  # outputs: see FEEDTHROUGH
+    min: float | int | None = None
+    max: float | int | None = None
 
 
 SCALARS: tuple[Variable, ...] = (
@@ -112,9 +120,10 @@ SCALARS: tuple[Variable, ...] = (
     Variable("robot_alpha_max", 8, "Real", "parameter", "fixed",
              "Robot yaw acceleration limit (> 0)", 2.0, "rad/s2"),
     Variable("slip_mode", 9, "Integer", "parameter", "fixed",
-             "0: rolling wheels, forces estimated; 1: wheels slide past friction", 0),
+             "0: rolling wheels, forces estimated; 1: wheels slide past friction", 0,
+             min=0, max=1),
     Variable("phi_max", 10, "Real", "parameter", "fixed",
-             "Jackknife limit on any |phi[i]| (> 0)", 1.5707963267948966, "rad"),
+             "Jackknife limit on every absolute joint angle |phi| (> 0)", 1.5707963267948966, "rad"),
     Variable("x0_start", 11, "Real", "parameter", "fixed", "Initial robot x", 0.0, "m"),
     Variable("y0_start", 12, "Real", "parameter", "fixed", "Initial robot y", 0.0, "m"),
     Variable("v_start", 13, "Real", "parameter", "fixed",
@@ -125,65 +134,79 @@ SCALARS: tuple[Variable, ...] = (
     Variable("n", 16, "Integer", "output", "constant",
              "Number of trailers (fixed by the build)", None, None, "exact"),
     Variable("jackknifed", 17, "Boolean", "output", "discrete",
-             "Some |phi[i]| exceeds phi_max", None, None, "calculated"),
+             "Some absolute joint angle |phi| exceeds phi_max", None, None, "calculated"),
     Variable("slip_substep", 18, "Real", "parameter", "fixed",
              "Largest internal substep while some wheel slides, slip_mode 1 (> 0)", 0.0005, "s"),
 )
 
 ARRAYS: tuple[ArrayBlock, ...] = (
     ArrayBlock("front", 1, "Real", "parameter", "fixed",
-               "Front hitch link F_i of trailer i (> 0)", 1, start=LINK, unit="m"),
+               "Front hitch link F_{i} of trailer {i} (> 0)", 1, start=LINK, unit="m"),
     ArrayBlock("rear", 2, "Real", "parameter", "fixed",
-               "Rear hitch link R_i of body i (> 0)", 0, to_n_minus_1=True, start=LINK, unit="m"),
+               "Rear hitch link R_{i} of {body} (> 0)", 0, to_n_minus_1=True, start=LINK, unit="m"),
     ArrayBlock("mass", 3, "Real", "parameter", "fixed",
-               "Trailer mass without payload (> 0)", 1, start=TRAILER_MASS, unit="kg"),
+               "Mass of trailer {i} without payload (> 0)", 1, start=TRAILER_MASS, unit="kg"),
     ArrayBlock("inertia", 4, "Real", "parameter", "fixed",
-               "Trailer yaw inertia about its axle midpoint, without payload (> 0)", 1,
+               "Yaw inertia of trailer {i} about its axle midpoint, without payload (> 0)", 1,
                start=TRAILER_INERTIA, unit="kg.m2"),
     ArrayBlock("payload", 5, "Real", "parameter", "fixed",
-               "Payload mass at the axle midpoint (>= 0)", 1, start=0.0, unit="kg"),
+               "Payload mass at the axle midpoint of trailer {i} (>= 0)", 1, start=0.0, unit="kg"),
     ArrayBlock("mu", 6, "Real", "parameter", "fixed",
-               "Lateral wheel friction coefficient (>= 0)", 1, start=MU),
+               "Lateral wheel friction coefficient of trailer {i} (>= 0)", 1, start=MU),
     ArrayBlock("theta_start", 7, "Real", "parameter", "fixed",
-               "Initial heading of body i", 0, start=0.0, unit="rad"),
+               "Initial heading of {body}", 0, start=0.0, unit="rad"),
     ArrayBlock("x", 8, "Real", "output", "continuous",
-               "x of body i (robot centre, trailer axle midpoint)", 0, unit="m",
+               "x of {point}", 0, unit="m",
                initial="calculated"),
     ArrayBlock("y", 9, "Real", "output", "continuous",
-               "y of body i (robot centre, trailer axle midpoint)", 0, unit="m",
+               "y of {point}", 0, unit="m",
                initial="calculated"),
     ArrayBlock("theta", 10, "Real", "output", "continuous",
-               "Heading of body i, toward the robot, continuous (not wrapped)", 0, unit="rad",
+               "Heading of {body} (trailers point toward the robot), continuous (not wrapped)", 0, unit="rad",
                initial="calculated"),
     ArrayBlock("phi", 11, "Real", "output", "continuous",
-               "Joint angle theta[i-1] - theta[i], wrapped to (-pi, pi]", 1, unit="rad",
+               "Joint angle theta[{prev}] - theta[{i}], wrapped to (-pi, pi]", 1, unit="rad",
                initial="calculated"),
     ArrayBlock("v", 12, "Real", "output", "continuous",
-               "Longitudinal speed of body i along its heading", 0, unit="m/s",
+               "Longitudinal speed of {body} along its heading", 0, unit="m/s",
                initial="calculated", feedthrough="slides_before"),
-    ArrayBlock("w", 13, "Real", "output", "continuous", "Yaw rate of body i", 0, unit="rad/s",
+    ArrayBlock("w", 13, "Real", "output", "continuous", "Yaw rate of {body}", 0, unit="rad/s",
                initial="calculated", feedthrough="slides_through"),
     ArrayBlock("F_lat", 14, "Real", "output", "continuous",
-               "Lateral wheel force on trailer i along its left normal", 1, unit="N",
+               "Lateral wheel force on trailer {i} along its left normal", 1, unit="N",
                initial="calculated", feedthrough="inputs"),
     ArrayBlock("F_lat_max", 15, "Real", "calculatedParameter", "fixed",
-               "Lateral friction limit mu (mass + payload) g", 1, unit="N", initial="calculated"),
+               "Lateral friction limit of trailer {i}, mu[{i}] (mass[{i}] + payload[{i}]) g", 1, unit="N", initial="calculated"),
     ArrayBlock("slipping", 16, "Boolean", "output", "discrete",
-               "Wheel of trailer i slides (slip_mode 1) or would slide (slip_mode 0)", 1,
+               "Wheel of trailer {i} slides (slip_mode 1) or would slide (slip_mode 0)", 1,
                initial="calculated", feedthrough="inputs"),
     ArrayBlock("slide", 17, "Real", "input", "continuous",
-               "Imposed lateral sliding speed of trailer i's wheel along its left normal "
+               "Imposed lateral sliding speed of trailer {i}'s wheel along its left normal "
                "(kinematic disturbance)", 1, start=0.0, unit="m/s"),
     ArrayBlock("hitch_fx", 18, "Real", "output", "continuous",
-               "Force of body i-1 on trailer i at their hitch, world x", 1, unit="N",
+               "Force of {prev_body} on trailer {i} at their hitch, world x", 1, unit="N",
                initial="calculated", feedthrough="inputs"),
     ArrayBlock("hitch_fy", 19, "Real", "output", "continuous",
-               "Force of body i-1 on trailer i at their hitch, world y", 1, unit="N",
+               "Force of {prev_body} on trailer {i} at their hitch, world y", 1, unit="N",
                initial="calculated", feedthrough="inputs"),
     ArrayBlock("slide_speed", 20, "Real", "output", "continuous",
-               "Lateral sliding speed of trailer i's wheel along its left normal", 1, unit="m/s",
+               "Lateral sliding speed of trailer {i}'s wheel along its left normal", 1, unit="m/s",
                initial="calculated", feedthrough="own_slide"),
 )
+
+
+def _body(i: int) -> str:
+    return "the robot" if i == 0 else f"trailer {i}"
+
+
+def describe(template: str, i: int) -> str:
+    """The description of element ``i`` of an array block from its template.
+
+    Fields: ``{i}``, ``{prev}`` (i - 1), ``{body}`` ("the robot" or "trailer i"), ``{prev_body}``
+    (body i - 1) and ``{point}`` (the robot's centre or trailer i's axle midpoint).
+    """
+    point = "the robot's centre" if i == 0 else f"the axle midpoint of trailer {i}"
+    return template.format(i=i, prev=i - 1, body=_body(i), prev_body=_body(i - 1), point=point)
 
 
 def variables_for(n_trailers: int) -> list[Variable]:
@@ -199,12 +222,13 @@ def variables_for(n_trailers: int) -> list[Variable]:
                     block.type,
                     block.causality,
                     block.variability,
-                    block.description.replace(" i ", f" {i} ").replace(" i's", f" {i}'s")
-                    .replace(" i-1 ", f" {i - 1} "),
+                    describe(block.description, i),
                     block.start,
                     block.unit,
                     block.initial,
                     tuple(direct_inputs(block.feedthrough, i, n_trailers)),
+                    block.min,
+                    block.max,
                 )
             )
     return sorted(out, key=lambda v: v.vr)

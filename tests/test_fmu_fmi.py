@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import zipfile
@@ -96,6 +97,49 @@ def test_model_description_matches_variable_table(built_fmu, n_trailers):
             assert xml_start(got) == expected_start, name
         if expected.unit is not None:
             assert got.unit == expected.unit, name
+
+
+def test_model_description_names_its_generator_and_utc_date(built_fmu):
+    from datetime import datetime
+
+    import pushtrain
+
+    md = read_model_description(str(built_fmu(N_DEFAULT)))
+    assert md.generationTool == f"pushtrain {pushtrain.__version__}"
+    assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", md.generationDateAndTime)
+    assert datetime.strptime(md.generationDateAndTime, "%Y-%m-%dT%H:%M:%SZ").year >= 2024
+
+
+def test_generation_date_follows_source_date_epoch_and_not_the_cache_key(monkeypatch):
+    from pushtrain.fmu import build
+
+    keys = set()
+    for epoch, date in ((0, "1970-01-01T00:00:00Z"), (1700000000, "2023-11-14T22:13:20Z")):
+        monkeypatch.setenv("SOURCE_DATE_EPOCH", str(epoch))
+        xml = build.render_model_description(2, "{guid}").decode()
+        assert f'generationDateAndTime="{date}"' in xml
+        keys.add(build._fingerprint(2, strict=False))
+    assert len(keys) == 1  # a build made on another day is still a cache hit
+
+
+def test_slip_mode_is_bounded_0_to_1(built_fmu):
+    md = read_model_description(str(built_fmu(N_DEFAULT)))
+    (slip_mode,) = [v for v in md.modelVariables if v.name == "slip_mode"]
+    assert (slip_mode.min, slip_mode.max) == ("0", "1")
+
+
+@pytest.mark.parametrize("n_trailers", [1, N_DEFAULT])
+def test_descriptions_have_no_template_leftovers(built_fmu, n_trailers):
+    md = read_model_description(str(built_fmu(n_trailers)))
+    leftovers = re.compile(r"(?<![A-Za-z])i(?![A-Za-z])|[{}]|_i\b|i-1|i - 1")
+    bad = {v.name: v.description for v in md.modelVariables if leftovers.search(v.description)}
+    assert bad == {}
+    for var in md.modelVariables:  # and every element names its own body
+        match = re.fullmatch(r"(\w+)\[(\d+)\]", var.name)
+        if match:
+            i = int(match.group(2))
+            assert (f"trailer {i}" in var.description or f"[{i}]" in var.description
+                    or (i == 0 and "robot" in var.description)), (var.name, var.description)
 
 
 def test_exported_symbols_are_only_fmi2_functions(built_fmu_unzipped):
