@@ -26,6 +26,7 @@ from pathlib import Path
 
 from pushtrain import __version__
 from pushtrain.files import atomic_write
+from pushtrain.limits import BOUNDS
 
 from .variables import ARRAYS, MAX_TRAILERS, SCALARS, VR_STRIDE, variables_for
 
@@ -279,22 +280,40 @@ def render_variables_header() -> str:
         "    VarType type;",
         "    VarCausality causality;",
         "    int first, last_offset; /* array blocks: i runs from first to N_TRAILERS + last_offset */",
+        "    int bounded;            /* parameters: min <= value <= max is checked */",
+        "    double min, max;",
+        "    const char *unit, *reason; /* for the message when a value is out of range */",
         "} VarInfo;",
         "",
         "static const VarInfo scalar_info[SCALAR_VR_END] = {",
     ]
-    lines += [
-        f'    [vr_{v.name}] = {{"{v.name}", {_C_TYPES[v.type]}, {_C_CAUSALITIES[v.causality]}, 0, 0}},'
-        for v in SCALARS
-    ]
+    lines += [f"    [vr_{v.name}] = {_var_info(v, 0, 0)}," for v in SCALARS]
     lines += ["};", "", "static const VarInfo block_info[BLOCK_END] = {"]
     lines += [
-        f'    [blk_{b.name}] = {{"{b.name}", {_C_TYPES[b.type]}, {_C_CAUSALITIES[b.causality]}, '
-        f'{b.first}, {-1 if b.to_n_minus_1 else 0}}},'
+        f"    [blk_{b.name}] = {_var_info(b, b.first, -1 if b.to_n_minus_1 else 0)},"
         for b in ARRAYS
     ]
     lines += ["};", "", "#endif", ""]
     return "\n".join(lines)
+
+
+def _c_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _var_info(row, first: int, last_offset: int) -> str:
+    """One VarInfo initializer; bounds and their reason from the table (pushtrain.limits)."""
+    fields = [_c_string(row.name), _C_TYPES[row.type], _C_CAUSALITIES[row.causality],
+              str(first), str(last_offset)]
+    if row.min is None:
+        fields += ["0", "0.0", "0.0", "NULL", "NULL"]
+    else:
+        bound = BOUNDS.get(row.name)
+        reason = bound.reason if bound is not None else row.description
+        unit = bound.unit if bound is not None else (row.unit or "")
+        fields += ["1", repr(float(row.min)), repr(float(row.max)), _c_string(unit),
+                   _c_string(reason)]
+    return "{" + ", ".join(fields) + "}"
 
 
 def _cmake_env() -> dict:

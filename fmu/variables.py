@@ -10,7 +10,9 @@ the C model (``src/variables.c``; the compiler names a missing one). Value refer
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+
+from pushtrain.limits import BOUNDS
 
 __all__ = [
     "Variable",
@@ -103,7 +105,13 @@ class ArrayBlock:
     max: float | int | None = None
 
 
-SCALARS: tuple[Variable, ...] = (
+def _bounded(row):
+    """The row with ``min``/``max`` from :data:`pushtrain.limits.BOUNDS` if it has a bound."""
+    bound = BOUNDS.get(row.name)
+    return row if bound is None else replace(row, min=bound.lo, max=bound.hi)
+
+
+SCALARS: tuple[Variable, ...] = tuple(map(_bounded, (
     Variable("v_cmd", 1, "Real", "input", "continuous",
              "Robot commanded longitudinal speed", 0.0, "m/s"),
     Variable("w_cmd", 2, "Real", "input", "continuous",
@@ -114,45 +122,45 @@ SCALARS: tuple[Variable, ...] = (
              "External force on the last trailer's axle midpoint, world y", 0.0, "N"),
     Variable("g", 5, "Real", "parameter", "fixed", "Gravitational acceleration", 9.81, "m/s2"),
     Variable("robot_tau", 6, "Real", "parameter", "fixed",
-             "Robot velocity loop first-order time constant (> 0)", 0.05, "s"),
+             "Robot velocity loop first-order time constant", 0.05, "s"),
     Variable("robot_acc_max", 7, "Real", "parameter", "fixed",
-             "Robot longitudinal acceleration limit (> 0)", 1.0, "m/s2"),
+             "Robot longitudinal acceleration limit", 1.0, "m/s2"),
     Variable("robot_alpha_max", 8, "Real", "parameter", "fixed",
-             "Robot yaw acceleration limit (> 0)", 2.0, "rad/s2"),
+             "Robot yaw acceleration limit", 2.0, "rad/s2"),
     Variable("slip_mode", 9, "Integer", "parameter", "fixed",
              "0: rolling wheels, forces estimated; 1: wheels slide past friction", 0,
              min=0, max=1),
     Variable("phi_max", 10, "Real", "parameter", "fixed",
-             "Jackknife limit on every absolute joint angle |phi| (> 0)", 1.5707963267948966, "rad"),
+             "Jackknife limit on every absolute joint angle |phi|", 1.5707963267948966, "rad"),
     Variable("x0_start", 11, "Real", "parameter", "fixed", "Initial robot x", 0.0, "m"),
     Variable("y0_start", 12, "Real", "parameter", "fixed", "Initial robot y", 0.0, "m"),
     Variable("v_start", 13, "Real", "parameter", "fixed",
              "Initial robot longitudinal speed", 0.0, "m/s"),
     Variable("w_start", 14, "Real", "parameter", "fixed", "Initial robot yaw rate", 0.0, "rad/s"),
     Variable("max_substep", 15, "Real", "parameter", "fixed",
-             "Largest internal RK4 substep (> 0)", 0.005, "s"),
+             "Largest internal RK4 substep", 0.005, "s"),
     Variable("n", 16, "Integer", "output", "constant",
              "Number of trailers (fixed by the build)", None, None, "exact"),
     Variable("jackknifed", 17, "Boolean", "output", "discrete",
              "Some absolute joint angle |phi| exceeds phi_max", None, None, "calculated"),
     Variable("slip_substep", 18, "Real", "parameter", "fixed",
-             "Largest internal substep while some wheel slides, slip_mode 1 (> 0)", 0.0005, "s"),
-)
+             "Largest internal substep while some wheel slides, slip_mode 1", 0.0005, "s"),
+)))
 
-ARRAYS: tuple[ArrayBlock, ...] = (
+ARRAYS: tuple[ArrayBlock, ...] = tuple(map(_bounded, (
     ArrayBlock("front", 1, "Real", "parameter", "fixed",
-               "Front hitch link F_{i} of trailer {i} (> 0)", 1, start=LINK, unit="m"),
+               "Front hitch link F_{i} of trailer {i}", 1, start=LINK, unit="m"),
     ArrayBlock("rear", 2, "Real", "parameter", "fixed",
-               "Rear hitch link R_{i} of {body} (> 0)", 0, to_n_minus_1=True, start=LINK, unit="m"),
+               "Rear hitch link R_{i} of {body}", 0, to_n_minus_1=True, start=LINK, unit="m"),
     ArrayBlock("mass", 3, "Real", "parameter", "fixed",
-               "Mass of trailer {i} without payload (> 0)", 1, start=TRAILER_MASS, unit="kg"),
+               "Mass of trailer {i} without payload", 1, start=TRAILER_MASS, unit="kg"),
     ArrayBlock("inertia", 4, "Real", "parameter", "fixed",
-               "Yaw inertia of trailer {i} about its axle midpoint, without payload (> 0)", 1,
+               "Yaw inertia of trailer {i} about its axle midpoint, without payload", 1,
                start=TRAILER_INERTIA, unit="kg.m2"),
     ArrayBlock("payload", 5, "Real", "parameter", "fixed",
-               "Payload mass at the axle midpoint of trailer {i} (>= 0)", 1, start=0.0, unit="kg"),
+               "Payload mass at the axle midpoint of trailer {i}", 1, start=0.0, unit="kg"),
     ArrayBlock("mu", 6, "Real", "parameter", "fixed",
-               "Lateral wheel friction coefficient of trailer {i} (>= 0)", 1, start=MU),
+               "Lateral wheel friction coefficient of trailer {i}", 1, start=MU),
     ArrayBlock("theta_start", 7, "Real", "parameter", "fixed",
                "Initial heading of {body}", 0, start=0.0, unit="rad"),
     ArrayBlock("x", 8, "Real", "output", "continuous",
@@ -192,7 +200,7 @@ ARRAYS: tuple[ArrayBlock, ...] = (
     ArrayBlock("slide_speed", 20, "Real", "output", "continuous",
                "Lateral sliding speed of trailer {i}'s wheel along its left normal", 1, unit="m/s",
                initial="calculated", feedthrough="own_slide"),
-)
+)))
 
 
 def _body(i: int) -> str:

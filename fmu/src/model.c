@@ -1,5 +1,5 @@
 /*
- * Start values, parameter checks, outputs and fixed-step RK4 integration of TrailerTrain.
+ * Start values, combination checks, outputs and fixed-step RK4 integration of TrailerTrain.
  * Start values must equal the XML's (fmu/variables.py); a test checks them through the FMU.
  */
 #include <math.h>
@@ -60,73 +60,6 @@ void model_state_from_start(ModelData *m) {
         m->F_lat_max[i] = (i >= 1) ? m->mu[i] * (m->mass[i] + m->payload[i]) * m->g : 0.0;
     }
     m->outputs_valid = false;
-}
-
-static bool check_positive(const char *name, int index, double value, bool allow_zero, char *msg,
-                           size_t len) {
-    const bool ok = isfinite(value) && (allow_zero ? value >= 0.0 : value > 0.0);
-    if (!ok) {
-        if (index >= 0) {
-            snprintf(msg, len, "%s[%d] = %g: must be finite and %s", name, index, value,
-                     allow_zero ? ">= 0" : "> 0");
-        } else {
-            snprintf(msg, len, "%s = %g: must be finite and %s", name, value,
-                     allow_zero ? ">= 0" : "> 0");
-        }
-    }
-    return ok;
-}
-
-static bool check_finite(const char *name, int index, double value, char *msg, size_t len) {
-    if (isfinite(value)) {
-        return true;
-    }
-    if (index >= 0) {
-        snprintf(msg, len, "%s[%d] = %g: must be finite", name, index, value);
-    } else {
-        snprintf(msg, len, "%s = %g: must be finite", name, value);
-    }
-    return false;
-}
-
-bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
-    int i;
-    for (i = 1; i <= N_TRAILERS; i++) {
-        if (!check_positive("front", i, m->front[i], false, msg, len)
-            || !check_positive("rear", i - 1, m->rear[i - 1], false, msg, len)
-            || !check_positive("mass", i, m->mass[i], false, msg, len)
-            || !check_positive("inertia", i, m->inertia[i], false, msg, len)
-            || !check_positive("payload", i, m->payload[i], true, msg, len)
-            || !check_positive("mu", i, m->mu[i], true, msg, len)) {
-            return false;
-        }
-    }
-    for (i = 0; i <= N_TRAILERS; i++) {
-        if (!check_finite("theta_start", i, m->theta_start[i], msg, len)) {
-            return false;
-        }
-    }
-    if (!check_positive("g", -1, m->g, true, msg, len)
-        || !check_positive("robot_tau", -1, m->robot_tau, false, msg, len)
-        || !check_positive("robot_acc_max", -1, m->robot_acc_max, false, msg, len)
-        || !check_positive("robot_alpha_max", -1, m->robot_alpha_max, false, msg, len)
-        || !check_positive("phi_max", -1, m->phi_max, false, msg, len)
-        || !check_positive("max_substep", -1, m->max_substep, false, msg, len)
-        || !check_finite("x0_start", -1, m->x0_start, msg, len)
-        || !check_finite("y0_start", -1, m->y0_start, msg, len)
-        || !check_finite("v_start", -1, m->v_start, msg, len)
-        || !check_finite("w_start", -1, m->w_start, msg, len)) {
-        return false;
-    }
-    if (!check_positive("slip_substep", -1, m->slip_substep, false, msg, len)) {
-        return false;
-    }
-    if (m->slip_mode != 0 && m->slip_mode != 1) {
-        snprintf(msg, len, "slip_mode = %d: allowed are 0 (rolling) and 1 (sliding)",
-                 m->slip_mode);
-        return false;
-    }
-    return true;
 }
 
 bool model_check_combinations(const ModelData *m, char *msg, size_t len) {

@@ -77,7 +77,9 @@ typedef struct {
 /* model.c */
 PT_INTERNAL void model_set_defaults(ModelData *m);
 PT_INTERNAL void model_state_from_start(ModelData *m);
-/* Checks parameters; on failure writes "name = value: what is allowed" into msg and returns false. */
+/* variables.c: checks every parameter against its range (the bounds of pushtrain/limits.py,
+   generated into variables.h) and for finiteness; on failure writes "name = value: allowed lo to
+   hi unit (reason)" into msg and returns false. */
 PT_INTERNAL bool model_check_parameters(const ModelData *m, char *msg, size_t len);
 /* Checks combinations of values that are each valid alone (slip_mode and the slide inputs), once,
    when initialization ends: importers set start values in any order. Same contract as above. */

@@ -147,18 +147,25 @@ bool model_get_real(const ModelData *m, unsigned vr, double *value, char *msg, s
     return true;
 }
 
+/* the Integer variable r (a scalar) */
+static bool integer_value(const ModelData *m, VarRef r, int *value) {
+    switch ((enum ScalarVr)r.index) {
+    case vr_n: *value = N_TRAILERS; return true;
+    case vr_slip_mode: *value = m->slip_mode; return true;
+    default: return false;
+    }
+}
+
 bool model_get_integer(const ModelData *m, unsigned vr, int *value, char *msg, size_t len) {
     VarRef r;
     if (!check_type(vr, var_integer, &r, msg, len)) {
         return false;
     }
-    switch ((enum ScalarVr)r.index) {
-    case vr_n: *value = N_TRAILERS; return true;
-    case vr_slip_mode: *value = m->slip_mode; return true;
-    default: break;
+    if (r.block != 0 || !integer_value(m, r, value)) {
+        snprintf(msg, len, "%s has no storage in this build", r.info->name);
+        return false;
     }
-    snprintf(msg, len, "%s has no storage in this build", r.info->name);
-    return false;
+    return true;
 }
 
 bool model_get_boolean(const ModelData *m, unsigned vr, bool *value, char *msg, size_t len) {
@@ -262,4 +269,64 @@ bool model_set_boolean(ModelData *m, unsigned vr, bool value, bool setup, char *
     }
     snprintf(msg, len, "%s has no storage in this build", r.info->name);
     return false;
+}
+
+/* ---------------------------------------------------------------- parameter checks */
+
+/* value of parameter r (Real or Integer) as a double; NaN if it has no storage */
+static double parameter_value(const ModelData *m, VarRef r) {
+    const double *p;
+    int value;
+    if (r.info->type == var_integer) {
+        return (r.block == 0 && integer_value(m, r, &value)) ? (double)value : NAN;
+    }
+    p = real_variable((ModelData *)m, r); /* only read */
+    return p != NULL ? *p : NAN;
+}
+
+static bool check_parameter(const ModelData *m, VarRef r, char *msg, size_t len) {
+    const VarInfo *info = r.info;
+    const double value = parameter_value(m, r);
+    char name[64];
+    if (info->bounded ? (value >= info->min && value <= info->max) : isfinite(value)) {
+        return true;
+    }
+    if (r.block == 0) {
+        snprintf(name, sizeof(name), "%s", info->name);
+    } else {
+        snprintf(name, sizeof(name), "%s[%d]", info->name, r.index);
+    }
+    if (info->bounded) {
+        snprintf(msg, len, "%s = %g: allowed %g to %g%s%s (%s)", name, value, info->min,
+                 info->max, info->unit[0] ? " " : "", info->unit, info->reason);
+    } else {
+        snprintf(msg, len, "%s = %g: must be finite", name, value);
+    }
+    return false;
+}
+
+bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
+    VarRef r;
+    int block;
+    for (r.index = 1; r.index < SCALAR_VR_END; r.index++) {
+        r.block = 0;
+        r.info = &scalar_info[r.index];
+        if (r.info->name != NULL && r.info->causality == var_parameter
+            && !check_parameter(m, r, msg, len)) {
+            return false;
+        }
+    }
+    for (block = 1; block < BLOCK_END; block++) {
+        r.block = block;
+        r.info = &block_info[block];
+        if (r.info->name == NULL || r.info->causality != var_parameter) {
+            continue;
+        }
+        for (r.index = r.info->first; r.index <= N_TRAILERS + r.info->last_offset; r.index++) {
+            if (!check_parameter(m, r, msg, len)) {
+                return false;
+            }
+        }
+    }
+    return true;
 }
