@@ -201,28 +201,31 @@ def test_output_overflow_gives_error_not_nan(built_fmu_sim):
     assert error is not None and error.status >= STATUS_ERROR
 
 
-@pytest.mark.parametrize("name, value", [("v_cmd", math.inf), ("v_cmd", math.nan),
-                                         ("w_cmd", -math.inf), ("push_x", math.nan),
-                                         ("slide[2]", math.inf)])
-def test_non_finite_input_never_gives_non_finite_outputs(built_fmu_sim, name, value):
-    """A non-finite input is refused (at the set or the next step) or has finite effects."""
+NON_FINITE_INPUTS = [("v_cmd", math.nan, "nan"), ("v_cmd", math.inf, "inf"),
+                     ("w_cmd", -math.inf, "-inf"), ("push_x", math.nan, "nan"),
+                     ("push_y", math.inf, "inf"), ("slide[2]", math.inf, "inf")]
+
+
+@pytest.mark.parametrize("mode", ["initialization", "stepping"])
+@pytest.mark.parametrize("name, value, text", NON_FINITE_INPUTS)
+def test_set_real_itself_refuses_a_non_finite_input(built_fmu_sim, name, value, text, mode):
+    """fmi2SetReal returns fmi2Error for the call that passes the value, naming input and value;
+    the refused value is not stored and the outputs stay finite."""
     sim = built_fmu_sim(N, logging_on=True)
-    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.05})
-    try:
-        sim.set({name: value})
-    except FMICallException as error:
-        assert error.status >= STATUS_ERROR
-        return
-    error = None
-    try:
-        assert outputs_finite(sim), "non-finite outputs right after the set"
-    except FMICallException as refused:  # getters may refuse once the input is known bad
-        error = refused
-    if error is None:
-        error = _run_until_error(sim, 20, 0.01)
-    if error is not None:
-        assert error.status >= STATUS_ERROR
-        assert error_messages(sim)
+    if mode == "initialization":
+        sim.fmu.setupExperiment(startTime=0.0)
+        sim.fmu.enterInitializationMode()
+    else:
+        sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.05})
+        sim.step(0.01)
+    before = sim.real(name)
+    with pytest.raises(FMICallException) as info:
+        sim.fmu.setReal([sim.vr(name)], [value])
+    assert info.value.function == "fmi2SetReal" and info.value.status == STATUS_ERROR
+    assert error_messages(sim) == [f"fmi2SetReal: input {name} = {text}: must be finite"]
+    assert sim.real(name) == before  # readable after the error, and unchanged
+    if mode == "stepping":
+        assert outputs_finite(sim)
 
 
 @pytest.mark.parametrize("n_trailers", [0, 51, -3])
