@@ -3,7 +3,10 @@
 Two regimes for slip_mode 1: rolling (every wheel within friction: kinematic RK4 plus a force
 check per substep) and sliding (friction-impulse time stepping with 0.5 ms substeps; the push on
 the last trailer exceeds friction and the robot turns fast so every wheel slides).
-Target: mode 1 within 5x of mode 0.
+Target: mode 1 within 5x of mode 0. The sliding regime imposes the wheel constraints at the end
+of each substep (a fixed point on the headings: two LCP set-ups per substep), so it costs about
+twice what a start-of-substep constraint did; the rolling regime checks friction at both ends of
+a substep.
 
 Run: python benchmarks/bench_slip.py
 """

@@ -1,7 +1,8 @@
 """Build the TrailerTrain FMU for a given number of trailers from the C sources in ``fmu/src``.
 
-The build renders ``modelDescription.xml`` and a ``build_config.h`` (N_TRAILERS, GUID) for that n,
-lets fmpy's build helper write the CMake cache for its own ``CMakeLists.txt`` (the FMI 2.0 headers
+The build renders ``modelDescription.xml``, a ``build_config.h`` (N_TRAILERS, GUID) for that n and
+``variables.h`` (value references, names, types and causalities of the variable table, so the C
+code never retypes them), lets fmpy's build helper write the CMake cache for its own ``CMakeLists.txt`` (the FMI 2.0 headers
 come from the installed fmpy), compiles, and zips a self-contained ``.fmu`` with
 ``binaries/linux64/TrailerTrain.so`` and ``sources/`` so other tools can rebuild it. Builds are
 cached by a hash of the sources, n and the build options.
@@ -19,23 +20,33 @@ import tempfile
 import uuid
 import xml.etree.ElementTree as ET
 import zipfile
+from datetime import datetime, timezone
 from importlib import resources
 from pathlib import Path
 
+from pushtrain import __version__
 from pushtrain.errors import FmuBuildError, FmuInputError
 from pushtrain.files import atomic_write
+from pushtrain.limits import BOUNDS
 
-from .variables import MAX_TRAILERS, variables_for
+from .variables import ARRAYS, MAX_TRAILERS, SCALARS, VR_STRIDE, variables_for
 
-__all__ = ["FmuBuildError", "build_fmu", "render_model_description", "cache_dir", "MODEL_IDENTIFIER"]
+__all__ = [
+    "FmuBuildError",
+    "build_fmu",
+    "render_model_description",
+    "render_variables_header",
+    "cache_dir",
+    "MODEL_IDENTIFIER",
+]
 
 log = logging.getLogger(__name__)
 
 MODEL_IDENTIFIER = "TrailerTrain"
-SOURCE_FILES = ("model.c", "chain.c", "forces.c", "slip.c", "fmi2.c")
+SOURCE_FILES = ("model.c", "variables.c", "chain.c", "forces.c", "slip.c", "fmi2.c")
 HEADER_FILES = ("model.h",)
 DEFAULT_STEP = 0.005
-BUILD_FORMAT = "1"  # bump when the rendering or packaging changes
+BUILD_FORMAT = "2"  # bump when the rendering or packaging changes
 
 UNITS = ("m", "m/s", "m/s2", "rad", "rad/s", "rad/s2", "N", "kg", "kg.m2", "s")
 _BASE_UNITS = {
@@ -83,7 +94,9 @@ def _fingerprint(n: int, strict: bool) -> str:
     for name in SOURCE_FILES + HEADER_FILES:
         digest.update(name.encode())
         digest.update((src / name).read_bytes())
-    digest.update(Path(__file__).with_name("variables.py").read_bytes())
+    # what the tables render to (variables.py and everything it reads), not the date of a build
+    digest.update(render_model_description(n, "{guid}", generated="{date}"))
+    digest.update(render_variables_header().encode())
     return digest.hexdigest()
 
 
@@ -95,8 +108,20 @@ def _fmt(value) -> str:
     return str(value)
 
 
-def render_model_description(n_trailers: int, guid: str) -> bytes:
-    """The ``modelDescription.xml`` of a TrailerTrain FMU with ``n_trailers`` trailers."""
+def generation_time() -> str:
+    """When this build is made, ISO 8601 UTC (``$SOURCE_DATE_EPOCH`` if set, for reproducible
+    builds). It is written into the XML only: the cache key does not depend on it."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    moment = (datetime.fromtimestamp(int(epoch), timezone.utc) if epoch
+              else datetime.now(timezone.utc))
+    return moment.strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def render_model_description(n_trailers: int, guid: str, generated: str | None = None) -> bytes:
+    """The ``modelDescription.xml`` of a TrailerTrain FMU with ``n_trailers`` trailers.
+
+    ``generated`` is its generationDateAndTime (default: :func:`generation_time`).
+    """
     n = _check_n(n_trailers)
     root = ET.Element(
         "fmiModelDescription",
@@ -106,7 +131,8 @@ def render_model_description(n_trailers: int, guid: str) -> bytes:
             "guid": guid,
             "description": f"Holonomic robot pushing or pulling {n} passive off-hooked trailers "
             "(chain kinematics, robot velocity loop, lateral wheel forces)",
-            "generationTool": "pushtrain",
+            "generationTool": f"pushtrain {__version__}",
+            "generationDateAndTime": generated or generation_time(),
             "variableNamingConvention": "structured",
             "numberOfEventIndicators": "0",
         },
@@ -163,6 +189,10 @@ def render_model_description(n_trailers: int, guid: str) -> bytes:
         type_attrs = {}
         if var.unit:
             type_attrs["unit"] = var.unit
+        if var.min is not None:
+            type_attrs["min"] = _fmt(var.min)
+        if var.max is not None:
+            type_attrs["max"] = _fmt(var.max)
         if var.name == "n":
             type_attrs["start"] = str(n)
         elif var.start is not None:
@@ -170,19 +200,16 @@ def render_model_description(n_trailers: int, guid: str) -> bytes:
         ET.SubElement(sv, var.type, type_attrs)
 
     index = {var.name: k + 1 for k, var in enumerate(variables)}
-    inputs = [var for var in variables if var.causality == "input"]
-    state_only = ("x[", "y[", "theta[", "phi[")
     structure = ET.SubElement(root, "ModelStructure")
     outputs = ET.SubElement(structure, "Outputs")
     for var in variables:
         if var.causality != "output":
             continue
-        attrs = {"index": str(index[var.name])}
-        if var.name == "n" or var.name == "jackknifed" or var.name.startswith(state_only):
-            attrs["dependencies"] = ""  # depend on the state only, not directly on inputs
-        else:
-            attrs["dependencies"] = " ".join(str(index[i.name]) for i in inputs)
-            attrs["dependenciesKind"] = " ".join("dependent" for _ in inputs)
+        # the inputs it depends on directly (the variable table's feedthrough); "" = state only
+        refs = sorted(index[name] for name in var.depends_on)
+        attrs = {"index": str(index[var.name]), "dependencies": " ".join(map(str, refs))}
+        if refs:
+            attrs["dependenciesKind"] = " ".join("dependent" for _ in refs)
         ET.SubElement(outputs, "Unknown", attrs)
     initial = ET.SubElement(structure, "InitialUnknowns")
     for var in variables:
@@ -203,6 +230,87 @@ def _render_build_config(n: int, guid: str) -> str:
         f'#define MODEL_GUID "{guid}"\n'
         "#endif\n"
     )
+
+
+_C_TYPES = {"Real": "var_real", "Integer": "var_integer", "Boolean": "var_boolean"}
+_C_CAUSALITIES = {
+    "input": "var_input",
+    "output": "var_output",
+    "parameter": "var_parameter",
+    "calculatedParameter": "var_calculated_parameter",
+    "local": "var_local",
+}
+
+
+def render_variables_header() -> str:
+    """``variables.h``: the C view of :mod:`pushtrain.fmu.variables` (the same for every n).
+
+    Value-reference enums (``vr_<scalar>``, ``blk_<block>``) and one ``VarInfo`` table per kind,
+    indexed by them. Only ``variables.c`` includes it; the rest of the C code asks that file.
+    """
+    lines = [
+        "/* Generated by pushtrain.fmu.build from fmu/variables.py: do not edit.",
+        " * Scalar s has value reference vr_s (< VR_STRIDE); element i of array block b has",
+        " * VR_STRIDE * blk_b + i, for i from first to N_TRAILERS + last_offset. */",
+        "#ifndef TRAILERTRAIN_VARIABLES_H",
+        "#define TRAILERTRAIN_VARIABLES_H",
+        "",
+        f"#define VR_STRIDE {VR_STRIDE}",
+        "",
+        "enum ScalarVr {",
+        ",\n".join(f"    vr_{v.name} = {v.vr}" for v in SCALARS),
+        "};",
+        f"#define SCALAR_VR_END {max(v.vr for v in SCALARS) + 1}",
+        "",
+        "enum Block {",
+        ",\n".join(f"    blk_{b.name} = {b.block}" for b in ARRAYS),
+        "};",
+        f"#define BLOCK_END {max(b.block for b in ARRAYS) + 1}",
+        "",
+        "typedef enum { var_real, var_integer, var_boolean } VarType;",
+        "typedef enum {",
+        "    var_input, var_output, var_parameter, var_calculated_parameter, var_local",
+        "} VarCausality;",
+        "",
+        "typedef struct {",
+        "    const char *name; /* NULL: no variable has this number */",
+        "    VarType type;",
+        "    VarCausality causality;",
+        "    int first, last_offset; /* array blocks: i runs from first to N_TRAILERS + last_offset */",
+        "    int bounded;            /* parameters: min <= value <= max is checked */",
+        "    double min, max;",
+        "    const char *unit, *reason; /* for the message when a value is out of range */",
+        "} VarInfo;",
+        "",
+        "static const VarInfo scalar_info[SCALAR_VR_END] = {",
+    ]
+    lines += [f"    [vr_{v.name}] = {_var_info(v, 0, 0)}," for v in SCALARS]
+    lines += ["};", "", "static const VarInfo block_info[BLOCK_END] = {"]
+    lines += [
+        f"    [blk_{b.name}] = {_var_info(b, b.first, -1 if b.to_n_minus_1 else 0)},"
+        for b in ARRAYS
+    ]
+    lines += ["};", "", "#endif", ""]
+    return "\n".join(lines)
+
+
+def _c_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _var_info(row, first: int, last_offset: int) -> str:
+    """One VarInfo initializer; bounds and their reason from the table (pushtrain.limits)."""
+    fields = [_c_string(row.name), _C_TYPES[row.type], _C_CAUSALITIES[row.causality],
+              str(first), str(last_offset)]
+    if row.min is None:
+        fields += ["0", "0.0", "0.0", "NULL", "NULL"]
+    else:
+        bound = BOUNDS.get(row.name)
+        reason = bound.reason if bound is not None else row.description
+        unit = bound.unit if bound is not None else (row.unit or "")
+        fields += ["1", repr(float(row.min)), repr(float(row.max)), _c_string(unit),
+                   _c_string(reason)]
+    return "{" + ", ".join(fields) + "}"
 
 
 def _cmake_env() -> dict:
@@ -262,6 +370,7 @@ def _build_into(n: int, target: Path, strict: bool, guid: str) -> None:
         for name in SOURCE_FILES + HEADER_FILES:
             (sources / name).write_bytes((src / name).read_bytes())
         (sources / "build_config.h").write_text(_render_build_config(n, guid))
+        (sources / "variables.h").write_text(render_variables_header())
         (unzipdir / "modelDescription.xml").write_bytes(render_model_description(n, guid))
         build_dir = Path(tmp) / "build"
         build_dir.mkdir()

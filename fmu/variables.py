@@ -1,17 +1,30 @@
-"""The TrailerTrain FMU's variables: one table that renders ``modelDescription.xml``.
+"""The TrailerTrain FMU's variables: the one table that describes them.
 
-Value references: scalars have ``vr < 100``; element ``i`` of array block ``b`` has
-``vr = 100 * b + i`` with ``i`` the body index (0 = robot, 1..n trailers). The C side mirrors the
-block numbers in ``src/model.h`` (``enum Block``) and a test checks that the two agree. Start
-values here must equal what the C code sets in ``model_set_defaults`` (also tested, through the
-built FMU).
+The builder renders ``modelDescription.xml`` and the C header ``variables.h`` (value-reference
+enums, names, types, causalities) from it, so adding a variable means a row here plus its place in
+the C model (``src/variables.c``; the compiler names a missing one). Value references: scalars have
+``vr < 100``; element ``i`` of array block ``b`` has ``vr = 100 * b + i`` with ``i`` the body index
+(0 = robot, 1..n trailers). Start values here must equal what the C code sets in
+``model_set_defaults`` (tested through the built FMU).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-__all__ = ["Variable", "ArrayBlock", "SCALARS", "ARRAYS", "variables_for", "VR_STRIDE"]
+from pushtrain.limits import BOUNDS
+
+__all__ = [
+    "Variable",
+    "ArrayBlock",
+    "SCALARS",
+    "ARRAYS",
+    "FEEDTHROUGH",
+    "describe",
+    "direct_inputs",
+    "variables_for",
+    "VR_STRIDE",
+]
 
 VR_STRIDE = 100
 MAX_TRAILERS = 50
@@ -21,6 +34,34 @@ TRAILER_MASS = 42.1
 TRAILER_INERTIA = round(TRAILER_MASS * (0.6**2 + 0.8**2) / 12.0, 4)  # 3.5083 kg m^2
 LINK = 0.52
 MU = 0.09
+
+
+# Direct feedthrough of an output (for element i of an array, n trailers): the inputs whose change
+# changes the output without a step, as the C code computes it in either slip_mode.
+# - "none": the state only (poses, joint angles, the robot's own velocities);
+# - "inputs": every input. The wheel and hitch forces (and the slipping flags made from them)
+#   follow the robot's commanded accelerations (v_cmd, w_cmd through its velocity loop), the
+#   push on the last trailer and, through the rolling kinematics, every imposed slide;
+# - "slides_before" / "slides_through": slide[1..i-1] / slide[1..i]: the rolling map
+#   v_i = c v_{i-1} + s (R_{i-1} w_{i-1} - u_{i-1}), w_i = (... - u_i) / F_i (chain.c);
+# - "own_slide": slide[i] (the rolling model reports the imposed slide as the sliding speed).
+FEEDTHROUGH = ("none", "inputs", "slides_before", "slides_through", "own_slide")
+
+
+def direct_inputs(feedthrough: str, i: int, n_trailers: int) -> list[str]:
+    """Names of the inputs an output depends on directly (see ``FEEDTHROUGH``)."""
+    slides = [f"slide[{k}]" for k in range(1, n_trailers + 1)]
+    if feedthrough == "none":
+        return []
+    if feedthrough == "inputs":
+        return ["v_cmd", "w_cmd", "push_x", "push_y", *slides]
+    if feedthrough == "slides_before":
+        return slides[: max(i - 1, 0)]
+    if feedthrough == "slides_through":
+        return slides[:i]
+    if feedthrough == "own_slide":
+        return [f"slide[{i}]"]
+    raise ValueError(f"feedthrough = {feedthrough!r}: allowed are {', '.join(FEEDTHROUGH)}")
 
 
 @dataclass(frozen=True)
@@ -36,11 +77,17 @@ class Variable:
     start: float | int | bool | None = None
     unit: str | None = None
     initial: str | None = None  # "exact", "approx", "calculated" or None (default)
+    depends_on: tuple[str, ...] = ()  # outputs: the inputs of their direct feedthrough
+    min: float | int | None = None
+    max: float | int | None = None
 
 
 @dataclass(frozen=True)
 class ArrayBlock:
-    """A family ``name[i]`` of variables, i from ``first`` to n (or n-1 if ``to_n_minus_1``)."""
+    """A family ``name[i]`` of variables, i from ``first`` to n (or n-1 if ``to_n_minus_1``).
+
+    ``description`` is a template for :func:`describe`.
+    """
 
     name: str
     block: int
@@ -53,9 +100,18 @@ class ArrayBlock:
     start: float | int | bool | None = None
     unit: str | None = None
     initial: str | None = None
+    feedthrough: str = "none"  # outputs: see FEEDTHROUGH
+    min: float | int | None = None
+    max: float | int | None = None
 
 
-SCALARS: tuple[Variable, ...] = (
+def _bounded(row):
+    """The row with ``min``/``max`` from :data:`pushtrain.limits.BOUNDS` if it has a bound."""
+    bound = BOUNDS.get(row.name)
+    return row if bound is None else replace(row, min=bound.lo, max=bound.hi)
+
+
+SCALARS: tuple[Variable, ...] = tuple(map(_bounded, (
     Variable("v_cmd", 1, "Real", "input", "continuous",
              "Robot commanded longitudinal speed", 0.0, "m/s"),
     Variable("w_cmd", 2, "Real", "input", "continuous",
@@ -66,84 +122,99 @@ SCALARS: tuple[Variable, ...] = (
              "External force on the last trailer's axle midpoint, world y", 0.0, "N"),
     Variable("g", 5, "Real", "parameter", "fixed", "Gravitational acceleration", 9.81, "m/s2"),
     Variable("robot_tau", 6, "Real", "parameter", "fixed",
-             "Robot velocity loop first-order time constant (> 0)", 0.05, "s"),
+             "Robot velocity loop first-order time constant", 0.05, "s"),
     Variable("robot_acc_max", 7, "Real", "parameter", "fixed",
-             "Robot longitudinal acceleration limit (> 0)", 1.0, "m/s2"),
+             "Robot longitudinal acceleration limit", 1.0, "m/s2"),
     Variable("robot_alpha_max", 8, "Real", "parameter", "fixed",
-             "Robot yaw acceleration limit (> 0)", 2.0, "rad/s2"),
+             "Robot yaw acceleration limit", 2.0, "rad/s2"),
     Variable("slip_mode", 9, "Integer", "parameter", "fixed",
-             "0: rolling wheels, forces estimated; 1: wheels slide past friction", 0),
+             "0: rolling wheels, forces estimated; 1: wheels slide past friction", 0,
+             min=0, max=1),
     Variable("phi_max", 10, "Real", "parameter", "fixed",
-             "Jackknife limit on any |phi[i]| (> 0)", 1.5707963267948966, "rad"),
+             "Jackknife limit on every absolute joint angle |phi|", 1.5707963267948966, "rad"),
     Variable("x0_start", 11, "Real", "parameter", "fixed", "Initial robot x", 0.0, "m"),
     Variable("y0_start", 12, "Real", "parameter", "fixed", "Initial robot y", 0.0, "m"),
     Variable("v_start", 13, "Real", "parameter", "fixed",
              "Initial robot longitudinal speed", 0.0, "m/s"),
     Variable("w_start", 14, "Real", "parameter", "fixed", "Initial robot yaw rate", 0.0, "rad/s"),
     Variable("max_substep", 15, "Real", "parameter", "fixed",
-             "Largest internal RK4 substep (> 0)", 0.005, "s"),
+             "Largest internal RK4 substep", 0.005, "s"),
     Variable("n", 16, "Integer", "output", "constant",
              "Number of trailers (fixed by the build)", None, None, "exact"),
     Variable("jackknifed", 17, "Boolean", "output", "discrete",
-             "Some |phi[i]| exceeds phi_max", None, None, "calculated"),
+             "Some absolute joint angle |phi| exceeds phi_max", None, None, "calculated"),
     Variable("slip_substep", 18, "Real", "parameter", "fixed",
-             "Largest internal substep while some wheel slides, slip_mode 1 (> 0)", 0.0005, "s"),
-)
+             "Largest internal substep while some wheel slides, slip_mode 1", 0.0005, "s"),
+)))
 
-ARRAYS: tuple[ArrayBlock, ...] = (
+ARRAYS: tuple[ArrayBlock, ...] = tuple(map(_bounded, (
     ArrayBlock("front", 1, "Real", "parameter", "fixed",
-               "Front hitch link F_i of trailer i (> 0)", 1, start=LINK, unit="m"),
+               "Front hitch link F_{i} of trailer {i}", 1, start=LINK, unit="m"),
     ArrayBlock("rear", 2, "Real", "parameter", "fixed",
-               "Rear hitch link R_i of body i (> 0)", 0, to_n_minus_1=True, start=LINK, unit="m"),
+               "Rear hitch link R_{i} of {body}", 0, to_n_minus_1=True, start=LINK, unit="m"),
     ArrayBlock("mass", 3, "Real", "parameter", "fixed",
-               "Trailer mass without payload (> 0)", 1, start=TRAILER_MASS, unit="kg"),
+               "Mass of trailer {i} without payload", 1, start=TRAILER_MASS, unit="kg"),
     ArrayBlock("inertia", 4, "Real", "parameter", "fixed",
-               "Trailer yaw inertia about its axle midpoint, without payload (> 0)", 1,
+               "Yaw inertia of trailer {i} about its axle midpoint, without payload", 1,
                start=TRAILER_INERTIA, unit="kg.m2"),
     ArrayBlock("payload", 5, "Real", "parameter", "fixed",
-               "Payload mass at the axle midpoint (>= 0)", 1, start=0.0, unit="kg"),
+               "Payload mass at the axle midpoint of trailer {i}", 1, start=0.0, unit="kg"),
     ArrayBlock("mu", 6, "Real", "parameter", "fixed",
-               "Lateral wheel friction coefficient (>= 0)", 1, start=MU),
+               "Lateral wheel friction coefficient of trailer {i}", 1, start=MU),
     ArrayBlock("theta_start", 7, "Real", "parameter", "fixed",
-               "Initial heading of body i", 0, start=0.0, unit="rad"),
+               "Initial heading of {body}", 0, start=0.0, unit="rad"),
     ArrayBlock("x", 8, "Real", "output", "continuous",
-               "x of body i (robot centre, trailer axle midpoint)", 0, unit="m",
+               "x of {point}", 0, unit="m",
                initial="calculated"),
     ArrayBlock("y", 9, "Real", "output", "continuous",
-               "y of body i (robot centre, trailer axle midpoint)", 0, unit="m",
+               "y of {point}", 0, unit="m",
                initial="calculated"),
     ArrayBlock("theta", 10, "Real", "output", "continuous",
-               "Heading of body i, toward the robot, continuous (not wrapped)", 0, unit="rad",
+               "Heading of {body} (trailers point toward the robot), continuous (not wrapped)", 0, unit="rad",
                initial="calculated"),
     ArrayBlock("phi", 11, "Real", "output", "continuous",
-               "Joint angle theta[i-1] - theta[i], wrapped to (-pi, pi]", 1, unit="rad",
+               "Joint angle theta[{prev}] - theta[{i}], wrapped to (-pi, pi]", 1, unit="rad",
                initial="calculated"),
     ArrayBlock("v", 12, "Real", "output", "continuous",
-               "Longitudinal speed of body i along its heading", 0, unit="m/s",
-               initial="calculated"),
-    ArrayBlock("w", 13, "Real", "output", "continuous", "Yaw rate of body i", 0, unit="rad/s",
-               initial="calculated"),
+               "Longitudinal speed of {body} along its heading", 0, unit="m/s",
+               initial="calculated", feedthrough="slides_before"),
+    ArrayBlock("w", 13, "Real", "output", "continuous", "Yaw rate of {body}", 0, unit="rad/s",
+               initial="calculated", feedthrough="slides_through"),
     ArrayBlock("F_lat", 14, "Real", "output", "continuous",
-               "Lateral wheel force on trailer i along its left normal", 1, unit="N",
-               initial="calculated"),
+               "Lateral wheel force on trailer {i} along its left normal", 1, unit="N",
+               initial="calculated", feedthrough="inputs"),
     ArrayBlock("F_lat_max", 15, "Real", "calculatedParameter", "fixed",
-               "Lateral friction limit mu (mass + payload) g", 1, unit="N", initial="calculated"),
+               "Lateral friction limit of trailer {i}, mu[{i}] (mass[{i}] + payload[{i}]) g", 1, unit="N", initial="calculated"),
     ArrayBlock("slipping", 16, "Boolean", "output", "discrete",
-               "Wheel of trailer i slides (slip_mode 1) or would slide (slip_mode 0)", 1,
-               initial="calculated"),
+               "Wheel of trailer {i} slides (slip_mode 1) or would slide (slip_mode 0)", 1,
+               initial="calculated", feedthrough="inputs"),
     ArrayBlock("slide", 17, "Real", "input", "continuous",
-               "Imposed lateral sliding speed of trailer i's wheel along its left normal "
+               "Imposed lateral sliding speed of trailer {i}'s wheel along its left normal "
                "(kinematic disturbance)", 1, start=0.0, unit="m/s"),
     ArrayBlock("hitch_fx", 18, "Real", "output", "continuous",
-               "Force of body i-1 on trailer i at their hitch, world x", 1, unit="N",
-               initial="calculated"),
+               "Force of {prev_body} on trailer {i} at their hitch, world x", 1, unit="N",
+               initial="calculated", feedthrough="inputs"),
     ArrayBlock("hitch_fy", 19, "Real", "output", "continuous",
-               "Force of body i-1 on trailer i at their hitch, world y", 1, unit="N",
-               initial="calculated"),
+               "Force of {prev_body} on trailer {i} at their hitch, world y", 1, unit="N",
+               initial="calculated", feedthrough="inputs"),
     ArrayBlock("slide_speed", 20, "Real", "output", "continuous",
-               "Lateral sliding speed of trailer i's wheel along its left normal", 1, unit="m/s",
-               initial="calculated"),
-)
+               "Lateral sliding speed of trailer {i}'s wheel along its left normal", 1, unit="m/s",
+               initial="calculated", feedthrough="own_slide"),
+)))
+
+
+def _body(i: int) -> str:
+    return "the robot" if i == 0 else f"trailer {i}"
+
+
+def describe(template: str, i: int) -> str:
+    """The description of element ``i`` of an array block from its template.
+
+    Fields: ``{i}``, ``{prev}`` (i - 1), ``{body}`` ("the robot" or "trailer i"), ``{prev_body}``
+    (body i - 1) and ``{point}`` (the robot's centre or trailer i's axle midpoint).
+    """
+    point = "the robot's centre" if i == 0 else f"the axle midpoint of trailer {i}"
+    return template.format(i=i, prev=i - 1, body=_body(i), prev_body=_body(i - 1), point=point)
 
 
 def variables_for(n_trailers: int) -> list[Variable]:
@@ -159,11 +230,13 @@ def variables_for(n_trailers: int) -> list[Variable]:
                     block.type,
                     block.causality,
                     block.variability,
-                    block.description.replace(" i ", f" {i} ").replace(" i's", f" {i}'s")
-                    .replace(" i-1 ", f" {i - 1} "),
+                    describe(block.description, i),
                     block.start,
                     block.unit,
                     block.initial,
+                    tuple(direct_inputs(block.feedthrough, i, n_trailers)),
+                    block.min,
+                    block.max,
                 )
             )
     return sorted(out, key=lambda v: v.vr)

@@ -90,6 +90,53 @@ def test_slip_mode_1_initializes_and_its_substep_is_checked(built_fmu_sim):
     assert any("slip_substep" in m and "0" in m for m in error_messages(bad)), bad.messages
 
 
+SLIDE_WITH_SLIP_MODE_1 = {
+    "slip_mode_first": [{"slip_mode": 1}, {"slide[2]": 0.1}],
+    "slide_first": [{"slide[2]": 0.1}, {"slip_mode": 1}],
+}
+
+
+@pytest.mark.parametrize("when", ["before_enter", "after_enter"])
+@pytest.mark.parametrize("order", sorted(SLIDE_WITH_SLIP_MODE_1))
+def test_slide_with_slip_mode_1_fails_at_exit_whatever_the_order(built_fmu_sim, order, when):
+    """Each set is accepted; the combination is refused once, naming both variables."""
+    sim = built_fmu_sim(N, logging_on=True)
+    sim.fmu.setupExperiment(startTime=0.0)
+    if when == "after_enter":
+        sim.fmu.enterInitializationMode()
+    for values in SLIDE_WITH_SLIP_MODE_1[order]:
+        sim.set(values)  # no error at the set
+    assert error_messages(sim) == []
+    if when == "before_enter":
+        sim.fmu.enterInitializationMode()
+    with pytest.raises(FMICallException) as info:
+        sim.fmu.exitInitializationMode()
+    assert info.value.function == "fmi2ExitInitializationMode"
+    (message,) = error_messages(sim)
+    assert "slip_mode = 1" in message and "slide[2] = 0.1" in message, message
+
+
+@pytest.mark.parametrize("order", sorted(SLIDE_WITH_SLIP_MODE_1))
+def test_a_combination_corrected_before_exit_is_accepted(built_fmu_sim, order):
+    sim = built_fmu_sim(N, logging_on=True)
+    sim.fmu.setupExperiment(startTime=0.0)
+    sim.fmu.enterInitializationMode()
+    for values in SLIDE_WITH_SLIP_MODE_1[order] + [{"slide[2]": 0.0}]:
+        sim.set(values)  # one call each, in this order
+    sim.fmu.exitInitializationMode()
+    assert error_messages(sim) == []
+    assert sim.get(["slip_mode"]) == [1]
+
+
+def test_slide_with_slip_mode_0_is_accepted_in_both_orders(built_fmu_sim):
+    for params in ({"slip_mode": 0, "slide[2]": 0.1}, {"slide[2]": 0.1, "slip_mode": 0}):
+        sim = built_fmu_sim(N, logging_on=True)
+        sim.initialize(params)
+        sim.step(0.01)
+        assert error_messages(sim) == []
+        assert sim.real("slide_speed[2]") == 0.1
+
+
 def test_good_parameters_log_no_error(built_fmu_sim):
     sim = built_fmu_sim(N, logging_on=True)
     sim.initialize(params={"payload[1]": 0.0, "mu[2]": 0.0, "front[1]": 0.3})
@@ -155,28 +202,31 @@ def test_output_overflow_gives_error_not_nan(built_fmu_sim):
     assert error is not None and error.status >= STATUS_ERROR
 
 
-@pytest.mark.parametrize("name, value", [("v_cmd", math.inf), ("v_cmd", math.nan),
-                                         ("w_cmd", -math.inf), ("push_x", math.nan),
-                                         ("slide[2]", math.inf)])
-def test_non_finite_input_never_gives_non_finite_outputs(built_fmu_sim, name, value):
-    """A non-finite input is refused (at the set or the next step) or has finite effects."""
+NON_FINITE_INPUTS = [("v_cmd", math.nan, "nan"), ("v_cmd", math.inf, "inf"),
+                     ("w_cmd", -math.inf, "-inf"), ("push_x", math.nan, "nan"),
+                     ("push_y", math.inf, "inf"), ("slide[2]", math.inf, "inf")]
+
+
+@pytest.mark.parametrize("mode", ["initialization", "stepping"])
+@pytest.mark.parametrize("name, value, text", NON_FINITE_INPUTS)
+def test_set_real_itself_refuses_a_non_finite_input(built_fmu_sim, name, value, text, mode):
+    """fmi2SetReal returns fmi2Error for the call that passes the value, naming input and value;
+    the refused value is not stored and the outputs stay finite."""
     sim = built_fmu_sim(N, logging_on=True)
-    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.05})
-    try:
-        sim.set({name: value})
-    except FMICallException as error:
-        assert error.status >= STATUS_ERROR
-        return
-    error = None
-    try:
-        assert outputs_finite(sim), "non-finite outputs right after the set"
-    except FMICallException as refused:  # getters may refuse once the input is known bad
-        error = refused
-    if error is None:
-        error = _run_until_error(sim, 20, 0.01)
-    if error is not None:
-        assert error.status >= STATUS_ERROR
-        assert error_messages(sim)
+    if mode == "initialization":
+        sim.fmu.setupExperiment(startTime=0.0)
+        sim.fmu.enterInitializationMode()
+    else:
+        sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.05})
+        sim.step(0.01)
+    before = sim.real(name)
+    with pytest.raises(FMICallException) as info:
+        sim.fmu.setReal([sim.vr(name)], [value])
+    assert info.value.function == "fmi2SetReal" and info.value.status == STATUS_ERROR
+    assert error_messages(sim) == [f"fmi2SetReal: input {name} = {text}: must be finite"]
+    assert sim.real(name) == before  # readable after the error, and unchanged
+    if mode == "stepping":
+        assert outputs_finite(sim)
 
 
 @pytest.mark.parametrize("n_trailers", [0, 51, -3])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import zipfile
@@ -96,6 +97,49 @@ def test_model_description_matches_variable_table(built_fmu, n_trailers):
             assert xml_start(got) == expected_start, name
         if expected.unit is not None:
             assert got.unit == expected.unit, name
+
+
+def test_model_description_names_its_generator_and_utc_date(built_fmu):
+    from datetime import datetime
+
+    import pushtrain
+
+    md = read_model_description(str(built_fmu(N_DEFAULT)))
+    assert md.generationTool == f"pushtrain {pushtrain.__version__}"
+    assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", md.generationDateAndTime)
+    assert datetime.strptime(md.generationDateAndTime, "%Y-%m-%dT%H:%M:%SZ").year >= 2024
+
+
+def test_generation_date_follows_source_date_epoch_and_not_the_cache_key(monkeypatch):
+    from pushtrain.fmu import build
+
+    keys = set()
+    for epoch, date in ((0, "1970-01-01T00:00:00Z"), (1700000000, "2023-11-14T22:13:20Z")):
+        monkeypatch.setenv("SOURCE_DATE_EPOCH", str(epoch))
+        xml = build.render_model_description(2, "{guid}").decode()
+        assert f'generationDateAndTime="{date}"' in xml
+        keys.add(build._fingerprint(2, strict=False))
+    assert len(keys) == 1  # a build made on another day is still a cache hit
+
+
+def test_slip_mode_is_bounded_0_to_1(built_fmu):
+    md = read_model_description(str(built_fmu(N_DEFAULT)))
+    (slip_mode,) = [v for v in md.modelVariables if v.name == "slip_mode"]
+    assert (slip_mode.min, slip_mode.max) == ("0", "1")
+
+
+@pytest.mark.parametrize("n_trailers", [1, N_DEFAULT])
+def test_descriptions_have_no_template_leftovers(built_fmu, n_trailers):
+    md = read_model_description(str(built_fmu(n_trailers)))
+    leftovers = re.compile(r"(?<![A-Za-z])i(?![A-Za-z])|[{}]|_i\b|i-1|i - 1")
+    bad = {v.name: v.description for v in md.modelVariables if leftovers.search(v.description)}
+    assert bad == {}
+    for var in md.modelVariables:  # and every element names its own body
+        match = re.fullmatch(r"(\w+)\[(\d+)\]", var.name)
+        if match:
+            i = int(match.group(2))
+            assert (f"trailer {i}" in var.description or f"[{i}]" in var.description
+                    or (i == 0 and "robot" in var.description)), (var.name, var.description)
 
 
 def test_exported_symbols_are_only_fmi2_functions(built_fmu_unzipped):
@@ -199,6 +243,20 @@ def test_values_in_initialization_mode_equal_xml_start(built_fmu_sim, n_trailers
     assert sim.get(["n"]) == [n_trailers]
 
 
+def test_every_variable_reads_with_its_type_and_is_named_by_the_c_side(built_fmu_sim):
+    """Every variable of the XML has a place in the C model (read through its type's getter)."""
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.initialize({"theta_start[1]": 0.3}, {"v_cmd": -0.1})
+    values = sim.get([v.name for v in sim.md.modelVariables])
+    assert len(values) == len(sim.md.modelVariables)
+    assert all(np.isfinite(float(value)) for value in values)
+    # a getter of another type refuses, naming the variable and both types
+    with pytest.raises(FMICallException):
+        sim.fmu.getReal([sim.vr("slipping[2]")])
+    assert any("slipping[2]" in message and "Boolean" in message and "Real" in message
+               for status, _, message in sim.messages if status >= 3), sim.messages
+
+
 def test_outputs_are_finite_after_exit_initialization(built_fmu_sim):
     sim = built_fmu_sim(N_DEFAULT)
     sim.initialize({"theta_start[1]": 0.3, "v_start": -0.05, "w_start": 0.02},
@@ -206,6 +264,67 @@ def test_outputs_are_finite_after_exit_initialization(built_fmu_sim):
     for block in (*OUTPUT_BLOCKS, "F_lat_max"):
         assert np.all(np.isfinite(sim.array(block))), block
     assert sim.array("F_lat_max") == pytest.approx(0.09 * 42.1 * 9.81, rel=1e-12)
+
+
+# -- direct feedthrough ----------------------------------------------------------------------------
+# Regimes in which the dependencies are probed: (parameters, inputs held while stepping there).
+FEEDTHROUGH_REGIMES = {
+    "rolling, slip_mode 0": (
+        {"slip_mode": 0},
+        {"v_cmd": -0.1, "w_cmd": 0.2, "push_x": 3.0, "push_y": -2.0, "slide[1]": 0.01,
+         "slide[2]": -0.02, "slide[3]": 0.015}),
+    "rolling, slip_mode 1": (
+        {"slip_mode": 1, "mu[1]": 0.5, "mu[2]": 0.5, "mu[3]": 0.5},
+        {"v_cmd": -0.1, "w_cmd": 0.2, "push_x": 3.0, "push_y": -2.0}),
+    "sliding, slip_mode 1": (
+        {"slip_mode": 1},
+        {"v_cmd": -0.1, "w_cmd": 0.2, "push_x": 30.0, "push_y": -60.0}),
+}
+
+
+def _derived_dependencies(sim, inputs, outputs):
+    """{output: inputs whose change (without a step) changes it}, by perturbing each input
+    by small and large amounts from the current point and restoring it."""
+    found = {name: set() for name in outputs}
+    base = sim.get(outputs)
+    for name in inputs:
+        value = sim.real(name)
+        for delta in (1e-6, -1e-3, 0.5, -50.0, 2e3):
+            sim.set({name: value + delta})
+            for out, old, new in zip(outputs, base, sim.get(outputs)):
+                if new != old:
+                    found[out].add(name)
+        sim.set({name: value})
+        assert sim.get(outputs) == base  # restoring the input restores every output
+    return found
+
+
+def test_declared_direct_feedthrough_is_what_the_fmu_does(built_fmu_sim):
+    """For every output: the inputs listed in ModelStructure/Outputs are exactly those whose
+    change, without a step, changes the output in some regime (perturbation through fmpy)."""
+    md = built_fmu_sim(N_DEFAULT).md
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    inputs = [v.name for v in md.modelVariables if v.causality == "input"]
+    declared = {unknown.variable.name: {d.name for d in (unknown.dependencies or [])}
+                for unknown in md.outputs}
+    assert sorted(declared) == sorted(outputs)
+
+    derived = {name: set() for name in outputs}
+    geometry = {"theta_start[1]": 0.3, "theta_start[2]": -0.4, "theta_start[3]": 0.5,
+                "v_start": -0.1, "w_start": 0.2, "robot_acc_max": 50.0,
+                "robot_alpha_max": 50.0}
+    for regime, (params, held) in FEEDTHROUGH_REGIMES.items():
+        sim = built_fmu_sim(N_DEFAULT, instance_name=regime)
+        sim.initialize({**geometry, **params}, held)
+        for _ in range(40):
+            sim.step(0.005)
+        if regime.startswith("sliding"):
+            assert any(sim.array("slipping")) and max(abs(sim.array("slide_speed"))) > 1e-3
+        probed = [name for name in inputs if not (params["slip_mode"] == 1 and "slide" in name)]
+        for out, deps in _derived_dependencies(sim, probed, outputs).items():
+            assert deps <= declared[out], (regime, out, deps - declared[out])
+            derived[out] |= deps
+    assert derived == declared
 
 
 # -- instantiate ---------------------------------------------------------------------------------
@@ -320,6 +439,124 @@ def test_variable_and_inexact_steps_land_exactly(built_fmu_sim):
     xs = _constant_speed_run(sim, points)
     np.testing.assert_allclose(xs, speed * np.array(points[1:]), rtol=0, atol=1e-12)
     assert np.all(np.diff(points) > 0)
+
+
+# -- state machine after an error (FMI 2.0: only get, set state, reset and free) -------------------
+def _error_messages(sim):
+    return [message for status, _, message in sim.messages if status >= 3]
+
+
+REJECTED_CALLS = {
+    "nan_input": lambda sim: sim.fmu.setReal([sim.vr("v_cmd")], [float("nan")]),
+    "parameter_after_init": lambda sim: sim.fmu.setReal([sim.vr("mass[2]")], [50.0]),
+    "unknown_reference": lambda sim: sim.fmu.getReal([99]),
+    "wrong_type": lambda sim: sim.fmu.getInteger([sim.vr("x[0]")]),
+    "unsupported_function": lambda sim: sim.fmu.getDirectionalDerivative(
+        [sim.vr("x[0]")], [sim.vr("v_cmd")], [1.0]),
+}
+
+
+@pytest.mark.parametrize("rejected", sorted(REJECTED_CALLS))
+def test_after_a_rejected_call_the_instance_cannot_step_on(built_fmu_sim, rejected):
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1})
+    sim.step(0.01)
+    with pytest.raises(FMICallException) as info:
+        REJECTED_CALLS[rejected](sim)
+    assert info.value.status == 3
+    first = _error_messages(sim)
+    assert len(first) == 1
+    # the message starts with the name of the function that refused (from __func__)
+    assert first[0].startswith(info.value.function + ": "), (first, info.value.function)
+    with pytest.raises(FMICallException) as step:
+        sim.step(0.01)
+    assert step.value.status == 3
+    assert "fmi2DoStep" in _error_messages(sim)[-1] and "Error" in _error_messages(sim)[-1]
+    with pytest.raises(FMICallException):
+        sim.fmu.setReal([sim.vr("v_cmd")], [0.0])  # no more inputs either
+    with pytest.raises(FMICallException):
+        sim.fmu.terminate()
+    # values stay readable for diagnostics, and a reset starts a fresh, working run
+    assert np.all(np.isfinite(sim.array("x")))
+    sim.fmu.reset()
+    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1})
+    sim.step(0.01)
+    assert sim.real("v[0]") < 0.0
+
+
+def test_a_state_saved_before_an_error_restarts_the_run(built_fmu_sim):
+    """FMI 2.0: after fmi2Error the simulation may restart from a state saved before it."""
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize({"theta_start[1]": 0.2}, {"v_cmd": -0.1, "w_cmd": 0.1})
+    sim.step(0.01)
+    saved = sim.fmu.getFMUstate()
+    sim.step(0.01)
+    expected = sim.array("theta")
+    with pytest.raises(FMICallException):
+        sim.fmu.setReal([sim.vr("push_x")], [float("inf")])
+    with pytest.raises(FMICallException):
+        sim.fmu.doStep(currentCommunicationPoint=sim.time, communicationStepSize=0.01)
+    sim.fmu.setFMUstate(saved)
+    sim.fmu.freeFMUstate(saved)
+    sim.time = 0.01
+    sim.step(0.01)
+    assert np.array_equal(sim.array("theta"), expected)
+
+
+def test_a_call_in_the_wrong_mode_is_an_error_state_too(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    with pytest.raises(FMICallException):
+        sim.fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=0.01)
+    assert "Instantiated" in _error_messages(sim)[-1]
+    with pytest.raises(FMICallException):
+        sim.fmu.setupExperiment(startTime=0.0)
+    assert _error_messages(sim)[-1].startswith("fmi2SetupExperiment: not allowed in mode Error")
+
+
+def test_unprovided_status_is_discard_and_stepping_goes_on(built_fmu_sim):
+    from fmpy.fmi2 import fmi2DoStepStatus, fmi2LastSuccessfulTime
+
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.initialize(inputs={"v_cmd": -0.1})
+    sim.step(0.01)
+    with pytest.raises(FMICallException) as info:
+        sim.fmu.getStatus(fmi2DoStepStatus)
+    assert info.value.status == 2  # fmi2Discard: "cannot be retrieved by the slave"
+    assert sim.fmu.getRealStatus(fmi2LastSuccessfulTime) == pytest.approx(0.01)
+    sim.step(0.01)
+    assert sim.real("x[0]") < 0.0
+
+
+# -- stop time ------------------------------------------------------------------------------------
+def test_a_step_past_the_stop_time_is_refused(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.fmu.setupExperiment(startTime=0.0, stopTime=0.3)
+    sim.fmu.enterInitializationMode()
+    sim.fmu.exitInitializationMode()
+    for _ in range(3):  # summed floats: 0.30000000000000004 ends "at" the stop time
+        sim.step(0.1)
+    assert sim.time != 0.3 and sim.time == pytest.approx(0.3)
+    with pytest.raises(FMICallException) as info:
+        sim.step(1e-6)
+    assert info.value.status == 3
+    message = _error_messages(sim)[-1]
+    assert message.startswith("fmi2DoStep: ") and "stopTime = 0.2999999" in message
+
+
+def test_no_stop_time_means_no_limit_and_reset_clears_it(built_fmu_sim):
+    sim = built_fmu_sim(N_DEFAULT)
+    sim.fmu.setupExperiment(startTime=0.0, stopTime=0.02)
+    sim.fmu.reset()
+    sim.initialize()  # setupExperiment without a stop time
+    for _ in range(10):
+        sim.step(0.01)
+    assert sim.time == pytest.approx(0.1)
+
+
+def test_simulate_fmu_with_its_stop_time_ends_there(built_fmu):
+    result = simulate_fmu(str(built_fmu(N_DEFAULT)), stop_time=0.5, output_interval=0.005,
+                          set_stop_time=True, output=["x[0]"])
+    assert result["time"][-1] == pytest.approx(0.5)
 
 
 def test_logging_on_does_not_log_every_step(built_fmu_sim):

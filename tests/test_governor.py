@@ -70,7 +70,7 @@ def test_the_manoeuvre_slides_without_the_governor_and_not_with_it(tmp_path):
         runs[governor] = json.loads((out / "summary.json").read_text())
     with_gov, without = runs[True], runs[False]
     assert any(s["events"] for s in without["slip"])
-    assert max(without["max_F_lat_ratio"]) > 1.0
+    assert max(without["max_F_lat_ratio"]) >= 1.0 - 1e-9  # sliding at friction, never above
     assert not any(s["events"] for s in with_gov["slip"])
     assert max(with_gov["max_F_lat_ratio"]) <= 0.8 + 1e-6
     # what it costs: the goal is reached no later than 1 s after the ungoverned run

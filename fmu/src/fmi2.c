@@ -21,14 +21,20 @@ typedef enum {
     mode_error = 16
 } Mode;
 
-#define ANY_MODE (mode_instantiated | mode_initialization | mode_step_complete | mode_terminated)
 #define SETUP_MODES (mode_instantiated | mode_initialization)
+#define ANY_MODE (SETUP_MODES | mode_step_complete | mode_terminated)
+/* FMI 2.0: after a function returned fmi2Error the instance is in the error state; then only
+   fmi2GetXXX (for diagnostics), fmi2SetFMUstate (restart from a saved state), fmi2FreeFMUstate,
+   fmi2Reset and fmi2FreeInstance are allowed (and fmi2SetDebugLogging). */
+#define ERROR_MODES (ANY_MODE | mode_error)
 #define MSG_LEN 512
 #define STATE_MAGIC 0x54524e31u /* "TRN1" */
 
 typedef struct {
     ModelData data;
     Mode mode;
+    bool stop_time_defined; /* from fmi2SetupExperiment: no step may end after stop_time */
+    double stop_time;
     char *instance_name;
     fmi2CallbackFunctions callbacks;
     fmi2Boolean logging_on;
@@ -56,7 +62,7 @@ static void log_message(const Instance *inst, fmi2Status status, const char *cat
     if (status == fmi2OK && !(inst->logging_on && inst->log_debug)) {
         return;
     }
-    if (status == fmi2Warning && !inst->log_warnings) {
+    if ((status == fmi2Warning || status == fmi2Discard) && !inst->log_warnings) {
         return;
     }
     if (status >= fmi2Error && !inst->log_errors) {
@@ -70,6 +76,7 @@ static void log_message(const Instance *inst, fmi2Status status, const char *cat
                            category, "%s", buffer);
 }
 
+/* Logs "function: message", moves the instance to the error state and returns fmi2Error. */
 static fmi2Status fail(Instance *inst, const char *function, const char *fmt, ...) {
     char buffer[MSG_LEN];
     va_list args;
@@ -77,6 +84,7 @@ static fmi2Status fail(Instance *inst, const char *function, const char *fmt, ..
     vsnprintf(buffer, sizeof(buffer), fmt, args);
     va_end(args);
     log_message(inst, fmi2Error, "logStatusError", "%s: %s", function, buffer);
+    inst->mode = mode_error;
     return fmi2Error;
 }
 
@@ -86,11 +94,13 @@ static const char *mode_name(Mode mode) {
     case mode_initialization: return "InitializationMode";
     case mode_step_complete: return "StepComplete";
     case mode_terminated: return "Terminated";
-    default: return "Error";
+    case mode_error: break;
     }
+    return "Error (after an fmi2Error; only fmi2GetXXX, fmi2SetFMUstate, fmi2Reset and "
+           "fmi2FreeInstance are allowed)";
 }
 
-/* Guard: the call is allowed in `allowed` modes and c is not NULL. */
+/* Guard: c is an instance and the call is allowed in its mode (else logged: an error). */
 static bool allowed(Instance *inst, const char *function, int modes) {
     if (inst == NULL) {
         return false;
@@ -102,12 +112,32 @@ static bool allowed(Instance *inst, const char *function, int modes) {
     return true;
 }
 
+/*
+ * Every fmi2 function that takes an instance starts with BEGIN(modes): the guard above, naming the
+ * function by __func__. FAIL(...) logs "function: message", moves the instance to the error state
+ * and returns fmi2Error; END returns the call's status (fmi2OK unless set otherwise).
+ */
+#define BEGIN(modes)                                                                            \
+    Instance *const inst = (Instance *)c;                                                       \
+    fmi2Status status = fmi2OK;                                                                 \
+    if (!allowed(inst, __func__, (modes))) {                                                    \
+        return fmi2Error;                                                                       \
+    }
+#define FAIL(...) return fail(inst, __func__, __VA_ARGS__)
+#define END return status
+
+/* A function whose capability flag in the XML says it is not provided: calling it is an error. */
+static fmi2Status not_supported(fmi2Component c, const char *function, const char *why) {
+    return (c == NULL) ? fmi2Error : fail((Instance *)c, function, "not supported (%s)", why);
+}
+
 static bool setup_mode(const Instance *inst) {
     return inst->mode == mode_instantiated || inst->mode == mode_initialization;
 }
 
-/* Makes the outputs current. Before initialization ends they follow the (possibly changed) start
-   parameters, which must then be valid; after an error with a non-finite state there are none. */
+/* Makes the outputs current: O(n), so the getters call it at most once per call. Before
+   initialization ends the outputs follow the (possibly changed) start parameters, which must then
+   be valid; after an error with a non-finite state there are none. */
 static fmi2Status ensure_outputs(Instance *inst, const char *function) {
     char msg[MSG_LEN];
     if (setup_mode(inst)) {
@@ -131,108 +161,6 @@ static fmi2Status ensure_outputs(Instance *inst, const char *function) {
     return fmi2OK;
 }
 
-/* ---------------------------------------------------------------- value references */
-
-typedef struct {
-    int block;  /* 0 for scalars */
-    int index;  /* body index, or the scalar vr */
-} VrRef;
-
-static bool decode(fmi2ValueReference vr, VrRef *out) {
-    out->block = (int)(vr / VR_STRIDE);
-    out->index = (int)(vr % VR_STRIDE);
-    switch (out->block) {
-    case 0: return out->index >= 1 && out->index <= vr_slip_substep;
-    case blk_rear: return out->index <= N_TRAILERS - 1;
-    case blk_theta_start: case blk_x: case blk_y: case blk_theta: case blk_v: case blk_w:
-        return out->index <= N_TRAILERS;
-    case blk_front: case blk_mass: case blk_inertia: case blk_payload: case blk_mu:
-    case blk_phi: case blk_F_lat: case blk_F_lat_max: case blk_slipping: case blk_slide:
-    case blk_hitch_fx: case blk_hitch_fy: case blk_slide_speed:
-        return out->index >= 1 && out->index <= N_TRAILERS;
-    default: return false;
-    }
-}
-
-/* "name" or "name[i]" of a value reference, for messages. */
-static const char *vr_name(fmi2ValueReference vr, char *buffer, size_t len) {
-    static const char *const scalars[] = {
-        "?", "v_cmd", "w_cmd", "push_x", "push_y", "g", "robot_tau", "robot_acc_max",
-        "robot_alpha_max", "slip_mode", "phi_max", "x0_start", "y0_start", "v_start", "w_start",
-        "max_substep", "n", "jackknifed", "slip_substep"};
-    static const char *const blocks[] = {
-        "?", "front", "rear", "mass", "inertia", "payload", "mu", "theta_start", "x", "y",
-        "theta", "phi", "v", "w", "F_lat", "F_lat_max", "slipping", "slide", "hitch_fx",
-        "hitch_fy", "slide_speed"};
-    VrRef r;
-    if (!decode(vr, &r)) {
-        snprintf(buffer, len, "(unknown value reference %u)", (unsigned)vr);
-    } else if (r.block == 0) {
-        snprintf(buffer, len, "%s", scalars[r.index]);
-    } else {
-        snprintf(buffer, len, "%s[%d]", blocks[r.block], r.index);
-    }
-    return buffer;
-}
-
-static double *real_parameter(ModelData *m, VrRef r) {
-    switch (r.block) {
-    case 0:
-        switch (r.index) {
-        case vr_g: return &m->g;
-        case vr_robot_tau: return &m->robot_tau;
-        case vr_robot_acc_max: return &m->robot_acc_max;
-        case vr_robot_alpha_max: return &m->robot_alpha_max;
-        case vr_phi_max: return &m->phi_max;
-        case vr_x0_start: return &m->x0_start;
-        case vr_y0_start: return &m->y0_start;
-        case vr_v_start: return &m->v_start;
-        case vr_w_start: return &m->w_start;
-        case vr_max_substep: return &m->max_substep;
-        case vr_slip_substep: return &m->slip_substep;
-        default: return NULL;
-        }
-    case blk_front: return &m->front[r.index];
-    case blk_rear: return &m->rear[r.index];
-    case blk_mass: return &m->mass[r.index];
-    case blk_inertia: return &m->inertia[r.index];
-    case blk_payload: return &m->payload[r.index];
-    case blk_mu: return &m->mu[r.index];
-    case blk_theta_start: return &m->theta_start[r.index];
-    default: return NULL;
-    }
-}
-
-static double *real_input(ModelData *m, VrRef r) {
-    if (r.block == 0) {
-        switch (r.index) {
-        case vr_v_cmd: return &m->v_cmd;
-        case vr_w_cmd: return &m->w_cmd;
-        case vr_push_x: return &m->push_x;
-        case vr_push_y: return &m->push_y;
-        default: return NULL;
-        }
-    }
-    return r.block == blk_slide ? &m->slide[r.index] : NULL;
-}
-
-static bool real_output(const ModelData *m, VrRef r, double *value) {
-    switch (r.block) {
-    case blk_x: *value = m->x[r.index]; return true;
-    case blk_y: *value = m->y[r.index]; return true;
-    case blk_theta: *value = m->q[IX_THETA + r.index]; return true;
-    case blk_phi: *value = m->phi[r.index]; return true;
-    case blk_v: *value = m->v[r.index]; return true;
-    case blk_w: *value = m->w[r.index]; return true;
-    case blk_F_lat: *value = m->F_lat[r.index]; return true;
-    case blk_F_lat_max: *value = m->F_lat_max[r.index]; return true;
-    case blk_hitch_fx: *value = m->hitch_fx[r.index]; return true;
-    case blk_hitch_fy: *value = m->hitch_fy[r.index]; return true;
-    case blk_slide_speed: *value = m->slide_speed[r.index]; return true;
-    default: return false;
-    }
-}
-
 /* ---------------------------------------------------------------- common functions */
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -241,22 +169,18 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
-    Instance *inst = (Instance *)c;
     size_t k;
-    if (!allowed(inst, "fmi2SetDebugLogging", ANY_MODE)) {
-        return fmi2Error;
-    }
+    BEGIN(ERROR_MODES);
     inst->logging_on = loggingOn;
     if (nCategories == 0) {
         /* loggingOn applies to all categories; errors and warnings are always reported */
         inst->log_debug = loggingOn;
         inst->log_errors = fmi2True;
         inst->log_warnings = fmi2True;
-        return fmi2OK;
+        END;
     }
     if (categories == NULL) {
-        return fail(inst, "fmi2SetDebugLogging", "categories = NULL with nCategories = %u",
-                    (unsigned)nCategories);
+        FAIL("categories = NULL with nCategories = %u", (unsigned)nCategories);
     }
     for (k = 0; k < nCategories; k++) {
         const char *name = categories[k];
@@ -267,13 +191,11 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
         } else if (name != NULL && strcmp(name, "logStatusWarning") == 0) {
             inst->log_warnings = loggingOn;
         } else {
-            return fail(inst, "fmi2SetDebugLogging",
-                        "unknown log category '%s'; allowed: %s, %s, %s",
-                        name ? name : "(null)", log_categories[0], log_categories[1],
-                        log_categories[2]);
+            FAIL("unknown log category '%s'; allowed: %s, %s, %s", name ? name : "(null)",
+                 log_categories[0], log_categories[1], log_categories[2]);
         }
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
@@ -289,21 +211,21 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     }
     if (fmuType != fmi2CoSimulation) {
         functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
-                          "fmi2Instantiate: fmuType = %d: TrailerTrain supports only "
-                          "fmi2CoSimulation (%d)", (int)fmuType, (int)fmi2CoSimulation);
+                          "%s: fmuType = %d: TrailerTrain supports only fmi2CoSimulation (%d)",
+                          __func__, (int)fmuType, (int)fmi2CoSimulation);
         return NULL;
     }
     if (fmuGUID == NULL || strcmp(fmuGUID, MODEL_GUID) != 0) {
         functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
-                          "fmi2Instantiate: GUID '%s' does not match this binary's '%s' "
-                          "(the modelDescription.xml belongs to another build)",
+                          "%s: GUID '%s' does not match this binary's '%s' (the "
+                          "modelDescription.xml belongs to another build)", __func__,
                           fmuGUID ? fmuGUID : "(null)", MODEL_GUID);
         return NULL;
     }
     inst = (Instance *)calloc(1, sizeof(Instance));
     if (inst == NULL) {
         functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
-                          "fmi2Instantiate: out of memory");
+                          "%s: out of memory", __func__);
         return NULL;
     }
     inst->instance_name = (char *)malloc(strlen(name) + 1);
@@ -318,6 +240,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     inst->log_errors = fmi2True;
     inst->log_warnings = fmi2True;
     inst->mode = mode_instantiated;
+    inst->stop_time_defined = false;
     model_set_defaults(&inst->data);
     return inst;
 }
@@ -334,288 +257,216 @@ void fmi2FreeInstance(fmi2Component c) {
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                                fmi2Real tolerance, fmi2Real startTime,
                                fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    Instance *inst = (Instance *)c;
-    (void)toleranceDefined;
+    BEGIN(mode_instantiated);
+    (void)toleranceDefined; /* fixed substeps: no tolerance to honour */
     (void)tolerance;
-    (void)stopTimeDefined;
-    (void)stopTime;
-    if (!allowed(inst, "fmi2SetupExperiment", mode_instantiated)) {
-        return fmi2Error;
-    }
     if (!isfinite(startTime)) {
-        return fail(inst, "fmi2SetupExperiment", "startTime = %g: must be finite", startTime);
+        FAIL("startTime = %g: must be finite", startTime);
+    }
+    if (stopTimeDefined && !(stopTime >= startTime)) {
+        FAIL("stopTime = %g: must be >= startTime = %g", stopTime, startTime);
     }
     inst->data.time = startTime;
-    return fmi2OK;
+    inst->stop_time_defined = stopTimeDefined != fmi2False;
+    inst->stop_time = stopTime;
+    END;
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2EnterInitializationMode", mode_instantiated)) {
-        return fmi2Error;
-    }
+    BEGIN(mode_instantiated);
     inst->mode = mode_initialization;
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    Instance *inst = (Instance *)c;
     char msg[MSG_LEN];
-    if (!allowed(inst, "fmi2ExitInitializationMode", mode_initialization)) {
-        return fmi2Error;
-    }
+    BEGIN(mode_initialization);
     /* Parameters may have been set after fmi2EnterInitializationMode (FMIL-based importers):
        everything is derived from them here. */
-    if (!model_check_parameters(&inst->data, msg, sizeof(msg))) {
-        inst->mode = mode_error;
-        return fail(inst, "fmi2ExitInitializationMode", "%s", msg);
+    if (!model_check_parameters(&inst->data, msg, sizeof(msg))
+        || !model_check_combinations(&inst->data, msg, sizeof(msg))) {
+        FAIL("%s", msg);
     }
     model_state_from_start(&inst->data);
     model_compute_outputs(&inst->data);
     if (!model_outputs_are_finite(&inst->data)) {
-        inst->mode = mode_error;
-        return fail(inst, "fmi2ExitInitializationMode", "the start values give non-finite "
-                    "outputs (v_start = %g, w_start = %g, v_cmd = %g, w_cmd = %g)",
-                    inst->data.v_start, inst->data.w_start, inst->data.v_cmd, inst->data.w_cmd);
+        FAIL("the start values give non-finite outputs (v_start = %g, w_start = %g, v_cmd = %g, "
+             "w_cmd = %g)", inst->data.v_start, inst->data.w_start, inst->data.v_cmd,
+             inst->data.w_cmd);
     }
     inst->mode = mode_step_complete;
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2Terminate", mode_step_complete | mode_error)) {
-        return fmi2Error;
-    }
+    BEGIN(mode_step_complete);
     inst->mode = mode_terminated;
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2Reset(fmi2Component c) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2Reset", ANY_MODE | mode_error)) {
-        return fmi2Error;
-    }
+    BEGIN(ERROR_MODES);
     model_set_defaults(&inst->data);
+    inst->stop_time_defined = false;
     inst->mode = mode_instantiated;
-    return fmi2OK;
+    END;
 }
 
 /* ---------------------------------------------------------------- get */
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                        fmi2Real value[]) {
-    Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
-    if (!allowed(inst, "fmi2GetReal", ANY_MODE | mode_error)) {
-        return fmi2Error;
-    }
+    bool current = false; /* outputs made current in this call: once, at the first output */
+    BEGIN(ERROR_MODES);
     if (nvr > 0 && (vr == NULL || value == NULL)) {
-        return fail(inst, "fmi2GetReal", "vr or value is NULL");
+        FAIL("vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        VrRef r;
-        double *p;
-        if (!decode(vr[k], &r)) {
-            return fail(inst, "fmi2GetReal", "unknown value reference %u", (unsigned)vr[k]);
+        if (!current && model_needs_outputs(vr[k])) {
+            if (ensure_outputs(inst, __func__) != fmi2OK) {
+                return fmi2Error;
+            }
+            current = true;
         }
-        if ((p = real_parameter(&inst->data, r)) != NULL || (p = real_input(&inst->data, r))) {
-            value[k] = *p;
-            continue;
-        }
-        if (ensure_outputs(inst, "fmi2GetReal") != fmi2OK) {
-            return fmi2Error;
-        }
-        if (!real_output(&inst->data, r, &value[k])) {
-            return fail(inst, "fmi2GetReal", "value reference %u is not a Real",
-                        (unsigned)vr[k]);
+        if (!model_get_real(&inst->data, vr[k], &value[k], msg, sizeof(msg))) {
+            FAIL("%s", msg);
         }
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           fmi2Integer value[]) {
-    Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
-    if (!allowed(inst, "fmi2GetInteger", ANY_MODE | mode_error)) {
-        return fmi2Error;
-    }
+    BEGIN(ERROR_MODES);
     if (nvr > 0 && (vr == NULL || value == NULL)) {
-        return fail(inst, "fmi2GetInteger", "vr or value is NULL");
+        FAIL("vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        if (vr[k] == vr_n) {
-            value[k] = N_TRAILERS;
-        } else if (vr[k] == vr_slip_mode) {
-            value[k] = inst->data.slip_mode;
-        } else {
-            return fail(inst, "fmi2GetInteger", "value reference %u is not an Integer",
-                        (unsigned)vr[k]);
+        int v;
+        if (!model_get_integer(&inst->data, vr[k], &v, msg, sizeof(msg))) {
+            FAIL("%s", msg);
         }
+        value[k] = v;
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           fmi2Boolean value[]) {
-    Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
-    if (!allowed(inst, "fmi2GetBoolean", ANY_MODE | mode_error)) {
-        return fmi2Error;
-    }
+    bool current = false;
+    BEGIN(ERROR_MODES);
     if (nvr > 0 && (vr == NULL || value == NULL)) {
-        return fail(inst, "fmi2GetBoolean", "vr or value is NULL");
-    }
-    if (nvr > 0 && ensure_outputs(inst, "fmi2GetBoolean") != fmi2OK) {
-        return fmi2Error;
+        FAIL("vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        VrRef r;
-        if (vr[k] == vr_jackknifed) {
-            value[k] = inst->data.jackknifed ? fmi2True : fmi2False;
-        } else if (decode(vr[k], &r) && r.block == blk_slipping) {
-            value[k] = inst->data.slipping[r.index] ? fmi2True : fmi2False;
-        } else {
-            return fail(inst, "fmi2GetBoolean", "value reference %u is not a Boolean",
-                        (unsigned)vr[k]);
+        bool v;
+        if (!current && model_needs_outputs(vr[k])) {
+            if (ensure_outputs(inst, __func__) != fmi2OK) {
+                return fmi2Error;
+            }
+            current = true;
         }
+        if (!model_get_boolean(&inst->data, vr[k], &v, msg, sizeof(msg))) {
+            FAIL("%s", msg);
+        }
+        value[k] = v ? fmi2True : fmi2False;
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                          fmi2String value[]) {
-    Instance *inst = (Instance *)c;
+    BEGIN(ERROR_MODES);
     (void)value;
-    if (!allowed(inst, "fmi2GetString", ANY_MODE | mode_error)) {
-        return fmi2Error;
-    }
     if (nvr > 0) {
-        return fail(inst, "fmi2GetString", "value reference %u: TrailerTrain has no String "
-                    "variables", (unsigned)(vr ? vr[0] : 0));
+        FAIL("value reference %u: TrailerTrain has no String variables",
+             (unsigned)(vr ? vr[0] : 0));
     }
-    return fmi2OK;
+    END;
 }
 
 /* ---------------------------------------------------------------- set */
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                        const fmi2Real value[]) {
-    Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
-    if (!allowed(inst, "fmi2SetReal", SETUP_MODES | mode_step_complete)) {
-        return fmi2Error;
-    }
+    BEGIN(SETUP_MODES | mode_step_complete);
     if (nvr > 0 && (vr == NULL || value == NULL)) {
-        return fail(inst, "fmi2SetReal", "vr or value is NULL");
+        FAIL("vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        VrRef r;
-        double *p;
-        if (!decode(vr[k], &r)) {
-            return fail(inst, "fmi2SetReal", "unknown value reference %u", (unsigned)vr[k]);
-        }
-        if ((p = real_input(&inst->data, r)) != NULL) {
-            if (!isfinite(value[k])) {
-                char name[64];
-                return fail(inst, "fmi2SetReal", "input %s = %g: must be finite",
-                            vr_name(vr[k], name, sizeof(name)), value[k]);
-            }
-            if (r.block == blk_slide && value[k] != 0.0 && inst->data.slip_mode == 1) {
-                char name[64];
-                return fail(inst, "fmi2SetReal", "input %s = %g: an imposed slide is the "
-                            "kinematic disturbance of slip_mode 0; with slip_mode = 1 push the "
-                            "trailer with push_x, push_y instead",
-                            vr_name(vr[k], name, sizeof(name)), value[k]);
-            }
-            *p = value[k];
-            inst->data.outputs_valid = false; /* F_lat depends directly on the inputs */
-        } else if ((p = real_parameter(&inst->data, r)) != NULL) {
-            if (!setup_mode(inst)) {
-                char name[64];
-                return fail(inst, "fmi2SetReal", "parameter %s is fixed: it can be set only in "
-                            "Instantiated or InitializationMode, not %s",
-                            vr_name(vr[k], name, sizeof(name)), mode_name(inst->mode));
-            }
-            *p = value[k]; /* checked in fmi2ExitInitializationMode */
-        } else {
-            char name[64];
-            return fail(inst, "fmi2SetReal", "%s is an output or calculated parameter and "
-                        "cannot be set", vr_name(vr[k], name, sizeof(name)));
+        if (!model_set_real(&inst->data, vr[k], value[k], setup_mode(inst), msg, sizeof(msg))) {
+            FAIL("%s", msg);
         }
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           const fmi2Integer value[]) {
-    Instance *inst = (Instance *)c;
+    char msg[MSG_LEN];
     size_t k;
-    if (!allowed(inst, "fmi2SetInteger", SETUP_MODES)) {
-        return fmi2Error;
-    }
+    BEGIN(SETUP_MODES);
     if (nvr > 0 && (vr == NULL || value == NULL)) {
-        return fail(inst, "fmi2SetInteger", "vr or value is NULL");
+        FAIL("vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        if (vr[k] == vr_slip_mode) {
-            inst->data.slip_mode = value[k]; /* checked in fmi2ExitInitializationMode */
-        } else if (vr[k] == vr_n) {
-            return fail(inst, "fmi2SetInteger", "n is a constant fixed by the build (n = %d); "
-                        "build another FMU for another number of trailers", N_TRAILERS);
-        } else {
-            return fail(inst, "fmi2SetInteger", "value reference %u is not a settable Integer",
-                        (unsigned)vr[k]);
+        if (!model_set_integer(&inst->data, vr[k], value[k], setup_mode(inst), msg,
+                               sizeof(msg))) {
+            FAIL("%s", msg);
         }
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           const fmi2Boolean value[]) {
-    Instance *inst = (Instance *)c;
-    (void)value;
-    if (!allowed(inst, "fmi2SetBoolean", ANY_MODE)) {
-        return fmi2Error;
+    char msg[MSG_LEN];
+    size_t k;
+    BEGIN(ANY_MODE);
+    if (nvr > 0 && (vr == NULL || value == NULL)) {
+        FAIL("vr or value is NULL");
     }
-    if (nvr > 0) {
-        return fail(inst, "fmi2SetBoolean", "value reference %u: the Booleans are outputs and "
-                    "cannot be set", (unsigned)(vr ? vr[0] : 0));
+    for (k = 0; k < nvr; k++) {
+        if (!model_set_boolean(&inst->data, vr[k], value[k] != fmi2False, setup_mode(inst), msg,
+                               sizeof(msg))) {
+            FAIL("%s", msg);
+        }
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                          const fmi2String value[]) {
-    Instance *inst = (Instance *)c;
+    BEGIN(ANY_MODE);
     (void)value;
-    if (!allowed(inst, "fmi2SetString", ANY_MODE)) {
-        return fmi2Error;
-    }
     if (nvr > 0) {
-        return fail(inst, "fmi2SetString", "value reference %u: TrailerTrain has no String "
-                    "variables", (unsigned)(vr ? vr[0] : 0));
+        FAIL("value reference %u: TrailerTrain has no String variables",
+             (unsigned)(vr ? vr[0] : 0));
     }
-    return fmi2OK;
+    END;
 }
 
 /* ---------------------------------------------------------------- FMU state */
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    Instance *inst = (Instance *)c;
     SavedState *saved;
-    if (!allowed(inst, "fmi2GetFMUstate", ANY_MODE)) {
-        return fmi2Error;
-    }
+    BEGIN(ANY_MODE);
     if (FMUstate == NULL) {
-        return fail(inst, "fmi2GetFMUstate", "FMUstate is NULL");
+        FAIL("FMUstate is NULL");
     }
     saved = (SavedState *)*FMUstate;
     if (saved == NULL) {
         saved = (SavedState *)calloc(1, sizeof(SavedState));
         if (saved == NULL) {
-            return fail(inst, "fmi2GetFMUstate", "out of memory");
+            FAIL("out of memory");
         }
     }
     saved->magic = STATE_MAGIC;
@@ -623,90 +474,73 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     saved->mode = inst->mode;
     saved->data = inst->data;
     *FMUstate = saved;
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
-    Instance *inst = (Instance *)c;
     const SavedState *saved = (const SavedState *)FMUstate;
-    if (!allowed(inst, "fmi2SetFMUstate", ANY_MODE)) {
-        return fmi2Error;
-    }
+    BEGIN(ERROR_MODES);
     if (saved == NULL || saved->magic != STATE_MAGIC || saved->size != sizeof(SavedState)) {
-        return fail(inst, "fmi2SetFMUstate", "FMUstate is NULL or not a TrailerTrain state of "
-                    "this build (n = %d)", N_TRAILERS);
+        FAIL("FMUstate is NULL or not a TrailerTrain state of this build (n = %d)", N_TRAILERS);
     }
     inst->data = saved->data;
     inst->mode = saved->mode;
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2FreeFMUstate", ANY_MODE | mode_error)) {
-        return fmi2Error;
-    }
+    BEGIN(ERROR_MODES);
     if (FMUstate != NULL) {
         free(*FMUstate);
         *FMUstate = NULL;
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
-    Instance *inst = (Instance *)c;
+    BEGIN(ANY_MODE);
     (void)FMUstate;
-    if (!allowed(inst, "fmi2SerializedFMUstateSize", ANY_MODE)) {
-        return fmi2Error;
-    }
     if (size == NULL) {
-        return fail(inst, "fmi2SerializedFMUstateSize", "size is NULL");
+        FAIL("size is NULL");
     }
     *size = sizeof(SavedState);
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2SerializeFMUstate", ANY_MODE)) {
-        return fmi2Error;
-    }
+    BEGIN(ANY_MODE);
     if (FMUstate == NULL || serializedState == NULL || size < sizeof(SavedState)) {
-        return fail(inst, "fmi2SerializeFMUstate", "need a state and a buffer of %u bytes, got "
-                    "%u", (unsigned)sizeof(SavedState), (unsigned)size);
+        FAIL("need a state and a buffer of %u bytes, got %u", (unsigned)sizeof(SavedState),
+             (unsigned)size);
     }
     memcpy(serializedState, FMUstate, sizeof(SavedState));
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
-    Instance *inst = (Instance *)c;
     SavedState header;
     SavedState *saved;
-    if (!allowed(inst, "fmi2DeSerializeFMUstate", ANY_MODE)) {
-        return fmi2Error;
-    }
+    BEGIN(ANY_MODE);
     if (serializedState == NULL || FMUstate == NULL || size != sizeof(SavedState)) {
-        return fail(inst, "fmi2DeSerializeFMUstate", "serialized state has %u bytes; this build "
-                    "(n = %d) expects %u", (unsigned)size, N_TRAILERS,
-                    (unsigned)sizeof(SavedState));
+        FAIL("serialized state has %u bytes; this build (n = %d) expects %u", (unsigned)size,
+             N_TRAILERS, (unsigned)sizeof(SavedState));
     }
     memcpy(&header, serializedState, sizeof(SavedState));
     if (header.magic != STATE_MAGIC || header.size != sizeof(SavedState)) {
-        return fail(inst, "fmi2DeSerializeFMUstate", "not a TrailerTrain state of this build");
+        FAIL("not a TrailerTrain state of this build");
     }
     saved = (SavedState *)*FMUstate;
     if (saved == NULL) {
         saved = (SavedState *)malloc(sizeof(SavedState));
         if (saved == NULL) {
-            return fail(inst, "fmi2DeSerializeFMUstate", "out of memory");
+            FAIL("out of memory");
         }
     }
     *saved = header;
     *FMUstate = saved;
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[],
@@ -719,8 +553,7 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
     (void)nKnown;
     (void)dvKnown;
     (void)dvUnknown;
-    return fail((Instance *)c, "fmi2GetDirectionalDerivative",
-                "not supported (providesDirectionalDerivative = false)");
+    return not_supported(c, __func__, "providesDirectionalDerivative = false");
 }
 
 /* ---------------------------------------------------------------- co-simulation */
@@ -731,8 +564,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
     (void)nvr;
     (void)order;
     (void)value;
-    return fail((Instance *)c, "fmi2SetRealInputDerivatives",
-                "not supported (canInterpolateInputs = false)");
+    return not_supported(c, __func__, "canInterpolateInputs = false");
 }
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
@@ -742,93 +574,101 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
     (void)nvr;
     (void)order;
     (void)value;
-    return fail((Instance *)c, "fmi2GetRealOutputDerivatives",
-                "not supported (maxOutputDerivativeOrder = 0)");
+    return not_supported(c, __func__, "maxOutputDerivativeOrder = 0");
 }
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    Instance *inst = (Instance *)c;
     const double t = currentCommunicationPoint, h = communicationStepSize;
     double tolerance;
+    BEGIN(mode_step_complete);
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (!allowed(inst, "fmi2DoStep", mode_step_complete)) {
-        return fmi2Error;
-    }
     if (!(h > 0.0) || !isfinite(h)) {
-        return fail(inst, "fmi2DoStep", "communicationStepSize = %g: must be finite and > 0", h);
+        FAIL("communicationStepSize = %g: must be finite and > 0", h);
     }
     if (h / inst->data.max_substep > 1e9) {
-        return fail(inst, "fmi2DoStep", "communicationStepSize = %g s needs more than 1e9 "
-                    "substeps of max_substep = %g s", h, inst->data.max_substep);
+        FAIL("communicationStepSize = %g s needs more than 1e9 substeps of max_substep = %g s", h,
+             inst->data.max_substep);
     }
     /* Importers accumulate times differently (sums of floats, integer nanoseconds). */
     tolerance = 1e-9 + 1e-12 * fabs(inst->data.time);
     if (!isfinite(t) || fabs(t - inst->data.time) > tolerance) {
-        return fail(inst, "fmi2DoStep", "currentCommunicationPoint = %.17g differs from the "
-                    "FMU's time %.17g", t, inst->data.time);
+        FAIL("currentCommunicationPoint = %.17g differs from the FMU's time %.17g", t,
+             inst->data.time);
+    }
+    if (inst->stop_time_defined && t + h > inst->stop_time + tolerance) {
+        FAIL("the step from t = %.17g by %.17g s ends after stopTime = %.17g (set in "
+             "fmi2SetupExperiment)", t, h, inst->stop_time);
     }
     inst->data.time = t;
     if (inst->log_debug && inst->logging_on) {
-        log_message(inst, fmi2OK, "logDebug", "fmi2DoStep: t = %.9g, h = %.9g", t, h);
+        log_message(inst, fmi2OK, "logDebug", "%s: t = %.9g, h = %.9g", __func__, t, h);
     }
     model_integrate(&inst->data, h, t + h);
     if (model_state_is_finite(&inst->data)) {
         model_compute_outputs(&inst->data); /* outputs of the new point, checked once here */
     }
     if (!model_state_is_finite(&inst->data) || !model_outputs_are_finite(&inst->data)) {
-        inst->mode = mode_error;
-        return fail(inst, "fmi2DoStep", "the state or outputs became non-finite in the step from t = %.9g "
-                    "to %.9g (inputs v_cmd = %g, w_cmd = %g)", t, t + h, inst->data.v_cmd,
-                    inst->data.w_cmd);
+        FAIL("the state or outputs became non-finite in the step from t = %.9g to %.9g (inputs "
+             "v_cmd = %g, w_cmd = %g)", t, t + h, inst->data.v_cmd, inst->data.w_cmd);
     }
-    return fmi2OK;
+    END;
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
-    return fail((Instance *)c, "fmi2CancelStep", "not supported: fmi2DoStep never returns "
-                "fmi2Pending");
+    return not_supported(c, __func__, "fmi2DoStep never returns fmi2Pending");
+}
+
+/* FMI 2.0: a status the slave cannot provide is answered with fmi2Discard (not an error). */
+static fmi2Status status_not_provided(Instance *inst, const char *function, fmi2StatusKind s) {
+    log_message(inst, fmi2Discard, "logStatusWarning", "%s: status kind %d is not provided "
+                "(fmi2DoStep never returns fmi2Pending)", function, (int)s);
+    return fmi2Discard;
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    (void)s;
+    BEGIN(ERROR_MODES);
     (void)value;
-    return fail((Instance *)c, "fmi2GetStatus", "not supported: fmi2DoStep never returns "
-                "fmi2Pending");
+    status = status_not_provided(inst, __func__, s);
+    END;
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2GetRealStatus", ANY_MODE | mode_error)) {
-        return fmi2Error;
+    BEGIN(ERROR_MODES);
+    if (value == NULL) {
+        FAIL("value is NULL");
     }
-    if (s == fmi2LastSuccessfulTime && value != NULL) {
+    if (s == fmi2LastSuccessfulTime) {
         *value = inst->data.time;
-        return fmi2OK;
+    } else {
+        status = status_not_provided(inst, __func__, s);
     }
-    return fail(inst, "fmi2GetRealStatus", "status kind %d is not supported", (int)s);
+    END;
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    (void)s;
+    BEGIN(ERROR_MODES);
     (void)value;
-    return fail((Instance *)c, "fmi2GetIntegerStatus", "not supported");
+    status = status_not_provided(inst, __func__, s);
+    END;
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2GetBooleanStatus", ANY_MODE | mode_error)) {
-        return fmi2Error;
+    BEGIN(ERROR_MODES);
+    if (value == NULL) {
+        FAIL("value is NULL");
     }
-    if (s == fmi2Terminated && value != NULL) {
+    if (s == fmi2Terminated) {
         *value = fmi2False; /* the model never asks the master to stop */
-        return fmi2OK;
+    } else {
+        status = status_not_provided(inst, __func__, s);
     }
-    return fail(inst, "fmi2GetBooleanStatus", "status kind %d is not supported", (int)s);
+    END;
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    (void)s;
+    BEGIN(ERROR_MODES);
     (void)value;
-    return fail((Instance *)c, "fmi2GetStringStatus", "not supported");
+    status = status_not_provided(inst, __func__, s);
+    END;
 }

@@ -1,5 +1,5 @@
 /*
- * Start values, parameter checks, outputs and fixed-step RK4 integration of TrailerTrain.
+ * Start values, combination checks, outputs and fixed-step RK4 integration of TrailerTrain.
  * Start values must equal the XML's (fmu/variables.py); a test checks them through the FMU.
  */
 #include <math.h>
@@ -62,69 +62,15 @@ void model_state_from_start(ModelData *m) {
     m->outputs_valid = false;
 }
 
-static bool check_positive(const char *name, int index, double value, bool allow_zero, char *msg,
-                           size_t len) {
-    const bool ok = isfinite(value) && (allow_zero ? value >= 0.0 : value > 0.0);
-    if (!ok) {
-        if (index >= 0) {
-            snprintf(msg, len, "%s[%d] = %g: must be finite and %s", name, index, value,
-                     allow_zero ? ">= 0" : "> 0");
-        } else {
-            snprintf(msg, len, "%s = %g: must be finite and %s", name, value,
-                     allow_zero ? ">= 0" : "> 0");
-        }
-    }
-    return ok;
-}
-
-static bool check_finite(const char *name, int index, double value, char *msg, size_t len) {
-    if (isfinite(value)) {
-        return true;
-    }
-    if (index >= 0) {
-        snprintf(msg, len, "%s[%d] = %g: must be finite", name, index, value);
-    } else {
-        snprintf(msg, len, "%s = %g: must be finite", name, value);
-    }
-    return false;
-}
-
-bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
+bool model_check_combinations(const ModelData *m, char *msg, size_t len) {
     int i;
     for (i = 1; i <= N_TRAILERS; i++) {
-        if (!check_positive("front", i, m->front[i], false, msg, len)
-            || !check_positive("rear", i - 1, m->rear[i - 1], false, msg, len)
-            || !check_positive("mass", i, m->mass[i], false, msg, len)
-            || !check_positive("inertia", i, m->inertia[i], false, msg, len)
-            || !check_positive("payload", i, m->payload[i], true, msg, len)
-            || !check_positive("mu", i, m->mu[i], true, msg, len)) {
+        if (m->slip_mode == 1 && m->slide[i] != 0.0) {
+            snprintf(msg, len, "slip_mode = 1 with slide[%d] = %g: an imposed slide is the "
+                     "kinematic disturbance of slip_mode 0; with slip_mode = 1 push the trailer "
+                     "with push_x, push_y instead (or set slide[%d] = 0)", i, m->slide[i], i);
             return false;
         }
-    }
-    for (i = 0; i <= N_TRAILERS; i++) {
-        if (!check_finite("theta_start", i, m->theta_start[i], msg, len)) {
-            return false;
-        }
-    }
-    if (!check_positive("g", -1, m->g, true, msg, len)
-        || !check_positive("robot_tau", -1, m->robot_tau, false, msg, len)
-        || !check_positive("robot_acc_max", -1, m->robot_acc_max, false, msg, len)
-        || !check_positive("robot_alpha_max", -1, m->robot_alpha_max, false, msg, len)
-        || !check_positive("phi_max", -1, m->phi_max, false, msg, len)
-        || !check_positive("max_substep", -1, m->max_substep, false, msg, len)
-        || !check_finite("x0_start", -1, m->x0_start, msg, len)
-        || !check_finite("y0_start", -1, m->y0_start, msg, len)
-        || !check_finite("v_start", -1, m->v_start, msg, len)
-        || !check_finite("w_start", -1, m->w_start, msg, len)) {
-        return false;
-    }
-    if (!check_positive("slip_substep", -1, m->slip_substep, false, msg, len)) {
-        return false;
-    }
-    if (m->slip_mode != 0 && m->slip_mode != 1) {
-        snprintf(msg, len, "slip_mode = %d: allowed are 0 (rolling) and 1 (sliding)",
-                 m->slip_mode);
-        return false;
     }
     return true;
 }
@@ -138,19 +84,31 @@ static double wrap_angle(double angle) {
     return (wrapped <= -PT_PI) ? PT_PI : wrapped;
 }
 
-void model_compute_outputs(ModelData *m) {
+/* Rolling outputs at the state: velocities, and the wheel and hitch forces rolling needs. */
+static void rolling_outputs(ModelData *m, double *F_lat, double *hitch_fx, double *hitch_fy) {
     double c[NB], s[NB], dv[NB], dw[NB];
     double dv0, dw0;
+    chain_velocities(m, m->q, c, s, m->v, m->w);
+    robot_accelerations(m, m->q, &dv0, &dw0);
+    chain_accelerations(m, c, s, m->v, m->w, dv0, dw0, dv, dw);
+    lateral_forces(m, m->q, m->v, m->w, dv, dw, F_lat, hitch_fx, hitch_fy);
+}
+
+void model_compute_outputs(ModelData *m) {
+    bool sliding = m->dynamic; /* the wheel forces follow Coulomb's law, not rolling */
     int i;
     if (m->dynamic) {
         slip_outputs(m); /* some wheel slides: velocities and forces from the dynamics */
     } else {
-        chain_velocities(m, m->q, c, s, m->v, m->w);
-        robot_accelerations(m, m->q, &dv0, &dw0);
-        chain_accelerations(m, c, s, m->v, m->w, dv0, dw0, dv, dw);
-        lateral_forces(m, m->q, m->v, m->w, dv, dw, m->F_lat, m->hitch_fx, m->hitch_fy);
+        rolling_outputs(m, m->F_lat, m->hitch_fx, m->hitch_fy);
         for (i = 1; i <= N_TRAILERS; i++) {
             m->slide_speed[i] = m->slide[i];
+            if (m->slip_mode == 1 && fabs(m->F_lat[i]) > m->F_lat_max[i]) {
+                sliding = true; /* rolling would need more than friction with these inputs */
+            }
+        }
+        if (sliding) {
+            slip_onset_outputs(m);
         }
     }
 
@@ -165,7 +123,7 @@ void model_compute_outputs(ModelData *m) {
         m->y[i] = m->y[i - 1] - r * sin(th_prev) - f * sin(th);
         m->phi[i] = wrap_angle(th_prev - th);
         m->F_lat_max[i] = m->mu[i] * (m->mass[i] + m->payload[i]) * m->g;
-        if (m->dynamic) {
+        if (sliding) {
             m->slipping[i] = fabs(m->slide_speed[i]) > 1e-6
                              || fabs(m->F_lat[i]) >= m->F_lat_max[i] * (1.0 - 1e-9);
         } else {
@@ -218,8 +176,10 @@ void model_rk4_step(const ModelData *m, double *q, double dt) {
 void model_integrate(ModelData *m, double h, double t_end) {
     if (m->slip_mode == 1) {
         double t_left = h;
+        /* the inputs may have changed since the last step: check the start again */
+        bool rolls = !m->dynamic && slip_wheels_roll(m, m->q);
         while (t_left > 0.0) {
-            t_left -= slip_advance(m, t_left);
+            t_left -= slip_advance(m, t_left, &rolls);
         }
     } else {
         /* Equal substeps no longer than max_substep; the guard keeps h = max_substep one step. */

@@ -3,8 +3,9 @@
  *
  * Bodies i = 0..N_TRAILERS: 0 is the robot, 1..n the trailers. Headings theta[i] from +x, CCW
  * positive, pointing toward the robot. The physics (chain kinematics, accelerations, lateral
- * wheel forces, integration) lives in chain.c, forces.c and model.c; the FMI 2.0 glue in fmi2.c.
- * See docs/model.md for the derivation.
+ * wheel forces, integration) lives in chain.c, forces.c, slip.c and model.c, access to the variables
+ * by value reference in variables.c; none of them knows the FMI version. The FMI 2.0 glue is fmi2.c.
+ * The derivations are in the comments of chain.c, forces.c and slip.c.
  */
 #ifndef TRAILERTRAIN_MODEL_H
 #define TRAILERTRAIN_MODEL_H
@@ -32,58 +33,9 @@
 #define IX_V0 (N_TRAILERS + 3)
 #define IX_W0 (N_TRAILERS + 4)
 
-#define VR_STRIDE 100
-
 static inline double pt_clamp(double value, double lo, double hi) {
     return value < lo ? lo : (value > hi ? hi : value);
 }
-
-/* Scalar value references (< VR_STRIDE); must equal fmu/variables.py SCALARS. */
-enum ScalarVr {
-    vr_v_cmd = 1,
-    vr_w_cmd = 2,
-    vr_push_x = 3,
-    vr_push_y = 4,
-    vr_g = 5,
-    vr_robot_tau = 6,
-    vr_robot_acc_max = 7,
-    vr_robot_alpha_max = 8,
-    vr_slip_mode = 9,
-    vr_phi_max = 10,
-    vr_x0_start = 11,
-    vr_y0_start = 12,
-    vr_v_start = 13,
-    vr_w_start = 14,
-    vr_max_substep = 15,
-    vr_n = 16,
-    vr_jackknifed = 17,
-    vr_slip_substep = 18
-};
-
-/* Array blocks: element i of block b has value reference VR_STRIDE * b + i.
- * Must equal fmu/variables.py ARRAYS. */
-enum Block {
-    blk_front = 1,        /* i = 1..n   */
-    blk_rear = 2,         /* i = 0..n-1 */
-    blk_mass = 3,         /* i = 1..n   */
-    blk_inertia = 4,
-    blk_payload = 5,
-    blk_mu = 6,
-    blk_theta_start = 7,  /* i = 0..n   */
-    blk_x = 8,
-    blk_y = 9,
-    blk_theta = 10,
-    blk_phi = 11,         /* i = 1..n   */
-    blk_v = 12,           /* i = 0..n   */
-    blk_w = 13,
-    blk_F_lat = 14,       /* i = 1..n   */
-    blk_F_lat_max = 15,
-    blk_slipping = 16,
-    blk_slide = 17,
-    blk_hitch_fx = 18,
-    blk_hitch_fy = 19,
-    blk_slide_speed = 20  /* i = 1..n   */
-};
 
 /* Everything an instance computes with. Plain data without pointers, so an FMU state is a copy. */
 typedef struct {
@@ -125,8 +77,13 @@ typedef struct {
 /* model.c */
 PT_INTERNAL void model_set_defaults(ModelData *m);
 PT_INTERNAL void model_state_from_start(ModelData *m);
-/* Checks parameters; on failure writes "name = value: what is allowed" into msg and returns false. */
+/* variables.c: checks every parameter against its range (the bounds of pushtrain/limits.py,
+   generated into variables.h) and for finiteness; on failure writes "name = value: allowed lo to
+   hi unit (reason)" into msg and returns false. */
 PT_INTERNAL bool model_check_parameters(const ModelData *m, char *msg, size_t len);
+/* Checks combinations of values that are each valid alone (slip_mode and the slide inputs), once,
+   when initialization ends: importers set start values in any order. Same contract as above. */
+PT_INTERNAL bool model_check_combinations(const ModelData *m, char *msg, size_t len);
 PT_INTERNAL void model_compute_outputs(ModelData *m);
 PT_INTERNAL bool model_state_is_finite(const ModelData *m);
 PT_INTERNAL bool model_outputs_are_finite(const ModelData *m);
@@ -134,6 +91,26 @@ PT_INTERNAL bool model_outputs_are_finite(const ModelData *m);
 PT_INTERNAL void model_rk4_step(const ModelData *m, double *q, double dt);
 /* Integrates from m->time to m->time + h with fixed RK4 substeps; sets m->time = t_end. */
 PT_INTERNAL void model_integrate(ModelData *m, double h, double t_end);
+
+/* variables.c: get and set by value reference. The numbering, names, types and causalities are
+   generated from fmu/variables.py (variables.h, included by variables.c only). On failure the
+   functions write "what is wrong" into msg and return false. Outputs are read as last computed:
+   make them current first when model_needs_outputs(vr). Parameters can be set only in the setup
+   phase (setup = true: before initialization ends). */
+PT_INTERNAL const char *model_variable_name(unsigned vr, char *buffer, size_t len);
+PT_INTERNAL bool model_needs_outputs(unsigned vr);
+PT_INTERNAL bool model_get_real(const ModelData *m, unsigned vr, double *value, char *msg,
+                                size_t len);
+PT_INTERNAL bool model_get_integer(const ModelData *m, unsigned vr, int *value, char *msg,
+                                   size_t len);
+PT_INTERNAL bool model_get_boolean(const ModelData *m, unsigned vr, bool *value, char *msg,
+                                   size_t len);
+PT_INTERNAL bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *msg,
+                                size_t len);
+PT_INTERNAL bool model_set_integer(ModelData *m, unsigned vr, int value, bool setup, char *msg,
+                                   size_t len);
+PT_INTERNAL bool model_set_boolean(ModelData *m, unsigned vr, bool value, bool setup, char *msg,
+                                   size_t len);
 
 /* chain.c */
 /* Velocities of all bodies: v[i], w[i] and cos/sin of phi_i (index 1..n). */
@@ -158,10 +135,18 @@ PT_INTERNAL void lateral_forces(const ModelData *m, const double *q, const doubl
 
 /* slip.c (slip_mode 1) */
 /* One substep within the t_left [s] still to go: kinematic RK4 (at most max_substep) while every
-   wheel can roll, else velocity-level time stepping with Coulomb friction impulses (at most
-   slip_substep). Returns the substep taken. */
-PT_INTERNAL double slip_advance(ModelData *m, double t_left);
+   wheel can roll at its start and end, else velocity-level time stepping with Coulomb friction
+   impulses (at most slip_substep). *rolls: every wheel is known to roll at the current state with
+   the current inputs (updated). Returns the substep taken. */
+PT_INTERNAL double slip_advance(ModelData *m, double t_left, bool *rolls);
+/* Can every wheel roll at state q with the current inputs? (the force rolling needs is within
+   friction) */
+PT_INTERNAL bool slip_wheels_roll(const ModelData *m, const double *q);
 /* Outputs of the dynamic regime: velocities, sliding speeds, wheel and hitch forces. */
 PT_INTERNAL void slip_outputs(ModelData *m);
+/* Force outputs at the onset of sliding: the state rolls but rolling would need more than
+   friction with the current inputs; F_lat and the hitch forces become the Coulomb forces of that
+   instant (the velocity outputs stay those of rolling). */
+PT_INTERNAL void slip_onset_outputs(ModelData *m);
 
 #endif

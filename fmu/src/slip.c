@@ -3,9 +3,10 @@
  * Coulomb friction gives (assumption C3), mu_i (m_i + payload_i) g.
  *
  * Formulation: an exact stick/slip treatment by velocity-level time stepping (Moreau-Jean).
- * - While every wheel can roll (the force rolling needs is within friction at the start of the
- *   substep), the substep is the kinematic RK4 step of slip_mode 0: mode 1 then reproduces
- *   mode 0 exactly.
+ * - While every wheel can roll (the force rolling needs is within friction at the start and at
+ *   the end of the substep), the substep is the kinematic RK4 step of slip_mode 0: mode 1 then
+ *   reproduces mode 0 exactly. A rolling substep that ends where rolling needs more than friction
+ *   is not taken: the wheels slide from its start instead.
  * - Otherwise the trailer headings th_1..th_n become dynamic with yaw rates wt_k as states (the
  *   robot stays velocity-controlled, assumption C4). With the hitch constraints eliminated, the
  *   Lagrange equations in th are  M(th) alpha = g(th, wt, robot) + J_u^T F_d,  where
@@ -16,10 +17,32 @@
  *     u_i  = V_h.n_i + sum_k J_ik wt_k,  J_ik = -L_ik cos(th_k - th_i)   (lateral wheel speed)
  *   with a_h, V_h the acceleration and velocity of the robot's rear hitch. Each substep solves
  *   for friction impulses lambda_i = F_d,i dt with |lambda_i| <= mu_i (m_i + payload_i) g dt and
- *   lambda_i opposing u_i, or u_i = 0 for a sticking wheel (a box-constrained LCP, solved by
- *   projected Gauss-Seidel on A = J M^-1 J^T), then wt+ = wt_free + M^-1 J^T lambda and
- *   th += dt wt+. Friction is implicit, so sticking wheels stay exactly at u = 0 (no chattering)
- *   at any substep. When every wheel sticks again the state returns to the kinematic regime.
+ *   lambda_i opposing u_i, or u_i = 0 for a sticking wheel (a box-constrained LCP on
+ *   A = J M^-1 J^T), then wt+ = wt_free + M^-1 J^T lambda and th+ = th + dt wt+.
+ *
+ * Where the constraint is imposed. Outputs (and the next substep) see the end of the substep,
+ * (th+, wt+, V_h(t + dt)). Imposing u = 0 with J and n_i at the start headings th leaves
+ *   u_i(th+, wt+) = dt (du_i/dth) wt+ = dt [-wt_i V_h.e_i + sum_k L_ik sin(th_k - th_i)(wt_k - wt_i) wt_k]
+ * at the end: a sticking wheel drifts sideways at O(dt) (2.4e-5 m/s for 0.5 ms substeps). So J and
+ * b = V_h.n are taken at the end headings th+ = th + dt wt+, which depend on the unknown wt+: a
+ * fixed point th* -> (LCP with J(th*)) -> wt+ -> th + dt wt+, started from th + dt wt_free. Its
+ * contraction factor is about dt (|V_h| + L |wt|) / L << 1 (2 or 3 iterations reach
+ * |dth| < CONFIG_TOLERANCE), and then |u(th+, wt+)| <= (|V_h| + L |wt|) CONFIG_TOLERANCE for a
+ * sticking wheel, provided the LCP itself is exact on it: the projected Gauss-Seidel solution is
+ * finished by an exact solve on the sticking set S, A_SS lambda_S = -(u_free + A lambda_L)_S with
+ * the sliding impulses lambda_L at their bounds.
+ * Friction stays implicit: |lambda_i| <= limit dt, so |F_d,i| never exceeds the limit. When every
+ * wheel sticks and rolling needs no more than friction at the new state, the state returns to the
+ * kinematic regime.
+ *
+ * Onset of sliding (outputs only). Between substeps the inputs can change (direct feedthrough):
+ * in the kinematic regime the force rolling would need may then exceed friction before any time
+ * has passed. The outputs then report the Coulomb forces of that instant, from the same
+ * equations at the acceleration level: with u = 0 and
+ *   du_i/dt = a_h.n_i - wt_i V_h.e_i + sum_k L_ik sin(th_k - th_i)(wt_k - wt_i) wt_k + (J alpha)_i
+ * and alpha = M^-1 (g + J^T F), du/dt = A F + r with r = J M^-1 g + c (c: the terms before J alpha).
+ * The same box LCP (bounds mu (m + payload) g, du_i/dt = 0 while |F_i| is below them) gives F;
+ * if every wheel can roll it is the Newton-Euler force of forces.c.
  */
 #include <math.h>
 #include <string.h>
@@ -28,6 +51,8 @@
 
 #define PGS_ITERATIONS 200
 #define STICK_SPEED 1e-7 /* |u| below this counts as rolling when leaving the dynamic regime */
+#define CONFIG_ITERATIONS 8       /* fixed-point iterations on the end-of-substep headings */
+#define CONFIG_TOLERANCE 1e-12    /* [rad] end headings converged: |u| error <= speed * 1e-12 */
 
 /* L_ik of the note above, with trailer indices 1..n. */
 static double link_sum(const ModelData *m, int i, int k) {
@@ -101,8 +126,7 @@ static void robot_rk4(const ModelData *m, double *q, double dt) {
     }
 }
 
-/* Can every wheel roll at q? (the force rolling needs is within friction) */
-static bool all_wheels_roll(const ModelData *m, const double *q) {
+bool slip_wheels_roll(const ModelData *m, const double *q) {
     double c[NB], s[NB], v[NB], w[NB], dv[NB], dw[NB], f[NB], hx[NB], hy[NB];
     double dv0, dw0;
     int i;
@@ -144,90 +168,108 @@ static void wheel_speed_map(const ModelData *m, const double *ct, const double *
     }
 }
 
-static void dynamic_step(ModelData *m, double dt) {
+/* Trailer dynamics at headings (ct, st) with yaw rates wt: the Cholesky factor of M (in place of
+   mass) and g (into g). O(n^2) with S_kj = sum_{i >= max(k,j)} m_i L_ik L_ij: for k < j,
+   S_kj = (F_k + R_k) T_j with T_j = m_j F_j + (F_j + R_j) sum_{i > j} m_i, and
+   S_jj = m_j F_j^2 + (F_j + R_j)^2 sum_{i > j} m_i. Then M_kj = S_kj cos(th_k - th_j) + I_k delta_kj
+   and g_k = T_k n_k.a_h + sum_j S_kj wt_j^2 sin(th_j - th_k) - L_nk n_k.push. */
+static void trailer_dynamics(const ModelData *m, const double *ct, const double *st,
+                             const double *wt, const double *ah, double *mass, double *g) {
     enum { n = N_TRAILERS };
-    double mass[n * n], rhs[n], jac[n * n], minv_jt[n * n], a[n * n], b[n], lim[n], lam[n];
-    double w_free[n], u_free[n], vh[2], ah[2], s_mat[n * n], t_coef[n], ct[NB], st[NB];
-    double *q = m->q;
-    int i, j, k, it;
-
-    robot_hitch(m, q, vh, ah);
-    /* Mass matrix and the non-friction generalized forces at the start of the substep, in O(n^2)
-       with S_kj = sum_{i >= max(k,j)} m_i L_ik L_ij: for k < j, S_kj = (F_k + R_k) T_j with
-       T_j = m_j F_j + (F_j + R_j) sum_{i > j} m_i, and S_jj = m_j F_j^2 + (F_j + R_j)^2 sum_{i>j} m_i.
-       Then M_kj = S_kj cos(th_k - th_j) + I_k delta_kj and
-       g_k = T_k n_k.a_h + sum_j S_kj wt_j^2 sin(th_j - th_k) - L_nk n_k.push. */
-    {
-        double tail = 0.0; /* sum of the masses behind trailer k */
-        for (k = n; k >= 1; k--) {
-            const double mk = m->mass[k] + m->payload[k];
-            const double fr = m->front[k] + m->rear[k];
-            t_coef[k - 1] = mk * m->front[k] + fr * tail;
-            s_mat[(k - 1) * n + (k - 1)] = mk * m->front[k] * m->front[k] + fr * fr * tail;
-            tail += mk;
-        }
-        for (k = 1; k <= n; k++) {
-            for (j = k + 1; j <= n; j++) {
-                const double skj = (m->front[k] + m->rear[k]) * t_coef[j - 1];
-                s_mat[(k - 1) * n + (j - 1)] = skj;
-                s_mat[(j - 1) * n + (k - 1)] = skj;
-            }
-        }
+    double s_mat[n * n], t_coef[n], tail = 0.0; /* tail: sum of the masses behind trailer k */
+    int j, k;
+    for (k = n; k >= 1; k--) {
+        const double mk = m->mass[k] + m->payload[k];
+        const double fr = m->front[k] + m->rear[k];
+        t_coef[k - 1] = mk * m->front[k] + fr * tail;
+        s_mat[(k - 1) * n + (k - 1)] = mk * m->front[k] * m->front[k] + fr * fr * tail;
+        tail += mk;
     }
     for (k = 1; k <= n; k++) {
-        ct[k] = cos(q[IX_THETA + k]);
-        st[k] = sin(q[IX_THETA + k]);
+        for (j = k + 1; j <= n; j++) {
+            const double skj = (m->front[k] + m->rear[k]) * t_coef[j - 1];
+            s_mat[(k - 1) * n + (j - 1)] = skj;
+            s_mat[(j - 1) * n + (k - 1)] = skj;
+        }
     }
     for (k = 1; k <= n; k++) {
         const double nkx = -st[k], nky = ct[k];
-        double g = t_coef[k - 1] * (nkx * ah[0] + nky * ah[1]);
+        double gk = t_coef[k - 1] * (nkx * ah[0] + nky * ah[1]);
         for (j = 1; j <= n; j++) {
             const double skj = s_mat[(k - 1) * n + (j - 1)];
             const double cos_d = ct[j] * ct[k] + st[j] * st[k]; /* cos(th_j - th_k) */
             const double sin_d = st[j] * ct[k] - ct[j] * st[k]; /* sin(th_j - th_k) */
             mass[(k - 1) * n + (j - 1)] = skj * cos_d + (j == k ? m->inertia[k] : 0.0);
-            g += skj * m->wt[j] * m->wt[j] * sin_d;
+            gk += skj * wt[j] * wt[j] * sin_d;
         }
-        g -= link_sum(m, n, k) * (nkx * m->push_x + nky * m->push_y);
-        rhs[k - 1] = g;
+        gk -= link_sum(m, n, k) * (nkx * m->push_x + nky * m->push_y);
+        g[k - 1] = gk;
     }
     cholesky(mass, n);
-    for (k = 0; k < n; k++) {
-        w_free[k] = rhs[k] * dt;
-    }
-    cholesky_solve(mass, n, w_free);
-    for (k = 0; k < n; k++) {
-        w_free[k] += m->wt[k + 1];
-    }
+}
 
-    /* the robot moves on; the wheel speeds use its new velocity and the current headings */
-    robot_rk4(m, q, dt);
-    robot_hitch(m, q, vh, ah);
-    wheel_speed_map(m, ct, st, vh, jac, b);
-    for (i = 0; i < n; i++) {
-        double u = b[i];
-        for (k = 0; k < n; k++) u += jac[i * n + k] * w_free[k];
-        u_free[i] = u;
-    }
-    /* M^-1 J^T column by column, then A = J M^-1 J^T */
+/* M^-1 J^T (column by column, from the Cholesky factor chol) and A = J M^-1 J^T. J is lower
+   triangular (L_ik = 0 for k > i) and A symmetric: A_ij = sum_{k <= i} J_ik (M^-1 J^T)_kj, j <= i. */
+static void coupling(const double *chol, const double *jac, double *minv_jt, double *a) {
+    enum { n = N_TRAILERS };
+    int i, j, k;
     for (i = 0; i < n; i++) {
         double col[n];
         for (k = 0; k < n; k++) col[k] = jac[i * n + k];
-        cholesky_solve(mass, n, col);
+        cholesky_solve(chol, n, col);
         for (k = 0; k < n; k++) minv_jt[k * n + i] = col[k];
     }
     for (i = 0; i < n; i++) {
-        for (j = 0; j < n; j++) {
+        for (j = 0; j <= i; j++) {
             double sum = 0.0;
-            for (k = 0; k < n; k++) sum += jac[i * n + k] * minv_jt[k * n + j];
+            for (k = 0; k <= i; k++) sum += jac[i * n + k] * minv_jt[k * n + j];
             a[i * n + j] = sum;
+            a[j * n + i] = sum;
         }
     }
-    /* projected Gauss-Seidel on the friction impulses, warm-started */
-    for (i = 0; i < n; i++) {
-        lim[i] = m->F_lat_max[i + 1] * dt;
-        lam[i] = pt_clamp(m->f_dyn[i + 1] * dt, -lim[i], lim[i]);
+}
+
+/* The exact solution on the sticking set S (|lam_i| inside its bound): A_SS lam_S =
+   -(u_free + A_SL lam_L)_S. Kept only if it stays within the bounds. */
+static void solve_sticking_set(const double *a, const double *u_free, const double *lim,
+                               double *lam) {
+    enum { n = N_TRAILERS };
+    double sub[n * n], rhs[n];
+    int idx[n], ns = 0, r, c, j;
+    bool in_set[n];
+    for (j = 0; j < n; j++) {
+        in_set[j] = fabs(lam[j]) < lim[j] * (1.0 - 1e-9);
+        if (in_set[j]) idx[ns++] = j;
     }
+    if (ns == 0) {
+        return;
+    }
+    for (r = 0; r < ns; r++) {
+        const int i = idx[r];
+        rhs[r] = -u_free[i];
+        for (j = 0; j < n; j++) {
+            if (!in_set[j]) rhs[r] -= a[i * n + j] * lam[j];
+        }
+        for (c = 0; c < ns; c++) sub[r * ns + c] = a[i * n + idx[c]];
+    }
+    cholesky(sub, ns);
+    cholesky_solve(sub, ns, rhs);
+    for (r = 0; r < ns; r++) {
+        if (!(fabs(rhs[r]) <= lim[idx[r]])) {
+            return; /* the sticking set was not the final one: keep the iterative solution */
+        }
+    }
+    for (r = 0; r < ns; r++) lam[idx[r]] = rhs[r];
+}
+
+/* Box-constrained LCP: |lam_i| <= lim_i, u = u_free + A lam with u_i = 0 where |lam_i| < lim_i
+   and lam_i opposing u_i where |lam_i| = lim_i. Projected Gauss-Seidel from the warm start in
+   lam, then the exact solve on the sticking set. */
+static void solve_friction(const double *a, const double *u_free, const double *lim, double *lam) {
+    enum { n = N_TRAILERS };
+    double scale = 0.0;
+    int i, j, it;
+    for (i = 0; i < n; i++) scale = fmax(scale, lim[i]);
     for (it = 0; it < PGS_ITERATIONS; it++) {
         double change = 0.0;
         for (i = 0; i < n; i++) {
@@ -237,55 +279,114 @@ static void dynamic_step(ModelData *m, double dt) {
             change = fmax(change, fabs(updated - lam[i]));
             lam[i] = updated;
         }
-        if (change <= 1e-10 * lim[0]) { /* relative to the impulse scale mu m g dt */
+        if (change <= 1e-10 * scale) { /* relative to the largest bound */
             break;
         }
     }
-    /* velocities, headings, and the regime for the next substep */
-    {
-        bool all_stick = true;
-        for (k = 0; k < n; k++) {
-            double w_new = w_free[k];
-            for (i = 0; i < n; i++) w_new += minv_jt[k * n + i] * lam[i];
-            m->alpha_dyn[k + 1] = (w_new - m->wt[k + 1]) / dt;
-            m->wt[k + 1] = w_new;
-            q[IX_THETA + k + 1] += dt * w_new;
+    solve_sticking_set(a, u_free, lim, lam);
+}
+
+/* One substep of the dynamic regime; the friction impulses make the lateral wheel speeds
+   consistent at the end of the substep (see the note at the top). */
+static void dynamic_step(ModelData *m, double dt) {
+    enum { n = N_TRAILERS };
+    double mass[n * n], g[n], jac[n * n], minv_jt[n * n], a[n * n], b[n], lim[n], lam[n];
+    double w_free[n], w_new[n], th_end[n], u_free[n], vh[2], ah[2], ct[NB], st[NB];
+    double *q = m->q;
+    int i, k, it;
+    bool all_stick = true;
+
+    robot_hitch(m, q, vh, ah);
+    for (k = 1; k <= n; k++) {
+        ct[k] = cos(q[IX_THETA + k]);
+        st[k] = sin(q[IX_THETA + k]);
+    }
+    trailer_dynamics(m, ct, st, m->wt, ah, mass, g);
+    for (k = 0; k < n; k++) w_free[k] = g[k] * dt;
+    cholesky_solve(mass, n, w_free);
+    for (k = 0; k < n; k++) {
+        w_free[k] += m->wt[k + 1];
+        th_end[k] = q[IX_THETA + k + 1] + dt * w_free[k]; /* predicted end headings */
+        w_new[k] = w_free[k];
+    }
+    for (i = 0; i < n; i++) {
+        lim[i] = m->F_lat_max[i + 1] * dt;
+        lam[i] = pt_clamp(m->f_dyn[i + 1] * dt, -lim[i], lim[i]); /* warm start */
+    }
+
+    robot_rk4(m, q, dt); /* the robot moves on: the wheel speeds use its velocity at t + dt */
+    robot_hitch(m, q, vh, ah);
+    for (it = 0; it < CONFIG_ITERATIONS; it++) {
+        double change = 0.0;
+        for (k = 1; k <= n; k++) {
+            ct[k] = cos(th_end[k - 1]);
+            st[k] = sin(th_end[k - 1]);
         }
+        wheel_speed_map(m, ct, st, vh, jac, b);
         for (i = 0; i < n; i++) {
             double u = b[i];
-            for (k = 0; k < n; k++) u += jac[i * n + k] * m->wt[k + 1];
-            m->f_dyn[i + 1] = lam[i] / dt;
-            if (fabs(u) > STICK_SPEED || fabs(lam[i]) >= lim[i] * (1.0 - 1e-9)) {
-                all_stick = false;
-            }
+            for (k = 0; k < n; k++) u += jac[i * n + k] * w_free[k];
+            u_free[i] = u;
         }
-        if (all_stick) {
-            m->dynamic = false;
+        coupling(mass, jac, minv_jt, a);
+        solve_friction(a, u_free, lim, lam);
+        for (k = 0; k < n; k++) {
+            double th;
+            w_new[k] = w_free[k];
+            for (i = 0; i < n; i++) w_new[k] += minv_jt[k * n + i] * lam[i];
+            th = q[IX_THETA + k + 1] + dt * w_new[k];
+            change = fmax(change, fabs(th - th_end[k]));
+            th_end[k] = th;
         }
+        if (change <= CONFIG_TOLERANCE) {
+            break;
+        }
+    }
+    for (k = 0; k < n; k++) {
+        m->alpha_dyn[k + 1] = (w_new[k] - m->wt[k + 1]) / dt;
+        m->wt[k + 1] = w_new[k];
+        q[IX_THETA + k + 1] = th_end[k];
+    }
+    for (i = 0; i < n; i++) {
+        double u = b[i];
+        for (k = 0; k < n; k++) u += jac[i * n + k] * w_new[k];
+        m->f_dyn[i + 1] = lam[i] / dt;
+        if (fabs(u) > STICK_SPEED || fabs(lam[i]) >= lim[i] * (1.0 - 1e-9)) {
+            all_stick = false;
+        }
+    }
+    if (all_stick && slip_wheels_roll(m, q)) {
+        m->dynamic = false;
     }
 }
 
-double slip_advance(ModelData *m, double t_left) {
-    const bool roll = !m->dynamic && all_wheels_roll(m, m->q);
-    const double longest = roll ? m->max_substep : m->slip_substep;
-    /* equal substeps over what is left, so the last one ends exactly at the target time */
-    const double dt = t_left / ceil(t_left / longest - 1e-9);
-    if (roll) {
-        model_rk4_step(m, m->q, dt);
-        return dt;
+double slip_advance(ModelData *m, double t_left, bool *rolls) {
+    double dt;
+    if (!m->dynamic && *rolls) {
+        double q_end[N_STATE];
+        dt = t_left / ceil(t_left / m->max_substep - 1e-9); /* equal substeps, exact end */
+        memcpy(q_end, m->q, sizeof(q_end));
+        model_rk4_step(m, q_end, dt);
+        if (slip_wheels_roll(m, q_end)) {
+            memcpy(m->q, q_end, sizeof(q_end));
+            return dt; /* *rolls stays true: checked at the new state */
+        }
+        /* rolling needs more than friction before this substep ends: slide from its start */
     }
     if (!m->dynamic) {
         enter_dynamic(m);
     }
+    dt = t_left / ceil(t_left / m->slip_substep - 1e-9);
     dynamic_step(m, dt);
+    *rolls = !m->dynamic; /* back to rolling only after all_wheels_roll at the new state */
     return dt;
 }
 
-void slip_outputs(ModelData *m) {
+/* Velocity outputs from the trailer yaw rates wt (index 1..n) at the current state. */
+static void write_velocities(ModelData *m, const double *wt) {
     const int n = N_TRAILERS;
     const double *q = m->q;
-    double vh[2], ah[2], next_fx = 0.0, next_fy = 0.0;
-    double ax[NB], ay[NB];
+    double vh[2], ah[2];
     int i, k;
     robot_hitch(m, q, vh, ah);
     m->v[0] = q[IX_V0];
@@ -294,21 +395,37 @@ void slip_outputs(ModelData *m) {
         const double th_i = q[IX_THETA + i];
         const double ex = cos(th_i), ey = sin(th_i);
         double vx = vh[0], vy = vh[1];
+        for (k = 1; k <= i; k++) {
+            const double th_k = q[IX_THETA + k], l = link_sum(m, i, k);
+            vx += l * wt[k] * sin(th_k);  /* - L_ik wt_k n_k */
+            vy -= l * wt[k] * cos(th_k);
+        }
+        m->v[i] = vx * ex + vy * ey;
+        m->w[i] = wt[i];
+        m->slide_speed[i] = -vx * ey + vy * ex;
+    }
+}
+
+/* Force outputs from yaw rates wt, yaw accelerations alpha and lateral wheel forces f (index
+   1..n) at the current state: F_lat and, from the axle accelerations, the hitch forces. */
+static void write_forces(ModelData *m, const double *wt, const double *alpha, const double *f) {
+    const int n = N_TRAILERS;
+    const double *q = m->q;
+    double vh[2], ah[2], next_fx = 0.0, next_fy = 0.0;
+    double ax[NB], ay[NB];
+    int i, k;
+    robot_hitch(m, q, vh, ah);
+    for (i = 1; i <= n; i++) {
         ax[i] = ah[0];
         ay[i] = ah[1];
         for (k = 1; k <= i; k++) {
             const double th_k = q[IX_THETA + k], l = link_sum(m, i, k);
             const double nkx = -sin(th_k), nky = cos(th_k);
-            const double w = m->wt[k], al = m->alpha_dyn[k];
-            vx -= l * w * nkx;
-            vy -= l * w * nky;
+            const double w = wt[k], al = alpha[k];
             ax[i] -= l * (al * nkx - w * w * cos(th_k));
             ay[i] -= l * (al * nky - w * w * sin(th_k));
         }
-        m->v[i] = vx * ex + vy * ey;
-        m->w[i] = m->wt[i];
-        m->slide_speed[i] = -vx * ey + vy * ex;
-        m->F_lat[i] = m->f_dyn[i];
+        m->F_lat[i] = f[i];
     }
     /* hitch forces from trailer n down: f_i = f_{i+1} + m_i a_i - F_d,i n_i - push (i = n) */
     for (i = n; i >= 1; i--) {
@@ -320,4 +437,47 @@ void slip_outputs(ModelData *m) {
         next_fx = m->hitch_fx[i];
         next_fy = m->hitch_fy[i];
     }
+}
+
+void slip_outputs(ModelData *m) {
+    write_velocities(m, m->wt);
+    write_forces(m, m->wt, m->alpha_dyn, m->f_dyn);
+}
+
+void slip_onset_outputs(ModelData *m) {
+    enum { n = N_TRAILERS };
+    double c[NB], s[NB], v[NB], wt[NB], ct[NB], st[NB], alpha[NB], f[NB];
+    double mass[n * n], g[n], jac[n * n], minv_jt[n * n], a[n * n], b[n], r[n], lim[n], lam[n];
+    double vh[2], ah[2];
+    const double *q = m->q;
+    int i, k;
+    chain_velocities(m, q, c, s, v, wt); /* rolling: the kinematic yaw rates, u = 0 */
+    robot_hitch(m, q, vh, ah);
+    for (k = 1; k <= n; k++) {
+        ct[k] = cos(q[IX_THETA + k]);
+        st[k] = sin(q[IX_THETA + k]);
+    }
+    trailer_dynamics(m, ct, st, wt, ah, mass, g);
+    wheel_speed_map(m, ct, st, vh, jac, b);
+    coupling(mass, jac, minv_jt, a);
+    cholesky_solve(mass, n, g); /* g <- M^-1 g */
+    for (i = 1; i <= n; i++) { /* r = J M^-1 g + c */
+        double ri = ah[1] * ct[i] - ah[0] * st[i] - wt[i] * (vh[0] * ct[i] + vh[1] * st[i]);
+        for (k = 1; k <= i; k++) {
+            const double sin_ki = st[k] * ct[i] - ct[k] * st[i]; /* sin(th_k - th_i) */
+            ri += link_sum(m, i, k) * sin_ki * (wt[k] - wt[i]) * wt[k];
+        }
+        for (k = 0; k < n; k++) ri += jac[(i - 1) * n + k] * g[k];
+        r[i - 1] = ri;
+        lim[i - 1] = m->F_lat_max[i];
+        lam[i - 1] = pt_clamp(m->F_lat[i], -lim[i - 1], lim[i - 1]); /* warm start */
+    }
+    solve_friction(a, r, lim, lam);
+    alpha[0] = f[0] = 0.0;
+    for (k = 0; k < n; k++) {
+        alpha[k + 1] = g[k];
+        for (i = 0; i < n; i++) alpha[k + 1] += minv_jt[k * n + i] * lam[i];
+        f[k + 1] = lam[k];
+    }
+    write_forces(m, wt, alpha, f); /* the velocities stay those of rolling */
 }

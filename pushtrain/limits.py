@@ -1,0 +1,101 @@
+"""Plausible ranges of the physical parameters a user can set, in one place (SI units, radians).
+
+Each parameter of the TrailerTrain FMU that describes the train or the robot has a :class:`Bound`
+with the reason for its range. The FMU's ``min``/``max`` attributes and the C code's checks in
+``fmi2ExitInitializationMode`` are generated from this table (``fmu/variables.py``, ``fmu/build.py``),
+and scenario validation can use :func:`check` for the same messages. Per-trailer parameters
+(``front``, ``mass``, ...) have one bound for every element.
+
+A bound says what is physically plausible for this model, not what the numerics can handle; the
+ranges are wide on purpose (tests drive the robot to abrupt stops and frictionless slides).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["Bound", "BOUNDS", "check"]
+
+
+@dataclass(frozen=True)
+class Bound:
+    """The plausible closed range ``[lo, hi]`` of parameter ``name``, in ``unit`` (SI)."""
+
+    name: str
+    lo: float
+    hi: float
+    unit: str  # as in the FMU's modelDescription ("" for dimensionless)
+    reason: str
+
+    def contains(self, value: float) -> bool:
+        """``lo <= value <= hi`` (False for NaN)."""
+        return self.lo <= value <= self.hi
+
+    def message(self, name: str, value) -> str:
+        """``"name = value: allowed lo to hi unit (reason)"``; the FMU logs the same text."""
+        unit = f" {self.unit}" if self.unit else ""
+        shown = f"{value:g}" if isinstance(value, (int, float)) else repr(value)
+        return f"{name} = {shown}: allowed {self.lo:g} to {self.hi:g}{unit} ({self.reason})"
+
+
+_LINK_REASON = "a hitch link shorter than 5 cm or longer than 10 m is not a trailer"
+
+BOUNDS: dict[str, Bound] = {
+    bound.name: bound
+    for bound in (
+        Bound("front", 0.05, 10.0, "m", _LINK_REASON),
+        Bound("rear", 0.05, 10.0, "m", _LINK_REASON),
+        Bound("mass", 1.0, 10000.0, "kg",
+              "a cart under 1 kg or a trailer over 10 t is not what a mobile robot pushes"),
+        Bound("inertia", 1e-3, 1e5, "kg.m2",
+              "yaw inertia about the axle: from a 1 kg, 10 cm cart to a 10 t, 10 m trailer"),
+        Bound("payload", 0.0, 10000.0, "kg", "a load is not negative and not over 10 t"),
+        Bound("mu", 0.0, 2.0, "",
+              "0 is a frictionless slide; no wheel grips sideways with more than 2 "
+              "(rubber on dry concrete is about 1)"),
+        Bound("g", 1.0, 30.0, "m/s2", "from the Moon (1.6 m/s2) to beyond Jupiter (24.8 m/s2)"),
+        Bound("robot_tau", 1e-3, 10.0, "s",
+              "no drive closes its velocity loop faster than 1 ms; a lag over 10 s is not a "
+              "velocity loop"),
+        Bound("robot_acc_max", 1e-3, 100.0, "m/s2",
+              "below 1 mm/s2 the robot hardly starts; above 10 g it is not a mobile robot"),
+        Bound("robot_alpha_max", 1e-3, 1e4, "rad/s2",
+              "below 1 mrad/s2 the robot hardly turns; 1e4 rad/s2 stops 1 rad/s in 0.1 ms, the "
+              "abrupt stop used to study sliding"),
+        Bound("phi_max", 0.01, math.pi, "rad",
+              "a jackknife limit under 0.6 deg forbids every turn; beyond pi a joint angle "
+              "wraps around"),
+        Bound("max_substep", 1e-5, 0.1, "s",
+              "smaller makes a 0.1 s step take over 1e4 substeps; larger than 0.1 s steps over "
+              "the robot's velocity loop"),
+        Bound("slip_substep", 1e-6, 0.01, "s",
+              "smaller makes a 5 ms step take over 5000 sliding substeps; friction impulses "
+              "need substeps well below the 5 ms communication step"),
+    )
+}
+
+
+def check(name: str, value) -> str | None:
+    """None if ``value`` is plausible for parameter ``name``, else why not.
+
+    ``name`` is a parameter of :data:`BOUNDS`, optionally with an element index (``"mass[2]"``).
+    The message names the value, the allowed range with its unit and the reason, e.g.
+    ``"front[1] = 0.01: allowed 0.05 to 10 m (a hitch link shorter than 5 cm or longer than
+    10 m is not a trailer)"``.
+
+    Raises
+    ------
+    KeyError
+        ``name`` has no bound.
+    """
+    base = name.split("[", 1)[0]
+    try:
+        bound = BOUNDS[base]
+    except KeyError:
+        raise KeyError(f"{name!r} has no bound; bounded parameters: {', '.join(BOUNDS)}") from None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return bound.message(name, value) + f"; got a {type(value).__name__}, not a number"
+    if not bound.contains(value):
+        return bound.message(name, value)
+    return None
