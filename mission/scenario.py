@@ -24,6 +24,8 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from pushtrain.errors import FieldErrors, ScenarioError
+from pushtrain.fmu.variables import MAX_TRAILERS
+from pushtrain.limits import BOUNDS
 from pushtrain.validation import field_errors, read_toml
 
 __all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
@@ -47,7 +49,7 @@ class Size(_Section):
 class TrainSection(_Section):
     """The robot's trailers: links, masses and footprints (per trailer lists or one value)."""
 
-    n: Annotated[int, Field(ge=1, le=50)] = 3
+    n: Annotated[int, Field(ge=1, le=MAX_TRAILERS)] = 3
     link: PositiveFloat = 0.52
     front: list[PositiveFloat] | None = None
     rear: list[PositiveFloat] | None = None
@@ -242,6 +244,8 @@ class Scenario(_Section):
                 problems.append((f"events[{k}].trailer", ev.trailer, f"1..{n}"))
             if ev.joint is not None and ev.joint > n:
                 problems.append((f"events[{k}].joint", ev.joint, f"1..{n}"))
+        problems += _implausible(self)
+        problems += _inconsistent_run(self)
         kind = self.mission.kind
         if kind == "plan":
             for name in ("map", "start", "goal"):
@@ -257,6 +261,93 @@ class Scenario(_Section):
         if problems:
             raise FieldErrors("", problems)
         return self
+
+
+def _bound_problem(where: str, bound_name: str, value, deg: bool = False):
+    """(where, value, allowed) if ``value`` is outside the plausible range of ``bound_name``
+    (:data:`pushtrain.limits.BOUNDS`); ``deg``: the field is in degrees, the bound in radians."""
+    bound = BOUNDS[bound_name]
+    lo, hi, unit = bound.lo, bound.hi, bound.unit
+    if deg:
+        lo, hi, unit = math.degrees(lo), math.degrees(hi), unit.replace("rad", "deg")
+    if lo <= value <= hi:
+        return None
+    unit = f" {unit}" if unit else ""
+    return (where, value, f"allowed {lo:.6g} to {hi:.6g}{unit} ({bound.reason})")
+
+
+def _per_trailer_values(where: str, value):
+    if isinstance(value, list):
+        return [(f"{where}[{k}]", v) for k, v in enumerate(value)]
+    return [(where, value)]
+
+
+def _implausible(sc: "Scenario") -> list[tuple[str, object, str]]:
+    """Values that validate as numbers but are not a train, a robot or a run this tool models:
+    each against its range in :data:`pushtrain.limits.BOUNDS` (shared with the FMU)."""
+    t, r = sc.train, sc.robot
+    checks = [("train.link", "front", t.link)]
+    for name in ("front", "rear"):
+        checks += [(w, name, v) for w, v in _per_trailer_values(f"train.{name}", getattr(t, name) or [])]
+    for name in ("mass", "inertia", "payload", "mu"):
+        checks += [(w, name, v) for w, v in _per_trailer_values(f"train.{name}", getattr(t, name))]
+    for body in ("trailer_size", "robot_size"):
+        size = getattr(t, body)
+        checks += [(f"train.{body}.length", "body.size", size.length),
+                   (f"train.{body}.width", "body.size", size.width)]
+    checks += [("robot.tau", "robot_tau", r.tau), ("robot.acc_max", "robot_acc_max", r.acc_max),
+               ("robot.v_max", "robot.v_max", r.v_max), ("fmu.max_substep", "max_substep", sc.fmu.max_substep),
+               ("sim.step", "sim.step", sc.sim.step)]
+    checks += [(f"controller.{k}", "controller.gain", getattr(sc.controller, k))
+               for k in ("k_x", "k_y", "k_theta")]
+    if sc.controller.model_link is not None:
+        checks.append(("controller.model_link", "front", sc.controller.model_link))
+    if sc.sim.horizon is not None:
+        checks.append(("sim.horizon", "sim.horizon", sc.sim.horizon))
+    problems = [_bound_problem(*c) for c in checks]
+    problems += [_bound_problem("robot.alpha_max_deg", "robot_alpha_max", r.alpha_max_deg, deg=True),
+                 _bound_problem("robot.w_max_deg", "robot.w_max", r.w_max_deg, deg=True),
+                 _bound_problem("train.phi_max_deg", "phi_max", t.phi_max_deg, deg=True)]
+    problems += [_bound_problem(w, "map.coordinate", v) for w, v in _coordinates(sc)]
+    return [p for p in problems if p is not None]
+
+
+def _coordinates(sc: "Scenario"):
+    """Every map and pose coordinate [m] with its scenario path."""
+    if sc.map is not None:
+        for key in ("free", "obstacles", "walls"):
+            value = getattr(sc.map, key) or []
+            rings = [value] if key == "free" else value
+            for i, ring in enumerate(rings):
+                prefix = f"map.{key}" if key == "free" else f"map.{key}[{i}]"
+                for j, point in enumerate(ring):
+                    for c, v in zip("xy", point, strict=True):
+                        yield f"{prefix}[{j}].{c}", v
+        for k, v in enumerate(sc.map.bounds or []):
+            yield f"map.bounds[{k}]", v
+    for name in ("start", "goal"):
+        pose = getattr(sc, name)
+        if pose is not None:
+            yield f"{name}.x", pose.x
+            yield f"{name}.y", pose.y
+
+
+def _inconsistent_run(sc: "Scenario") -> list[tuple[str, object, str]]:
+    """Combinations the co-simulation would refuse only when it starts."""
+    problems = []
+    if sc.fmu.slip_mode == 1:
+        for k, ev in enumerate(sc.events):
+            if ev.type == "slide":
+                problems.append((f"events[{k}].type", ev.type,
+                                 "a slide event imposes a kinematic slide, which needs "
+                                 "fmu.slip_mode = 0; with slip_mode = 1 the wheels slide "
+                                 "physically: use a push event"))
+    horizon, step = sc.sim.horizon, sc.sim.step
+    if horizon is not None and abs(horizon / step - round(horizon / step)) > 1e-6 * max(1.0, horizon / step):
+        problems.append(("sim.horizon", horizon,
+                         f"a whole number of steps of sim.step = {step:g} s "
+                         f"(e.g. {step * max(1, round(horizon / step)):g} s)"))
+    return problems
 
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:

@@ -72,6 +72,27 @@ BOUNDS: dict[str, Bound] = {
         Bound("slip_substep", 1e-6, 0.01, "s",
               "smaller makes a 5 ms step take over 5000 sliding substeps; friction impulses "
               "need substeps well below the 5 ms communication step"),
+        # Scenario settings that are not FMU parameters (named by their scenario path).
+        Bound("sim.step", 1e-4, 0.1, "s",
+              "the paper samples every 5 ms; a step over 0.1 s lets the chain move further "
+              "between two commands than the controller can correct (5 s jackknifes in 9 steps), "
+              "one under 0.1 ms only makes the run slow"),
+        Bound("sim.horizon", 1e-3, 86400.0, "s",
+              "a mission longer than a day of simulated time is not a mission"),
+        Bound("body.size", 0.05, 20.0, "m",
+              "a body shorter or narrower than 5 cm or longer than 20 m is not a robot or "
+              "a trailer"),
+        Bound("robot.v_max", 1e-3, 5.0, "m/s",
+              "below 1 mm/s the train hardly moves; over 5 m/s is not a robot pushing "
+              "trailers indoors"),
+        Bound("robot.w_max", 1e-3, 10.0, "rad/s",
+              "below 1 mrad/s the robot hardly turns; over 10 rad/s is not a robot "
+              "pushing trailers"),
+        Bound("controller.gain", 1e-3, 1e3, "",
+              "Kanayama's gains (1/s, 1/m2, 1/m): gains over 1e3 demand responses far "
+              "beyond the robot's 5 ms loop, under 1e-3 do nothing"),
+        Bound("map.coordinate", -1e5, 1e5, "m",
+              "a facility is smaller than 100 km across"),
     )
 }
 
