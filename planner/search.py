@@ -8,7 +8,9 @@ states (x, y, yaw = theta + pi), see :mod:`~pushtrain.planner.curves`.
 from __future__ import annotations
 
 import math
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -33,11 +35,28 @@ from .world import Train, World
 
 __all__: list[str] = []
 
-# OMPL prints to stdout/stderr; library code must not. Every OMPL failure the planner can meet
-# (invalid start/goal, no or approximate solution) becomes a PlanningError instead.
-ou.setLogLevel(ou.LOG_NONE)
-
 _REFINE_RATIO = 1.2
+
+_OMPL_LOCK = threading.RLock()
+"""Held while the planner calls OMPL, whose log level (and random seed) are process-wide."""
+
+
+@contextmanager
+def _quiet_ompl():
+    """Silence OMPL's log while the planner's own OMPL calls run, then restore the caller's level.
+
+    OMPL prints to stdout/stderr; library code must not. Every OMPL failure the planner can
+    meet (invalid start/goal, no or approximate solution) becomes a PlanningError instead.
+    Re-entrant; threads take turns (:data:`_OMPL_LOCK`), so no thread restores a level another
+    one set.
+    """
+    with _OMPL_LOCK:
+        level = ou.getLogLevel()
+        ou.setLogLevel(ou.LOG_NONE)
+        try:
+            yield
+        finally:
+            ou.setLogLevel(level)
 
 
 def _allocate_planner(name: str, si):
@@ -54,12 +73,8 @@ def _allocate_planner(name: str, si):
 def _set_seed(seed: int) -> None:
     """Seed OMPL's generator. OMPL logs an error when re-seeding after the first draw but does
     re-seed (checked by the tests); that message is silenced here."""
-    level = ou.getLogLevel()
-    ou.setLogLevel(ou.LOG_NONE)
-    try:
+    with _quiet_ompl():
         ou.RNG.setSeed(int(seed))
-    finally:
-        ou.setLogLevel(level)
 
 
 def _state(space, pose):
@@ -357,28 +372,29 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
     ``refine_time`` [s] > 0 shortens the simplified path further by a local search on its
     states (:func:`~pushtrain.planner.repair._local_search`) until it stops gaining or
     ``refine_time`` has passed, if the simplified path is shorter than ``refine_below`` [m]."""
-    search = _set_up(world, train, start_yaw, goal_yaw, config, attempt, seed, start_headings)
-    si, space, start, goal = search.si, search.space, search.start, search.goal
-    t0 = time.perf_counter()
-    if si.isValid(start) and si.isValid(goal) and si.checkMotion(start, goal):
-        # The shortest Reeds-Shepp curve itself is free: it is the optimal path.
-        info = {"status": "direct", "solve_time": time.perf_counter() - t0,
-                "planner_time": time.perf_counter() - t0}
-        states = np.array([[p.getX(), p.getY(), p.getYaw()] for p in (start, goal)])
-        info["raw_length"] = info["length_ompl"] = float(space.distance(start, goal))
+    with _quiet_ompl():
+        search = _set_up(world, train, start_yaw, goal_yaw, config, attempt, seed, start_headings)
+        si, space, start, goal = search.si, search.space, search.start, search.goal
+        t0 = time.perf_counter()
+        if si.isValid(start) and si.isValid(goal) and si.checkMotion(start, goal):
+            # The shortest Reeds-Shepp curve itself is free: it is the optimal path.
+            info = {"status": "direct", "solve_time": time.perf_counter() - t0,
+                    "planner_time": time.perf_counter() - t0}
+            states = np.array([[p.getX(), p.getY(), p.getYaw()] for p in (start, goal)])
+            info["raw_length"] = info["length_ompl"] = float(space.distance(start, goal))
+            return states, info
+        status = search.ss.solve(float(solve_time))
+        info = {"status": str(status), "solve_time": time.perf_counter() - t0,
+                "planner_time": search.ss.getLastPlanComputationTime()}
+        path = _exact_solution(search, goal_yaw, config, solve_time, info)
+        info["raw_length"] = float(path.length())
+        path = _shorten(search, path, config, info, refine_time, refine_below, seed)
+        path_states = _apply_pull_rules(search, path, train, config, attempt, seed, start_headings,
+                                        info)
+        states = np.array([[s.getX(), s.getY(), s.getYaw()] for s in path_states])
+        info["length_ompl"] = float(sum(space.distance(a, b)
+                                        for a, b in zip(path_states[:-1], path_states[1:])))
         return states, info
-    status = search.ss.solve(float(solve_time))
-    info = {"status": str(status), "solve_time": time.perf_counter() - t0,
-            "planner_time": search.ss.getLastPlanComputationTime()}
-    path = _exact_solution(search, goal_yaw, config, solve_time, info)
-    info["raw_length"] = float(path.length())
-    path = _shorten(search, path, config, info, refine_time, refine_below, seed)
-    path_states = _apply_pull_rules(search, path, train, config, attempt, seed, start_headings,
-                                    info)
-    states = np.array([[s.getX(), s.getY(), s.getYaw()] for s in path_states])
-    info["length_ompl"] = float(sum(space.distance(a, b)
-                                    for a, b in zip(path_states[:-1], path_states[1:])))
-    return states, info
 
 
 def _solve_restarts(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,

@@ -1,6 +1,8 @@
 """Planning in the reference worlds, whole-train validity, errors, reproducibility, export."""
 
 import math
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -406,3 +408,32 @@ def test_local_search_keeps_the_path_valid_and_never_longer():
     region = world.eroded(cfg.inflation)
     for xi, yi, ti in zip(x, y, th):
         assert region.contains(Polygon(_corners(TRAIN.last, xi, yi, ti)))
+
+
+def test_ompl_log_level_is_the_callers(capfd):
+    """Importing the planner leaves OMPL's process-wide log level alone; plan() silences OMPL
+    only while it runs (nothing reaches stdout/stderr) and restores the caller's level, also
+    when it fails."""
+    code = ("from ompl import util as ou; ou.setLogLevel(ou.LOG_INFO); import pushtrain.planner; "
+            "print(ou.getLogLevel() == ou.LOG_INFO)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"
+
+    from ompl import util as ou
+
+    before = ou.getLogLevel()
+    try:
+        ou.setLogLevel(ou.LOG_INFO)  # OMPL would report its planner runs at this level
+        case = worlds.l_corridor(2.0)
+        world = World.from_dict(case["world"])
+        capfd.readouterr()
+        plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, check_train=False))
+        assert ou.getLogLevel() == ou.LOG_INFO
+        assert capfd.readouterr() == ("", "")
+        ou.setLogLevel(ou.LOG_WARN)
+        with pytest.raises(PlanningError):
+            plan(world, case["start"], case["goal"], TRAIN,
+                 PlannerConfig(turning_radius=6.0, time_budget=0.05, check_train=False))
+        assert ou.getLogLevel() == ou.LOG_WARN
+    finally:
+        ou.setLogLevel(before)
