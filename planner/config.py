@@ -20,6 +20,7 @@ from pushtrain.core.controller import ControllerConfig
 
 from pushtrain.errors import PlanningInputError
 
+from .budget import checks_for
 from .train_check import TrackerConfig
 from .world import Train
 
@@ -58,17 +59,28 @@ class PlannerConfig:
         Margin of the radius rule (0.6: steady joint angle = phi_max / 1.6).
     planner : str
         One of :data:`PLANNERS`; ``rrtconnect`` (default) returns its first solution fast,
-        the others improve the path for ``anytime_time`` seconds: ``restarts`` repeats
+        the others improve the path for ``anytime_time``: ``restarts`` repeats
         RRTConnect, simplification and a local search on the path's states with new seeds and
         keeps the shortest; ``rrtstar``,
         ``bitstar`` and ``prmstar`` are OMPL's asymptotically optimal planners.
     time_budget : float
-        Wall-clock budget [s] for planning and all replanning together.
+        Budget [s] of planning and all replanning together, counted as work, not read from
+        the clock (:mod:`~pushtrain.planner.budget`): 1000 motion checks per second (the
+        validation of one local Reeds-Shepp curve, about 1 ms on a current laptop core; BIT*:
+        400, as its other work grows after its first solution), and each whole-train check
+        counts one motion check per 10 simulated control steps (a 10 m plan at 0.08 m/s:
+        about 500). The first attempt of ``rrtconnect`` may use all of it, each replan half
+        of what is left. 2 s = 2000 checks. PRM* alone stops on the clock after its budget's
+        seconds (OMPL checks its termination on a second thread).
     anytime_time : float
-        Solve time [s] of one anytime-planner run (capped by what is left of the budget).
+        Budget [s] of one anytime-planner run, converted like ``time_budget`` (0.5 s = 500
+        motion checks; a restart takes 100-300 in the bay and the L-corridors) and capped by
+        what is left of ``time_budget``.
     seed : int or None
-        OMPL random seed (>= 1). Same seed, same plan for ``rrtconnect``; anytime planners stop
-        on time and are reproducible only if the machine is equally fast. None: OMPL's own seed.
+        OMPL random seed (>= 1). Same seed, same plan, on any machine and under any load,
+        since budgets count work (``prmstar`` excepted: OMPL's PRM looks for a solution on a
+        second thread while it grows the roadmap). None: OMPL's own seed. OMPL's seed is
+        process-wide: plans in threads take turns for their OMPL calls.
     simplify : bool
         Shorten the solution: OMPL's ``reduceVertices``, then a greedy shortcut (each kept
         state jumps to the farthest later state one free curve reaches).
@@ -129,6 +141,11 @@ class PlannerConfig:
         passed the most first plans on the bay when it was chosen (seeds 1-20: 0.15 m 70 %,
         0.4 m 90 %, 0.7 m 70 %, rule off 65 %).
         None switches the rule off.
+    time_cap : float or None
+        Wall-clock safety cap [s] of one :func:`~pushtrain.planner.plan` call; None:
+        10 x ``time_budget`` + 10 s. Only this stops a search by the clock; a plan it cut short
+        has ``info["time_capped"]`` True (a PlanningError: ``details["time_capped"]``) and a
+        warning is logged, since the result then depends on the machine's speed.
     """
 
     turning_radius: float | None = None
@@ -154,6 +171,7 @@ class PlannerConfig:
     straight_pull_ends: bool = True
     pull_start_tolerance: float | None = 0.4
     rrt_range: float | None = None
+    time_cap: float | None = None
 
     def __post_init__(self):
         name = str(self.planner).lower()
@@ -182,6 +200,11 @@ class PlannerConfig:
             raise PlanningInputError(
                 f"pull_start_tolerance = {self.pull_start_tolerance!r} m: must be None or finite "
                 "and >= 0")
+        if self.time_cap is not None and not (
+            isinstance(self.time_cap, (int, float)) and math.isfinite(self.time_cap)
+            and self.time_cap > 0.0
+        ):
+            raise PlanningInputError(f"time_cap = {self.time_cap!r} s: must be None or > 0")
         if self.turning_radius is not None and not (
             math.isfinite(self.turning_radius) and self.turning_radius > 0.0
         ):
@@ -200,6 +223,18 @@ class PlannerConfig:
         """What the whole-train check simulates: controller, reference speed and cusp dwell."""
         return TrackerConfig(controller=self.controller, speed=self.speed,
                              cusp_dwell=self.cusp_dwell)
+
+    def budget_checks(self) -> int:
+        """Motion checks of ``time_budget`` (see :mod:`~pushtrain.planner.budget`)."""
+        return checks_for(self.time_budget, self.planner)
+
+    def anytime_checks(self) -> int:
+        """Motion checks of ``anytime_time``."""
+        return checks_for(self.anytime_time, self.planner)
+
+    def wall_cap(self) -> float:
+        """The wall-clock safety cap [s] of a plan() call (``time_cap``, or its default)."""
+        return float(self.time_cap) if self.time_cap is not None else 10.0 * self.time_budget + 10.0
 
     def extension_for(self, radius: float) -> float:
         """RRTConnect's longest tree extension [m] for turning ``radius`` [m]."""

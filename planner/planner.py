@@ -5,8 +5,11 @@ recovers its segments (:mod:`~pushtrain.planner.curves`) and checks the whole tr
 simulating the co-simulation's controller in closed loop with the chain
 (:mod:`~pushtrain.planner.train_check`); a failure changes the next attempt (larger radius, or
 a blocked region and more inflation, see :func:`_next_attempt`) until a plan passes,
-``max_attempts`` or ``time_budget`` run out. The planner's settings and turning-radius rule
-are in :mod:`~pushtrain.planner.config`, its pull rules in :mod:`~pushtrain.planner.repair`.
+``max_attempts`` or ``time_budget`` run out. Budgets count work (motion checks, see
+:mod:`~pushtrain.planner.budget`), so a seed gives the same plan on any machine and under any
+load; the wall clock only stops planning at the safety cap ``time_cap``. The planner's
+settings and turning-radius rule are in :mod:`~pushtrain.planner.config`, its pull rules in
+:mod:`~pushtrain.planner.repair`.
 
 This module also re-exports the planner's public names, so ``from pushtrain.planner.planner
 import plan, PlannerConfig, ReedsSheppCurve, ...`` keeps working.
@@ -28,6 +31,7 @@ from shapely.geometry import box as _box
 
 from pushtrain.errors import PlanningError, PlanningInputError
 
+from .budget import STEPS_PER_CHECK, Work
 from .config import _ANYTIME, PLANNERS, PlannerConfig, turning_radius_from_joint_limit
 from .curves import (
     ReedsSheppCurve,
@@ -186,18 +190,22 @@ def plan(
     history = []
     last_error: PlanningError | None = None
     last_result = None
+    work = Work(deadline=t_begin + config.wall_cap())
+    total = config.budget_checks()
     for k in range(int(config.max_attempts)):
-        remaining = config.time_budget - (time.perf_counter() - t_begin)
-        if remaining <= 0.0:
+        if work.done(total):
             break
         seed = None if config.seed is None else int(config.seed) + k
+        used0 = work.used
         try:
             states, info = _search(world, train, start, goal, config, attempt,
-                                   _solve_time(config, k, remaining), seed, start_headings)
+                                   _checks_for_attempt(config, k, total - work.used), seed,
+                                   start_headings, work)
         except PlanningError as exc:
             last_error = exc
             history.append({"attempt": k, "radius": attempt.radius, "inflation": attempt.inflation,
-                            "blocks": len(attempt.blocks), "error": exc.reason})
+                            "blocks": len(attempt.blocks), "error": exc.reason,
+                            "checks": work.used - used0})
             if exc.reason in _PULL_RULES:
                 continue  # a rule of the planner's own, not of the train check: next seed
             if k == 0 or exc.reason not in ("unreachable", "approximate_only"):
@@ -208,38 +216,47 @@ def plan(
         segments = _segments(states, attempt.radius)
         entry = {"attempt": k, "radius": attempt.radius, "inflation": attempt.inflation,
                  "blocks": len(attempt.blocks), "seed": seed, **info}
-        result = None
-        if config.check_train:
-            result = check_train(world, train, start, segments, start_headings,
-                                 margin=config.inflation, resolution=config.check_resolution,
-                                 tracker=tracker)
-            entry["train_ok"] = result.ok
-            entry["failure"] = result.failure
+        result = _train_check(world, train, start, segments, start_headings, config, tracker,
+                              work, entry)
         history.append(entry)
         if result is None or result.ok:
             return _planned(start, segments, start_headings, attempt, config, tracker, result,
-                            history, t_begin)
+                            history, t_begin, work)
         last_result = result
         attempt = _next_attempt(attempt, result.failure, train, config, segments)
         attempt.blocks = _clear_of_ends(attempt, train, config, start, goal)
-    raise _final_error(last_result, last_error, history, train, config, goal, t_begin)
+    raise _final_error(last_result, last_error, history, train, config, goal, t_begin, work)
 
 
-def _solve_time(config: PlannerConfig, k: int, remaining: float) -> float:
-    """Solve time [s] of attempt ``k`` with ``remaining`` [s] of the budget left."""
+def _train_check(world: World, train: Train, start, segments, start_headings,
+                 config: PlannerConfig, tracker: TrackerConfig, work: Work, entry: dict):
+    """The whole-train check of a plan (None if ``config.check_train`` is off), charged to
+    ``work`` and noted in the attempt's ``entry``."""
+    if not config.check_train:
+        return None
+    result = check_train(world, train, start, segments, start_headings, margin=config.inflation,
+                         resolution=config.check_resolution, tracker=tracker)
+    work.used += result.trajectory.t.size // STEPS_PER_CHECK
+    entry["train_ok"] = result.ok
+    entry["failure"] = result.failure
+    return result
+
+
+def _checks_for_attempt(config: PlannerConfig, k: int, remaining: int) -> int:
+    """Motion checks of attempt ``k`` with ``remaining`` checks of the budget left."""
     if config.planner in _ANYTIME:
-        return min(config.anytime_time, remaining)
+        return min(config.anytime_checks(), remaining)
     # a replan may find nothing (e.g. a block closed the corridor): it gets half of what is
     # left, so that another try remains
-    return remaining if k == 0 else 0.5 * remaining
+    return remaining if k == 0 else max(1, remaining // 2)
 
 
 def _search(world: World, train: Train, start, goal, config: PlannerConfig,
-            attempt: _Attempt, solve_time: float, seed: int | None, start_headings):
+            attempt: _Attempt, checks: int, seed: int | None, start_headings, work: Work):
     """The last trailer's path (planner states (M, 3), info) for one attempt."""
     solve = _solve_restarts if config.planner == "restarts" else _solve_once
     return solve(world, train, _chain_to_yaw(start), _chain_to_yaw(goal), config, attempt,
-                 solve_time, seed, start_headings)
+                 checks, seed, start_headings, work=work)
 
 
 def _segments(states: np.ndarray, radius: float) -> list[Segment]:
@@ -253,12 +270,15 @@ def _segments(states: np.ndarray, radius: float) -> list[Segment]:
 
 
 def _planned(start, segments, start_headings, attempt: _Attempt, config: PlannerConfig,
-             tracker: TrackerConfig, result, history: list, t_begin: float) -> PlannedPath:
+             tracker: TrackerConfig, result, history: list, t_begin: float,
+             work: Work) -> PlannedPath:
     """The PlannedPath of a plan that passed (``result``: its train check, or None)."""
     info_all = {
         "planner": config.planner, "seed": config.seed, "attempts": history,
         "radius": attempt.radius, "inflation": attempt.inflation,
         "time": time.perf_counter() - t_begin,
+        "checks": work.used, "budget_checks": config.budget_checks(),
+        "time_capped": work.capped,
         "first_solution_time": history[0].get("planner_time"),
         "train_check": None if result is None else {
             "max_abs_phi": result.max_abs_phi.tolist(),
@@ -288,8 +308,9 @@ def _clear_of_ends(attempt: _Attempt, train: Train, config: PlannerConfig, start
 
 
 def _final_error(last_result, last_error: PlanningError | None, history: list, train: Train,
-                 config: PlannerConfig, goal, t_begin: float) -> PlanningError:
-    """The PlanningError of a plan() that found no plan passing the train check."""
+                 config: PlannerConfig, goal, t_begin: float, work: Work) -> PlanningError:
+    """The PlanningError of a plan() that found no plan passing the train check
+    (``details["time_capped"]``: whether the wall-clock safety cap stopped a search)."""
     if last_result is not None and last_result.failure is not None:
         f = last_result.failure
         name = "robot" if f["body"] == 0 else f"trailer {f['body']}"
@@ -301,21 +322,24 @@ def _final_error(last_result, last_error: PlanningError | None, history: list, t
         else:
             what = (f"ends {f['distance']:.3f} m and {math.degrees(f['heading_error']):.1f} deg "
                     f"from the goal (at ({f['x']:.3f}, {f['y']:.3f}))")
-        return PlanningError(
+        error = PlanningError(
             "train_check_failed",
             f"after {len(history)} attempts ({time.perf_counter() - t_begin:.2f} s) the whole train "
             f"still fails: the {name} {what} at t = {f['t']:.2f} s, s = {f['s']:.2f} m of the "
             "last plan",
             where=(f["x"], f["y"]), details={"failure": f, "attempts": history},
         )
-    if last_error is not None:
-        last_error.details.setdefault("attempts", history)
-        return last_error
-    return PlanningError(
-        "unreachable",
-        f"no plan within the time budget {config.time_budget} s",
-        where=tuple(goal[:2]), details={"attempts": history},
-    )
+    elif last_error is not None:
+        error = last_error
+        error.details.setdefault("attempts", history)
+    else:
+        what = (f"before the wall-clock safety cap of {config.wall_cap():.3g} s" if work.capped
+                else f"within the budget of {config.budget_checks()} motion checks (time_budget "
+                f"{config.time_budget} s)")
+        error = PlanningError("unreachable", f"no plan {what}", where=tuple(goal[:2]),
+                              details={"attempts": history})
+    error.details["time_capped"] = work.capped
+    return error
 
 
 def _resample_headings(result, path: PlannedPath, tracker: TrackerConfig) -> np.ndarray:

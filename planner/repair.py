@@ -16,12 +16,12 @@ motion ``validator``, states) and call their methods; they do not import ompl.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 from pushtrain.core.pulling import straight_chain_mismatch
 from shapely.geometry import Polygon
 
+from .budget import Work
 from .curves import _sample_into, _travel_backward, _yaw_wrap
 from .world import Train, World
 
@@ -144,17 +144,16 @@ def _repair_pull_ends(si, space, validator, states: list, seed: int, tries: int 
     return repairs, None
 
 
-def _local_search(si, space, validator, states: list, budget: float, rng,
+def _local_search(si, space, validator, states: list, work: Work, limit: int, rng,
                   sigma=(0.3, 0.3)) -> list:
     """Shorten the path through ``states`` by moving one interior state at a time: Gaussian
     proposals (``sigma`` in x and y [m] and yaw [rad], halved after 30 proposals in a row
     without a gain), accepted when the path gets shorter, both adjacent curves are free and the
-    pull-end rule holds at the moved state and its neighbours; for ``budget`` seconds. Returns
-    the new list of states."""
-    t0 = time.perf_counter()
+    pull-end rule holds at the moved state and its neighbours; until the step scale falls below
+    1 % or ``work`` reaches ``limit`` motion checks. Returns the new list of states."""
     states = list(states)
     scale, misses = 1.0, 0
-    while len(states) > 2 and time.perf_counter() - t0 < budget and scale > 0.01:
+    while len(states) > 2 and scale > 0.01 and not work.done(limit):
         i = int(rng.integers(1, len(states) - 1))
         a, b, c = states[i - 1], states[i], states[i + 1]
         old = space.distance(a, b) + space.distance(b, c)

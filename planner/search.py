@@ -7,6 +7,7 @@ states (x, y, yaw = theta + pi), see :mod:`~pushtrain.planner.curves`.
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 import time
@@ -22,6 +23,7 @@ from shapely.geometry import Polygon
 
 from pushtrain.errors import PlanningError
 
+from .budget import CHECKS_PER_SECOND, Work
 from .config import _OPTIMIZING, PlannerConfig
 from .curves import _sample_into, _space, _travel_backward, _yaw_wrap
 from .repair import (
@@ -35,7 +37,10 @@ from .world import Train, World
 
 __all__: list[str] = []
 
+log = logging.getLogger(__name__)
+
 _REFINE_RATIO = 1.2
+_CLOCKED = {"prmstar"}  # OMPL planners that evaluate the termination condition on a second thread
 
 _OMPL_LOCK = threading.RLock()
 """Held while the planner calls OMPL, whose log level (and random seed) are process-wide."""
@@ -91,11 +96,13 @@ class _TrailerMotionValidator(ob.MotionValidator):
     valid; unless ``allow_pull_arcs``, no heading change while travelling backward; and, with
     ``pull_end_valid``, a free straight train at the end of every backward (pulling) run of the
     curve, located to 1e-6 of the curve by bisection (see :attr:`PlannerConfig.straight_pull_ends`).
+    Every check counts one unit of ``work``.
     """
 
     def __init__(self, si, space, valid_many, step: float, allow_pull_arcs: bool,
-                 pull_end_valid=None, pull_start_valid=None):
+                 pull_end_valid=None, pull_start_valid=None, work: Work | None = None):
         super().__init__(si)
+        self.work = Work() if work is None else work
         self._space, self._valid_many, self._step = space, valid_many, float(step)
         self._allow = bool(allow_pull_arcs)
         self._pull_end_valid = pull_end_valid
@@ -153,7 +160,8 @@ class _TrailerMotionValidator(ob.MotionValidator):
         end = int(forward[0]) if forward.size else m
         return bool(self._pull_start_valid(s1, pts[: end + 1]))
 
-    def checkMotion(self, s1, s2):
+    def checkMotion(self, s1, s2):  # noqa: N802 (OMPL API)
+        self.work.used += 1
         length = self._space.distance(s1, s2)
         if length <= 0.0:
             return bool(self._valid_many(np.array([[s2.getX(), s2.getY(), s2.getYaw()]])))
@@ -247,9 +255,9 @@ def _footprint_checks(world: World, train: Train, clearance: float):
 
 
 def _set_up(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
-            attempt: _Attempt, seed: int | None, start_headings) -> _Search:
+            attempt: _Attempt, seed: int | None, start_headings, work: Work) -> _Search:
     """Seed OMPL and set up the problem: space, validity, motion validator with the pull
-    rules, start and goal, planner."""
+    rules (counting its checks in ``work``), start and goal, planner."""
     planning_world = world.with_obstacles(attempt.blocks) if attempt.blocks else world
     is_valid, valid_many = _footprint_checks(planning_world, train,
                                              attempt.inflation + config.offtrack_allowance)
@@ -265,7 +273,8 @@ def _set_up(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConf
                         _pull_start_rule(train, attempt.pull_start_tolerance, start_yaw,
                                          start_headings))
     validator = _TrailerMotionValidator(si, space, valid_many, config.planning_resolution,
-                                        config.allow_pull_arcs, pull_end_valid, pull_start_valid)
+                                        config.allow_pull_arcs, pull_end_valid, pull_start_valid,
+                                        work)
     si.setMotionValidator(validator)
     validator.goal = (float(goal_yaw[0]), float(goal_yaw[1]))
     start, goal = _state(space, start_yaw), _state(space, goal_yaw)
@@ -280,8 +289,26 @@ def _set_up(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConf
     return _Search(ss, si, space, validator, start, goal)
 
 
-def _exact_solution(search: _Search, goal_yaw, config: PlannerConfig, solve_time: float,
-                    info: dict):
+def _termination(config: PlannerConfig, work: Work, limit: int):
+    """OMPL's termination condition of a solve: ``work`` reaches ``limit`` motion checks, or
+    the wall-clock safety cap passes.
+
+    PRM* evaluates the condition on a second thread too, where a condition written in Python
+    deadlocks (that thread waits for the GIL, which the planning thread holds while it joins
+    it): it stops after ``(limit - work.used) / CHECKS_PER_SECOND["prmstar"]`` seconds, or at
+    the cap, by OMPL's own clock.
+    """
+    if config.planner not in _CLOCKED:
+        return ob.PlannerTerminationCondition(lambda: work.done(limit))
+    seconds = (limit - work.used) / CHECKS_PER_SECOND[config.planner]
+    to_cap = max(work.deadline - time.perf_counter(), 0.0)
+    if to_cap < seconds:
+        work.capped = True
+        log.warning("%s stops at the wall-clock safety cap in %.3g s", config.planner, to_cap)
+    return ob.timedPlannerTerminationCondition(min(seconds, to_cap))
+
+
+def _exact_solution(search: _Search, goal_yaw, config: PlannerConfig, info: dict):
     """The solution path of the solve, or PlanningError (approximate_only, unreachable)."""
     ss = search.ss
     if ss.haveExactSolutionPath():
@@ -292,7 +319,7 @@ def _exact_solution(search: _Search, goal_yaw, config: PlannerConfig, solve_time
         gap = float(search.space.distance(reached, search.goal))
         raise PlanningError(
             "approximate_only",
-            f"{config.planner} found only an approximate solution within {solve_time:.3g} s: "
+            f"{config.planner} found only an approximate solution within {_budget_text(info)}: "
             f"it ends at ({reached.getX():.3f}, {reached.getY():.3f}), {gap:.3f} m (Reeds-Shepp) "
             f"from the goal ({goal_yaw[0]:.3f}, {goal_yaw[1]:.3f})",
             where=(reached.getX(), reached.getY()), details={"gap": gap, **info},
@@ -300,9 +327,15 @@ def _exact_solution(search: _Search, goal_yaw, config: PlannerConfig, solve_time
     raise PlanningError(
         "unreachable",
         f"{config.planner} found no path to the goal ({goal_yaw[0]:.3f}, {goal_yaw[1]:.3f}) "
-        f"within {solve_time:.3g} s (status {info['status']})",
+        f"within {_budget_text(info)} (status {info['status']})",
         where=tuple(goal_yaw[:2]), details=info,
     )
+
+
+def _budget_text(info: dict) -> str:
+    """The budget a solve had, for messages."""
+    text = f"{info['budget_checks']} motion checks"
+    return text + " (stopped by the wall-clock safety cap)" if info.get("time_capped") else text
 
 
 def _path_through(si, states: list):
@@ -313,10 +346,11 @@ def _path_through(si, states: list):
     return out
 
 
-def _shorten(search: _Search, path, config: PlannerConfig, info: dict, refine_time: float,
+def _shorten(search: _Search, path, config: PlannerConfig, info: dict, refine_limit: int | None,
              refine_below: float, seed: int | None):
-    """Simplification (OMPL's reduceVertices, then the greedy shortcut) and, for
-    ``refine_time`` > 0 and a path shorter than ``refine_below`` [m], the local search."""
+    """Simplification (OMPL's reduceVertices, then the greedy shortcut) and, with a
+    ``refine_limit`` (motion checks of the search's work) and a path shorter than
+    ``refine_below`` [m], the local search."""
     si = search.si
     if config.simplify:
         t1 = time.perf_counter()
@@ -325,10 +359,10 @@ def _shorten(search: _Search, path, config: PlannerConfig, info: dict, refine_ti
         og.PathSimplifier(si).reduceVertices(path)
         path = _greedy_shortcut(si, path)
         info["simplify_time"] = time.perf_counter() - t1
-    if refine_time > 0.0 and path.length() < refine_below:
+    if refine_limit is not None and path.length() < refine_below:
         t1 = time.perf_counter()
         states = _local_search(si, search.space, search.validator, list(path.getStates()),
-                               refine_time, np.random.default_rng(seed))
+                               search.validator.work, refine_limit, np.random.default_rng(seed))
         path = _greedy_shortcut(si, _path_through(si, states))
         info["refine_time"] = time.perf_counter() - t1
     return path
@@ -365,81 +399,98 @@ def _apply_pull_rules(search: _Search, path, train: Train, config: PlannerConfig
 
 
 def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
-                attempt: _Attempt, solve_time: float, seed: int | None, start_headings=None,
-                refine_time: float = 0.0, refine_below: float = math.inf):
+                attempt: _Attempt, checks: int, seed: int | None, start_headings=None,
+                refine_checks: int = 0, refine_below: float = math.inf,
+                work: Work | None = None):
     """One OMPL solve of the last trailer. Returns (states (M,3), info) or raises PlanningError.
 
-    ``refine_time`` [s] > 0 shortens the simplified path further by a local search on its
-    states (:func:`~pushtrain.planner.repair._local_search`) until it stops gaining or
-    ``refine_time`` has passed, if the simplified path is shorter than ``refine_below`` [m]."""
+    The solve stops after ``checks`` motion checks (counted in ``work``, which also holds the
+    wall-clock safety cap; None: a fresh count without a cap). ``refine_checks`` > 0 shortens
+    the simplified path further by a local search on its states
+    (:func:`~pushtrain.planner.repair._local_search`) until it stops gaining or the work since
+    the call's start reaches ``refine_checks``, if the simplified path is shorter than
+    ``refine_below`` [m]."""
+    work = Work() if work is None else work
+    used0 = work.used
+    limit = used0 + max(1, int(checks))
     with _quiet_ompl():
-        search = _set_up(world, train, start_yaw, goal_yaw, config, attempt, seed, start_headings)
+        search = _set_up(world, train, start_yaw, goal_yaw, config, attempt, seed, start_headings,
+                         work)
         si, space, start, goal = search.si, search.space, search.start, search.goal
         t0 = time.perf_counter()
         if si.isValid(start) and si.isValid(goal) and si.checkMotion(start, goal):
             # The shortest Reeds-Shepp curve itself is free: it is the optimal path.
             info = {"status": "direct", "solve_time": time.perf_counter() - t0,
-                    "planner_time": time.perf_counter() - t0}
+                    "planner_time": time.perf_counter() - t0, "checks": work.used - used0}
             states = np.array([[p.getX(), p.getY(), p.getYaw()] for p in (start, goal)])
             info["raw_length"] = info["length_ompl"] = float(space.distance(start, goal))
             return states, info
-        status = search.ss.solve(float(solve_time))
+        status = search.ss.solve(_termination(config, work, limit))
         info = {"status": str(status), "solve_time": time.perf_counter() - t0,
-                "planner_time": search.ss.getLastPlanComputationTime()}
-        path = _exact_solution(search, goal_yaw, config, solve_time, info)
+                "planner_time": search.ss.getLastPlanComputationTime(),
+                "budget_checks": limit - used0, "time_capped": work.capped}
+        path = _exact_solution(search, goal_yaw, config, info)
         info["raw_length"] = float(path.length())
-        path = _shorten(search, path, config, info, refine_time, refine_below, seed)
+        refine_limit = used0 + int(refine_checks) if refine_checks > 0 else None
+        path = _shorten(search, path, config, info, refine_limit, refine_below, seed)
         path_states = _apply_pull_rules(search, path, train, config, attempt, seed, start_headings,
                                         info)
         states = np.array([[s.getX(), s.getY(), s.getYaw()] for s in path_states])
         info["length_ompl"] = float(sum(space.distance(a, b)
                                         for a, b in zip(path_states[:-1], path_states[1:])))
+        info["checks"] = work.used - used0
+        info["time_capped"] = work.capped
         return states, info
 
 
 def _solve_restarts(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
-                    attempt: _Attempt, solve_time: float, seed: int | None, start_headings=None):
+                    attempt: _Attempt, checks: int, seed: int | None, start_headings=None,
+                    work: Work | None = None):
     """Anytime planning by restarts: RRTConnect, simplification and a local search on the
     path's states (:func:`~pushtrain.planner.repair._local_search`, until it stops gaining)
-    again and again, each with its own seed (derived from ``seed``), for ``solve_time``
-    seconds; the shortest path wins.
+    again and again, each with its own seed (derived from ``seed``), until the restarts have
+    done ``checks`` motion checks (counted in ``work``); the shortest path wins. A restart
+    whose shortest Reeds-Shepp curve is free ends the search: no path is shorter.
 
     Not asymptotically optimal like RRT* or BIT*, but each restart is a complete, locally
-    shortest path within about 0.1 s, which in corridors beats the optimizing planners at
-    short budgets (``benchmarks/bench_planner.py``). At least one restart runs to its end.
-    Returns (states, info) of the shortest; raises the last PlanningError if none succeeded.
+    shortest path within about 100 motion checks (0.1 s), which in corridors beats the
+    optimizing planners at short budgets (``benchmarks/bench_planner.py``). At least one
+    restart runs to its end. Returns (states, info) of the shortest; raises the last
+    PlanningError if none succeeded.
     """
-    t0 = time.perf_counter()
+    work = Work() if work is None else work
+    t0, used0 = time.perf_counter(), work.used
+    limit = used0 + max(1, int(checks))
     single = replace(config, planner="rrtconnect")
     rng = np.random.default_rng(seed)
     best, runs, first_time, last_error = None, 0, None, None
-    while True:
-        remaining = solve_time - (time.perf_counter() - t0)
-        if runs and remaining <= 0.0:
-            break
+    while not (runs and work.done(limit)):
         # the first restart is RRTConnect with ``seed`` itself, so the result is never longer
         # than the default planner's path for the same seed
         run_seed = seed if (seed is None or runs == 0) else int(rng.integers(1, 2**31 - 1))
+        remaining = max(limit - work.used, 1)
+        runs += 1
         try:
             # the local search gains 5-15 %: a restart far longer than the best so far is
             # not worth it
             below = math.inf if best is None else _REFINE_RATIO * best[1]["length_ompl"]
             states, info = _solve_once(world, train, start_yaw, goal_yaw, single, attempt,
-                                       max(remaining, 1e-3), run_seed, start_headings,
-                                       refine_time=max(remaining, 1e-3), refine_below=below)
+                                       remaining, run_seed, start_headings,
+                                       refine_checks=remaining, refine_below=below, work=work)
         except PlanningError as exc:
             last_error = exc
-        else:
-            if first_time is None:
-                first_time = time.perf_counter() - t0
-            if best is None or info["length_ompl"] < best[1]["length_ompl"]:
-                best = (states, info)
-        runs += 1
+            continue
+        if first_time is None:
+            first_time = time.perf_counter() - t0
+        if best is None or info["length_ompl"] < best[1]["length_ompl"]:
+            best = (states, info)
+        if info["status"] == "direct":
+            break
     if best is None:
         raise last_error
     states, info = best
-    info = {**info, "restarts": runs, "planner_time": first_time,
-            "solve_time": time.perf_counter() - t0}
+    info = {**info, "restarts": runs, "planner_time": first_time, "checks": work.used - used0,
+            "solve_time": time.perf_counter() - t0, "time_capped": work.capped}
     return states, info
 
 
