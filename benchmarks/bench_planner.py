@@ -2,10 +2,15 @@
 
 Usage: python benchmarks/bench_planner.py [--seeds 20] [--best-seeds 5] [--worlds l_1.5,l_2.0,bay]
 
+Budgets are work, not wall-clock time (``pushtrain.planner.budget``): 1 s of ``time_budget`` or
+``anytime_time`` is 1000 motion checks (BIT*: 400), so every result here depends on the seeds
+only; the times reported are wall-clock times of this machine.
+
 Reports per world, over the seeds:
 - success rate of the default planner (RRTConnect + simplification, last trailer only) within
-  0.1 s and 0.5 s budgets (without the train check; a solve whose path breaks a pull rule
-  is re-solved within the budget), and the median time plan() takes to return it;
+  0.1 s and 0.5 s budgets (100 and 500 motion checks; without the train check; a solve whose
+  path breaks a pull rule is re-solved within the budget), and the median time plan() takes
+  to return it;
 - path length of RRTConnect, and of each anytime planner after 0.5 s, relative to the best
   length found: by every anytime planner with a 2 s budget (over --best-seeds seeds) and by
   every other run of the benchmark; "within 3 %" counts over all seeds;

@@ -11,20 +11,15 @@ Public API::
 
 from pushtrain.errors import PLANNING_REASONS as REASONS
 from pushtrain.errors import PlanningError, PlanningInputError
+
+from . import worlds
+from .config import PLANNERS, PlannerConfig, turning_radius_from_joint_limit
+from .curves import ReedsSheppCurve, primitives_to_segments, rs_distance
 from .path import PlannedPath
-from .planner import (
-    PLANNERS,
-    PlannerConfig,
-    ReedsSheppCurve,
-    plan,
-    primitives_to_segments,
-    rs_distance,
-    turning_radius_from_joint_limit,
-)
+from .planner import plan
 from .reeds_shepp import Primitive, evaluate_primitives, recover_primitives
 from .train_check import TrackerConfig, TrainCheckResult, check_train
 from .world import BodyFootprint, Train, World, draw_poses, save_diagnostic
-from . import worlds
 
 __all__ = [
     "REASONS", "PlanningError", "PlanningInputError", "PlannedPath", "PLANNERS", "PlannerConfig",

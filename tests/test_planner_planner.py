@@ -1,6 +1,8 @@
 """Planning in the reference worlds, whole-train validity, errors, reproducibility, export."""
 
 import math
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -178,7 +180,8 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
 
 
 def test_replanning_changes_what_the_failure_calls_for():
-    from pushtrain.planner.planner import _Attempt, _next_attempt
+    from pushtrain.planner.planner import _next_attempt
+    from pushtrain.planner.search import _Attempt
 
     cfg = PlannerConfig()
     base = _Attempt(radius=1.0, inflation=0.05)
@@ -373,23 +376,24 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
 
 
 def test_local_search_keeps_the_path_valid_and_never_longer():
-    from pushtrain.planner import planner as P
+    from pushtrain.planner.curves import _chain_to_yaw, _segments_from_states
+    from pushtrain.planner.search import _Attempt, _solve_once
 
     case = worlds.bay()
     world = World.from_dict(case["world"])
     cfg = PlannerConfig(check_train=False)
-    attempt = P._Attempt(cfg.radius_for(TRAIN), cfg.inflation)
+    attempt = _Attempt(cfg.radius_for(TRAIN), cfg.inflation)
     pairs = []
     for seed in range(5, 15):  # seeds whose plain solve passes the planner's pull rules
-        args = (world, TRAIN, P._chain_to_yaw(case["start"]), P._chain_to_yaw(case["goal"]),
-                cfg, attempt, 1.0, seed)
+        args = (world, TRAIN, _chain_to_yaw(case["start"]), _chain_to_yaw(case["goal"]),
+                cfg, attempt, 1000, seed)  # 1000 motion checks: 1 s of budget
         try:
-            plain, _ = P._solve_once(*args)
-            refined, info = P._solve_once(*args, refine_time=1.0)
+            plain, _ = _solve_once(*args)
+            refined, info = _solve_once(*args, refine_checks=1000)
         except PlanningError:
             continue
         assert info["refine_time"] < 1.0  # it stops when it stops gaining
-        lengths = [sum(g.length for g in P._segments_from_states(st, attempt.radius)[0])
+        lengths = [sum(g.length for g in _segments_from_states(st, attempt.radius)[0])
                    for st in (plain, refined)]
         assert lengths[1] <= lengths[0] + 1e-9
         pairs.append((lengths[0] - lengths[1], refined))
@@ -399,10 +403,107 @@ def test_local_search_keeps_the_path_valid_and_never_longer():
     # the refined path is collision-free for the last trailer at 1 cm (independent shapely
     # check with the clearance the whole-train check asks for; the planner checks every
     # 0.1 m with offtrack_allowance on top)
-    segments, _ = P._segments_from_states(refined, attempt.radius)
+    segments, _ = _segments_from_states(refined, attempt.radius)
     length = sum(g.length for g in segments)
     ref = Reference.from_segments(case["start"], segments, speed=1.0, cusp_dwell=0.0)
     x, y, th, _, _ = ref.sample(np.linspace(0.0, ref.t_end - 1e-9, int(length / 0.01) + 2))
     region = world.eroded(cfg.inflation)
     for xi, yi, ti in zip(x, y, th):
         assert region.contains(Polygon(_corners(TRAIN.last, xi, yi, ti)))
+
+
+def test_ompl_log_level_is_the_callers(capfd):
+    """Importing the planner leaves OMPL's process-wide log level alone; plan() silences OMPL
+    only while it runs (nothing reaches stdout/stderr) and restores the caller's level, also
+    when it fails."""
+    code = ("from ompl import util as ou; ou.setLogLevel(ou.LOG_INFO); import pushtrain.planner; "
+            "print(ou.getLogLevel() == ou.LOG_INFO)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"
+
+    from ompl import util as ou
+
+    before = ou.getLogLevel()
+    try:
+        ou.setLogLevel(ou.LOG_INFO)  # OMPL would report its planner runs at this level
+        case = worlds.l_corridor(2.0)
+        world = World.from_dict(case["world"])
+        capfd.readouterr()
+        plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, check_train=False))
+        assert ou.getLogLevel() == ou.LOG_INFO
+        assert capfd.readouterr() == ("", "")
+        ou.setLogLevel(ou.LOG_WARN)
+        with pytest.raises(PlanningError):
+            plan(world, case["start"], case["goal"], TRAIN,
+                 PlannerConfig(turning_radius=6.0, time_budget=0.05, check_train=False))
+        assert ou.getLogLevel() == ou.LOG_WARN
+    finally:
+        ou.setLogLevel(before)
+
+
+@pytest.mark.parametrize("name", ["rrtconnect", "restarts"])
+def test_same_seed_same_plan_at_once_on_a_loaded_cpu(name):
+    """Results depend on the seed, not on the wall clock: two plans of the bay with the same
+    seed, run at once in two threads while another process keeps a core busy, give the same
+    segments as each other and as a plan run alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    case = worlds.bay()
+    world = World.from_dict(case["world"])
+    cfg = PlannerConfig(planner=name, seed=1)  # restarts: passes the train check on replan
+
+    def run(_=None):
+        return plan(world, case["start"], case["goal"], TRAIN, cfg).to_dict()["segments"]
+
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            a, b = pool.map(run, range(2))
+    finally:
+        busy.kill()
+        busy.wait()
+    assert a == b
+    assert run() == a
+
+
+def test_wall_clock_cap_only_stops_a_search_and_says_so(caplog):
+    """The wall clock stops planning only at ``time_cap``: a plan cut short by it says so in
+    its info (and a warning); a PlanningError in its details."""
+    import logging
+
+    case = worlds.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    plain = plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, check_train=False))
+    assert plain.info["time_capped"] is False
+    assert 0 < plain.info["checks"] <= plain.info["budget_checks"] == 2000
+    # restarts with a budget of 10^6 motion checks: the cap ends them after the first
+    cfg = PlannerConfig(planner="restarts", seed=1, anytime_time=1000.0, time_budget=1000.0,
+                        time_cap=1.0, check_train=False)
+    with caplog.at_level(logging.WARNING, logger="pushtrain.planner"):
+        capped = plan(world, case["start"], case["goal"], TRAIN, cfg)
+    assert capped.info["time_capped"] is True and capped.info["attempts"][-1]["time_capped"]
+    assert capped.info["checks"] < cfg.anytime_checks()
+    assert "safety cap" in caplog.text
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, time_cap=1e-9))
+    assert info.value.details["time_capped"] is True and "safety cap" in str(info.value)
+    with pytest.raises(PlanningInputError, match="time_cap"):
+        PlannerConfig(time_cap=0.0)
+
+
+def test_prmstar_returns():
+    """PRM* evaluates its termination condition on a second thread too; a condition written
+    in Python would deadlock there (run in a subprocess, so a regression fails, not hangs)."""
+    code = (
+        "from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds\n"
+        "c = worlds.l_corridor(2.0)\n"
+        "try:\n"
+        "    p = plan(World.from_dict(c['world']), c['start'], c['goal'], Train.uniform(3),\n"
+        "             PlannerConfig(planner='prmstar', anytime_time=0.2, check_train=False))\n"
+        "    print('path', p.length)\n"
+        "except PlanningError as e:\n"
+        "    print('error', e.reason)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split()[0] in ("path", "error")

@@ -1,0 +1,77 @@
+"""Work budgets of the planner: counted work decides where a search stops, not the clock.
+
+A search stops when it has done a given amount of work, so that a seed gives the same plan on
+any machine and under any load. The unit is one *motion check*: the validation of one local
+Reeds-Shepp curve by the planner's motion validator (footprints every
+``planning_resolution`` metres and the pull rules, about 1 ms), its main cost in every OMPL
+planner, the simplification, the repair and the local search. A whole-train check of a plan
+counts one unit per :data:`STEPS_PER_CHECK` simulated control steps.
+
+The configuration gives budgets in seconds (``time_budget``, ``anytime_time``); they convert
+at :data:`CHECKS_PER_SECOND`. The wall clock only stops a search as a safety cap
+(``PlannerConfig.time_cap``); a search stopped by it marks :attr:`Work.capped` and logs a
+warning, since its result then depends on the machine's speed. PRM* is the exception: OMPL's
+PRM evaluates its termination condition on a second thread too, where a condition written in
+Python deadlocks, so PRM* stops on OMPL's clock (its second thread makes its result depend on
+timing anyway).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+__all__ = ["CHECKS_PER_SECOND", "STEPS_PER_CHECK", "Work", "checks_for"]
+
+log = logging.getLogger(__name__)
+
+CHECKS_PER_SECOND = {"rrtconnect": 1000, "restarts": 1000, "rrtstar": 1000, "bitstar": 400,
+                     "prmstar": 1000}
+"""Motion checks per second of budget, by planner: about what one core of a current laptop
+validates per second in the bay and the L-corridors (measured 800-2000 per CPU second for
+RRTConnect, the restarts and RRT*). BIT* checks as fast until its first solution; after it,
+most of its time goes to work in OMPL that no check counts (2 m L-corridor: 250 checks 0.3 s,
+500 checks 1.2-4.4 s, 1000 checks 8.7 s of CPU), hence its lower rate. PRM* stops on the clock after ``checks / rate`` seconds instead (see
+:func:`pushtrain.planner.search._termination`)."""
+
+STEPS_PER_CHECK = 10
+"""Simulated control steps (0.025 s each) of the whole-train check counted as one motion check
+(measured 8 600-15 000 steps per CPU second)."""
+
+
+def checks_for(seconds: float, planner: str = "rrtconnect") -> int:
+    """Motion checks [-] of a budget of ``seconds`` [s] for ``planner`` (at least 1)."""
+    return max(1, int(round(seconds * CHECKS_PER_SECOND[planner])))
+
+
+@dataclass
+class Work:
+    """Work done by one plan() call and its wall-clock safety cap.
+
+    Parameters
+    ----------
+    used : int
+        Motion checks done so far (the whole-train checks included, converted).
+    deadline : float
+        ``time.perf_counter()`` value [s] at which every search stops (the safety cap).
+    capped : bool
+        Set when the safety cap stopped a search.
+    """
+
+    used: int = 0
+    deadline: float = math.inf
+    capped: bool = False
+
+    def done(self, limit: int) -> bool:
+        """True once ``used`` reaches ``limit``, or (setting :attr:`capped`) the cap has passed."""
+        if self.used >= limit:
+            return True
+        if time.perf_counter() >= self.deadline:
+            if not self.capped:
+                log.warning("planning stopped by its wall-clock safety cap after %d motion "
+                            "checks: the result depends on the machine's speed", self.used)
+            self.capped = True
+            return True
+        return False

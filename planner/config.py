@@ -1,0 +1,249 @@
+"""Planner settings: :class:`PlannerConfig`, the planner names and the turning-radius rule.
+
+Turning-radius rule (when :attr:`PlannerConfig.turning_radius` is None)::
+
+    r = D / tan(phi_max / (2 (1 + transient_margin)))      D = max_i max(F_i, R_i)
+
+i.e. the steady joint angle on the arc, 2 atan(D / r), is phi_max / (1 + transient_margin).
+Entering an arc from a line does not overshoot the steady angle in the chain kinematics, but
+switching between opposite arcs does: up to 1.46x the steady angle for 3 trailers and 1.56x for
+10 (r = 0.9 .. 1.5 m, D = 0.52 m), so the default margin 0.6 covers both; tracking transients
+of the closed loop need the rest. With phi_max = 90 deg and D = 0.52 m this gives r = 0.975 m.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pushtrain.core.controller import ControllerConfig
+
+from pushtrain.errors import PlanningInputError
+
+from .budget import checks_for
+from .train_check import TrackerConfig
+from .world import Train
+
+__all__ = ["PLANNERS", "PlannerConfig", "turning_radius_from_joint_limit"]
+
+PLANNERS = ("rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar")
+"""Planner names: ``rrtconnect`` stops at its first solution; the others are anytime optimal."""
+
+_ANYTIME = {"restarts", "rrtstar", "bitstar", "prmstar"}
+_OPTIMIZING = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
+
+
+def turning_radius_from_joint_limit(phi_max: float, link: float, transient_margin: float = 0.6) -> float:
+    """Turning radius [m] whose steady joint angle is ``phi_max / (1 + transient_margin)``.
+
+    ``r = link / tan(phi_max / (2 (1 + transient_margin)))`` with ``phi_max`` [rad] in (0, pi)
+    and ``link`` the largest hitch link [m].
+    """
+    if not (0.0 < phi_max < math.pi):
+        raise PlanningInputError(f"phi_max = {phi_max!r} rad: allowed is (0, pi)")
+    if not (transient_margin >= 0.0 and math.isfinite(transient_margin)):
+        raise PlanningInputError(f"transient_margin = {transient_margin!r}: must be finite and >= 0")
+    return float(link / math.tan(phi_max / (2.0 * (1.0 + transient_margin))))
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Planner settings (SI units).
+
+    Parameters
+    ----------
+    turning_radius : float or None
+        Reeds-Shepp radius [m]; None derives it from the train's ``phi_max`` with
+        :func:`turning_radius_from_joint_limit` and ``transient_margin``.
+    transient_margin : float
+        Margin of the radius rule (0.6: steady joint angle = phi_max / 1.6).
+    planner : str
+        One of :data:`PLANNERS`; ``rrtconnect`` (default) returns its first solution fast,
+        the others improve the path for ``anytime_time``: ``restarts`` repeats
+        RRTConnect, simplification and a local search on the path's states with new seeds and
+        keeps the shortest; ``rrtstar``,
+        ``bitstar`` and ``prmstar`` are OMPL's asymptotically optimal planners.
+    time_budget : float
+        Budget [s] of planning and all replanning together, counted as work, not read from
+        the clock (:mod:`~pushtrain.planner.budget`): 1000 motion checks per second (the
+        validation of one local Reeds-Shepp curve, about 1 ms on a current laptop core; BIT*:
+        400, as its other work grows after its first solution), and each whole-train check
+        counts one motion check per 10 simulated control steps (a 10 m plan at 0.08 m/s:
+        about 500). The first attempt of ``rrtconnect`` may use all of it, each replan half
+        of what is left. 2 s = 2000 checks. PRM* alone stops on the clock after its budget's
+        seconds (OMPL checks its termination on a second thread).
+    anytime_time : float
+        Budget [s] of one anytime-planner run, converted like ``time_budget`` (0.5 s = 500
+        motion checks; a restart takes 100-300 in the bay and the L-corridors) and capped by
+        what is left of ``time_budget``.
+    seed : int or None
+        OMPL random seed (>= 1). Same seed, same plan, on any machine and under any load,
+        since budgets count work (``prmstar`` excepted: OMPL's PRM looks for a solution on a
+        second thread while it grows the roadmap). None: OMPL's own seed. OMPL's seed is
+        process-wide: plans in threads take turns for their OMPL calls.
+    simplify : bool
+        Shorten the solution: OMPL's ``reduceVertices``, then a greedy shortcut (each kept
+        state jumps to the farthest later state one free curve reaches).
+    inflation : float
+        Clearance [m] every body keeps from obstacles (planning and train check).
+    offtrack_allowance : float
+        Extra clearance [m] for the last trailer while planning only, to leave room for the
+        followers that cut inside corners in transients.
+    planning_resolution : float
+        Motion-validation step [m] of OMPL along a local path (coarse; re-checked densely).
+    check_resolution : float
+        Dense re-check step [m], <= 0.01: largest corner displacement between checked samples.
+    max_attempts : int
+        Plans tried in total (the first plus replans after failed train checks).
+    radius_growth, inflation_growth, block_radius : float
+        Replanning after a failed train check: radius factor per joint-limit failure, missed
+        goal or collision of a leading body while pulling; added inflation [m] per further
+        collision, and half-size [m] of the region blocked around a collision (see
+        :func:`~pushtrain.planner.planner._next_attempt`).
+    check_train : bool
+        Run the whole-train check (disable only to study the last trailer alone): a
+        closed-loop simulation of the co-simulation's controller along the plan
+        (:func:`~pushtrain.planner.train_check.check_train`).
+    allow_pull_arcs : bool
+        Let local Reeds-Shepp curves turn while pulling (default). False restricts pulling to
+        straight lines (much harder for the sampling planners; for studies only).
+    controller : ControllerConfig or None
+        The co-simulation's controller, simulated by the whole-train check
+        (:class:`~pushtrain.planner.train_check.TrackerConfig`); None: the scenario defaults of
+        :func:`~pushtrain.planner.train_check.default_controller` for the train.
+    speed : float
+        Reference speed [m/s] the co-simulation will use (``PlannedPath.to_reference``).
+    cusp_dwell : float
+        Rest [s] of the reference at each direction change in the co-simulation.
+    straight_pull_ends : bool
+        Require, at the end of every pulling run (a cusp, or the goal), the train drawn out
+        straight ahead of the last trailer to be free (with ``inflation``): the robot's pulling
+        reference ends with the chain straight there
+        (:class:`~pushtrain.core.pulling.PullGuide`). Checked inside a local curve, at the
+        goal, and at the junctions of the finished path; a junction that breaks it is repaired
+        (its state dropped or moved nearby), else the path is re-solved with the next seed
+        (``PlanningError`` reason ``pull_end_blocked`` if none is left). Without it the sampling planner ends pulls on
+        arcs whose tangent points into a wall (bay, seeds 1-20: 0 first plans passed the
+        closed-loop check).
+    rrt_range : float or None
+        Longest tree extension [m] of RRTConnect (OMPL's ``range``); None: 1.3 turning radii.
+        OMPL's default (a fifth of the map's extent, about 2.5 m here) makes most extensions
+        in a narrow corridor fail late: on the 1.5 m L-corridor 1.3 radii found a plan within
+        0.1 s for 40 of 40 seeds against 35 of 40 (``benchmarks/bench_planner.py``).
+    pull_start_tolerance : float or None
+        Largest distance [m] between a body of the chain a pull needs at its start (drawn back
+        from a straight chain at the pull's end, see
+        :func:`~pushtrain.core.pulling.straight_chain_mismatch`) and the same body of the
+        chain it starts from: the start
+        headings at the start state, a straight chain elsewhere. Checked for pulls that start a
+        local curve. The robot cannot make up this difference while pulling (the chain behind
+        it only follows), so the last trailer would leave its path by about as much. 0.4 m
+        passed the most first plans on the bay when it was chosen (seeds 1-20: 0.15 m 70 %,
+        0.4 m 90 %, 0.7 m 70 %, rule off 65 %).
+        None switches the rule off.
+    time_cap : float or None
+        Wall-clock safety cap [s] of one :func:`~pushtrain.planner.plan` call; None:
+        10 x ``time_budget`` + 10 s. Only this stops a search by the clock; a plan it cut short
+        has ``info["time_capped"]`` True (a PlanningError: ``details["time_capped"]``) and a
+        warning is logged, since the result then depends on the machine's speed.
+    """
+
+    turning_radius: float | None = None
+    transient_margin: float = 0.6
+    planner: str = "rrtconnect"
+    time_budget: float = 2.0
+    anytime_time: float = 0.5
+    seed: int | None = 1
+    simplify: bool = True
+    inflation: float = 0.05
+    offtrack_allowance: float = 0.1
+    planning_resolution: float = 0.1
+    check_resolution: float = 0.01
+    max_attempts: int = 6
+    radius_growth: float = 1.2
+    inflation_growth: float = 0.05
+    block_radius: float = 0.25
+    check_train: bool = True
+    allow_pull_arcs: bool = True
+    controller: ControllerConfig | None = None
+    speed: float = 0.08
+    cusp_dwell: float = 1.0
+    straight_pull_ends: bool = True
+    pull_start_tolerance: float | None = 0.4
+    rrt_range: float | None = None
+    time_cap: float | None = None
+
+    def __post_init__(self):
+        name = str(self.planner).lower()
+        if name not in PLANNERS:
+            raise PlanningInputError(f"planner = {self.planner!r}: allowed are {PLANNERS}")
+        object.__setattr__(self, "planner", name)
+        positive = ("time_budget", "anytime_time", "planning_resolution", "check_resolution",
+                    "radius_growth", "block_radius")
+        for key in positive:
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0.0):
+                raise PlanningInputError(f"{key} = {value!r}: must be finite and > 0")
+        for key in ("inflation", "offtrack_allowance", "inflation_growth", "transient_margin"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise PlanningInputError(f"{key} = {value!r}: must be finite and >= 0")
+        if self.rrt_range is not None and not (
+            isinstance(self.rrt_range, (int, float)) and math.isfinite(self.rrt_range)
+            and self.rrt_range > 0.0
+        ):
+            raise PlanningInputError(f"rrt_range = {self.rrt_range!r} m: must be None or > 0")
+        if self.pull_start_tolerance is not None and not (
+            isinstance(self.pull_start_tolerance, (int, float))
+            and math.isfinite(self.pull_start_tolerance) and self.pull_start_tolerance >= 0.0
+        ):
+            raise PlanningInputError(
+                f"pull_start_tolerance = {self.pull_start_tolerance!r} m: must be None or finite "
+                "and >= 0")
+        if self.time_cap is not None and not (
+            isinstance(self.time_cap, (int, float)) and math.isfinite(self.time_cap)
+            and self.time_cap > 0.0
+        ):
+            raise PlanningInputError(f"time_cap = {self.time_cap!r} s: must be None or > 0")
+        if self.turning_radius is not None and not (
+            math.isfinite(self.turning_radius) and self.turning_radius > 0.0
+        ):
+            raise PlanningInputError(f"turning_radius = {self.turning_radius!r} m: must be > 0")
+        if self.check_resolution > 0.01:
+            raise PlanningInputError(
+                f"check_resolution = {self.check_resolution!r} m: must be <= 0.01"
+            )
+        if self.seed is not None and int(self.seed) < 1:
+            raise PlanningInputError(f"seed = {self.seed!r}: must be an integer >= 1 or None")
+        if int(self.max_attempts) < 1:
+            raise PlanningInputError(f"max_attempts = {self.max_attempts!r}: must be >= 1")
+        self.tracker()  # validates controller, speed and cusp_dwell
+
+    def tracker(self) -> TrackerConfig:
+        """What the whole-train check simulates: controller, reference speed and cusp dwell."""
+        return TrackerConfig(controller=self.controller, speed=self.speed,
+                             cusp_dwell=self.cusp_dwell)
+
+    def budget_checks(self) -> int:
+        """Motion checks of ``time_budget`` (see :mod:`~pushtrain.planner.budget`)."""
+        return checks_for(self.time_budget, self.planner)
+
+    def anytime_checks(self) -> int:
+        """Motion checks of ``anytime_time``."""
+        return checks_for(self.anytime_time, self.planner)
+
+    def wall_cap(self) -> float:
+        """The wall-clock safety cap [s] of a plan() call (``time_cap``, or its default)."""
+        return float(self.time_cap) if self.time_cap is not None else 10.0 * self.time_budget + 10.0
+
+    def extension_for(self, radius: float) -> float:
+        """RRTConnect's longest tree extension [m] for turning ``radius`` [m]."""
+        if self.rrt_range is not None:
+            return float(self.rrt_range)
+        return 1.3 * float(radius)
+
+    def radius_for(self, train: Train) -> float:
+        """The turning radius [m] used for ``train``."""
+        if self.turning_radius is not None:
+            return float(self.turning_radius)
+        return turning_radius_from_joint_limit(train.phi_max, train.max_link(), self.transient_margin)
