@@ -12,7 +12,6 @@ import math
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
-
 from pushtrain.cosim.kinematics import ChainGeometry, body_positions
 from pushtrain.fmu import FmuBuildError, build_fmu
 

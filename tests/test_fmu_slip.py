@@ -4,7 +4,6 @@ import math
 
 import numpy as np
 import pytest
-
 from pushtrain.cosim.controller import ControllerConfig
 from pushtrain.cosim.master import InitialState, PlantConfig, Push, simulate
 from pushtrain.cosim.openloop import ConstantCommand, RotationProfile
