@@ -20,7 +20,7 @@ import tempfile
 import uuid
 import xml.etree.ElementTree as ET
 import zipfile
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from importlib import resources
 from pathlib import Path
 
@@ -32,12 +32,12 @@ from pushtrain.limits import BOUNDS
 from .variables import ARRAYS, MAX_TRAILERS, SCALARS, VR_STRIDE, variables_for
 
 __all__ = [
+    "MODEL_IDENTIFIER",
     "FmuBuildError",
     "build_fmu",
+    "cache_dir",
     "render_model_description",
     "render_variables_header",
-    "cache_dir",
-    "MODEL_IDENTIFIER",
 ]
 
 log = logging.getLogger(__name__)
@@ -112,8 +112,8 @@ def generation_time() -> str:
     """When this build is made, ISO 8601 UTC (``$SOURCE_DATE_EPOCH`` if set, for reproducible
     builds). It is written into the XML only: the cache key does not depend on it."""
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    moment = (datetime.fromtimestamp(int(epoch), timezone.utc) if epoch
-              else datetime.now(timezone.utc))
+    moment = (datetime.fromtimestamp(int(epoch), UTC) if epoch
+              else datetime.now(UTC))
     return moment.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 

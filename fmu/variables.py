@@ -15,15 +15,15 @@ from dataclasses import dataclass, replace
 from pushtrain.limits import BOUNDS
 
 __all__ = [
-    "Variable",
-    "ArrayBlock",
-    "SCALARS",
     "ARRAYS",
     "FEEDTHROUGH",
+    "SCALARS",
+    "VR_STRIDE",
+    "ArrayBlock",
+    "Variable",
     "describe",
     "direct_inputs",
     "variables_for",
-    "VR_STRIDE",
 ]
 
 VR_STRIDE = 100

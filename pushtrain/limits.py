@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["Bound", "BOUNDS", "check"]
+__all__ = ["BOUNDS", "Bound", "check"]
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,6 @@ from pathlib import Path
 
 import pytest
 from fmpy import read_model_description
-
 from pushtrain.fmu import FmuBuildError, build_fmu
 from pushtrain.fmu.build import render_variables_header
 
@@ -18,7 +17,7 @@ def _generated_enums(fmu_path) -> tuple[int, dict[str, int]]:
     stride = int(re.search(r"#define VR_STRIDE (\d+)", header).group(1))
     values = {}
     for name in ("ScalarVr", "Block"):
-        body = re.search(r"enum %s \{(.*?)\};" % name, header, re.S).group(1)
+        body = re.search(rf"enum {name} \{{(.*?)\}};", header, re.DOTALL).group(1)
         values.update({k: int(v) for k, v in re.findall(r"(\w+)\s*=\s*(\d+)", body)})
     return stride, values
 

@@ -12,7 +12,6 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
-
 from pushtrain.fmu.variables import variables_for
 
 N_DEFAULT = 3

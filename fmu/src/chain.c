@@ -9,7 +9,7 @@
  *   v_i = c v_{i-1} + s (R_{i-1} w_{i-1} - u_{i-1})
  *   w_i = (s v_{i-1} + c (u_{i-1} - R_{i-1} w_{i-1}) - u_i) / F_i
  *
- * which for u = 0 is the no-slip map of DESIGN.md.
+ * which for u = 0 is the no-slip map (the inverse of the paper's Eq. 5).
  */
 #include <math.h>
 
