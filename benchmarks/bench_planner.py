@@ -3,7 +3,7 @@
 Usage: python benchmarks/bench_planner.py [--seeds 20] [--best-seeds 5] [--worlds l_1.5,l_2.0,bay]
 
 Budgets are work, not wall-clock time (``pushtrain.planner.budget``): 1 s of ``time_budget`` or
-``anytime_time`` is 1000 motion checks (BIT*: 400), so every result here depends on the seeds
+``anytime_time`` is 1000 motion checks (BIT*: 500), so every result here depends on the seeds
 only; the times reported are wall-clock times of this machine.
 
 Reports per world, over the seeds:

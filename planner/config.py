@@ -67,7 +67,7 @@ class PlannerConfig:
         Budget [s] of planning and all replanning together, counted as work, not read from
         the clock (:mod:`~pushtrain.planner.budget`): 1000 motion checks per second (the
         validation of one local Reeds-Shepp curve, about 1 ms on a current laptop core; BIT*:
-        400, as its other work grows after its first solution), and each whole-train check
+        500, as its other work grows after its first solution), and each whole-train check
         counts one motion check per 10 simulated control steps (a 10 m plan at 0.08 m/s:
         about 500). The first attempt of ``rrtconnect`` may use all of it, each replan half
         of what is left. 2 s = 2000 checks. PRM* alone stops on the clock after its budget's
