@@ -33,8 +33,8 @@ CHECKS_PER_SECOND = {"rrtconnect": 1000, "restarts": 1000, "rrtstar": 1000, "bit
 validates per second in the bay and the L-corridors (measured 800-2000 per CPU second for
 RRTConnect, the restarts and RRT*). BIT* checks as fast until its first solution; after it,
 most of its time goes to work in OMPL that no check counts (2 m L-corridor: 250 checks 0.3 s,
-500 checks 1.2-4.4 s, 1000 checks 8.7 s of CPU), hence its lower rate. PRM* stops on the clock after ``checks / rate`` seconds instead (see
-:func:`pushtrain.planner.search._termination`)."""
+500 checks 1.2-4.4 s, 1000 checks 8.7 s of CPU), hence its lower rate. PRM* stops on the clock
+after ``checks / rate`` seconds instead (see :func:`pushtrain.planner.search._termination`)."""
 
 STEPS_PER_CHECK = 10
 """Simulated control steps (0.025 s each) of the whole-train check counted as one motion check
