@@ -62,7 +62,9 @@ def bench(name: str, seeds: int, best_seeds: int) -> dict:
             out["median_first_s"] = statistics.median(first) if first else float("nan")
             out["rrtc_lengths"] = lengths
             out["median_cusps"] = statistics.median(cusps) if cusps else float("nan")
-    def anytime_lengths(planner: str, n_seeds: int, solve_time: float, budget: float) -> list[float]:
+    def anytime_lengths(
+        planner: str, n_seeds: int, solve_time: float, budget: float
+    ) -> list[float]:
         lengths = []
         for seed in range(1, n_seeds + 1):
             cfg = PlannerConfig(planner=planner, seed=seed, anytime_time=solve_time,
@@ -79,12 +81,16 @@ def bench(name: str, seeds: int, best_seeds: int) -> dict:
     b = min(pool) if pool else float("nan")
     out["best_2s"] = min(best) if best else float("nan")
     out["best_any"] = b
-    out["rrtc_excess_median"] = (statistics.median(out["rrtc_lengths"]) / b - 1) if out["rrtc_lengths"] else float("nan")
+    out["rrtc_excess_median"] = (
+        (statistics.median(out["rrtc_lengths"]) / b - 1) if out["rrtc_lengths"] else float("nan")
+    )
     for p, lengths in any05.items():
         out[f"{p}_found"] = len(lengths) / seeds
         # within 3 % of the best, counted over all seeds (a seed without a path fails)
         out[f"{p}_within3"] = sum(x <= 1.03 * b for x in lengths) / seeds
-        out[f"{p}_excess_median"] = (statistics.median(lengths) / b - 1) if lengths else float("nan")
+        out[f"{p}_excess_median"] = (
+            (statistics.median(lengths) / b - 1) if lengths else float("nan")
+        )
     before, first_solve, after, times, reasons, blocked = 0, 0, 0, [], {}, 0
     for seed in range(1, seeds + 1):
         path, dt, exc = _run(world, case, train, PlannerConfig(seed=seed, time_budget=2.0))

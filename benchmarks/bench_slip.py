@@ -28,7 +28,9 @@ def cost(n: int, slip_mode: int, sliding: bool, steps: int = 4000) -> tuple[floa
     vr = {v.name: v.valueReference for v in md.modelVariables}
     unzip = tempfile.mkdtemp()
     extract(str(fmu), unzip)
-    s = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier="TrailerTrain", instanceName="b")
+    s = FMU2Slave(
+        guid=md.guid, unzipDirectory=unzip, modelIdentifier="TrailerTrain", instanceName="b"
+    )
     s.instantiate()
     s.setupExperiment(startTime=0.0)
     s.enterInitializationMode()

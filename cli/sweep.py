@@ -25,9 +25,9 @@ _MOVED = {"sweep", "prepare_runs", "run_task", "FmuRef"}
 def __getattr__(name: str):
     """Forward the library names that moved to :mod:`pushtrain.studies.sweep` (one release)."""
     if name in _MOVED:
-        warnings.warn(f"pushtrain.cli.sweep.{name} moved to pushtrain.studies.sweep.{name}; the old "
-                      "path is deprecated and goes away in pushtrain 0.3", DeprecationWarning,
-                      stacklevel=2)
+        warnings.warn(f"pushtrain.cli.sweep.{name} moved to pushtrain.studies.sweep.{name}; "
+                      "the old path is deprecated and goes away in pushtrain 0.3",
+                      DeprecationWarning, stacklevel=2)
         return getattr(sweep_lib, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

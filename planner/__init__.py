@@ -25,6 +25,6 @@ __all__ = [
     "REASONS", "PlanningError", "PlanningInputError", "PlannedPath", "PLANNERS", "PlannerConfig",
     "ReedsSheppCurve", "plan", "primitives_to_segments", "rs_distance",
     "turning_radius_from_joint_limit", "Primitive", "evaluate_primitives", "recover_primitives",
-    "TrackerConfig", "TrainCheckResult", "check_train", "BodyFootprint", "Train", "World", "draw_poses",
-    "save_diagnostic", "worlds",
+    "TrackerConfig", "TrainCheckResult", "check_train", "BodyFootprint", "Train", "World",
+    "draw_poses", "save_diagnostic", "worlds",
 ]

@@ -17,7 +17,6 @@ import math
 from dataclasses import dataclass
 
 from pushtrain.core.controller import ControllerConfig
-
 from pushtrain.errors import PlanningInputError
 
 from .budget import checks_for
@@ -33,7 +32,9 @@ _ANYTIME = {"restarts", "rrtstar", "bitstar", "prmstar"}
 _OPTIMIZING = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
 
 
-def turning_radius_from_joint_limit(phi_max: float, link: float, transient_margin: float = 0.6) -> float:
+def turning_radius_from_joint_limit(
+    phi_max: float, link: float, transient_margin: float = 0.6
+) -> float:
     """Turning radius [m] whose steady joint angle is ``phi_max / (1 + transient_margin)``.
 
     ``r = link / tan(phi_max / (2 (1 + transient_margin)))`` with ``phi_max`` [rad] in (0, pi)
@@ -42,7 +43,9 @@ def turning_radius_from_joint_limit(phi_max: float, link: float, transient_margi
     if not (0.0 < phi_max < math.pi):
         raise PlanningInputError(f"phi_max = {phi_max!r} rad: allowed is (0, pi)")
     if not (transient_margin >= 0.0 and math.isfinite(transient_margin)):
-        raise PlanningInputError(f"transient_margin = {transient_margin!r}: must be finite and >= 0")
+        raise PlanningInputError(
+            f"transient_margin = {transient_margin!r}: must be finite and >= 0"
+        )
     return float(link / math.tan(phi_max / (2.0 * (1.0 + transient_margin))))
 
 
@@ -122,9 +125,9 @@ class PlannerConfig:
         (:class:`~pushtrain.core.pulling.PullGuide`). Checked inside a local curve, at the
         goal, and at the junctions of the finished path; a junction that breaks it is repaired
         (its state dropped or moved nearby), else the path is re-solved with the next seed
-        (``PlanningError`` reason ``pull_end_blocked`` if none is left). Without it the sampling planner ends pulls on
-        arcs whose tangent points into a wall (bay, seeds 1-20: 0 first plans passed the
-        closed-loop check).
+        (``PlanningError`` reason ``pull_end_blocked`` if none is left). Without it the
+        sampling planner ends pulls on arcs whose tangent points into a wall (bay, seeds 1-20:
+        0 first plans passed the closed-loop check).
     rrt_range : float or None
         Longest tree extension [m] of RRTConnect (OMPL's ``range``); None: 1.3 turning radii.
         OMPL's default (a fifth of the map's extent, about 2.5 m here) makes most extensions
@@ -246,4 +249,6 @@ class PlannerConfig:
         """The turning radius [m] used for ``train``."""
         if self.turning_radius is not None:
             return float(self.turning_radius)
-        return turning_radius_from_joint_limit(train.phi_max, train.max_link(), self.transient_margin)
+        return turning_radius_from_joint_limit(
+            train.phi_max, train.max_link(), self.transient_margin
+        )

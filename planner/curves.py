@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from ompl import base as ob
+
 from pushtrain.core.reference import PULL, PUSH, Segment
 
 from .reeds_shepp import Primitive, evaluate_primitives, recover_primitives
@@ -130,7 +131,7 @@ def _segments_from_states(states: np.ndarray, rho: float) -> tuple[list[Segment]
     per local curve)."""
     prims: list[Primitive] = []
     worst = 0.0
-    for a, b in zip(states[:-1], states[1:]):
+    for a, b in zip(states[:-1], states[1:], strict=True):
         curve = ReedsSheppCurve(rho, a, b)
         p = curve.primitives()
         if curve.length > 0.0 and p:

@@ -15,7 +15,6 @@ from typing import Any, Sequence
 import numpy as np
 
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-
 from pushtrain.errors import PlanningInputError
 
 __all__ = ["PlannedPath", "dense_samples", "FORMAT_VERSION"]
@@ -151,7 +150,9 @@ class PlannedPath:
         return joint_angles(self.headings)
 
     # ------------------------------------------------------------------ conversion
-    def to_reference(self, speed: float = 0.1, cusp_dwell: float = 1.0, t0: float = 0.0) -> Reference:
+    def to_reference(
+        self, speed: float = 0.1, cusp_dwell: float = 1.0, t0: float = 0.0
+    ) -> Reference:
         """The time-parameterized reference for the co-simulation master.
 
         Constant ``speed`` [m/s] on every segment (w_d = v_d * curvature), a rest of

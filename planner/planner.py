@@ -24,11 +24,11 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
-from pushtrain.core.kinematics import body_positions_along
-from pushtrain.core.reference import PULL, Segment
 from shapely.geometry import Point
 from shapely.geometry import box as _box
 
+from pushtrain.core.kinematics import body_positions_along
+from pushtrain.core.reference import PULL, Segment
 from pushtrain.errors import PlanningError, PlanningInputError
 
 from .budget import STEPS_PER_CHECK, Work
@@ -104,7 +104,9 @@ def _check_endpoints(world: World, train: Train, start, goal, start_headings, in
     theta0 = (np.full(train.n + 1, float(start[2])) if start_headings is None
               else np.asarray(start_headings, dtype=float))
 
-    x, y = body_positions_along(np.asarray(start, dtype=float)[None, :], theta0[None, :], train.geometry)
+    x, y = body_positions_along(
+        np.asarray(start, dtype=float)[None, :], theta0[None, :], train.geometry
+    )
     for i, body in enumerate(train.bodies):
         poly = body.polygons(x[0, i], y[0, i], theta0[i])
         if not region.contains(poly):
@@ -138,9 +140,9 @@ def _check_endpoints(world: World, train: Train, start, goal, start_headings, in
         if ka is not None and kb is not None and ka != kb:
             raise PlanningError(
                 "unreachable",
-                f"the goal ({goal[0]:.3f}, {goal[1]:.3f}) lies in a part of the map the last trailer "
-                f"cannot reach from the start ({start[0]:.3f}, {start[1]:.3f}): every connection is "
-                f"narrower than {2 * half:.3f} m (trailer width + 2 x clearance)",
+                f"the goal ({goal[0]:.3f}, {goal[1]:.3f}) lies in a part of the map the last "
+                f"trailer cannot reach from the start ({start[0]:.3f}, {start[1]:.3f}): every "
+                f"connection is narrower than {2 * half:.3f} m (trailer width + 2 x clearance)",
                 where=tuple(goal[:2]), details={"start_piece": ka, "goal_piece": kb},
             )
 
@@ -324,9 +326,9 @@ def _final_error(last_result, last_error: PlanningError | None, history: list, t
                     f"from the goal (at ({f['x']:.3f}, {f['y']:.3f}))")
         error = PlanningError(
             "train_check_failed",
-            f"after {len(history)} attempts ({time.perf_counter() - t_begin:.2f} s) the whole train "
-            f"still fails: the {name} {what} at t = {f['t']:.2f} s, s = {f['s']:.2f} m of the "
-            "last plan",
+            f"after {len(history)} attempts ({time.perf_counter() - t_begin:.2f} s) the whole "
+            f"train still fails: the {name} {what} at t = {f['t']:.2f} s, s = {f['s']:.2f} m of "
+            "the last plan",
             where=(f["x"], f["y"]), details={"failure": f, "attempts": history},
         )
     elif last_error is not None:

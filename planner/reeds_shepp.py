@@ -138,7 +138,7 @@ def recover_primitives(
             )
         turn, gear = prim
 
-        def matches(t):
+        def matches(t, pose0=pose0, turn=turn, gear=gear, t0=t0):
             p1 = tuple(map(float, interp(t)))
             return _mismatch(pose0, p1, turn, gear, (t - t0) * total_length, rho) <= tol
 

@@ -18,8 +18,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from pushtrain.core.pulling import straight_chain_mismatch
 from shapely.geometry import Polygon
+
+from pushtrain.core.pulling import straight_chain_mismatch
 
 from .budget import Work
 from .curves import _sample_into, _travel_backward, _yaw_wrap
@@ -39,7 +40,7 @@ def _pull_end_rule(train: Train, world: World, inflation: float):
         theta = yaw + math.pi
         c, s = math.cos(theta), math.sin(theta)
         return all(chain_region.contains(Polygon(body.corner_points(x + d * c, y + d * s, theta)))
-                   for body, d in zip(leading_bodies, ahead))
+                   for body, d in zip(leading_bodies, ahead, strict=True))
 
     return pull_end_valid
 
@@ -70,7 +71,7 @@ def _pull_start_outside(space, states: list, train: Train, tolerance: float, sta
     ``start_headings`` at the start (None: straight) and a straight chain after a cusp."""
     tmp = space.allocState()
     rows = [(states[0].getX(), states[0].getY(), states[0].getYaw())]
-    for a, b in zip(states[:-1], states[1:]):
+    for a, b in zip(states[:-1], states[1:], strict=True):
         _sample_into(rows, space, a, b, max(1, int(math.ceil(space.distance(a, b) / step))), tmp)
     pts = np.array(rows)
     if pts.shape[0] < 2:
@@ -78,7 +79,7 @@ def _pull_start_outside(space, states: list, train: Train, tolerance: float, sta
     backward, _, step_length = _travel_backward(pts)
     backward &= step_length > 1e-12
     edges = np.diff(np.concatenate(([0], backward.astype(int), [0])))
-    for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+    for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
         run = pts[i0:i1 + 1]
         chain = np.column_stack((run[:, :2], run[:, 2] + math.pi))
         target = start_headings if i0 == 0 else None
@@ -101,11 +102,11 @@ def _fits(si, validator, states: list, i: int, middle: list) -> bool:
     """``states[i - 1] -> middle... -> states[i + 1]`` (in place of ``states[i]``) is free, and
     the pull-end rule holds at every junction it touches."""
     seq = [states[i - 1], *middle, states[i + 1]]
-    if not all(si.checkMotion(a, b) for a, b in zip(seq[:-1], seq[1:])):
+    if not all(si.checkMotion(a, b) for a, b in zip(seq[:-1], seq[1:], strict=True)):
         return False
     seq = states[max(0, i - 2):i - 1] + seq + states[i + 2:i + 3]
     return all(validator.junction_pull_end_ok(a, b, c)
-               for a, b, c in zip(seq[:-2], seq[1:-1], seq[2:]))
+               for a, b, c in zip(seq[:-2], seq[1:-1], seq[2:], strict=True))
 
 
 def _repair_pull_ends(si, space, validator, states: list, seed: int, tries: int = 40):

@@ -436,8 +436,9 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         path_states = _apply_pull_rules(search, path, train, config, attempt, seed, start_headings,
                                         info)
         states = np.array([[s.getX(), s.getY(), s.getYaw()] for s in path_states])
-        info["length_ompl"] = float(sum(space.distance(a, b)
-                                        for a, b in zip(path_states[:-1], path_states[1:])))
+        info["length_ompl"] = float(sum(
+            space.distance(a, b) for a, b in zip(path_states[:-1], path_states[1:], strict=True)
+        ))
         info["checks"] = work.used - used0
         info["time_capped"] = work.capped
         return states, info

@@ -23,7 +23,6 @@ from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
 
 from pushtrain.core.kinematics import ChainGeometry
-
 from pushtrain.errors import PlanningInputError
 
 __all__ = ["World", "BodyFootprint", "Train", "save_diagnostic", "draw_poses"]
@@ -50,7 +49,9 @@ def _polygon(points: Any, field_name: str) -> Polygon:
     poly = Polygon(arr)
     if not poly.is_valid:
         fixed = shapely.make_valid(poly)
-        polys = [g for g in getattr(fixed, "geoms", [fixed]) if isinstance(g, (Polygon, MultiPolygon))]
+        polys = [
+            g for g in getattr(fixed, "geoms", [fixed]) if isinstance(g, (Polygon, MultiPolygon))
+        ]
         poly = unary_union(polys) if polys else Polygon()
         log.warning("%s was not a valid (simple) polygon; repaired with make_valid", field_name)
     return poly
@@ -181,7 +182,9 @@ class World:
                 for ring in [poly.exterior, *poly.interiors]:
                     xy = np.asarray(ring.coords)
                     verts += xy.tolist()
-                    codes += [MplPath.MOVETO] + [MplPath.LINETO] * (len(xy) - 2) + [MplPath.CLOSEPOLY]
+                    codes += (
+                        [MplPath.MOVETO] + [MplPath.LINETO] * (len(xy) - 2) + [MplPath.CLOSEPOLY]
+                    )
                 ax.add_patch(PathPatch(MplPath(verts, codes), facecolor=color, edgecolor="none"))
         ax.set_xlim(xmin - pad, xmax + pad)
         ax.set_ylim(ymin - pad, ymax + pad)

@@ -30,6 +30,6 @@ def alias_module(old: str) -> None:
     """Make ``old`` (the module being imported) the module at its new path, with a
     DeprecationWarning that names the new path."""
     new = MOVED_MODULES[old]
-    warnings.warn(f"{old} moved to {new}; the old path is deprecated and goes away in pushtrain 0.3",
-                  DeprecationWarning, stacklevel=3)
+    warnings.warn(f"{old} moved to {new}; the old path is deprecated and goes away in "
+                  "pushtrain 0.3", DeprecationWarning, stacklevel=3)
     sys.modules[old] = importlib.import_module(new)

@@ -56,7 +56,9 @@ class FieldErrors(InputError):
             lines += [f"  {where} = {value!r}: {allowed}" for where, value, allowed in self.errors]
             text = "\n".join(lines)
         else:
-            text = "; ".join(f"{where} = {value!r}: {allowed}" for where, value, allowed in self.errors)
+            text = "; ".join(
+                f"{where} = {value!r}: {allowed}" for where, value, allowed in self.errors
+            )
         super().__init__(text)
 
 

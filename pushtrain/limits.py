@@ -2,9 +2,9 @@
 
 Each parameter of the TrailerTrain FMU that describes the train or the robot has a :class:`Bound`
 with the reason for its range. The FMU's ``min``/``max`` attributes and the C code's checks in
-``fmi2ExitInitializationMode`` are generated from this table (``fmu/variables.py``, ``fmu/build.py``),
-and scenario validation can use :func:`check` for the same messages. Per-trailer parameters
-(``front``, ``mass``, ...) have one bound for every element.
+``fmi2ExitInitializationMode`` are generated from this table (``fmu/variables.py``,
+``fmu/build.py``), and scenario validation can use :func:`check` for the same messages.
+Per-trailer parameters (``front``, ``mass``, ...) have one bound for every element.
 
 A bound says what is physically plausible for this model, not what the numerics can handle; the
 ranges are wide on purpose (tests drive the robot to abrupt stops and frictionless slides).

@@ -9,8 +9,8 @@ from __future__ import annotations
 import logging
 import math
 import time as _time
-from pathlib import Path
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 from matplotlib.animation import PillowWriter
@@ -19,10 +19,28 @@ from matplotlib.patches import Polygon as PolygonPatch
 from PIL import Image
 
 from pushtrain.errors import PlotError
-from pushtrain.report.common import (C_LAST, C_PATH, C_REF, C_ROBOT, C_SLIP, GIF_DPI, atomic, col,
-                                     new_figure, output_path)
-from pushtrain.report.geometry import (TopView, body_corners, equal_limits, extent_of,
-                                       frame_indices, map_size, top_view, train_polyline)
+from pushtrain.report.common import (
+    C_LAST,
+    C_PATH,
+    C_REF,
+    C_ROBOT,
+    C_SLIP,
+    GIF_DPI,
+    atomic,
+    col,
+    new_figure,
+    output_path,
+)
+from pushtrain.report.geometry import (
+    TopView,
+    body_corners,
+    equal_limits,
+    extent_of,
+    frame_indices,
+    map_size,
+    top_view,
+    train_polyline,
+)
 
 __all__ = ["animate"]
 
@@ -59,7 +77,7 @@ class _BlitGifWriter(PillowWriter):
                 a.set_visible(False)
             canvas.draw()
             self._background = canvas.copy_from_bbox(self.fig.bbox)
-            for a, vis in zip(self._artists, shown):
+            for a, vis in zip(self._artists, shown, strict=True):
                 a.set_visible(vis)
         canvas.restore_region(self._background)
         for a in self._artists:

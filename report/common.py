@@ -7,8 +7,8 @@ the global pyplot state is untouched.
 
 from __future__ import annotations
 
-from pathlib import Path
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
@@ -198,7 +198,7 @@ def intervals(t: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
     starts = np.flatnonzero(edges == 1)
     stops = np.flatnonzero(edges == -1)  # first index after each run
     last = len(t) - 1
-    return [(float(t[a]), float(t[min(b, last)])) for a, b in zip(starts, stops)]
+    return [(float(t[a]), float(t[min(b, last)])) for a, b in zip(starts, stops, strict=True)]
 
 
 def disturbance_mask(data) -> np.ndarray:

@@ -8,8 +8,8 @@ the trailers' axle midpoints [m], headings point toward the robot [rad].
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np

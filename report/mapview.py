@@ -14,10 +14,30 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from matplotlib.patches import Polygon as PolygonPatch
 
-from pushtrain.report.common import (C_JACK, C_LAST, C_PATH, C_REF, C_ROBOT, C_SLIP,
-                                     SNAPSHOT_CMAP, col, new_figure, output_path, save)
-from pushtrain.report.geometry import (TopView, body_corners, equal_limits, extent_of, map_size,
-                                       snapshot_indices, top_view, train_polyline, wheel_segments)
+from pushtrain.report.common import (
+    C_JACK,
+    C_LAST,
+    C_PATH,
+    C_REF,
+    C_ROBOT,
+    C_SLIP,
+    SNAPSHOT_CMAP,
+    col,
+    new_figure,
+    output_path,
+    save,
+)
+from pushtrain.report.geometry import (
+    TopView,
+    body_corners,
+    equal_limits,
+    extent_of,
+    map_size,
+    snapshot_indices,
+    top_view,
+    train_polyline,
+    wheel_segments,
+)
 
 __all__ = ["map_figure", "plot_map"]
 
@@ -81,7 +101,8 @@ def _draw_snapshot(ax, run: TopView, k: int, r: int, corners: dict, color, z: fl
                                   lw=1.3 if i == 0 else 0.8, zorder=z))
         if i > 0:
             for seg in wheel_segments(x[r, i], y[r, i], th[r, i], run.bodies[i][1]):
-                ax.plot(*zip(*seg), "-", color=color, lw=2.6, solid_capstyle="butt", zorder=z)
+                ax.plot(*zip(*seg, strict=True), "-", color=color, lw=2.6, solid_capstyle="butt",
+                        zorder=z)
     px, py = train_polyline(x[r], y[r], th[r], run.front)
     (line,) = ax.plot(px, py, "-", color=color, lw=1.2, zorder=z + 0.01)
     line.set_gid(f"snapshot{k}:train")

@@ -28,12 +28,22 @@ import numpy as np
 from pushtrain.errors import PlotError
 from pushtrain.report.animation import animate
 from pushtrain.report.common import DPI, GIF_DPI, check_n
-from pushtrain.report.geometry import (DEFAULT_FOOTPRINTS, body_corners, frame_indices,
-                                       hitch_links, snapshot_indices)
+from pushtrain.report.geometry import (
+    DEFAULT_FOOTPRINTS,
+    body_corners,
+    frame_indices,
+    hitch_links,
+    snapshot_indices,
+)
 from pushtrain.report.mapview import map_figure, plot_map
-from pushtrain.report.timeseries import (inputs_and_joints_figure, lateral_forces_figure,
-                                         plot_inputs_and_joints, plot_lateral_forces,
-                                         plot_tracking_error, tracking_error_figure)
+from pushtrain.report.timeseries import (
+    inputs_and_joints_figure,
+    lateral_forces_figure,
+    plot_inputs_and_joints,
+    plot_lateral_forces,
+    plot_tracking_error,
+    tracking_error_figure,
+)
 
 __all__ = [
     "PlotError",

@@ -15,9 +15,22 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from pushtrain.report.common import (C_DIST, C_ROBOT, C_SLIP, DIRECTION_BANDS, check_data, col,
-                                     disturbance_mask, index_colorbar, intervals, new_figure,
-                                     output_path, save, series_colors, shade)
+from pushtrain.report.common import (
+    C_DIST,
+    C_ROBOT,
+    C_SLIP,
+    DIRECTION_BANDS,
+    check_data,
+    col,
+    disturbance_mask,
+    index_colorbar,
+    intervals,
+    new_figure,
+    output_path,
+    save,
+    series_colors,
+    shade,
+)
 
 __all__ = [
     "inputs_and_joints_figure",
@@ -141,7 +154,7 @@ def tracking_error_figure(data, n: int) -> Figure:
     fig = new_figure(8.0, 7.0)
     axes = fig.subplots(3, 1, sharex=True)
     disturbance = intervals(t, disturbance_mask(data))
-    for ax, (name, scale, ylabel, color, what) in zip(axes, _ERROR_SERIES):
+    for ax, (name, scale, ylabel, color, what) in zip(axes, _ERROR_SERIES, strict=True):
         for value, band, label in DIRECTION_BANDS:
             shade(ax, intervals(t, direction == value), band, 1.0, label=label, zorder=0,
                   gid=f"direction{int(value):+d}")
@@ -163,8 +176,9 @@ def tracking_error_figure(data, n: int) -> Figure:
     if disturbance:
         present.append((Patch(color=C_DIST, alpha=0.25), "disturbance (push/slide)"))
     if present:
-        fig.legend(*zip(*present), loc="outside lower center", ncol=len(present), fontsize=8,
-                   title="background: reference direction", title_fontsize=8, frameon=False)
+        fig.legend(*zip(*present, strict=True), loc="outside lower center", ncol=len(present),
+                   fontsize=8, title="background: reference direction", title_fontsize=8,
+                   frameon=False)
     fig.suptitle("Tracking error of the last trailer (in the reference's frame)")
     return fig
 

@@ -1,4 +1,5 @@
-"""Slip study: peak lateral wheel forces of the pure-rotation manoeuvre (paper Sec. 4.4, Fig. 16-18).
+"""Slip study: peak lateral wheel forces of the pure-rotation manoeuvre
+(paper Sec. 4.4, Fig. 16-18).
 
 The robot turns on the spot with a trapezoidal yaw rate (:class:`~pushtrain.core.openloop.
 RotationProfile`: ramp with angular acceleration alpha to w_max, ramp back); the TrailerTrain FMU
@@ -21,10 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pushtrain.files import atomic_write
-
-from pushtrain.cosim.master import InitialState, PlantConfig, simulate
 from pushtrain.core.openloop import RotationProfile
+from pushtrain.cosim.master import InitialState, PlantConfig, simulate
+from pushtrain.files import atomic_write
 
 __all__ = ["SlipStudyConfig", "SlipRow", "run_slip_study", "plot_slip_study", "write_csv"]
 
@@ -66,7 +66,7 @@ class SlipRow:
 
     @property
     def ratio(self) -> tuple:
-        return tuple(p / lim for p, lim in zip(self.peak, self.limit))
+        return tuple(p / lim for p, lim in zip(self.peak, self.limit, strict=True))
 
 
 def _one(fmu_for, n: int, alpha_deg: float, cfg: SlipStudyConfig, payload_on: int = 0) -> tuple:
@@ -90,7 +90,9 @@ def run_slip_study(cfg: SlipStudyConfig, fmu_for=None, progress=None) -> list[Sl
         from pushtrain.fmu import build_fmu as fmu_for
     jobs = [("trailers", n, cfg.alpha_deg, 0) for n in cfg.trailers]
     jobs += [("alpha", cfg.n_for_alpha, a, 0) for a in cfg.alphas_deg]
-    jobs += [("payload", cfg.n_for_payload, cfg.alpha_deg, i) for i in range(1, cfg.n_for_payload + 1)]
+    jobs += [
+        ("payload", cfg.n_for_payload, cfg.alpha_deg, i) for i in range(1, cfg.n_for_payload + 1)
+    ]
     rows = []
     for k, (sweep, n, alpha, on) in enumerate(jobs):
         peak, limit = _one(fmu_for, n, alpha, cfg, on)
@@ -108,7 +110,7 @@ def write_csv(rows: list[SlipRow], path) -> Path:
             writer.writerow(["sweep", "n", "alpha_deg", "payload_on", "trailer", "peak_F_lat_N",
                              "limit_N", "ratio"])
             for row in rows:
-                for i, (p, lim) in enumerate(zip(row.peak, row.limit), start=1):
+                for i, (p, lim) in enumerate(zip(row.peak, row.limit, strict=True), start=1):
                     writer.writerow([row.sweep, row.n, row.alpha_deg, row.payload_on, i,
                                      f"{p:.6g}", f"{lim:.6g}", f"{p / lim:.6g}"])
 
@@ -126,19 +128,24 @@ def plot_slip_study(rows: list[SlipRow], path) -> Path:
     axes = fig.subplots(1, 3)
     for ax, sweep, xlabel, title in (
         (axes[0], "trailers", "number of trailers n", "Peak lateral force vs n (Fig. 16)"),
-        (axes[1], "alpha", "robot angular acceleration alpha [deg/s$^2$]", "vs angular acceleration (Fig. 17)"),
+        (axes[1], "alpha", "robot angular acceleration alpha [deg/s$^2$]",
+         "vs angular acceleration (Fig. 17)"),
         (axes[2], "payload", "trailer carrying the payload", "vs payload position (Fig. 18)"),
     ):
         sel = [r for r in rows if r.sweep == sweep]
         if not sel:
             ax.set_visible(False)
             continue
-        x = [r.n if sweep == "trailers" else r.alpha_deg if sweep == "alpha" else r.payload_on for r in sel]
-        ax.plot(x, [r.peak[0] for r in sel], "o-", color="tab:blue", label="trailer 1: peak |F_lat,1|")
+        x = [
+            r.n if sweep == "trailers" else r.alpha_deg if sweep == "alpha" else r.payload_on
+            for r in sel
+        ]
+        ax.plot(x, [r.peak[0] for r in sel], "o-", color="tab:blue",
+                label="trailer 1: peak |F_lat,1|")
         ax.plot(x, [max(r.peak) for r in sel], "s--", color="tab:orange", ms=4,
                 label="largest over all trailers")
         ax.plot(x, [r.limit[0] for r in sel], "k:", label="friction limit of trailer 1")
-        over = [xi for xi, r in zip(x, sel) if r.peak[0] > r.limit[0]]
+        over = [xi for xi, r in zip(x, sel, strict=True) if r.peak[0] > r.limit[0]]
         if over:
             ax.axvspan(min(over) - 0.5 if sweep != "alpha" else min(over), max(x), color="tab:red",
                        alpha=0.08, label="trailer 1 slides")
@@ -149,6 +156,8 @@ def plot_slip_study(rows: list[SlipRow], path) -> Path:
         if sweep != "alpha":
             ax.set_xticks(sorted(set(x)))
         ax.legend(fontsize=7, loc="upper right" if sweep == "payload" else "lower right")
-    fig.suptitle("Pure robot rotation: lateral wheel forces against friction (slip_mode 0 estimate)")
+    fig.suptitle(
+        "Pure robot rotation: lateral wheel forces against friction (slip_mode 0 estimate)"
+    )
     fig.tight_layout()
     return atomic_write(path, lambda partial: fig.savefig(partial, dpi=120), keep_suffix=True)

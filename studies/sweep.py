@@ -35,16 +35,40 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from pushtrain.errors import SweepError
-
 from pushtrain.mission.scenario import Scenario, load_scenario
 
-from .sweep_results import (ChunkWriter, SweepOutcome, check_manifest, columns_of, combine,
-                            existing_rows, finish_row, read_results, write_rows_csv)
+from .sweep_results import (
+    ChunkWriter,
+    SweepOutcome,
+    check_manifest,
+    columns_of,
+    combine,
+    existing_rows,
+    finish_row,
+    read_results,
+    write_rows_csv,
+)
 from .sweep_runs import SweepRun, bias_swept, expand_runs, prepare_runs, run_key
-from .sweep_spec import (DEFAULT_MAX_TOTAL, DEFAULT_METRICS, METRICS, OK_STATUSES, STATUS_ERROR,
-                         STATUS_LOST, TIMING_COLUMNS, ParameterSpec, RangeSpec, SweepSpec,
-                         check_size, count_runs, get_path, load_sweep_spec, parse_path,
-                         parse_sweep_spec, resolve, set_path)
+from .sweep_spec import (
+    DEFAULT_MAX_TOTAL,
+    DEFAULT_METRICS,
+    METRICS,
+    OK_STATUSES,
+    STATUS_ERROR,
+    STATUS_LOST,
+    TIMING_COLUMNS,
+    ParameterSpec,
+    RangeSpec,
+    SweepSpec,
+    check_size,
+    count_runs,
+    get_path,
+    load_sweep_spec,
+    parse_path,
+    parse_sweep_spec,
+    resolve,
+    set_path,
+)
 from .sweep_task import FmuRef, execute, failure_row, metrics_of, run_task
 
 __all__ = [

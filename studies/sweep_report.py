@@ -76,7 +76,7 @@ def _groups(rows: Sequence[dict], path: str):
                       0, MAX_BINS - 1)
         out = []
         for b in range(MAX_BINS):
-            members = [r for r, i in zip(rows, idx) if i == b]
+            members = [r for r, i in zip(rows, idx, strict=True) if i == b]
             if members:
                 centre = 0.5 * (edges[b] + edges[b + 1])
                 out.append((f"{edges[b]:.3g}..{edges[b + 1]:.3g}", float(centre), members))
@@ -120,7 +120,7 @@ def summarize(rows: Sequence[dict], parameters: Sequence[dict], *, n_runs: int |
     }
     for p in parameters:
         groups = []
-        for label, x, members in _groups(rows, p["path"]):
+        for label, _x, members in _groups(rows, p["path"]):
             ok = sum(1 for r in members if r.get("ok"))
             groups.append({
                 "value": label, "runs": len(members), "ok": ok, "success_rate": ok / len(members),
@@ -166,13 +166,13 @@ def table_text(rows: Sequence[dict], parameters: Sequence[dict], max_rows: int =
     if len(rows) <= max_rows:
         names = [p.get("label") or p["path"] for p in parameters]
         width = [max(len(n), 8) for n in names]
-        head = "  ".join(n.rjust(w) for n, w in zip(names, width))
+        head = "  ".join(n.rjust(w) for n, w in zip(names, width, strict=True))
         head += "  status           steady[cm]" + (" pred[cm]" if has_pred else "")
         head += " max[cm] max|phi|[deg] F/Fmax slips"
         lines.append(head)
         for r in rows:
             cells = "  ".join(_label(r.get(p["path"]))[:w].rjust(w)
-                              for p, w in zip(parameters, width))
+                              for p, w in zip(parameters, width, strict=True))
             line = f"{cells}  {r['status'][:16]:<16} {_cm(r.get('steady_lat_m')):>10}"
             if has_pred:
                 line += f" {_cm(r.get('predicted_steady_lat_m')):>8}"
@@ -226,7 +226,7 @@ def parameter_figure(rows: Sequence[dict], path: str, label: str | None = None,
     else:
         ax_ok.bar(gx, rate, width=0.6, color=_OK_COLOR, alpha=0.8)
     if len(groups) <= 25:
-        for x, y, c in zip(gx, rate, counts):
+        for x, y, c in zip(gx, rate, counts, strict=True):
             ax_ok.annotate(f"n={c}", (x, y), textcoords="offset points",
                            xytext=(0, -12 if y > 15 else 8), ha="center", fontsize=7, color="0.35")
     ax_ok.set_ylim(-5, 112)

@@ -75,7 +75,8 @@ def read_results(path) -> list[dict]:
         header = next(reader, None)
         if header is None:
             return []
-        return [{c: v if c in _TEXT_COLUMNS else _decode(v) for c, v in zip(header, line)}
+        return [{c: v if c in _TEXT_COLUMNS else _decode(v)
+                 for c, v in zip(header, line, strict=False)}
                 for line in reader]
 
 

@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 
 from pushtrain.errors import SweepError
-
 from pushtrain.mission.scenario import Scenario, ScenarioError, parse_scenario
 
 from .sweep_spec import SweepSpec, get_path, parse_path, plain_value, resolve, set_path
@@ -81,7 +80,7 @@ def expand_runs(spec: SweepSpec) -> list[SweepRun]:
         rng = np.random.default_rng(spec.seed)
         combos = ([p.draw(rng) for p in spec.parameters] for _ in range(spec.samples))
     for index, combo in enumerate(combos):
-        params = {p.path: plain_value(v) for p, v in zip(spec.parameters, combo)}
+        params = {p.path: plain_value(v) for p, v in zip(spec.parameters, combo, strict=True)}
         runs.append(SweepRun(index, run_key(index, params), params))
     return runs
 
@@ -159,9 +158,8 @@ def _planning_key(data: dict) -> str:
 
 
 def _plan(sc: Scenario):
-    from pushtrain.planner import PlanningError
-
     from pushtrain.mission.runner import plan_path
+    from pushtrain.planner import PlanningError
 
     try:
         return plan_path(sc).to_dict(), None
@@ -178,7 +176,6 @@ def bias_swept(spec: SweepSpec) -> bool:
 def _predicted(sc: Scenario) -> dict:
     """eps_eff [deg] and the closed-form steady offset [m] (core.analysis, as `analyze`)."""
     from pushtrain.core import analysis
-
     from pushtrain.mission.runner import bias_model
 
     c = sc.controller

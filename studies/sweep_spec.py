@@ -18,8 +18,15 @@ import re
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import (BaseModel, ConfigDict, Field, StrictBool, StrictInt, ValidationError,
-                      model_validator)
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictBool,
+    StrictInt,
+    ValidationError,
+    model_validator,
+)
 
 from pushtrain.errors import FieldErrors, SweepError
 from pushtrain.validation import field_errors, read_toml

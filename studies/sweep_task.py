@@ -23,7 +23,6 @@ from typing import Callable
 import numpy as np
 
 from pushtrain.files import atomic_write_bytes
-
 from pushtrain.mission.scenario import parse_scenario
 
 from .sweep_spec import METRICS, STATUS_ERROR

@@ -9,7 +9,9 @@ from click.testing import CliRunner
 from pushtrain.cli.main import cli
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-COMMANDS = ["plan-and-run", "plan", "run", "build-fmu", "analyze", "validate", "slip-study", "sweep"]
+COMMANDS = [
+    "plan-and-run", "plan", "run", "build-fmu", "analyze", "validate", "slip-study", "sweep"
+]
 
 
 @pytest.fixture
@@ -70,7 +72,8 @@ def test_all_bad_fields_are_reported_at_once(runner, tmp_path):
 
 
 def test_start_in_a_wall_exits_2(runner, tmp_path):
-    text = (EXAMPLES / "l_corridor.toml").read_text().replace("x = 4.0\ny = 1.0", "x = 4.0\ny = 5.0")
+    text = (EXAMPLES / "l_corridor.toml").read_text()
+    text = text.replace("x = 4.0\ny = 1.0", "x = 4.0\ny = 5.0")
     path = _write(tmp_path, text, "wall.toml")
     out = tmp_path / "out"
     result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out)])
@@ -113,7 +116,9 @@ def test_run_with_a_broken_path_file_exits_2(runner, tmp_path):
 
 
 def test_run_of_a_plan_mission_without_path_exits_2(runner, tmp_path):
-    result = runner.invoke(cli, ["run", str(EXAMPLES / "l_corridor.toml"), "--out", str(tmp_path / "o")])
+    result = runner.invoke(
+        cli, ["run", str(EXAMPLES / "l_corridor.toml"), "--out", str(tmp_path / "o")]
+    )
     assert result.exit_code == 2
     assert "--path" in result.output
 
@@ -137,8 +142,9 @@ def test_analyze_reports_stability_and_predicted_offset(runner):
 
 def test_plan_and_run_console_script_with_overrides(runner, tmp_path):
     out = tmp_path / "o"
-    result = runner.invoke(cli, ["plan-and-run", str(EXAMPLES / "straight_push.toml"), "--out", str(out),
-                                 "--trailers", "2", "--seed", "3", "--no-plots"])
+    result = runner.invoke(cli, ["plan-and-run", str(EXAMPLES / "straight_push.toml"),
+                                 "--out", str(out), "--trailers", "2", "--seed", "3",
+                                 "--no-plots"])
     assert result.exit_code == 0, result.output
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n_trailers"] == 2

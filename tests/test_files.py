@@ -4,8 +4,14 @@
 import pytest
 
 from pushtrain.errors import InputError
-from pushtrain.files import (RUN_MARKER, atomic_write, atomic_write_bytes, atomic_write_text,
-                             fresh_run_folder, is_run_folder)
+from pushtrain.files import (
+    RUN_MARKER,
+    atomic_write,
+    atomic_write_bytes,
+    atomic_write_text,
+    fresh_run_folder,
+    is_run_folder,
+)
 
 
 def test_a_failed_write_leaves_the_target_and_no_partial_file(tmp_path):

@@ -164,7 +164,9 @@ def test_one_owner_per_library(library):
 def test_the_rules_would_catch_a_forbidden_arrow(tmp_path):
     """The walker sees relative, absolute and function-level imports."""
     probe = ROOT / "core" / "_probe_for_test.py"
-    probe.write_text("def f():\n    from ..planner import world\n    import pushtrain.cosim.master\n")
+    probe.write_text(
+        "def f():\n    from ..planner import world\n    import pushtrain.cosim.master\n"
+    )
     try:
         found = _imports(probe)
     finally:

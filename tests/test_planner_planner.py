@@ -51,7 +51,7 @@ def _independent_push_check(world, path, train):
     phi = np.empty((path.s.size, train.n))
     for seg in path.segments:
         assert seg.direction == PUSH
-        sol = solve_ivp(lambda s, th: heading_rates_from_last(th, -1.0, seg.curvature, geom),
+        sol = solve_ivp(lambda s, th, k=seg.curvature: heading_rates_from_last(th, -1.0, k, geom),
                         (0.0, seg.length), theta, rtol=1e-9, atol=1e-11, dense_output=True)
         m = max(2, int(math.ceil(seg.length / 0.01)) + 1)
         for s in np.linspace(0.0, seg.length, m):
@@ -146,7 +146,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
     geom = TRAIN.geometry
     ref = Reference.from_segments(path.start, path.segments, speed=0.08, cusp_dwell=0.0)
     pos, runs = 0.0, []
-    for k, seg in enumerate(path.segments):
+    for _k, seg in enumerate(path.segments):
         if seg.direction == PULL:
             if runs and abs(runs[-1][1] - pos) < 1e-12:
                 runs[-1][1] = pos + seg.length
@@ -154,7 +154,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
                 runs.append([pos, pos + seg.length])
         pos += seg.length
     assert runs, "the bay needs a pull"
-    for a, b in runs:
+    for _a, b in runs:
         x, y, th, _, _ = ref.sample([(b - 1e-9) / 0.08])
         straight = np.full(TRAIN.n + 1, th[0])
         bx, by = body_positions_from_last(x[0], y[0], straight, geom)
@@ -167,7 +167,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
     for j in range(s.size - 1, 0, -1):  # drawn back: pushing the last trailer (scipy)
         ds = s[j] - s[j - 1]
         w = (th[j] - th[j - 1]) / ds
-        sol = solve_ivp(lambda _s, q: -heading_rates_from_last(q, 1.0, w, geom), (0.0, ds),
+        sol = solve_ivp(lambda _s, q, w=w: -heading_rates_from_last(q, 1.0, w, geom), (0.0, ds),
                         theta, rtol=1e-10, atol=1e-12)
         theta = sol.y[:, -1]
         theta[-1] = th[j - 1]
@@ -232,7 +232,8 @@ def test_same_seed_same_plan_and_different_seed_differs():
     assert a.to_dict()["segments"] == b.to_dict()["segments"]
     others = {
         tuple(round(g.length, 9) for g in
-              plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=s, check_train=False)).segments)
+              plan(world, case["start"], case["goal"], TRAIN,
+                   PlannerConfig(seed=s, check_train=False)).segments)
         for s in (8, 9, 10)
     }
     assert len(others | {tuple(round(g.length, 9) for g in a.segments)}) > 1
@@ -269,11 +270,16 @@ def test_radius_rule_and_transient_margin():
     from pushtrain.core.reference import Segment
 
     world = World.from_dict({"bounds": [-50, -50, 50, 50]})
-    segs = [Segment("arc", 2 * math.pi * r, 1 / r, PUSH), Segment("arc", 2 * math.pi * r, -1 / r, PUSH)]
+    segs = [
+        Segment("arc", 2 * math.pi * r, 1 / r, PUSH), Segment("arc", 2 * math.pi * r, -1 / r, PUSH)
+    ]
     res = check_train(world, TRAIN, (0, 0, 0), segs, resolution=0.01)
     assert res.max_abs_phi.max() <= phi_max
     r0 = turning_radius_from_joint_limit(phi_max, d, 0.0)  # no margin: the reversal overshoots
-    segs0 = [Segment("arc", 2 * math.pi * r0, 1 / r0, PUSH), Segment("arc", 2 * math.pi * r0, -1 / r0, PUSH)]
+    segs0 = [
+        Segment("arc", 2 * math.pi * r0, 1 / r0, PUSH),
+        Segment("arc", 2 * math.pi * r0, -1 / r0, PUSH),
+    ]
     res0 = check_train(world, TRAIN, (0, 0, 0), segs0, resolution=0.01)
     assert res0.max_abs_phi.max() > phi_max
 
@@ -404,7 +410,7 @@ def test_local_search_keeps_the_path_valid_and_never_longer():
     ref = Reference.from_segments(case["start"], segments, speed=1.0, cusp_dwell=0.0)
     x, y, th, _, _ = ref.sample(np.linspace(0.0, ref.t_end - 1e-9, int(length / 0.01) + 2))
     region = world.eroded(cfg.inflation)
-    for xi, yi, ti in zip(x, y, th):
+    for xi, yi, ti in zip(x, y, th, strict=True):
         assert region.contains(Polygon(_corners(TRAIN.last, xi, yi, ti)))
 
 
@@ -469,7 +475,9 @@ def test_wall_clock_cap_only_stops_a_search_and_says_so(caplog):
 
     case = worlds.l_corridor(2.0)
     world = World.from_dict(case["world"])
-    plain = plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, check_train=False))
+    plain = plan(
+        world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, check_train=False)
+    )
     assert plain.info["time_capped"] is False
     assert 0 < plain.info["checks"] <= plain.info["budget_checks"] == 2000
     # restarts with a budget of 10^6 motion checks: the cap ends them after the first

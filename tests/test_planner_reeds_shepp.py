@@ -52,6 +52,8 @@ def test_direction_and_curvature_conventions():
     # forward primitive moves along yaw, which is theta + pi: pushing in the chain frame
     x, y, yaw = advance_yaw(0.0, 0.0, 0.0, "S", 1, 2.0, rho)
     assert (float(x), float(y)) == pytest.approx((2.0, 0.0))
-    ref = Reference.from_segments((0.0, 0.0, math.pi), primitives_to_segments([Primitive("S", 1, 2.0)], rho))
+    ref = Reference.from_segments(
+        (0.0, 0.0, math.pi), primitives_to_segments([Primitive("S", 1, 2.0)], rho)
+    )
     assert ref.goal[:2] == pytest.approx([2.0, 0.0])
     assert ref.sample([1.0])[3][0] < 0.0  # pushing: v < 0 in the chain frame

@@ -5,7 +5,14 @@ import math
 import pytest
 from shapely.geometry import Polygon
 
-from pushtrain.planner import BodyFootprint, PlanningInputError, Train, World, save_diagnostic, worlds
+from pushtrain.planner import (
+    BodyFootprint,
+    PlanningInputError,
+    Train,
+    World,
+    save_diagnostic,
+    worlds,
+)
 
 
 def test_from_dict_outline_and_obstacles():
@@ -56,13 +63,17 @@ def test_validity_uses_last_trailer_in_chain_orientation():
     cfg = PlannerConfig(**cfg_ok, time_budget=0.2, check_train=False, straight_pull_ends=False)
     att = _Attempt(1.0, 0.0)
     # start pose with theta = 0: rectangle spans x in [0.5 + 0.55 - 0.6, 0.5 + 0.55 + 0.6]
-    states, _ = _solve_once(world, train, (0.5, 1.0, 0.0 + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3)
+    states, _ = _solve_once(
+        world, train, (0.5, 1.0, 0.0 + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3
+    )
     assert states.shape[1] == 3
     from pushtrain.planner import PlanningError
 
     with pytest.raises(PlanningError):
         # theta = pi puts the rectangle at x in [-0.65, 0.55]: outside the map -> invalid start
-        _solve_once(world, train, (0.5, 1.0, math.pi + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3)
+        _solve_once(
+            world, train, (0.5, 1.0, math.pi + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3
+        )
 
 
 def test_worlds_are_plain_data_and_diagnostic_png(tmp_path):
@@ -73,5 +84,7 @@ def test_worlds_are_plain_data_and_diagnostic_png(tmp_path):
         assert all(isinstance(p, list) for p in case["world"]["free"])
     case = worlds.l_corridor(1.5)
     out = tmp_path / "map.png"
-    save_diagnostic(out, World.from_dict(case["world"]), case["start"], case["goal"], Train.uniform(3))
+    save_diagnostic(
+        out, World.from_dict(case["world"]), case["start"], case["goal"], Train.uniform(3)
+    )
     assert out.stat().st_size > 1000 and out.read_bytes()[:4] == b"\x89PNG"

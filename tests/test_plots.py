@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from pushtrain.report import plots
 from pushtrain.core.kinematics import ChainGeometry, body_positions, forward_velocities
 from pushtrain.cosim.master import _columns
+from pushtrain.report import plots
 
 D = 0.52
 
@@ -27,8 +27,8 @@ D = 0.52
 def run3(built_fmu):
     """A real co-simulation: robot + 3 trailers pushing along a line then an arc."""
     from pushtrain.core.controller import ControllerConfig
-    from pushtrain.cosim.master import Slide, simulate
     from pushtrain.core.reference import Reference, Segment
+    from pushtrain.cosim.master import Slide, simulate
     from pushtrain.cosim.sensors import SensorConfig
 
     reference = Reference.from_segments((0, 0, 0), [Segment("line", 1.0), Segment("arc", 1.0, 0.4)])

@@ -115,7 +115,9 @@ def test_the_fmu_declares_the_same_bounds():
     for var in root.iter("ScalarVariable"):
         real = var.find("Real")
         if real is not None and "min" in real.attrib:
-            declared[var.get("name").split("[")[0]] = (float(real.get("min")), float(real.get("max")))
+            declared[var.get("name").split("[")[0]] = (
+                float(real.get("min")), float(real.get("max"))
+            )
     for name in ("front", "rear", "mass", "inertia", "payload", "mu", "robot_tau", "max_substep"):
         assert declared[name] == (BOUNDS[name].lo, BOUNDS[name].hi), name
 

@@ -8,7 +8,7 @@ from click.testing import CliRunner
 from pushtrain.cli.main import cli
 from pushtrain.studies.slipstudy import SlipStudyConfig, run_slip_study
 
-I, D = 3.5083, 0.52
+INERTIA, D = 3.5083, 0.52
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +24,7 @@ def test_forces_grow_with_n_and_alpha_and_start_at_the_spin_up_closed_form(rows)
     by_alpha = [r.peak[0] for r in rows if r.sweep == "alpha"]
     assert by_alpha == sorted(by_alpha)
     for n, r in by_n.items():  # at rest the robot spins up: F_d,1 = I alpha / D (1 + 2 (n - 1))
-        spin_up = I * math.radians(5.0) / D * (1 + 2 * (n - 1))
+        spin_up = INERTIA * math.radians(5.0) / D * (1 + 2 * (n - 1))
         assert r.peak[0] >= spin_up * (1 - 1e-9)
     # trailer 1 carries the largest lateral force (paper, Sec. 4.4)
     for r in rows:
