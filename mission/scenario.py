@@ -288,7 +288,8 @@ def _implausible(sc: "Scenario") -> list[tuple[str, object, str]]:
     t, r = sc.train, sc.robot
     checks = [("train.link", "front", t.link)]
     for name in ("front", "rear"):
-        checks += [(w, name, v) for w, v in _per_trailer_values(f"train.{name}", getattr(t, name) or [])]
+        values = getattr(t, name) or []
+        checks += [(w, name, v) for w, v in _per_trailer_values(f"train.{name}", values)]
     for name in ("mass", "inertia", "payload", "mu"):
         checks += [(w, name, v) for w, v in _per_trailer_values(f"train.{name}", getattr(t, name))]
     for body in ("trailer_size", "robot_size"):
@@ -296,7 +297,8 @@ def _implausible(sc: "Scenario") -> list[tuple[str, object, str]]:
         checks += [(f"train.{body}.length", "body.size", size.length),
                    (f"train.{body}.width", "body.size", size.width)]
     checks += [("robot.tau", "robot_tau", r.tau), ("robot.acc_max", "robot_acc_max", r.acc_max),
-               ("robot.v_max", "robot.v_max", r.v_max), ("fmu.max_substep", "max_substep", sc.fmu.max_substep),
+               ("robot.v_max", "robot.v_max", r.v_max),
+               ("fmu.max_substep", "max_substep", sc.fmu.max_substep),
                ("sim.step", "sim.step", sc.sim.step)]
     checks += [(f"controller.{k}", "controller.gain", getattr(sc.controller, k))
                for k in ("k_x", "k_y", "k_theta")]
@@ -305,9 +307,11 @@ def _implausible(sc: "Scenario") -> list[tuple[str, object, str]]:
     if sc.sim.horizon is not None:
         checks.append(("sim.horizon", "sim.horizon", sc.sim.horizon))
     problems = [_bound_problem(*c) for c in checks]
-    problems += [_bound_problem("robot.alpha_max_deg", "robot_alpha_max", r.alpha_max_deg, deg=True),
-                 _bound_problem("robot.w_max_deg", "robot.w_max", r.w_max_deg, deg=True),
-                 _bound_problem("train.phi_max_deg", "phi_max", t.phi_max_deg, deg=True)]
+    problems += [
+        _bound_problem("robot.alpha_max_deg", "robot_alpha_max", r.alpha_max_deg, deg=True),
+        _bound_problem("robot.w_max_deg", "robot.w_max", r.w_max_deg, deg=True),
+        _bound_problem("train.phi_max_deg", "phi_max", t.phi_max_deg, deg=True),
+    ]
     problems += [_bound_problem(w, "map.coordinate", v) for w, v in _coordinates(sc)]
     return [p for p in problems if p is not None]
 
@@ -343,7 +347,8 @@ def _inconsistent_run(sc: "Scenario") -> list[tuple[str, object, str]]:
                                  "fmu.slip_mode = 0; with slip_mode = 1 the wheels slide "
                                  "physically: use a push event"))
     horizon, step = sc.sim.horizon, sc.sim.step
-    if horizon is not None and abs(horizon / step - round(horizon / step)) > 1e-6 * max(1.0, horizon / step):
+    ratio = None if horizon is None else horizon / step
+    if ratio is not None and abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
         problems.append(("sim.horizon", horizon,
                          f"a whole number of steps of sim.step = {step:g} s "
                          f"(e.g. {step * max(1, round(horizon / step)):g} s)"))

@@ -202,24 +202,62 @@ def test_bias_offset_matches_the_closed_form(serial8):
         assert row["steady_lat_m"] == pytest.approx(expected, rel=0.03), row
 
 
+INJECTED = "injected failure of the co-simulation"
+
+
+def _install_failing_runner(settle_time: float) -> None:
+    """Make every run with ``sim.settle_time == settle_time`` raise, in this process (a worker
+    of the test cluster or the test itself); :func:`_restore_runner` undoes it."""
+    from pushtrain.mission import runner
+
+    real = getattr(runner, "_real_run_scenario", runner.run_scenario)
+    runner._real_run_scenario = real
+
+    def run_scenario(sc, *args, **kwargs):
+        if sc.sim.settle_time == settle_time:
+            raise RuntimeError(INJECTED)
+        return real(sc, *args, **kwargs)
+
+    runner.run_scenario = run_scenario
+
+
+def _restore_runner() -> None:
+    from pushtrain.mission import runner
+
+    if hasattr(runner, "_real_run_scenario"):
+        runner.run_scenario = runner._real_run_scenario
+        del runner._real_run_scenario
+
+
 def test_failing_runs_are_recorded_and_the_sweep_finishes(client, base, tmp_path):
     spec = parse_sweep_spec({
-        "overrides": {"sensors.joint_bias_deg[2]": 6.0},
+        "overrides": {"sensors.joint_bias_deg[2]": 6.0, "sim.horizon": 50.0},
         "parameters": [{"path": "train.phi_max_deg", "values": [90.0, 1.0]},
-                       # a horizon the 5 ms step does not divide: only the co-simulation sees it
-                       {"path": "sim.horizon", "values": [50.0, 50.0025]}]})
-    outcome = sweep(base, spec, tmp_path, client=client, plots=True)
-    by = {(r["train.phi_max_deg"], r["sim.horizon"]): r for r in outcome.rows}
+                       # runs with settle_time 0.5 raise inside the workers
+                       {"path": "sim.settle_time", "values": [0.0, 0.5]}]})
+    client.run(_install_failing_runner, 0.5)
+    try:
+        outcome = sweep(base, spec, tmp_path, client=client, plots=True)
+    finally:
+        client.run(_restore_runner)
+    by = {(r["train.phi_max_deg"], r["sim.settle_time"]): r for r in outcome.rows}
     assert outcome.complete and len(by) == 4
-    assert by[(90.0, 50.0)]["ok"] and by[(90.0, 50.0)]["status"] == "goal_reached"
-    assert by[(1.0, 50.0)]["status"] == "jackknifed" and "phi_max" in by[(1.0, 50.0)]["error"]
+    assert by[(90.0, 0.0)]["ok"] and by[(90.0, 0.0)]["status"] == "goal_reached"
+    assert by[(1.0, 0.0)]["status"] == "jackknifed" and "phi_max" in by[(1.0, 0.0)]["error"]
     for phi_max in (90.0, 1.0):
-        row = by[(phi_max, 50.0025)]
-        assert row["status"] == "error" and "does not divide the horizon" in row["error"]
+        row = by[(phi_max, 0.5)]
+        assert row["status"] == "error" and INJECTED in row["error"]
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["ok"] == 1 and report["failed"] == 3
     assert {f["status"] for f in report["failures"]} == {"jackknifed", "error"}
     assert all(Path(p).is_file() for p in report["files"]["plots"])
+
+
+def test_a_horizon_that_is_not_whole_steps_refuses_the_sweep_before_it_runs(base, tmp_path):
+    spec = parse_sweep_spec({"parameters": [{"path": "sim.horizon", "values": [50.0, 50.0025]}]})
+    with pytest.raises(SweepError, match="sim.horizon"):
+        sweep(base, spec, tmp_path, serial=True, plots=False)
+    assert not (tmp_path / "results.csv").exists()
 
 
 def test_interrupted_sweep_resumes_to_the_same_table(base, serial8, tmp_path):
@@ -240,10 +278,14 @@ def _chunk_rows(out: Path) -> list[dict]:
 
 
 def test_a_run_that_raises_is_an_error_row_with_nan_metrics_not_zeros(base, tmp_path):
-    spec = parse_sweep_spec({"metrics": list(METRICS), "chunk_size": 1, "parameters": [
-        {"path": "sim.horizon", "values": [50.0025, 50.0075]}]})  # the 5 ms step divides neither
-    outcome = sweep(base, spec, tmp_path, serial=True, plots=False)
-    resumed = sweep(base, spec, tmp_path, serial=True, plots=False)
+    spec = parse_sweep_spec({"metrics": list(METRICS), "chunk_size": 1, "overrides": {
+        "sim.settle_time": 0.5}, "parameters": [{"path": "controller.k_y", "values": [3.0, 4.0]}]})
+    _install_failing_runner(0.5)
+    try:
+        outcome = sweep(base, spec, tmp_path, serial=True, plots=False)
+        resumed = sweep(base, spec, tmp_path, serial=True, plots=False)
+    finally:
+        _restore_runner()
     assert outcome.complete and outcome.new == 2 and resumed.skipped == 2 and resumed.new == 0
     for where, rows in [("returned", outcome.rows), ("resumed", resumed.rows),
                         ("results.csv", read_results(tmp_path / "results.csv")),
@@ -251,7 +293,7 @@ def test_a_run_that_raises_is_an_error_row_with_nan_metrics_not_zeros(base, tmp_
         assert len(rows) == 2, where
         for row in rows:
             assert row["status"] == "error" and row["ok"] is False, (where, row)
-            assert "does not divide the horizon" in row["error"], (where, row)
+            assert INJECTED in row["error"], (where, row)
             numbers = {m: row[m] for m in METRICS}
             assert all(isinstance(v, float) and math.isnan(v) for v in numbers.values()), \
                 (where, numbers)
