@@ -55,6 +55,7 @@ import shapely
 from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.kinematics import (ChainGeometry, body_positions_along, joint_angles,
                                         wrap_angle, wrap_scalar)
+from pushtrain.core.ode import rk4_step
 from pushtrain.core.pulling import PullGuide
 from pushtrain.core.reference import PULL, Reference, Segment
 
@@ -241,16 +242,11 @@ class Trajectory:
 
 def _rk4_step(rates, state, v0: float, w0: float, h: float):
     """One RK4 step of (x0, y0, theta...) under the constant robot command (v0, w0)."""
-    def f(z):
+    def f(_t, z):
         th = z[2:]
         return [v0 * math.cos(th[0]), v0 * math.sin(th[0])] + rates(th, v0, w0)
 
-    k1 = f(state)
-    k2 = f([a + 0.5 * h * b for a, b in zip(state, k1)])
-    k3 = f([a + 0.5 * h * b for a, b in zip(state, k2)])
-    k4 = f([a + h * b for a, b in zip(state, k3)])
-    return [a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-            for a, b1, b2, b3, b4 in zip(state, k1, k2, k3, k4)]
+    return rk4_step(f, 0.0, state, h)
 
 
 class _Measurement:
