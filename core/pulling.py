@@ -32,10 +32,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import (ChainGeometry, body_positions_along, robot_velocity_from_last,
-                         velocities_from_last)
 from pushtrain.errors import ReferencePathError
 
+from .kinematics import (
+    ChainGeometry,
+    body_positions_along,
+    robot_velocity_from_last,
+    velocities_from_last,
+)
 from .ode import rk4_step
 from .reference import PULL, ReferenceSample
 

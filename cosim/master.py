@@ -24,13 +24,13 @@ from typing import Sequence
 
 import numpy as np
 
+from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
+from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
+from pushtrain.core.reference import Reference
+from pushtrain.core.tracking import TrackingLoop
 from pushtrain.files import atomic_write
 
-from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
-from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
-from pushtrain.core.pulling import PullGuide
-from pushtrain.core.reference import PULL, Reference
 from .sensors import SensorConfig, Sensors
 
 __all__ = [
@@ -362,7 +362,7 @@ def simulate(
         if horizon is None or initial is None:
             raise CosimInputError("a run without a reference (open loop) needs a horizon and an initial state")
         check_goal = False
-    elif not (hasattr(reference, "sample") and hasattr(reference, "t_end")):
+    elif not (hasattr(reference, "sample_at") and hasattr(reference, "t_end")):
         raise CosimInputError(f"reference = {reference!r}: need a Reference or SampledReference")
     t0 = float(getattr(reference, "t0", 0.0))
     if horizon is None:
@@ -400,21 +400,11 @@ def simulate(
         ctrl.reset(initial.v0, initial.w0, t0 - step)
     times = t0 + step * np.arange(n_steps + 1)
     if reference is None:
-        ref_x = ref_y = ref_th = np.full(times.shape, np.nan)
-        ref_v = ref_w = np.zeros(times.shape)
-        ref_dir = np.zeros(times.shape, dtype=int)
         goal, t_ref_end = np.full(3, np.nan), math.inf
     else:
-        ref_x, ref_y, ref_th, ref_v, ref_w = reference.sample(times)
-        ref_dir = reference.direction_at(times)
         goal = np.asarray(reference.goal, dtype=float)
         t_ref_end = float(reference.t_end)
-
-    guide = None
-    if reference is not None and np.any(ref_dir == PULL):
-        geometry = getattr(ctrl, "guide_geometry", None)
-        if geometry is not None:  # open-loop controllers ignore the reference
-            guide = PullGuide(reference, geometry)
+    loop = TrackingLoop(ctrl, reference)
 
     slave = TrailerTrainSlave(fmu)
     if slave.n != n:
@@ -463,9 +453,7 @@ def simulate(
                 meas = sens.measure(x0, y0, th0, phi, (y[n], y[2 * (n + 1) - 1], th_n))
             else:
                 meas = sens.measure(x0, y0, th0, phi)
-            leader = guide.sample_at(t) if ref_dir[k] == PULL and guide is not None else None
-            v_cmd, w_cmd, _ = ctrl.command(
-                t, meas, (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k]), leader)
+            v_cmd, w_cmd, _, ref = loop.command(t, meas)
             push_x = push_y = 0.0
             for p in pushes:
                 if p.t - 1e-12 <= t < p.t + p.duration - 1e-12:
@@ -487,8 +475,8 @@ def simulate(
             y = read()
             flags = read_flags()
             # tracking error of the last trailer in the reference's (chain) frame
-            dx, dy = y[n] - ref_x[k], y[2 * (n + 1) - 1] - ref_y[k]
-            c, s_ = math.cos(ref_th[k]), math.sin(ref_th[k])
+            dx, dy = y[n] - ref.x, y[2 * (n + 1) - 1] - ref.y
+            c, s_ = math.cos(ref.theta), math.sin(ref.theta)
             row = rec[k]
             row[0] = t
             row[1:1 + 5 * (n + 1)] = y[:5 * (n + 1)]
@@ -501,8 +489,8 @@ def simulate(
             row[base + 5 * n:base + 6 * n] = y[i_flat + n:i_flat + 2 * n]
             base += 6 * n
             row[base:base + 5] = (v_cmd, w_cmd, push_x, push_y, slide_n)
-            row[base + 5:base + 11] = (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k])
-            e_theta = wrap_scalar(y[3 * (n + 1) - 1] - ref_th[k])
+            row[base + 5:base + 11] = ref
+            e_theta = wrap_scalar(y[3 * (n + 1) - 1] - ref.theta)
             row[base + 11:base + 15] = (c * dx + s_ * dy, -s_ * dx + c * dy, e_theta, flags[n])
             k_last = k
             if flags[n]:

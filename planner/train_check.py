@@ -12,9 +12,11 @@ Controller
     ``BackwardController(tracker.controller)`` (gains, robot limits, rate limits and its own
     chain model, from which the robot's pulling reference, a
     :class:`~pushtrain.core.pulling.PullGuide`, is built), called every ``tracker.step``
-    seconds at ``t_k = k * step`` with a perfect measurement (robot pose and joint angles ``phi_i = theta_{i-1} - theta_i``) exactly
-    as the master calls it; the command is held over the step (zero-order hold) and the rate
-    limits start from rest one step before t = 0, as in the master.
+    seconds at ``t_k = k * step`` through the master's own per-step logic,
+    :class:`~pushtrain.core.tracking.TrackingLoop`, with a perfect measurement (robot pose and
+    joint angles ``phi_i = theta_{i-1} - theta_i``); the command is held over the step
+    (zero-order hold) and the rate limits start from rest one step before t = 0, as in the
+    master.
 Plant
     The robot moves along its heading with the commanded ``(v0, w0)`` (no first-order velocity
     lag: the FMU's ``tau`` = 0.05 s is ignored, no slip), the trailers are towed:
@@ -53,13 +55,18 @@ import numpy as np
 import shapely
 
 from pushtrain.core.controller import BackwardController, ControllerConfig
-from pushtrain.core.kinematics import (ChainGeometry, body_positions_along, joint_angles,
-                                        wrap_angle, wrap_scalar)
+from pushtrain.core.kinematics import (
+    ChainGeometry,
+    body_positions_along,
+    joint_angles,
+    wrap_angle,
+    wrap_scalar,
+)
 from pushtrain.core.ode import rk4_step
-from pushtrain.core.pulling import PullGuide
-from pushtrain.core.reference import PULL, Reference, Segment
-
+from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.tracking import TrackingLoop
 from pushtrain.errors import PlanningInputError
+
 from .world import Train, World
 
 __all__ = [
@@ -292,7 +299,7 @@ def simulate_tracking(
     """
     ctrl = BackwardController(controller)
     ctrl.reset(0.0, 0.0, -step)
-    guide = PullGuide(reference, controller.geometry)
+    loop = TrackingLoop(ctrl, reference)
     rates = towed_rates(geometry)
     th0 = np.asarray(start_headings, dtype=float)
     x, y = body_positions_along(np.asarray(reference.start, dtype=float)[None, :], th0[None, :],
@@ -302,9 +309,7 @@ def simulate_tracking(
     states, commands, refs, dirs = [], [], [], []
     for k in range(n_steps + 1):
         t = k * step
-        ref = reference.sample_at(t)
-        leader = guide.sample_at(t) if ref.direction == PULL else None
-        v0, w0, _ = ctrl.command(t, _Measurement(state), ref, leader)
+        v0, w0, _, ref = loop.command(t, _Measurement(state))
         states.append(state), commands.append((v0, w0))
         refs.append((ref.x, ref.y, ref.theta)), dirs.append(ref.direction)
         if k < n_steps:
