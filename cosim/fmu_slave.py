@@ -22,6 +22,7 @@ from fmpy.fmi2 import (
     fmi2CallbackAllocateMemoryTYPE,
     fmi2CallbackFreeMemoryTYPE,
     fmi2CallbackFunctions,
+    fmi2Boolean,
     fmi2CallbackLoggerTYPE,
     fmi2Real,
     fmi2ValueReference,
@@ -183,19 +184,23 @@ class TrailerTrainSlave:
         return write
 
     def bool_reader(self, names):
-        """A function returning the current values of the Booleans ``names`` as a list of 0/1."""
-        refs = self._refs(names)
-        get = self.slave.getBoolean
+        """A function returning the current values of the Booleans ``names`` as a (reused)
+        numpy array of 0/1 (fmi2Boolean)."""
+        refs = (fmi2ValueReference * len(names))(*self._refs(names))
+        buffer = (fmi2Boolean * len(names))()
+        view = np.ctypeslib.as_array(buffer)
+        get = self.slave.fmi2GetBoolean
+        component = self.slave.component
+        count = len(names)
 
-        def read() -> list:
-            return get(refs)
+        def read() -> np.ndarray:
+            get(component, refs, count, buffer)
+            return view
 
         return read
 
-    def get_booleans(self, names) -> list[bool]:
-        return [bool(b) for b in self.slave.getBoolean(self._refs(names))]
-
     def get_reals(self, names) -> np.ndarray:
+        """The current values of the Reals ``names`` (a new array; for set-up, not per step)."""
         return np.array(self.slave.getReal(self._refs(names)))
 
     def do_step(self, t: float, h: float) -> None:
@@ -208,14 +213,7 @@ class TrailerTrainSlave:
             ) from exc
         self.time = t + h
 
-    # -------------------------------------------------------------- state
-    def get_state(self):
-        """An FMU state handle for rollback (``canGetAndSetFMUstate``)."""
-        return self.slave.getFMUstate()
-
-    def set_state(self, state) -> None:
-        self.slave.setFMUstate(state)
-
+    # -------------------------------------------------------------- life cycle
     def close(self) -> None:
         """Terminate, free the instance and remove the extracted files."""
         if self._instantiated:

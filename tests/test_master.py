@@ -167,3 +167,18 @@ def test_a_sampled_reference_drives_the_same_run_as_its_segments(fmu3):
     b = simulate(fmu3, sampled, ControllerConfig.uniform(3))
     assert a.status == b.status == "goal_reached"
     assert np.max(np.abs(a.data["x3"] - b.data["x3"][: len(a.data)])) < 1e-3
+
+
+def test_a_huge_horizon_costs_only_the_steps_run(fmu3):
+    """horizon = 1e9 s (2e11 steps) with a goal reached after a few steps allocates little."""
+    import tracemalloc
+
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 0.02)], speed=0.08)
+    tracemalloc.start()
+    try:
+        result = simulate(fmu3, ref, ControllerConfig.uniform(3), horizon=1e9, progress=False)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert result.status == "goal_reached" and len(result.data) < 100
+    assert peak < 20e6, f"peak {peak / 1e6:.1f} MB"
