@@ -36,9 +36,14 @@ def _positive(name: str, value, allow_zero: bool = False) -> float:
 class Push:
     """External force on the last trailer's axle midpoint from ``t`` for ``duration`` [s].
 
-    ``lateral`` [N] acts along the last trailer's left normal at the push's start (positive: to
-    its left as seen facing the robot); ``fx``, ``fy`` [N] add a world-frame force. In the rolling
-    model (slip_mode 0) a push changes the wheel and hitch forces only.
+    ``lateral`` [N] acts along the last trailer's *current* left normal (positive: to its left
+    as seen facing the robot): the direction is taken from the trailer's heading at every
+    communication point and held over the step, so the force turns with the trailer. That is
+    what a lateral push means on a vehicle: a hand or a bumper pressing on the trailer's side
+    stays perpendicular to it, and the rolling model's wheel force ``F_lat`` along that same
+    normal takes exactly ``-lateral`` while the push lasts, whatever the trailer does. A force
+    of fixed direction is what ``fx``, ``fy`` [N] are for: they add a world-frame force. In the
+    rolling model (slip_mode 0) a push changes the wheel and hitch forces only.
     """
 
     t: float
