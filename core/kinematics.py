@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from math import cos, sin
 
 import numpy as np
 
@@ -209,7 +210,7 @@ def velocities_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[floa
     w = [0.0] * (n + 1)
     v, w[n] = float(v_n), float(w_n)
     for i in range(n - 1, -1, -1):
-        c, s = math.cos(phi[i]), math.sin(phi[i])
+        c, s = cos(phi[i]), sin(phi[i])
         v, w[i] = c * v + front[i] * s * w[i + 1], (s * v - front[i] * c * w[i + 1]) / rear[i]
     return v, w
 

@@ -176,8 +176,12 @@ class PullGuide:
         theta = [float(end.theta)] * (n + 1)  # drawn out straight at the run's end
         rows = [theta]
 
+        last = [math.nan, None]  # RK4 asks twice for the midpoint: sample it once
+
         def rates(t: float, theta: list) -> list:
-            return self._driven(theta, *vw(t))
+            if t != last[0]:
+                last[0], last[1] = t, vw(t)
+            return self._driven(theta, *last[1])
 
         for k in range(k_steps):
             t, h = times[k], times[k + 1] - times[k]  # h < 0

@@ -117,20 +117,21 @@ class Segment:
             raise ReferencePathError(f"segment speed = {self.speed!r} m/s: must be finite and > 0")
 
 
-def _advance(x, y, theta, sigma, kappa, s, lib=math):
+def _advance(x, y, theta, sigma, kappa, s, sin=math.sin, cos=math.cos):
     """Pose after travelling ``s`` [m] from ``(x, y, theta)`` along a line or arc (Eq. 1
     integrated in closed form).
 
     ``sigma`` is the sign of v (-direction, 0 at rest) and ``kappa`` the curvature [1/m]; below
-    1e-12 1/m the segment counts as straight. ``lib`` is :mod:`math` for a float ``s`` or
-    :mod:`numpy` for an array of distances (the same formulas, element by element).
+    1e-12 1/m the segment counts as straight. With :func:`math.sin`, :func:`math.cos` for a float
+    ``s``, with :func:`numpy.sin`, :func:`numpy.cos` for an array of distances (the same formulas,
+    element by element).
     """
     th = theta + kappa * s
     if abs(kappa) < 1e-12:
-        return x + sigma * s * lib.cos(theta), y + sigma * s * lib.sin(theta), th
+        return x + sigma * s * cos(theta), y + sigma * s * sin(theta), th
     return (
-        x + sigma * (lib.sin(th) - lib.sin(theta)) / kappa,
-        y - sigma * (lib.cos(th) - lib.cos(theta)) / kappa,
+        x + sigma * (sin(th) - sin(theta)) / kappa,
+        y - sigma * (cos(th) - cos(theta)) / kappa,
         th,
     )
 
@@ -244,7 +245,7 @@ class Reference:
             at = k == row
             x0, y0, th0, sigma, kappa, speed = self._rows[1][row]
             s = speed * (tc[at] - self._t_start[row])
-            x[at], y[at], th[at] = _advance(x0, y0, th0, sigma, kappa, s, np)
+            x[at], y[at], th[at] = _advance(x0, y0, th0, sigma, kappa, s, np.sin, np.cos)
         moving = (t >= self.t0) & (t < self._t_end)
         v = np.where(moving, self._sigma[k] * self._speed[k], 0.0)
         w = np.where(moving, self._kappa[k] * self._speed[k], 0.0)
@@ -261,13 +262,6 @@ class Reference:
         """Start and end times [s] of every maximal pulling run (consecutive pulling segments)."""
         return _pull_intervals(np.append(self._t_start, self._t_end), -self._sigma)
 
-    def _row_at(self, t: float):
-        """Index of the phase active at time ``t`` (clipped to the table) and the clipped time."""
-        t_start, rows = self._rows
-        tc = min(max(t, self.t0), self._t_end)
-        k = min(max(bisect_right(t_start, tc) - 1, 0), len(rows) - 1)
-        return k, tc - t_start[k]
-
     def sample_at(self, t: float) -> ReferenceSample:
         """Reference at one time ``t`` [s] as plain floats (fast scalar form of :meth:`sample`).
 
@@ -278,10 +272,11 @@ class Reference:
             from :attr:`t_end` on, where v = w = 0).
         """
         t = float(t)
-        k, tau = self._row_at(t)
-        x0, y0, th0, sigma, kappa, speed = self._rows[1][k]
-        s = speed * tau
-        x, y, th = _advance(x0, y0, th0, sigma, kappa, s)
+        t_start, rows = self._rows
+        tc = min(max(t, self.t0), self._t_end)
+        k = min(max(bisect_right(t_start, tc) - 1, 0), len(rows) - 1)
+        x0, y0, th0, sigma, kappa, speed = rows[k]
+        x, y, th = _advance(x0, y0, th0, sigma, kappa, speed * (tc - t_start[k]))
         if self.t0 <= t < self._t_end and sigma != 0.0:
             return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
         return ReferenceSample(x, y, th, 0.0, 0.0, REST)

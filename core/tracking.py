@@ -20,6 +20,11 @@ __all__ = ["TrackingLoop"]
 _NO_REFERENCE = ReferenceSample(math.nan, math.nan, math.nan, 0.0, 0.0, REST)
 
 
+def _no_reference(t: float) -> ReferenceSample:
+    """The sample of an open-loop run without a reference: at rest, pose unknown."""
+    return _NO_REFERENCE
+
+
 class TrackingLoop:
     """Reference sampling, pull guide and controller call of one control instant.
 
@@ -42,12 +47,8 @@ class TrackingLoop:
         self.guide = None
         if reference is not None and geometry is not None and reference.pull_intervals():
             self.guide = PullGuide(reference, geometry)
-
-    def reference_at(self, t: float) -> ReferenceSample:
-        """The last trailer's reference at ``t`` [s]."""
-        if self.reference is None:
-            return _NO_REFERENCE
-        return self.reference.sample_at(t)
+        self.reference_at = _no_reference if reference is None else reference.sample_at
+        """``reference_at(t)``: the last trailer's :class:`ReferenceSample` at ``t`` [s]."""
 
     def command(self, t: float, measurement):
         """The controller's command at ``t`` [s] for ``measurement``.

@@ -166,12 +166,12 @@ def towed_rates(geometry: ChainGeometry):
     rear = [float(a) for a in geometry.rear]
     n = geometry.n
 
-    def rates(theta, v0: float, w0: float):
+    def rates(theta, v0: float, w0: float, cos=math.cos, sin=math.sin):
         w = [0.0] * (n + 1)
         v, w[0] = v0, w0
         for i in range(1, n + 1):
             phi = theta[i - 1] - theta[i]
-            c, s = math.cos(phi), math.sin(phi)
+            c, s = cos(phi), sin(phi)
             r = rear[i - 1]
             v, w[i] = c * v + r * s * w[i - 1], (s * v - r * c * w[i - 1]) / front[i - 1]
         return w
@@ -260,6 +260,7 @@ class _Measurement:
     """Perfect measurement handed to the controller (robot pose and joint angles)."""
 
     __slots__ = ("x0", "y0", "theta0", "phi")
+    last_pose = None  # the last trailer's pose is estimated from the joints, as in the master
 
     def __init__(self, state):
         self.x0, self.y0, self.theta0 = state[0], state[1], state[2]
