@@ -149,15 +149,28 @@ class TrailerTrainSlave:
     # -------------------------------------------------------------- fast per-step access
     def real_reader(self, names):
         """A function returning the current values of ``names`` as a (reused) numpy array."""
+        return self._reader(names, fmi2Real, self.slave.fmi2GetReal)
+
+    def bool_reader(self, names):
+        """A function returning the current values of the Booleans ``names`` as a (reused)
+        numpy array of 0/1 (fmi2Boolean)."""
+        return self._reader(names, fmi2Boolean, self.slave.fmi2GetBoolean)
+
+    def _reader(self, names, ctype, get):
         refs = (fmi2ValueReference * len(names))(*self._refs(names))
-        buffer = (fmi2Real * len(names))()
+        buffer = (ctype * len(names))()
         view = np.ctypeslib.as_array(buffer)
-        get = self.slave.fmi2GetReal
         component = self.slave.component
         count = len(names)
 
         def read() -> np.ndarray:
-            get(component, refs, count, buffer)
+            try:
+                get(component, refs, count, buffer)
+            except FMICallException as exc:
+                raise CosimError(
+                    f"reading {names[0]} .. {names[-1]} failed at t = {self.time:.6f} s: "
+                    f"{self.last_messages() or exc}"
+                ) from exc
             return view
 
         return read
@@ -182,22 +195,6 @@ class TrailerTrainSlave:
                 ) from exc
 
         return write
-
-    def bool_reader(self, names):
-        """A function returning the current values of the Booleans ``names`` as a (reused)
-        numpy array of 0/1 (fmi2Boolean)."""
-        refs = (fmi2ValueReference * len(names))(*self._refs(names))
-        buffer = (fmi2Boolean * len(names))()
-        view = np.ctypeslib.as_array(buffer)
-        get = self.slave.fmi2GetBoolean
-        component = self.slave.component
-        count = len(names)
-
-        def read() -> np.ndarray:
-            get(component, refs, count, buffer)
-            return view
-
-        return read
 
     def get_reals(self, names) -> np.ndarray:
         """The current values of the Reals ``names`` (a new array; for set-up, not per step)."""
