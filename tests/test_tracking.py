@@ -3,7 +3,6 @@
 import math
 
 import numpy as np
-import pytest
 
 from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.openloop import ConstantCommand
