@@ -2,8 +2,10 @@
 
 Chain kinematics (:mod:`.kinematics`), line/arc reference paths (:mod:`.reference`), the backward
 controller (Kanayama tracking in the travel frame + inverse chain, :mod:`.controller`), the pull
-guide (:mod:`.pulling`), the slip-aware governor (:mod:`.governor`), open-loop command profiles
-(:mod:`.openloop`) and the closed-form analysis of the law (:mod:`.analysis`, Eq. 9, 12, 13).
+guide (:mod:`.pulling`), one step of the closed loop shared by the co-simulation and the planner's
+train check (:mod:`.tracking`), the slip-aware governor (:mod:`.governor`), open-loop command
+profiles (:mod:`.openloop`), the closed-form analysis of the law (:mod:`.analysis`, Eq. 9, 12, 13)
+and a fixed-step RK4 (:mod:`.ode`).
 
 This package imports numpy and scipy only: never the planner, the co-simulation, fmpy or ompl.
 """

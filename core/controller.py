@@ -71,7 +71,8 @@ import numpy as np
 from pushtrain.errors import ControllerError
 
 from .kinematics import ChainGeometry, robot_velocity_from_last, wrap_scalar
-from .reference import PULL, PUSH, REST
+from .reference import PULL, PUSH, REST, ReferenceSample
+from .tracking import TrackingLoop
 
 __all__ = [
     "MODE_PULL",
@@ -81,6 +82,8 @@ __all__ = [
     "ControlInfo",
     "ControllerConfig",
     "ControllerError",
+    "Gains",
+    "kanayama",
 ]
 
 logger = logging.getLogger(__name__)
@@ -156,6 +159,30 @@ class ControllerConfig:
         return cls(geometry=geometry, **kwargs)
 
 
+class Gains(NamedTuple):
+    """Kanayama's gains: K_x [1/s] (Eq. 3), K_y [1/m²] and K_theta [1/m] (Eq. 4)."""
+
+    k_x: float
+    k_y: float
+    k_theta: float
+
+
+def kanayama(x_e: float, y_e: float, th_e: float, u_d: float, w_d: float,
+             gains: Gains) -> tuple[float, float]:
+    """Kanayama's tracking law (the paper's Eq. 3-4) in the tracked body's frame.
+
+    ``x_e, y_e`` [m] are the reference position in that frame (along and left of the body),
+    ``th_e`` [rad] the heading error (reference minus body, wrapped), ``u_d`` [m/s] and ``w_d``
+    [rad/s] the reference speed (> 0: the law is stable only for forward travel in this frame,
+    Eq. 13) and yaw rate. Returns the body's (u [m/s], w [rad/s])::
+
+        u = u_d cos(th_e) + K_x x_e
+        w = w_d + u_d (K_y y_e + K_theta sin(th_e))
+    """
+    return (u_d * cos(th_e) + gains.k_x * x_e,
+            w_d + u_d * (gains.k_y * y_e + gains.k_theta * sin(th_e)))
+
+
 class ControlInfo(NamedTuple):
     """Diagnostics of one :meth:`BackwardController.command` call.
 
@@ -198,13 +225,13 @@ class BackwardController:
         self.n = config.geometry.n
         self._front = [float(a) for a in config.geometry.front]
         self._rear = [float(a) for a in config.geometry.rear]
-        self._kx, self._ky, self._kth = float(config.k_x), float(config.k_y), float(config.k_theta)
+        self.gains = Gains(float(config.k_x), float(config.k_y), float(config.k_theta))
         self._vmax, self._wmax = float(config.v_max), float(config.w_max)
         self._amax = None if config.acc_max is None else float(config.acc_max)
         self._alphamax = None if config.alpha_max is None else float(config.alpha_max)
         self._rest = float(config.rest_speed)
         self.guide_geometry = config.geometry
-        self._guides: dict = {}
+        self._loop: TrackingLoop | None = None  # command_from's loop of its last reference
         self.reset()
 
     def sent(self, v0: float, w0: float) -> None:
@@ -245,7 +272,7 @@ class BackwardController:
 
     # -- the control law --
 
-    def command(self, t: float, measurement, ref, leader=None):
+    def command(self, t: float, measurement, ref: ReferenceSample, leader=None):
         """Robot command for the measured state and the reference at time ``t``.
 
         Parameters
@@ -260,11 +287,11 @@ class BackwardController:
             trailer replaces the estimate from the joint angles (Step 2); Step 3 always uses
             ``phi``.
         ref : ReferenceSample
-            The last trailer's reference ``(x, y, theta, v, w, direction)`` at ``t``.
+            The last trailer's reference at ``t``.
         leader : ReferenceSample or None
-            Only needed while pulling: the robot's own reference ``(x0, y0, theta0, v0, w0,
-            PULL)`` at ``t``, from :class:`~pushtrain.core.pulling.PullGuide` built with
-            :attr:`guide_geometry`. See :meth:`command_from`, which fills both.
+            Only needed while pulling: the robot's own reference at ``t``, from
+            :class:`~pushtrain.core.pulling.PullGuide` built with :attr:`guide_geometry`.
+            :class:`~pushtrain.core.tracking.TrackingLoop` (or :meth:`command_from`) fills it.
 
         Returns
         -------
@@ -279,33 +306,14 @@ class BackwardController:
             raise ControllerError(
                 f"measurement.phi has {len(phi)} joint angles; the controller's chain has {self.n}"
             )
-        x0, y0, th0 = measurement.x0, measurement.y0, measurement.theta0
-        last = getattr(measurement, "last_pose", None)
-        if last is None:
-            x_n, y_n, th_n = self.last_trailer_pose(x0, y0, th0, phi)
-        else:
-            x_n, y_n, th_n = last
-        direction = ref[5]
-        v_d = ref[3]
-        if not (isfinite(x_n) and isfinite(y_n) and isfinite(th_n)):
-            raise ControllerError(
-                f"non-finite measurement at t = {t!r} s: robot pose ({x0!r}, {y0!r}, {th0!r}),"
-                f" phi = {list(phi)!r}"
-            )
-        if direction == REST or abs(v_d) <= self._rest:
+        x_n, y_n, th_n = self._last_pose(t, measurement)
+        direction = ref.direction
+        if direction == REST or abs(ref.v) <= self._rest:
             mode = MODE_REST
             x_e = y_e = th_e = u_ref = w_ref = v_raw = w_raw = 0.0
         elif direction == PUSH:
             mode = MODE_PUSH
-            # Eq. 2 in the direction-of-travel frame: heading theta_n + pi, speed -v_n
-            dx, dy = ref[0] - x_n, ref[1] - y_n
-            c, s = cos(th_n), sin(th_n)
-            x_e = -(c * dx + s * dy)
-            y_e = s * dx - c * dy
-            th_e = wrap_scalar(ref[2] - th_n)
-            u_d = -v_d
-            u_ref = u_d * cos(th_e) + self._kx * x_e  # Eq. 3
-            w_ref = ref[4] + u_d * (self._ky * y_e + self._kth * sin(th_e))  # Eq. 4
+            x_e, y_e, th_e, u_ref, w_ref = self._push(ref, x_n, y_n, th_n)
             v_raw, w_raw = self.robot_velocity(phi, -u_ref, w_ref)  # Eq. 5
         elif direction == PULL:
             mode = MODE_PULL
@@ -315,15 +323,7 @@ class BackwardController:
                     "(PullGuide(reference, controller.guide_geometry).sample_at(t));"
                     " use command_from(reference, t, measurement)"
                 )
-            # Kanayama on the robot in its own forward frame along its own reference
-            dx, dy = leader[0] - x0, leader[1] - y0
-            c, s = cos(th0), sin(th0)
-            x_e = c * dx + s * dy
-            y_e = -s * dx + c * dy
-            th_e = wrap_scalar(leader[2] - th0)
-            u_d = abs(leader[3])
-            u_ref = u_d * cos(th_e) + self._kx * x_e
-            w_ref = leader[4] + u_d * (self._ky * y_e + self._kth * sin(th_e))
+            x_e, y_e, th_e, u_ref, w_ref = self._pull(leader, measurement)
             v_raw, w_raw = u_ref, w_ref
         else:
             raise ControllerError(
@@ -333,29 +333,54 @@ class BackwardController:
         info = ControlInfo(mode, x_e, y_e, th_e, x_n, y_n, th_n, u_ref, w_ref, v_raw, w_raw, scale)
         return v, w, info
 
+    def _last_pose(self, t: float, measurement) -> tuple:
+        """The last trailer's pose: measured directly if the measurement has it, else estimated
+        from the robot pose and the joint angles (Step 2); refuses a non-finite one."""
+        x0, y0, th0 = measurement.x0, measurement.y0, measurement.theta0
+        last = getattr(measurement, "last_pose", None)
+        if last is None:
+            x_n, y_n, th_n = self.last_trailer_pose(x0, y0, th0, measurement.phi)
+        else:
+            x_n, y_n, th_n = last
+        if not (isfinite(x_n) and isfinite(y_n) and isfinite(th_n)):
+            raise ControllerError(
+                f"non-finite measurement at t = {t!r} s: robot pose ({x0!r}, {y0!r}, {th0!r}),"
+                f" phi = {list(measurement.phi)!r}"
+            )
+        return x_n, y_n, th_n
+
+    def _push(self, ref: ReferenceSample, x_n: float, y_n: float, th_n: float) -> tuple:
+        """Kanayama on trailer n in its direction-of-travel frame (heading theta_n + pi, speed
+        u = -v_n, so u_d = -v_d > 0): errors (Eq. 2) and the law's (u, w)."""
+        dx, dy = ref.x - x_n, ref.y - y_n
+        c, s = cos(th_n), sin(th_n)
+        x_e = -(c * dx + s * dy)
+        y_e = s * dx - c * dy
+        th_e = wrap_scalar(ref.theta - th_n)
+        return (x_e, y_e, th_e) + kanayama(x_e, y_e, th_e, -ref.v, ref.w, self.gains)
+
+    def _pull(self, leader: ReferenceSample, measurement) -> tuple:
+        """Kanayama on the robot in its own forward frame along its own reference ``leader``:
+        errors (Eq. 2) and the law's (u, w)."""
+        x0, y0, th0 = measurement.x0, measurement.y0, measurement.theta0
+        dx, dy = leader.x - x0, leader.y - y0
+        c, s = cos(th0), sin(th0)
+        x_e = c * dx + s * dy
+        y_e = -s * dx + c * dy
+        th_e = wrap_scalar(leader.theta - th0)
+        return (x_e, y_e, th_e) + kanayama(x_e, y_e, th_e, abs(leader.v), leader.w, self.gains)
+
     def command_from(self, reference, t: float, measurement):
         """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t``.
 
         ``reference`` is a :class:`~pushtrain.core.reference.Reference` or
-        :class:`~pushtrain.core.reference.SampledReference`. While pulling, the robot's
-        reference comes from a :class:`~pushtrain.core.pulling.PullGuide` of ``reference``,
-        built on first use and kept for later calls with the same reference object.
+        :class:`~pushtrain.core.reference.SampledReference`; the samples come from a
+        :class:`~pushtrain.core.tracking.TrackingLoop` of this controller and ``reference``,
+        kept while the calls pass the same reference object.
         """
-        ref = reference.sample_at(t)
-        leader = self.guide_for(reference).sample_at(t) if ref[5] == PULL else None
-        return self.command(t, measurement, ref, leader)
-
-    def guide_for(self, reference):
-        """The :class:`~pushtrain.core.pulling.PullGuide` of ``reference`` for this controller's
-        chain model (cached per reference object)."""
-        key = id(reference)
-        cached = self._guides.get(key)
-        if cached is None or cached.reference is not reference:
-            from .pulling import PullGuide
-
-            cached = PullGuide(reference, self.guide_geometry)
-            self._guides = {key: cached}
-        return cached
+        if self._loop is None or self._loop.reference is not reference:
+            self._loop = TrackingLoop(self, reference)
+        return self._loop.command(t, measurement)[:3]
 
     def _limit(self, t: float, v: float, w: float):
         """Apply the common-factor speed limits and the optional rate limits."""

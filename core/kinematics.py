@@ -1,7 +1,8 @@
 """Chain kinematics of a robot with n off-hooked trailers (pure numpy, no fmpy).
 
-Conventions (see ``docs/model.md``): body 0 is the robot, bodies 1..n the trailers. Heading
-``theta[i]`` is measured from +x, CCW positive, and points toward the robot (the towing
+Conventions (the paper's, except that headings are measured from +x: its Eq. (1) measures them
+from +y, while its Eq. (2)-(5) and (14) need +x): body 0 is the robot, bodies 1..n the trailers.
+Heading ``theta[i]`` is measured from +x, CCW positive, and points toward the robot (the towing
 direction), so a straight chain has equal headings and pushing has ``v[i] < 0``. Unit vectors
 ``e_i = (cos theta_i, sin theta_i)`` and left normal ``n_i = (-sin theta_i, cos theta_i)``.
 Joint angle ``phi[i] = theta[i-1] - theta[i]`` (i = 1..n).
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from math import cos, sin
 
 import numpy as np
 
@@ -208,7 +210,7 @@ def velocities_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[floa
     w = [0.0] * (n + 1)
     v, w[n] = float(v_n), float(w_n)
     for i in range(n - 1, -1, -1):
-        c, s = math.cos(phi[i]), math.sin(phi[i])
+        c, s = cos(phi[i]), sin(phi[i])
         v, w[i] = c * v + front[i] * s * w[i + 1], (s * v - front[i] * c * w[i + 1]) / rear[i]
     return v, w
 

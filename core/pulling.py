@@ -32,10 +32,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import (ChainGeometry, body_positions_along, robot_velocity_from_last,
-                         velocities_from_last)
 from pushtrain.errors import ReferencePathError
 
+from .kinematics import (
+    ChainGeometry,
+    body_positions_along,
+    robot_velocity_from_last,
+    velocities_from_last,
+)
+from .ode import rk4_step
 from .reference import PULL, ReferenceSample
 
 __all__ = ["PullGuide", "PullRun", "rates_driven_by_last", "straight_chain_mismatch"]
@@ -170,17 +175,17 @@ class PullGuide:
         end = ref.sample_at(t_b - eps)
         theta = [float(end.theta)] * (n + 1)  # drawn out straight at the run's end
         rows = [theta]
+
+        last = [math.nan, None]  # RK4 asks twice for the midpoint: sample it once
+
+        def rates(t: float, theta: list) -> list:
+            if t != last[0]:
+                last[0], last[1] = t, vw(t)
+            return self._driven(theta, *last[1])
+
         for k in range(k_steps):
             t, h = times[k], times[k + 1] - times[k]  # h < 0
-            v1, w1 = vw(t)
-            vm, wm = vw(t + 0.5 * h)
-            v2, w2 = vw(t + h)
-            k1 = self._driven(theta, v1, w1)
-            k2 = self._driven([a + 0.5 * h * b for a, b in zip(theta, k1)], vm, wm)
-            k3 = self._driven([a + 0.5 * h * b for a, b in zip(theta, k2)], vm, wm)
-            k4 = self._driven([a + h * b for a, b in zip(theta, k3)], v2, w2)
-            theta = [a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-                     for a, b1, b2, b3, b4 in zip(theta, k1, k2, k3, k4)]
+            theta = rk4_step(rates, t, theta, h)
             theta[-1] = float(ref.sample_at(min(max(times[k + 1], t_a), t_b - eps)).theta)
             rows.append(theta)
         rows.reverse()

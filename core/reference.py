@@ -17,10 +17,10 @@ A :class:`Segment` is a line or an arc travelled at constant speed in one direct
 
 from __future__ import annotations
 
+import math
 from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from math import cos, sin
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -117,15 +117,21 @@ class Segment:
             raise ReferencePathError(f"segment speed = {self.speed!r} m/s: must be finite and > 0")
 
 
-def _advance(x, y, theta, sigma, kappa, s):
-    """Pose after travelling distance ``s`` [m] with the sign of v ``sigma`` and curvature kappa."""
-    s = np.asarray(s, dtype=float)
-    if kappa == 0.0:
-        return x + sigma * s * np.cos(theta), y + sigma * s * np.sin(theta), theta + 0.0 * s
+def _advance(x, y, theta, sigma, kappa, s, sin=math.sin, cos=math.cos):
+    """Pose after travelling ``s`` [m] from ``(x, y, theta)`` along a line or arc (Eq. 1
+    integrated in closed form).
+
+    ``sigma`` is the sign of v (-direction, 0 at rest) and ``kappa`` the curvature [1/m]; below
+    1e-12 1/m the segment counts as straight. With :func:`math.sin`, :func:`math.cos` for a float
+    ``s``, with :func:`numpy.sin`, :func:`numpy.cos` for an array of distances (the same formulas,
+    element by element).
+    """
     th = theta + kappa * s
+    if abs(kappa) < 1e-12:
+        return x + sigma * s * cos(theta), y + sigma * s * sin(theta), th
     return (
-        x + sigma * (np.sin(th) - np.sin(theta)) / kappa,
-        y - sigma * (np.cos(th) - np.cos(theta)) / kappa,
+        x + sigma * (sin(th) - sin(theta)) / kappa,
+        y - sigma * (cos(th) - cos(theta)) / kappa,
         th,
     )
 
@@ -191,8 +197,8 @@ class Reference:
             rows_t.append(t), rows_pose.append(pose.copy())
             rows_sigma.append(-float(seg.direction)), rows_kappa.append(float(seg.curvature))
             rows_speed.append(speed)
-            x, y, th = _advance(*pose, -float(seg.direction), float(seg.curvature), seg.length)
-            pose = np.array([float(x), float(y), float(th)])
+            pose = np.array(_advance(*(float(a) for a in pose), -float(seg.direction),
+                                     float(seg.curvature), float(seg.length)))
             t += seg.length / speed
             previous_direction = seg.direction
         self._t_start = np.array(rows_t)
@@ -234,26 +240,15 @@ class Reference:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         tc = np.clip(t, self.t0, self._t_end)
         k = np.clip(np.searchsorted(self._t_start, tc, side="right") - 1, 0, len(self._t_start) - 1)
-        tau = tc - self._t_start[k]
-        sigma, kappa, speed = self._sigma[k], self._kappa[k], self._speed[k]
-        s = speed * tau
-        x0, y0, th0 = self._pose0[k, 0], self._pose0[k, 1], self._pose0[k, 2]
-        th = th0 + kappa * s
-        straight = np.abs(kappa) < 1e-12
-        safe_kappa = np.where(straight, 1.0, kappa)
-        x = np.where(
-            straight,
-            x0 + sigma * s * np.cos(th0),
-            x0 + sigma * (np.sin(th) - np.sin(th0)) / safe_kappa,
-        )
-        y = np.where(
-            straight,
-            y0 + sigma * s * np.sin(th0),
-            y0 - sigma * (np.cos(th) - np.cos(th0)) / safe_kappa,
-        )
+        x, y, th = (np.empty_like(tc) for _ in range(3))
+        for row in np.unique(k):
+            at = k == row
+            x0, y0, th0, sigma, kappa, speed = self._rows[1][row]
+            s = speed * (tc[at] - self._t_start[row])
+            x[at], y[at], th[at] = _advance(x0, y0, th0, sigma, kappa, s, np.sin, np.cos)
         moving = (t >= self.t0) & (t < self._t_end)
-        v = np.where(moving, sigma * speed, 0.0)
-        w = np.where(moving, kappa * speed, 0.0)
+        v = np.where(moving, self._sigma[k] * self._speed[k], 0.0)
+        w = np.where(moving, self._kappa[k] * self._speed[k], 0.0)
         return x, y, th, v, w
 
     def direction_at(self, t) -> np.ndarray:
@@ -267,13 +262,6 @@ class Reference:
         """Start and end times [s] of every maximal pulling run (consecutive pulling segments)."""
         return _pull_intervals(np.append(self._t_start, self._t_end), -self._sigma)
 
-    def _row_at(self, t: float):
-        """Index of the phase active at time ``t`` (clipped to the table) and the clipped time."""
-        t_start, rows = self._rows
-        tc = min(max(t, self.t0), self._t_end)
-        k = min(max(bisect_right(t_start, tc) - 1, 0), len(rows) - 1)
-        return k, tc - t_start[k]
-
     def sample_at(self, t: float) -> ReferenceSample:
         """Reference at one time ``t`` [s] as plain floats (fast scalar form of :meth:`sample`).
 
@@ -284,10 +272,11 @@ class Reference:
             from :attr:`t_end` on, where v = w = 0).
         """
         t = float(t)
-        k, tau = self._row_at(t)
-        x0, y0, th0, sigma, kappa, speed = self._rows[1][k]
-        s = speed * tau
-        x, y, th = _advance_scalar(x0, y0, th0, sigma, kappa, s)
+        t_start, rows = self._rows
+        tc = min(max(t, self.t0), self._t_end)
+        k = min(max(bisect_right(t_start, tc) - 1, 0), len(rows) - 1)
+        x0, y0, th0, sigma, kappa, speed = rows[k]
+        x, y, th = _advance(x0, y0, th0, sigma, kappa, speed * (tc - t_start[k]))
         if self.t0 <= t < self._t_end and sigma != 0.0:
             return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
         return ReferenceSample(x, y, th, 0.0, 0.0, REST)
@@ -301,18 +290,6 @@ def _pull_intervals(bounds, directions) -> list[tuple[float, float]]:
     return [(float(bounds[i]), float(bounds[j]))
             for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))
             if bounds[j] > bounds[i]]
-
-
-def _advance_scalar(x, y, theta, sigma, kappa, s):
-    """Scalar :func:`_advance` with plain floats (used on every communication step)."""
-    if abs(kappa) < 1e-12:
-        return x + sigma * s * cos(theta), y + sigma * s * sin(theta), theta
-    th = theta + kappa * s
-    return (
-        x + sigma * (sin(th) - sin(theta)) / kappa,
-        y - sigma * (cos(th) - cos(theta)) / kappa,
-        th,
-    )
 
 
 class SampledReference:
@@ -498,25 +475,22 @@ class SampledReference:
         holds until the next sample)."""
         return _pull_intervals(self._t, self._direction[:-1])
 
-    def _interval(self, t: float):
-        """Index k and weight a with t = (1 - a) t_k + a t_{k+1}, clipped to the sampled span."""
+    def sample_at(self, t: float) -> ReferenceSample:
+        """Reference at one time ``t`` [s] as plain floats: :meth:`sample` and
+        :meth:`direction_at` at one time, equal to them bit for bit (the interpolation of
+        :func:`numpy.interp`: ``slope * (t - t_k) + value_k``, a sample's own value at its time)."""
+        t = float(t)
         ts = self._t_list
         tc = min(max(t, ts[0]), ts[-1])
-        k = min(max(bisect_right(ts, tc) - 1, 0), len(ts) - 2)
-        return k, (tc - ts[k]) / (ts[k + 1] - ts[k])
-
-    def sample_at(self, t: float) -> ReferenceSample:
-        """Reference at one time ``t`` [s] as plain floats (fast scalar form of :meth:`sample`)."""
-        t = float(t)
-        k, a = self._interval(t)
-        x, y, th, v, w, d = self._cols
-        pose = [(1.0 - a) * c[k] + a * c[k + 1] for c in (x, y, th)]
-        if self._t_list[0] <= t < self._t_list[-1]:
-            kd = k if a < 1.0 else k + 1
-            return ReferenceSample(
-                *pose, (1.0 - a) * v[k] + a * v[k + 1], (1.0 - a) * w[k] + a * w[k + 1], int(d[kd])
-            )
-        return ReferenceSample(*pose, 0.0, 0.0, REST)
+        k = bisect_right(ts, tc) - 1
+        if k == len(ts) - 1 or ts[k] == tc:
+            values = [col[k] for col in self._cols[:5]]
+        else:
+            dt, dtc = ts[k + 1] - ts[k], tc - ts[k]
+            values = [(col[k + 1] - col[k]) / dt * dtc + col[k] for col in self._cols[:5]]
+        if ts[0] <= t < ts[-1]:
+            return ReferenceSample(*values, int(self._cols[5][k]))
+        return ReferenceSample(*values[:3], 0.0, 0.0, REST)
 
 
 def __getattr__(name: str):

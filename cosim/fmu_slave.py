@@ -22,6 +22,7 @@ from fmpy.fmi2 import (
     fmi2CallbackAllocateMemoryTYPE,
     fmi2CallbackFreeMemoryTYPE,
     fmi2CallbackFunctions,
+    fmi2Boolean,
     fmi2CallbackLoggerTYPE,
     fmi2Real,
     fmi2ValueReference,
@@ -148,15 +149,28 @@ class TrailerTrainSlave:
     # -------------------------------------------------------------- fast per-step access
     def real_reader(self, names):
         """A function returning the current values of ``names`` as a (reused) numpy array."""
+        return self._reader(names, fmi2Real, self.slave.fmi2GetReal)
+
+    def bool_reader(self, names):
+        """A function returning the current values of the Booleans ``names`` as a (reused)
+        numpy array of 0/1 (fmi2Boolean)."""
+        return self._reader(names, fmi2Boolean, self.slave.fmi2GetBoolean)
+
+    def _reader(self, names, ctype, get):
         refs = (fmi2ValueReference * len(names))(*self._refs(names))
-        buffer = (fmi2Real * len(names))()
+        buffer = (ctype * len(names))()
         view = np.ctypeslib.as_array(buffer)
-        get = self.slave.fmi2GetReal
         component = self.slave.component
         count = len(names)
 
         def read() -> np.ndarray:
-            get(component, refs, count, buffer)
+            try:
+                get(component, refs, count, buffer)
+            except FMICallException as exc:
+                raise CosimError(
+                    f"reading {names[0]} .. {names[-1]} failed at t = {self.time:.6f} s: "
+                    f"{self.last_messages() or exc}"
+                ) from exc
             return view
 
         return read
@@ -182,20 +196,8 @@ class TrailerTrainSlave:
 
         return write
 
-    def bool_reader(self, names):
-        """A function returning the current values of the Booleans ``names`` as a list of 0/1."""
-        refs = self._refs(names)
-        get = self.slave.getBoolean
-
-        def read() -> list:
-            return get(refs)
-
-        return read
-
-    def get_booleans(self, names) -> list[bool]:
-        return [bool(b) for b in self.slave.getBoolean(self._refs(names))]
-
     def get_reals(self, names) -> np.ndarray:
+        """The current values of the Reals ``names`` (a new array; for set-up, not per step)."""
         return np.array(self.slave.getReal(self._refs(names)))
 
     def do_step(self, t: float, h: float) -> None:
@@ -208,14 +210,7 @@ class TrailerTrainSlave:
             ) from exc
         self.time = t + h
 
-    # -------------------------------------------------------------- state
-    def get_state(self):
-        """An FMU state handle for rollback (``canGetAndSetFMUstate``)."""
-        return self.slave.getFMUstate()
-
-    def set_state(self, state) -> None:
-        self.slave.setFMUstate(state)
-
+    # -------------------------------------------------------------- life cycle
     def close(self) -> None:
         """Terminate, free the instance and remove the extracted files."""
         if self._instantiated:

@@ -1,11 +1,20 @@
 """Co-simulation master: the TrailerTrain FMU stepped with the backward controller in the loop.
 
-Each communication step ``t_k = t0 + k h`` (default h = 0.005 s, the paper's sampling time):
-read the FMU's outputs -> sensors (bias, noise, quantization, backlash) -> controller (Kanayama +
-inverse chain kinematics) -> set the FMU's inputs -> ``fmi2DoStep``. Scheduled events apply a
-push force on the last trailer, an imposed lateral slide of a trailer (a kinematic disturbance,
-the paper's Fig. 9(b) in the rolling model) or switch a joint-angle bias on. A recorder keeps every
-output, input, reference and error as a numpy structured array.
+At each communication point ``t_k = t0 + k h`` (default h = 0.005 s, the paper's sampling time)
+the loop reads as its three steps:
+
+apply inputs
+    the events due (:class:`~pushtrain.cosim.events.EventSchedule`: joint-bias switches, the
+    push force on the last trailer, imposed slides), the FMU's outputs -> sensors (bias, noise,
+    quantization, backlash) -> :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample,
+    pull guide, Kanayama + inverse chain kinematics) -> the FMU's inputs;
+record
+    the outputs again (the wheel forces depend directly on the inputs) with the inputs, the
+    reference and the tracking errors, one row by named blocks
+    (:class:`~pushtrain.cosim.recorder.Recorder`, a numpy structured array at the end);
+do step
+    ``fmi2DoStep`` from t_k to t_k + h, unless the last trailer reached the goal, a joint
+    jackknifed or the horizon ended.
 
 Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save` CSV, NPZ and
 ``summary.json`` (each written atomically).
@@ -18,19 +27,22 @@ import logging
 import math
 import sys
 import time as _time
+from collections.abc import Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
+from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
+from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
+from pushtrain.core.reference import Reference
+from pushtrain.core.tracking import TrackingLoop
 from pushtrain.files import atomic_write
 
-from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
+from .events import EventSchedule, Push, SetBias, Slide, _positive
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
-from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
-from pushtrain.core.pulling import PullGuide
-from pushtrain.core.reference import PULL, Reference
+from .recorder import Recorder
 from .sensors import SensorConfig, Sensors
 
 __all__ = [
@@ -57,14 +69,6 @@ STATUS_JACKKNIFE = "jackknifed"
 STATUS_FMU_ERROR = "fmu_error"
 STATUS_TIME_LIMIT = "time_limit"
 STATUS_COMPLETED = "completed"  # fixed-horizon run without a goal check
-
-
-def _positive(name: str, value, allow_zero=False) -> float:
-    ok = isinstance(value, (int, float)) and math.isfinite(value)
-    ok = ok and (value >= 0 if allow_zero else value > 0)
-    if not ok:
-        raise CosimInputError(f"{name} = {value!r}: must be a finite number {'>= 0' if allow_zero else '> 0'}")
-    return float(value)
 
 
 @dataclass
@@ -168,43 +172,6 @@ class InitialState:
         return out
 
 
-@dataclass(frozen=True)
-class Push:
-    """External force on the last trailer's axle midpoint from ``t`` for ``duration`` [s].
-
-    ``lateral`` [N] acts along the last trailer's left normal at the push's start (positive: to
-    its left as seen facing the robot); ``fx``, ``fy`` [N] add a world-frame force. In the rolling
-    model (slip_mode 0) a push changes the wheel and hitch forces only.
-    """
-
-    t: float
-    duration: float
-    lateral: float = 0.0
-    fx: float = 0.0
-    fy: float = 0.0
-
-
-@dataclass(frozen=True)
-class Slide:
-    """Imposed lateral slide of trailer ``trailer``'s wheel: ``distance`` [m] along its left
-    normal over ``duration`` [s] from ``t`` (a kinematic disturbance: the paper's hand push,
-    Fig. 9(b), in the rolling model). ``trailer`` None means the last trailer."""
-
-    t: float
-    duration: float
-    distance: float
-    trailer: int | None = None
-
-
-@dataclass(frozen=True)
-class SetBias:
-    """Switch the measurement bias of joint ``joint`` (1..n) to ``bias`` [rad] at ``t``."""
-
-    t: float
-    joint: int
-    bias: float
-
-
 @dataclass
 class Result:
     """Outcome of :func:`simulate`."""
@@ -252,7 +219,14 @@ def _atomic_write(path: Path, writer, binary: bool = True) -> None:
     atomic_write(path, write)
 
 
+_OUTPUTS = (  # FMU output array, its result column prefix, first index
+    ("x", "x", 0), ("y", "y", 0), ("theta", "theta", 0), ("v", "v", 0), ("w", "w", 0),
+    ("phi", "phi", 1), ("F_lat", "F_lat", 1), ("slide_speed", "u", 1),
+)
+
+
 def _columns(n: int) -> list[str]:
+    """The result's columns in order (``u{i}`` is the FMU's ``slide_speed[i]`` [m/s])."""
     cols = ["t"]
     for base in ("x", "y", "theta", "v", "w"):
         cols += [f"{base}{i}" for i in range(n + 1)]
@@ -264,30 +238,20 @@ def _columns(n: int) -> list[str]:
     return cols
 
 
-def _validate_events(events, n: int, t_end: float):
-    pushes, slides, biases = [], [], []
-    for k, ev in enumerate(events):
-        where = f"events[{k}]"
-        if isinstance(ev, Push):
-            _positive(f"{where}.duration", ev.duration)
-            pushes.append(ev)
-        elif isinstance(ev, Slide):
-            _positive(f"{where}.duration", ev.duration)
-            trailer = n if ev.trailer is None else ev.trailer
-            if not (isinstance(trailer, int) and 1 <= trailer <= n):
-                raise CosimInputError(f"{where}.trailer = {ev.trailer!r}: allowed are 1..{n}")
-            slides.append(ev)
-        elif isinstance(ev, SetBias):
-            if not (isinstance(ev.joint, int) and 1 <= ev.joint <= n):
-                raise CosimInputError(f"{where}.joint = {ev.joint!r}: allowed are 1..{n}")
-            biases.append(ev)
-        else:
-            raise CosimInputError(f"{where} = {ev!r}: allowed are Push, Slide and SetBias events")
-        if not (isinstance(ev.t, (int, float)) and math.isfinite(ev.t) and ev.t >= 0):
-            raise CosimInputError(f"{where}.t = {ev.t!r} s: must be finite and >= 0")
-        if ev.t > t_end:
-            log.warning("%s at t = %.3f s is after the end of the run (%.3f s)", where, ev.t, t_end)
-    return pushes, slides, sorted(biases, key=lambda e: e.t)
+def _recorder(n: int, capacity: int) -> Recorder:
+    """The recorder of a run: the blocks the loop writes, the columns of :func:`_columns`."""
+    joints = range(1, n + 1)
+    blocks = [
+        ("t", ["t"]),
+        ("outputs", [f"{col}{i}" for _, col, first in _OUTPUTS for i in range(first, n + 1)]),
+        ("phi_meas", [f"phi_meas{i}" for i in joints]),
+        ("F_lat_max", [f"F_lat_max{i}" for i in joints]),
+        ("flags", [f"slipping{i}" for i in joints] + ["jackknifed"]),
+        ("inputs", ["v_cmd", "w_cmd", "push_x", "push_y", "slide"]),
+        ("reference", ["x_d", "y_d", "theta_d", "v_d", "w_d", "direction"]),
+        ("errors", ["e_lon", "e_lat", "e_theta"]),
+    ]
+    return Recorder(blocks, _columns(n), capacity)
 
 
 def _steps(horizon: float, step: float) -> int:
@@ -299,6 +263,136 @@ def _steps(horizon: float, step: float) -> int:
             f"(ratio {ratio:.9g}); choose a step that divides it"
         )
     return int(k)
+
+
+class _PlantIO:
+    """The FMU's per-step reads and writes, by variable name (the outputs in ``_OUTPUTS`` order)."""
+
+    def __init__(self, slave: TrailerTrainSlave, n: int):
+        names = [f"{fmu}[{i}]" for fmu, _, first in _OUTPUTS for i in range(first, n + 1)]
+        at = {name: k for k, name in enumerate(names)}
+        self.read = slave.real_reader(names)
+        self.read_flags = slave.bool_reader(slave.names("slipping", 1, n) + ["jackknifed"])
+        self.write_inputs = slave.real_writer(["v_cmd", "w_cmd", "push_x", "push_y"])
+        self.write_slide = {i: slave.real_writer([f"slide[{i}]"]) for i in range(1, n + 1)}
+        self.f_max = slave.get_reals(slave.names("F_lat_max", 1, n))
+        self.robot = (at["x[0]"], at["y[0]"], at["theta[0]"])
+        self.last = (at[f"x[{n}]"], at[f"y[{n}]"], at[f"theta[{n}]"])
+        self.phi = slice(at["phi[1]"], at[f"phi[{n}]"] + 1)
+
+
+@dataclass(frozen=True)
+class _Goal:
+    """When a run stops at the goal: ``check`` on, from ``t_end`` [s] on, the last trailer
+    within ``position`` [m] and ``heading`` [rad] of ``pose``."""
+
+    check: bool
+    pose: np.ndarray
+    t_end: float
+    position: float
+    heading: float
+
+    @classmethod
+    def of(cls, reference, check: bool, tolerance) -> _Goal:
+        """The goal test of ``reference`` (none without a reference: open loop)."""
+        position = _positive("goal_tolerance[0]", tolerance[0])
+        heading = _positive("goal_tolerance[1]", tolerance[1])
+        if reference is None:
+            return cls(False, np.full(3, np.nan), math.inf, position, heading)
+        return cls(check, np.asarray(reference.goal, dtype=float), float(reference.t_end),
+                   position, heading)
+
+
+class _Run:
+    """One run's loop: at each communication point apply the inputs, record, ``fmi2DoStep``."""
+
+    def __init__(self, slave, loop: TrackingLoop, sensors: Sensors, events: EventSchedule,
+                 recorder: Recorder, goal: _Goal):
+        self.slave, self.loop, self.sensors, self.events = slave, loop, sensors, events
+        self.recorder, self.goal, self.n = recorder, goal, sensors.n
+        self.io = _PlantIO(slave, self.n)
+        self.measure_last = bool(getattr(sensors.config, "measure_last_pose", False))
+
+    def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
+        """Step from ``t0`` (communication points t0 + k step, k = 0..n_steps); the status and
+        message of a jackknife or the goal, or None if the horizon ended first."""
+        for k in range(n_steps + 1):
+            t = t0 + k * step
+            inputs = self.apply_inputs(t)
+            stop = self.stop(t, *self.record(t, *inputs))
+            if stop is not None:
+                return stop
+            if k == n_steps:
+                return None
+            self.slave.do_step(t, step)
+            if bar is not None and k % 200 == 0:
+                bar.update(200 if k else 0)
+        return None
+
+    def apply_inputs(self, t: float):
+        """Events due, sensors -> tracking loop -> FMU inputs at ``t``; returns the measurement,
+        the inputs (v_cmd, w_cmd, push_x, push_y, slide of trailer n) and the reference sample."""
+        for bias in self.events.biases_due(t):
+            self.sensors.set_bias(bias.joint, bias.bias)
+        y = self.io.read()
+        (i_x, i_y, i_th), last = self.io.robot, self.io.last
+        if self.measure_last:
+            meas = self.sensors.measure(y[i_x], y[i_y], y[i_th], y[self.io.phi],
+                                        (y[last[0]], y[last[1]], y[last[2]]))
+        else:
+            meas = self.sensors.measure(y[i_x], y[i_y], y[i_th], y[self.io.phi])
+        v_cmd, w_cmd, _, ref = self.loop.command(t, meas)
+        push = self.events.push_force(t, y[last[2]])
+        self.io.write_inputs((v_cmd, w_cmd) + push)
+        for i, speed in self.events.slide_changes(t):
+            self.io.write_slide[i]((speed,))
+        return meas, (v_cmd, w_cmd) + push + (self.events.slide_speed(self.n),), ref
+
+    def record(self, t: float, meas, inputs: tuple, ref):
+        """One row at ``t``; the outputs are read again, since the forces depend directly on the
+        inputs just set. Returns the outputs and the Boolean flags."""
+        y = self.io.read()
+        flags = self.io.read_flags()
+        i_x, i_y, i_th = self.io.last
+        x_n, y_n, th_n = y[i_x], y[i_y], y[i_th]
+        # tracking error of the last trailer in the reference's (chain) frame
+        dx, dy = x_n - ref.x, y_n - ref.y
+        c, s = math.cos(ref.theta), math.sin(ref.theta)
+        errors = (c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
+        self.recorder.append(t=t, outputs=y, phi_meas=meas.phi, F_lat_max=self.io.f_max,
+                             flags=flags, inputs=inputs, reference=ref[:], errors=errors)
+        return y, flags
+
+    def stop(self, t: float, y, flags) -> tuple[str, str] | None:
+        """Status and message if the run ends at ``t``: a jackknife, or the goal reached."""
+        n, goal = self.n, self.goal
+        if flags[n]:
+            phi = y[self.io.phi]
+            worst = int(np.argmax(np.abs(phi))) + 1
+            return STATUS_JACKKNIFE, (f"jackknife at t = {t:.3f} s: |phi[{worst}]| = "
+                                      f"{math.degrees(abs(phi[worst - 1])):.1f} deg exceeds phi_max")
+        if goal.check and t >= goal.t_end - 1e-12:
+            i_x, i_y, i_th = self.io.last
+            x_n, y_n, th_n = y[i_x], y[i_y], y[i_th]
+            dist = math.hypot(x_n - goal.pose[0], y_n - goal.pose[1])
+            if dist <= goal.position and abs(wrap_scalar(th_n - goal.pose[2])) <= goal.heading:
+                return STATUS_GOAL, f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
+        return None
+
+
+def _horizon_end(recorder: Recorder, goal: _Goal, horizon: float, n: int) -> tuple[str, str]:
+    """Status and message of a run that used its whole horizon."""
+    if not goal.check:
+        return STATUS_COMPLETED, f"ran the full horizon of {horizon:.3f} s"
+    t_last = recorder.last("t")
+    if t_last < goal.t_end:
+        return STATUS_TIME_LIMIT, (f"time limit {horizon:.3f} s reached before the reference "
+                                   f"ended ({goal.t_end:.3f} s)")
+    dist = math.hypot(recorder.last(f"x{n}") - goal.pose[0], recorder.last(f"y{n}") - goal.pose[1])
+    return STATUS_NOT_REACHED, (
+        f"the reference ended at t = {goal.t_end:.3f} s but the last trailer was "
+        f"still {dist * 100:.1f} cm from the goal at t = {t_last:.3f} s "
+        f"(tolerance {goal.position * 100:.1f} cm, {math.degrees(goal.heading):.1f} deg)")
 
 
 def simulate(
@@ -339,7 +433,7 @@ def simulate(
         Communication step h [s].
     horizon : float, optional
         Run length [s]; default: the reference's end plus ``settle_time``. Must be a whole
-        number of steps.
+        number of steps. Memory grows with the steps actually run, not with the horizon.
     goal_tolerance : (float, float)
         Position [m] and heading [rad] tolerance on the last trailer at the goal.
     check_goal : bool
@@ -357,22 +451,77 @@ def simulate(
         the run with status ``fmu_error`` instead).
     """
     step = _positive("step", step)
+    t0, horizon = _timing(reference, initial, step, horizon, settle_time)
+    n_steps = _steps(horizon, step)
+    goal = _Goal.of(reference, check_goal, goal_tolerance)
+    ctrl, sens, plant = _parts(controller, sensors, plant)
+    n = ctrl.n
+    schedule = EventSchedule(events, n, t0 + horizon)
+    if schedule.slides and plant.slip_mode == 1:
+        raise CosimInputError("Slide events impose a kinematic slide (slip_mode 0); with "
+                              "slip_mode = 1 the wheels slide physically: use Push events instead")
+    if initial is None:
+        initial = InitialState.behind_reference(reference, plant.geometry())
+    if len(initial.theta) != n + 1:
+        raise CosimInputError(f"initial.theta has {len(initial.theta)} headings; need n + 1 = {n + 1}")
+    if hasattr(ctrl, "reset"):
+        # rate limits start from the robot's initial velocity one step before t0
+        ctrl.reset(initial.v0, initial.w0, t0 - step)
+    loop = TrackingLoop(ctrl, reference)
+
+    slave = TrailerTrainSlave(fmu)
+    if slave.n != n:
+        slave.close()
+        raise CosimInputError(f"the FMU {Path(fmu).name} has n = {slave.n} trailers; the controller's chain has {n}")
+    recorder = _recorder(n, min(n_steps + 1, 4096))
+    show = progress if progress is not None else (sys.stderr.isatty() and n_steps > 200)
+    wall_start = _time.perf_counter()
+    try:
+        slave.start({**plant.start_values(), **initial.start_values()}, t0)
+        run = _Run(slave, loop, sens, schedule, recorder, goal)
+        with _progress_bar(show, n_steps) as bar:
+            end = run.run(t0, step, n_steps, bar)
+        status, message = end or _horizon_end(recorder, goal, horizon, n)
+    except CosimError as exc:
+        status, message = STATUS_FMU_ERROR, str(exc)
+        log.error("%s", message)
+    except ControllerError as exc:
+        status, message = STATUS_FMU_ERROR, f"controller failed: {exc}"
+        log.error("%s", message)
+    finally:
+        fmu_log = slave.last_messages()
+        slave.close()
+    wall = _time.perf_counter() - wall_start
+
+    data = recorder.to_array()
+    result = Result(status, message, data, _summarize(data, n, status, message, wall, step), n,
+                    fmu_log)
+    log.info("co-simulation %s: %s (%d steps, %.2f s wall)", status, message, len(data) - 1, wall)
+    if out_dir is not None:
+        result.save(out_dir)
+    return result
+
+
+def _timing(reference, initial, step: float, horizon, settle_time) -> tuple[float, float]:
+    """Start time and horizon [s] of a run (a reference's end plus ``settle_time`` by default,
+    rounded up to whole steps); an open-loop run (no reference) needs a horizon and an initial
+    state."""
     settle_time = _positive("settle_time", settle_time, allow_zero=True)
     if reference is None:
         if horizon is None or initial is None:
             raise CosimInputError("a run without a reference (open loop) needs a horizon and an initial state")
-        check_goal = False
-    elif not (hasattr(reference, "sample") and hasattr(reference, "t_end")):
+    elif not (hasattr(reference, "sample_at") and hasattr(reference, "t_end")):
         raise CosimInputError(f"reference = {reference!r}: need a Reference or SampledReference")
     t0 = float(getattr(reference, "t0", 0.0))
     if horizon is None:
         horizon = float(reference.t_end) - t0 + settle_time
         horizon = step * math.ceil(horizon / step - 1e-9)
-    horizon = _positive("horizon", horizon)
-    n_steps = _steps(horizon, step)
-    pos_tol = _positive("goal_tolerance[0]", goal_tolerance[0])
-    head_tol = _positive("goal_tolerance[1]", goal_tolerance[1])
+    return t0, _positive("horizon", horizon)
 
+
+def _parts(controller, sensors, plant):
+    """The controller, the sensors and the plant configuration of a run, checked against each
+    other's number of trailers."""
     if isinstance(controller, ControllerConfig):
         ctrl = BackwardController(controller)
     elif hasattr(controller, "command") and hasattr(controller, "n"):
@@ -386,185 +535,29 @@ def simulate(
     plant = plant or PlantConfig(n_trailers=n)
     if plant.n_trailers != n:
         raise CosimInputError(f"plant.n_trailers = {plant.n_trailers}; the controller's chain has {n}")
-    pushes, slides, biases = _validate_events(events, n, t0 + horizon)
-    if slides and plant.slip_mode == 1:
-        raise CosimInputError("Slide events impose a kinematic slide (slip_mode 0); with "
-                         "slip_mode = 1 the wheels slide physically: use Push events instead")
-    if initial is None:
-        initial = InitialState.behind_reference(reference, plant.geometry())
-    if len(initial.theta) != n + 1:
-        raise CosimInputError(f"initial.theta has {len(initial.theta)} headings; need n + 1 = {n + 1}")
+    return ctrl, sens, plant
 
-    if hasattr(ctrl, "reset"):
-        # rate limits start from the robot's initial velocity one step before t0
-        ctrl.reset(initial.v0, initial.w0, t0 - step)
-    times = t0 + step * np.arange(n_steps + 1)
-    if reference is None:
-        ref_x = ref_y = ref_th = np.full(times.shape, np.nan)
-        ref_v = ref_w = np.zeros(times.shape)
-        ref_dir = np.zeros(times.shape, dtype=int)
-        goal, t_ref_end = np.full(3, np.nan), math.inf
-    else:
-        ref_x, ref_y, ref_th, ref_v, ref_w = reference.sample(times)
-        ref_dir = reference.direction_at(times)
-        goal = np.asarray(reference.goal, dtype=float)
-        t_ref_end = float(reference.t_end)
 
-    guide = None
-    if reference is not None and np.any(ref_dir == PULL):
-        geometry = getattr(ctrl, "guide_geometry", None)
-        if geometry is not None:  # open-loop controllers ignore the reference
-            guide = PullGuide(reference, geometry)
+@contextmanager
+def _progress_bar(show: bool, total: int):
+    """A tqdm bar on stderr if ``show``, else None."""
+    if not show:
+        yield None
+        return
+    from tqdm import tqdm
 
-    slave = TrailerTrainSlave(fmu)
-    if slave.n != n:
-        slave.close()
-        raise CosimInputError(f"the FMU {Path(fmu).name} has n = {slave.n} trailers; the controller's chain has {n}")
-    cols = _columns(n)
-    rec = np.full((n_steps + 1, len(cols)), np.nan)
-    status, message = STATUS_TIME_LIMIT, ""
-    wall_start = _time.perf_counter()
-    k_last = -1
-    bar = None
+    bar = tqdm(total=total, unit="step", desc="co-simulating", mininterval=0.5, file=sys.stderr)
     try:
-        start_values = plant.start_values()
-        start_values.update(initial.start_values())
-        slave.start(start_values, t0)
-        out_names = (slave.names("x", 0, n) + slave.names("y", 0, n) + slave.names("theta", 0, n)
-                     + slave.names("v", 0, n) + slave.names("w", 0, n) + slave.names("phi", 1, n)
-                     + slave.names("F_lat", 1, n) + slave.names("slide_speed", 1, n))
-        read = slave.real_reader(out_names)
-        f_max = slave.get_reals(slave.names("F_lat_max", 1, n))
-        slip_names = slave.names("slipping", 1, n) + ["jackknifed"]
-        read_flags = slave.bool_reader(slip_names)
-        write_cmd = slave.real_writer(["v_cmd", "w_cmd", "push_x", "push_y"])
-        slide_writers = {i: slave.real_writer([f"slide[{i}]"]) for i in range(1, n + 1)}
-        i_phi, i_flat = 5 * (n + 1), 5 * (n + 1) + n
-
-        show = progress if progress is not None else (sys.stderr.isatty() and n_steps > 200)
-        if show:
-            from tqdm import tqdm
-
-            bar = tqdm(total=n_steps, unit="step", desc="co-simulating", mininterval=0.5,
-                       file=sys.stderr)
-        bias_idx = 0
-        slide_active = {}
-        measure_last = bool(getattr(sens.config, "measure_last_pose", False))
-        for k in range(n_steps + 1):
-            t = float(times[k])
-            while bias_idx < len(biases) and biases[bias_idx].t <= t + 1e-12:
-                sens.set_bias(biases[bias_idx].joint, biases[bias_idx].bias)
-                bias_idx += 1
-            y = read()
-            th_n = y[3 * (n + 1) - 1]
-            x0, y0, th0 = y[0], y[n + 1], y[2 * (n + 1)]
-            phi = y[i_phi:i_phi + n]
-            if measure_last:
-                meas = sens.measure(x0, y0, th0, phi, (y[n], y[2 * (n + 1) - 1], th_n))
-            else:
-                meas = sens.measure(x0, y0, th0, phi)
-            leader = guide.sample_at(t) if ref_dir[k] == PULL and guide is not None else None
-            v_cmd, w_cmd, _ = ctrl.command(
-                t, meas, (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k]), leader)
-            push_x = push_y = 0.0
-            for p in pushes:
-                if p.t - 1e-12 <= t < p.t + p.duration - 1e-12:
-                    push_x += p.fx - math.sin(th_n) * p.lateral
-                    push_y += p.fy + math.cos(th_n) * p.lateral
-            write_cmd((v_cmd, w_cmd, push_x, push_y))
-            if slides:
-                speeds = dict.fromkeys(slide_active, 0.0)
-                for ev in slides:
-                    if ev.t - 1e-12 <= t < ev.t + ev.duration - 1e-12:
-                        i = n if ev.trailer is None else ev.trailer
-                        speeds[i] = speeds.get(i, 0.0) + ev.distance / ev.duration
-                for i, speed in speeds.items():
-                    if slide_active.get(i, 0.0) != speed:
-                        slide_writers[i]((speed,))
-                        slide_active[i] = speed
-            slide_n = slide_active.get(n, 0.0)
-            # outputs again: forces depend directly on the inputs just set
-            y = read()
-            flags = read_flags()
-            # tracking error of the last trailer in the reference's (chain) frame
-            dx, dy = y[n] - ref_x[k], y[2 * (n + 1) - 1] - ref_y[k]
-            c, s_ = math.cos(ref_th[k]), math.sin(ref_th[k])
-            row = rec[k]
-            row[0] = t
-            row[1:1 + 5 * (n + 1)] = y[:5 * (n + 1)]
-            base = 1 + 5 * (n + 1)
-            row[base:base + n] = y[i_phi:i_phi + n]
-            row[base + n:base + 2 * n] = meas.phi
-            row[base + 2 * n:base + 3 * n] = y[i_flat:i_flat + n]
-            row[base + 3 * n:base + 4 * n] = f_max
-            row[base + 4 * n:base + 5 * n] = flags[:n]
-            row[base + 5 * n:base + 6 * n] = y[i_flat + n:i_flat + 2 * n]
-            base += 6 * n
-            row[base:base + 5] = (v_cmd, w_cmd, push_x, push_y, slide_n)
-            row[base + 5:base + 11] = (ref_x[k], ref_y[k], ref_th[k], ref_v[k], ref_w[k], ref_dir[k])
-            e_theta = wrap_scalar(y[3 * (n + 1) - 1] - ref_th[k])
-            row[base + 11:base + 15] = (c * dx + s_ * dy, -s_ * dx + c * dy, e_theta, flags[n])
-            k_last = k
-            if flags[n]:
-                status = STATUS_JACKKNIFE
-                worst = int(np.argmax(np.abs(y[i_phi:i_phi + n]))) + 1
-                message = (f"jackknife at t = {t:.3f} s: |phi[{worst}]| = "
-                           f"{math.degrees(abs(y[i_phi + worst - 1])):.1f} deg exceeds phi_max")
-                break
-            if check_goal and t >= t_ref_end - 1e-12:
-                dist = math.hypot(y[n] - goal[0], y[2 * (n + 1) - 1] - goal[1])
-                if dist <= pos_tol and abs(wrap_scalar(y[3 * (n + 1) - 1] - goal[2])) <= head_tol:
-                    status = STATUS_GOAL
-                    message = f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
-                    break
-            if k == n_steps:
-                break
-            slave.do_step(t, step)
-            if bar is not None and k % 200 == 0:
-                bar.update(200 if k else 0)
-        if status == STATUS_TIME_LIMIT:
-            if not check_goal:
-                status, message = STATUS_COMPLETED, f"ran the full horizon of {horizon:.3f} s"
-            elif times[k_last] >= t_ref_end:
-                status = STATUS_NOT_REACHED
-                dist = math.hypot(rec[k_last, 1 + n] - goal[0], rec[k_last, 1 + 2 * (n + 1) - 1] - goal[1])
-                message = (f"the reference ended at t = {t_ref_end:.3f} s but the last trailer was "
-                           f"still {dist * 100:.1f} cm from the goal at t = {times[k_last]:.3f} s "
-                           f"(tolerance {pos_tol * 100:.1f} cm, {math.degrees(head_tol):.1f} deg)")
-            else:
-                message = (f"time limit {horizon:.3f} s reached before the reference ended "
-                           f"({t_ref_end:.3f} s)")
-    except CosimError as exc:
-        status, message = STATUS_FMU_ERROR, str(exc)
-        log.error("%s", message)
-    except ControllerError as exc:
-        status, message = STATUS_FMU_ERROR, f"controller failed: {exc}"
-        log.error("%s", message)
+        yield bar
     finally:
-        if bar is not None:
-            bar.close()
-        fmu_log = slave.last_messages()
-        slave.close()
-    wall = _time.perf_counter() - wall_start
-
-    data_rows = rec[: k_last + 1]
-    dtype = [(name, "f8") for name in cols]
-    data = np.empty(len(data_rows), dtype=dtype)
-    for j, name in enumerate(cols):
-        data[name] = data_rows[:, j]
-    summary = _summarize(data, n, status, message, wall, step, f_max if k_last >= 0 else None)
-    result = Result(status, message, data, summary, n, fmu_log)
-    log.info("co-simulation %s: %s (%d steps, %.2f s wall)", status, message, len(data) - 1, wall)
-    if out_dir is not None:
-        result.save(out_dir)
-    return result
+        bar.close()
 
 
 def _rms(a: np.ndarray) -> float:
     return float(np.sqrt(np.mean(a**2))) if a.size else float("nan")
 
 
-def _summarize(data, n, status, message, wall, step, f_max) -> dict:
+def _summarize(data, n, status, message, wall, step) -> dict:
     summary = {"status": status, "message": message, "n_trailers": n, "step": step,
                "steps": max(len(data) - 1, 0), "wall_time_s": round(wall, 4)}
     if len(data) == 0:

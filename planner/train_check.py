@@ -12,9 +12,11 @@ Controller
     ``BackwardController(tracker.controller)`` (gains, robot limits, rate limits and its own
     chain model, from which the robot's pulling reference, a
     :class:`~pushtrain.core.pulling.PullGuide`, is built), called every ``tracker.step``
-    seconds at ``t_k = k * step`` with a perfect measurement (robot pose and joint angles ``phi_i = theta_{i-1} - theta_i``) exactly
-    as the master calls it; the command is held over the step (zero-order hold) and the rate
-    limits start from rest one step before t = 0, as in the master.
+    seconds at ``t_k = k * step`` through the master's own per-step logic,
+    :class:`~pushtrain.core.tracking.TrackingLoop`, with a perfect measurement (robot pose and
+    joint angles ``phi_i = theta_{i-1} - theta_i``); the command is held over the step
+    (zero-order hold) and the rate limits start from rest one step before t = 0, as in the
+    master.
 Plant
     The robot moves along its heading with the commanded ``(v0, w0)`` (no first-order velocity
     lag: the FMU's ``tau`` = 0.05 s is ignored, no slip), the trailers are towed:
@@ -53,12 +55,18 @@ import numpy as np
 import shapely
 
 from pushtrain.core.controller import BackwardController, ControllerConfig
-from pushtrain.core.kinematics import (ChainGeometry, body_positions_along, joint_angles,
-                                        wrap_angle, wrap_scalar)
-from pushtrain.core.pulling import PullGuide
-from pushtrain.core.reference import PULL, Reference, Segment
-
+from pushtrain.core.kinematics import (
+    ChainGeometry,
+    body_positions_along,
+    joint_angles,
+    wrap_angle,
+    wrap_scalar,
+)
+from pushtrain.core.ode import rk4_step
+from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.tracking import TrackingLoop
 from pushtrain.errors import PlanningInputError
+
 from .world import Train, World
 
 __all__ = [
@@ -158,12 +166,12 @@ def towed_rates(geometry: ChainGeometry):
     rear = [float(a) for a in geometry.rear]
     n = geometry.n
 
-    def rates(theta, v0: float, w0: float):
+    def rates(theta, v0: float, w0: float, cos=math.cos, sin=math.sin):
         w = [0.0] * (n + 1)
         v, w[0] = v0, w0
         for i in range(1, n + 1):
             phi = theta[i - 1] - theta[i]
-            c, s = math.cos(phi), math.sin(phi)
+            c, s = cos(phi), sin(phi)
             r = rear[i - 1]
             v, w[i] = c * v + r * s * w[i - 1], (s * v - r * c * w[i - 1]) / front[i - 1]
         return w
@@ -241,22 +249,18 @@ class Trajectory:
 
 def _rk4_step(rates, state, v0: float, w0: float, h: float):
     """One RK4 step of (x0, y0, theta...) under the constant robot command (v0, w0)."""
-    def f(z):
+    def f(_t, z):
         th = z[2:]
         return [v0 * math.cos(th[0]), v0 * math.sin(th[0])] + rates(th, v0, w0)
 
-    k1 = f(state)
-    k2 = f([a + 0.5 * h * b for a, b in zip(state, k1)])
-    k3 = f([a + 0.5 * h * b for a, b in zip(state, k2)])
-    k4 = f([a + h * b for a, b in zip(state, k3)])
-    return [a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-            for a, b1, b2, b3, b4 in zip(state, k1, k2, k3, k4)]
+    return rk4_step(f, 0.0, state, h)
 
 
 class _Measurement:
     """Perfect measurement handed to the controller (robot pose and joint angles)."""
 
     __slots__ = ("x0", "y0", "theta0", "phi")
+    last_pose = None  # the last trailer's pose is estimated from the joints, as in the master
 
     def __init__(self, state):
         self.x0, self.y0, self.theta0 = state[0], state[1], state[2]
@@ -296,7 +300,7 @@ def simulate_tracking(
     """
     ctrl = BackwardController(controller)
     ctrl.reset(0.0, 0.0, -step)
-    guide = PullGuide(reference, controller.geometry)
+    loop = TrackingLoop(ctrl, reference)
     rates = towed_rates(geometry)
     th0 = np.asarray(start_headings, dtype=float)
     x, y = body_positions_along(np.asarray(reference.start, dtype=float)[None, :], th0[None, :],
@@ -306,9 +310,7 @@ def simulate_tracking(
     states, commands, refs, dirs = [], [], [], []
     for k in range(n_steps + 1):
         t = k * step
-        ref = reference.sample_at(t)
-        leader = guide.sample_at(t) if ref.direction == PULL else None
-        v0, w0, _ = ctrl.command(t, _Measurement(state), ref, leader)
+        v0, w0, _, ref = loop.command(t, _Measurement(state))
         states.append(state), commands.append((v0, w0))
         refs.append((ref.x, ref.y, ref.theta)), dirs.append(ref.direction)
         if k < n_steps:

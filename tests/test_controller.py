@@ -20,6 +20,8 @@ from pushtrain.core.controller import (
     BackwardController,
     ControllerConfig,
     ControllerError,
+    Gains,
+    kanayama,
 )
 from pushtrain.core.kinematics import (
     ChainGeometry,
@@ -104,6 +106,42 @@ def lateral_error(log, reference):
 
 def straight_push(length=8.0, speed=0.08):
     return Reference.from_segments((0.0, 0.0, 0.0), [Segment("line", length)], speed=speed)
+
+
+# -- the law ------------------------------------------------------------------------------------
+
+
+def test_kanayama_is_eq3_and_eq4():
+    """Eq. 3-4 written out with numpy, and the law's fixed point: no error gives (u_d, w_d)."""
+    gains = Gains(1.5, 4.0, 3.0)
+    x_e, y_e, th_e, u_d, w_d = 0.12, -0.07, 0.3, 0.08, 0.02
+    u, w = kanayama(x_e, y_e, th_e, u_d, w_d, gains)
+    assert u == pytest.approx(u_d * np.cos(th_e) + 1.5 * x_e, rel=1e-15)
+    assert w == pytest.approx(w_d + u_d * (4.0 * y_e + 3.0 * np.sin(th_e)), rel=1e-15)
+    assert kanayama(0.0, 0.0, 0.0, u_d, w_d, gains) == (u_d, w_d)
+
+
+@pytest.mark.parametrize("direction", [PUSH, PULL])
+def test_both_branches_apply_the_one_law(direction):
+    """Pushing: the law on trailer n in its travel frame (u_d = -v_d); pulling: on the robot
+    along its own reference (u_d = |v_0d|). ControlInfo reports the law's output."""
+    cfg = ControllerConfig.uniform(2, k_x=1.5, k_y=3.0, k_theta=2.5, v_max=1e6, w_max=1e6)
+    ctrl = BackwardController(cfg)
+    meas = Measurement(0.2, -0.1, 0.4, np.array([0.2, -0.1]))
+    ref = ReferenceSample(-0.6, 0.3, 0.5, -0.09 * direction, 0.03, direction)  # v < 0 pushing
+    leader = ReferenceSample(0.35, 0.0, 0.3, 0.07, -0.02, PULL)
+    _, _, info = ctrl.command(0.0, meas, ref, leader if direction == PULL else None)
+    assert info.mode == (MODE_PUSH if direction == PUSH else MODE_PULL)
+    u_d, w_d = (-ref.v, ref.w) if direction == PUSH else (leader.v, leader.w)
+    assert (info.v_ref, info.w_ref) == kanayama(info.x_e, info.y_e, info.theta_e, u_d, w_d,
+                                                Gains(1.5, 3.0, 2.5))
+    # the errors are the reference in the tracked body's frame (heading + pi when pushing)
+    x, y, th = (info.x_n, info.y_n, info.theta_n) if direction == PUSH else (0.2, -0.1, 0.4)
+    target = ref if direction == PUSH else leader
+    heading = th + (np.pi if direction == PUSH else 0.0)
+    dx, dy = target.x - x, target.y - y
+    assert info.x_e == pytest.approx(np.cos(heading) * dx + np.sin(heading) * dy, abs=1e-12)
+    assert info.y_e == pytest.approx(-np.sin(heading) * dx + np.cos(heading) * dy, abs=1e-12)
 
 
 # -- pushing ------------------------------------------------------------------------------------

@@ -167,3 +167,40 @@ def test_a_sampled_reference_drives_the_same_run_as_its_segments(fmu3):
     b = simulate(fmu3, sampled, ControllerConfig.uniform(3))
     assert a.status == b.status == "goal_reached"
     assert np.max(np.abs(a.data["x3"] - b.data["x3"][: len(a.data)])) < 1e-3
+
+
+def test_the_lateral_push_turns_with_the_trailer_and_ends_on_time(fmu3):
+    """On an arc, in the rolling model, the last trailer's wheel takes exactly -lateral at every
+    step of the push although the trailer turns (a force fixed at the push's start would give
+    -lateral cos(turn)); the recorded force is zero from t0 + duration on."""
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("arc", 2.0, 1 / 1.5)], speed=0.08)
+    kwargs = dict(horizon=16.0, check_goal=False)
+    quiet = simulate(fmu3, ref, ControllerConfig.uniform(3), **kwargs)
+    pushed = simulate(fmu3, ref, ControllerConfig.uniform(3), events=[Push(2.0, 10.0, lateral=30.0)],
+                      **kwargs)
+    d, t = pushed.data, pushed.data["t"]
+    on = (t >= 2.0 - 1e-9) & (t < 12.0 - 1e-9)
+    assert np.ptp(d["theta3"][on]) > 0.25  # the trailer turns by more than 14 deg
+    assert np.allclose(d["F_lat3"][on] - quiet.data["F_lat3"][on], -30.0, atol=1e-6)
+    assert np.array_equal(d["F_lat3"][~on], quiet.data["F_lat3"][~on])
+    # the recorded force is the push along the current left normal, exactly zero outside
+    assert np.allclose(d["push_x"][on], -np.sin(d["theta3"][on]) * 30.0, rtol=0, atol=1e-12)
+    assert np.allclose(d["push_y"][on], np.cos(d["theta3"][on]) * 30.0, rtol=0, atol=1e-12)
+    end = _at(d, 12.0)
+    assert t[end] == pytest.approx(12.0) and np.all(d["push_x"][end:] == 0.0)
+    assert np.all(d["push_y"][end:] == 0.0) and d["push_y"][end - 1] != 0.0
+
+
+def test_a_huge_horizon_costs_only_the_steps_run(fmu3):
+    """horizon = 1e9 s (2e11 steps) with a goal reached after a few steps allocates little."""
+    import tracemalloc
+
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 0.02)], speed=0.08)
+    tracemalloc.start()
+    try:
+        result = simulate(fmu3, ref, ControllerConfig.uniform(3), horizon=1e9, progress=False)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert result.status == "goal_reached" and len(result.data) < 100
+    assert peak < 20e6, f"peak {peak / 1e6:.1f} MB"

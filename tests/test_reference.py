@@ -89,6 +89,20 @@ def test_sample_at_equals_sample():
         assert s.direction == ref.direction_at(t)[0]
 
 
+@pytest.mark.parametrize("kind", ["segments", "sampled"])
+def test_sample_at_is_sample_bit_for_bit(kind):
+    """The master samples step by step with sample_at; results must equal the array form."""
+    ref = mixed_reference()
+    if kind == "sampled":
+        ref = SampledReference.from_reference(ref, 0.0123)
+    rng = np.random.default_rng(3)
+    t = np.concatenate((rng.uniform(ref.t0 - 2.0, ref.t_end + 2.0, 400),
+                        ref.t0 + 0.005 * np.arange(int((ref.t_end - ref.t0) / 0.005) + 40)))
+    columns = list(ref.sample(t)) + [ref.direction_at(t)]
+    for k, tk in enumerate(t):
+        assert tuple(ref.sample_at(tk)) == tuple(c[k] for c in columns), tk
+
+
 def test_sampled_reference_reproduces_the_analytic_one():
     ref = mixed_reference()
     sampled = SampledReference.from_reference(ref, 0.01)

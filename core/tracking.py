@@ -1,0 +1,64 @@
+"""One step of the closed loop, shared by the co-simulation master and the planner's train check.
+
+At every control instant ``t`` both do the same thing between their plants' measurement and the
+command they apply: sample the last trailer's reference at ``t`` (a rest sample during cusp
+dwells, before the start and after the goal), while pulling also the robot's own reference from the
+:class:`~pushtrain.core.pulling.PullGuide` built with the controller's chain model
+(``controller.guide_geometry``), and ask the controller for the robot command. The master adds
+the FMU, the sensors and the events around it; the train check integrates the kinematic chain.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .pulling import PullGuide
+from .reference import PULL, REST, ReferenceSample
+
+__all__ = ["TrackingLoop"]
+
+_NO_REFERENCE = ReferenceSample(math.nan, math.nan, math.nan, 0.0, 0.0, REST)
+
+
+def _no_reference(t: float) -> ReferenceSample:
+    """The sample of an open-loop run without a reference: at rest, pose unknown."""
+    return _NO_REFERENCE
+
+
+class TrackingLoop:
+    """Reference sampling, pull guide and controller call of one control instant.
+
+    Parameters
+    ----------
+    controller
+        A :class:`~pushtrain.core.controller.BackwardController`, or anything with its
+        ``command(t, measurement, ref, leader)`` (the slip governor, open-loop profiles). Its
+        ``guide_geometry`` (None for open-loop profiles, which ignore the reference) is the chain
+        model of the pull guide.
+    reference : Reference, SampledReference or None
+        The last trailer's reference; None (open loop) hands the controller a resting sample
+        with a NaN pose.
+    """
+
+    def __init__(self, controller, reference):
+        self.controller = controller
+        self.reference = reference
+        geometry = getattr(controller, "guide_geometry", None)
+        self.guide = None
+        if reference is not None and geometry is not None and reference.pull_intervals():
+            self.guide = PullGuide(reference, geometry)
+        self.reference_at = _no_reference if reference is None else reference.sample_at
+        """``reference_at(t)``: the last trailer's :class:`ReferenceSample` at ``t`` [s]."""
+
+    def command(self, t: float, measurement):
+        """The controller's command at ``t`` [s] for ``measurement``.
+
+        Returns ``(v0, w0, info, ref)``: the robot command [m/s, rad/s], the controller's
+        diagnostics and the reference sample it tracked.
+        """
+        ref = self.reference_at(t)
+        leader = None
+        if ref.direction == PULL and self.guide is not None:
+            leader = self.guide.sample_at(t)
+        v0, w0, info = self.controller.command(t, measurement, ref, leader)
+        return v0, w0, info, ref

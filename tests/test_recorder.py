@@ -1,0 +1,45 @@
+"""Tests of the co-simulation recorder (pushtrain.cosim.recorder)."""
+
+import numpy as np
+import pytest
+
+from pushtrain.cosim.recorder import Recorder
+from pushtrain.errors import CosimInputError
+
+BLOCKS = [("t", ["t"]), ("pose", ["x", "y", "theta"]), ("flags", ["slipping", "jackknifed"])]
+
+
+def test_rows_grow_past_the_capacity_and_are_trimmed():
+    rec = Recorder(BLOCKS, order=["t", "x", "slipping", "y", "theta", "jackknifed"], capacity=3)
+    buffer = np.zeros(3)
+    for k in range(1000):
+        buffer[:] = (k, -k, 0.5 * k)  # a reused buffer, as the FMU reader hands out
+        rec.append(t=0.01 * k, pose=buffer, flags=[k % 2, False])
+    data = rec.to_array()
+    assert data.dtype.names == ("t", "x", "slipping", "y", "theta", "jackknifed")
+    assert len(data) == rec.rows == 1000
+    k = np.arange(1000)
+    assert np.array_equal(data["t"], 0.01 * k) and np.array_equal(data["x"], k)
+    assert np.array_equal(data["y"], -k) and np.array_equal(data["theta"], 0.5 * k)
+    assert np.array_equal(data["slipping"], k % 2) and not data["jackknifed"].any()
+    assert rec.last("theta") == 499.5 and np.array_equal(rec.column("y"), -k)
+
+
+def test_a_block_not_given_stays_nan():
+    rec = Recorder(BLOCKS)
+    rec.append(t=1.0, pose=(1.0, 2.0, 3.0))
+    rec.append(t=2.0, flags=(1, 0))
+    data = rec.to_array()
+    assert np.isnan(data["slipping"][0]) and np.isnan(data["x"][1])
+    assert list(data[1]) == pytest.approx([2.0, np.nan, np.nan, np.nan, 1.0, 0.0], nan_ok=True)
+
+
+def test_declarations_must_name_every_column_once():
+    with pytest.raises(CosimInputError, match="twice"):
+        Recorder([("a", ["x"]), ("b", ["x"])])
+    with pytest.raises(CosimInputError, match="missing"):
+        Recorder(BLOCKS, order=["t", "x", "y", "theta", "slipping"])
+    with pytest.raises(CosimInputError, match="unknown"):
+        Recorder(BLOCKS, order=["t", "x", "y", "theta", "slipping", "jackknifed", "z"])
+    with pytest.raises(IndexError):
+        Recorder(BLOCKS).last("t")
