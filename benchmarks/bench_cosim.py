@@ -16,8 +16,8 @@ import time
 from bench_fmu import bench
 
 from pushtrain.core.controller import ControllerConfig
-from pushtrain.cosim.master import simulate
 from pushtrain.core.reference import Reference, Segment
+from pushtrain.cosim.master import simulate
 from pushtrain.fmu import build_fmu
 
 

@@ -31,8 +31,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-
 from pushtrain.errors import AnalysisError
+
 __all__ = [
     "AnalysisError",
     "RouthResult",

@@ -100,7 +100,8 @@ class GovernorConfig:
         n = self.geometry.n
         for name in ("mass", "inertia", "mu"):
             arr = np.broadcast_to(np.asarray(getattr(self, name), dtype=float), (n,)).copy()
-            if not np.all(np.isfinite(arr)) or np.any(arr < 0) or (name != "mu" and np.any(arr <= 0)):
+            if (not np.all(np.isfinite(arr)) or np.any(arr < 0)
+                    or (name != "mu" and np.any(arr <= 0))):
                 raise ValueError(f"governor {name} = {arr.tolist()}: must be finite and > 0")
             object.__setattr__(self, name, arr)
         if not (0.0 < self.fraction <= 1.0):
@@ -139,7 +140,8 @@ class SlipGovernor:
     def _forces(self, phi, v_cmd, w_cmd):
         dv, dw = self._robot_acc(v_cmd, w_cmd)
         cfg = self.config
-        return lateral_forces(phi, self.v_est, self.w_est, dv, dw, cfg.geometry, cfg.mass, cfg.inertia)
+        return lateral_forces(phi, self.v_est, self.w_est, dv, dw, cfg.geometry, cfg.mass,
+                              cfg.inertia)
 
     def limit(self, phi, v_cmd: float, w_cmd: float, dt: float):
         """The command to send instead of (v_cmd, w_cmd) given measured joint angles ``phi``.
@@ -170,7 +172,8 @@ class SlipGovernor:
         cfg = self.config
         decay = 1.0 - math.exp(-dt / cfg.tau)
         self.v_est += min(max((v_out - self.v_est) * decay, -cfg.acc_max * dt), cfg.acc_max * dt)
-        self.w_est += min(max((w_out - self.w_est) * decay, -cfg.alpha_max * dt), cfg.alpha_max * dt)
+        self.w_est += min(max((w_out - self.w_est) * decay, -cfg.alpha_max * dt),
+                          cfg.alpha_max * dt)
         self.v_prev, self.w_prev = v_out, w_out
         return v_out, w_out
 

@@ -91,7 +91,9 @@ class ChainGeometry:
             bad = np.flatnonzero(~(values > 0.0) | ~np.isfinite(values))
             if bad.size:
                 k = int(bad[0])
-                raise ValueError(f"{name}[{k}] = {values[k]!r} m: link lengths must be finite and > 0")
+                raise ValueError(
+                    f"{name}[{k}] = {values[k]!r} m: link lengths must be finite and > 0"
+                )
         object.__setattr__(self, "front", front)
         object.__setattr__(self, "rear", rear)
 
@@ -223,7 +225,10 @@ def robot_velocity_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[
 
 
 def steady_joint_angle(radius: float, link: float = 0.52) -> float:
-    """Steady joint angle [rad] on a circle of ``radius`` [m] when F = R = ``link`` [m]: 2 atan(D/rho)."""
+    """Steady joint angle [rad] on a circle of ``radius`` [m] when F = R = ``link`` [m].
+
+    It is 2 atan(D/rho), with D = ``link`` and rho = ``radius``.
+    """
     return 2.0 * float(np.arctan(link / radius))
 
 

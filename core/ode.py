@@ -20,8 +20,8 @@ def rk4_step(f: Callable[[float, list], list], t: float, z: Sequence[float], h: 
     O(h^5); a polynomial right-hand side ``f(t)`` of degree <= 3 is integrated exactly.
     """
     k1 = f(t, z)
-    k2 = f(t + 0.5 * h, [a + 0.5 * h * b for a, b in zip(z, k1)])
-    k3 = f(t + 0.5 * h, [a + 0.5 * h * b for a, b in zip(z, k2)])
-    k4 = f(t + h, [a + h * b for a, b in zip(z, k3)])
+    k2 = f(t + 0.5 * h, [a + 0.5 * h * b for a, b in zip(z, k1, strict=True)])
+    k3 = f(t + 0.5 * h, [a + 0.5 * h * b for a, b in zip(z, k2, strict=True)])
+    k4 = f(t + h, [a + h * b for a, b in zip(z, k3, strict=True)])
     return [a + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-            for a, b1, b2, b3, b4 in zip(z, k1, k2, k3, k4)]
+            for a, b1, b2, b3, b4 in zip(z, k1, k2, k3, k4, strict=True)]

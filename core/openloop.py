@@ -1,4 +1,5 @@
-"""Open-loop robot command profiles (no tracking), e.g. the pure rotation of the paper's Sec. 4.4."""
+"""Open-loop robot command profiles (no tracking), e.g. the pure rotation of the paper's Sec. 4.4.
+"""
 
 from __future__ import annotations
 

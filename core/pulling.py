@@ -71,9 +71,10 @@ def straight_chain_mismatch(geometry: ChainGeometry, path, target_headings=None)
     travel order, theta continuous or wrapped (chain convention: theta toward the robot, so
     pulling moves along +theta). The chain is drawn out straight at ``path[-1]`` and driven
     back along the path (the stable direction; the midpoint rule per sample interval with the
-    interval's mean curvature, error second order in the spacing); returned is the largest distance [m] between a body there and the same
-    body of the chain with ``target_headings`` (n+1,) at ``path[0]`` (None: straight). Zero
-    means the pull can be followed exactly from that chain; see :class:`PullGuide`.
+    interval's mean curvature, error second order in the spacing); returned is the largest
+    distance [m] between a body there and the same body of the chain with ``target_headings``
+    (n+1,) at ``path[0]`` (None: straight). Zero means the pull can be followed exactly from
+    that chain; see :class:`PullGuide`.
     """
     pts = np.asarray(path, dtype=float)
     rates = rates_driven_by_last(geometry)
@@ -87,8 +88,8 @@ def straight_chain_mismatch(geometry: ChainGeometry, path, target_headings=None)
         w = (th_last[j] - th_last[j - 1]) / ds
         h = -ds
         k1 = rates(theta, 1.0, w)  # the midpoint rule: second order, a check needs no more
-        k2 = rates([a + 0.5 * h * b for a, b in zip(theta, k1)], 1.0, w)
-        theta = [a + h * b for a, b in zip(theta, k2)]
+        k2 = rates([a + 0.5 * h * b for a, b in zip(theta, k1, strict=True)], 1.0, w)
+        theta = [a + h * b for a, b in zip(theta, k2, strict=True)]
         theta[-1] = float(th_last[j - 1])
     target = (np.full(n + 1, th_last[0]) if target_headings is None
               else np.asarray(target_headings, dtype=float))
@@ -197,7 +198,7 @@ class PullGuide:
         velocities = np.array([
             robot_velocity_from_last([th[i - 1] - th[i] for i in range(1, n + 1)], s.v, s.w,
                                      self._front, self._rear)
-            for th, s in zip(rows, last)
+            for th, s in zip(rows, last, strict=True)
         ])
         return PullRun(times, x[:, 0].copy(), y[:, 0].copy(), headings[:, 0].copy(),
                        velocities[:, 0].copy(), velocities[:, 1].copy(), headings)

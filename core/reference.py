@@ -175,7 +175,9 @@ class Reference:
 
     def __post_init__(self):
         if len(self.start) != 3 or not np.all(np.isfinite(self.start)):
-            raise ReferencePathError(f"start = {self.start!r}: need three finite numbers (x, y, theta)")
+            raise ReferencePathError(
+                f"start = {self.start!r}: need three finite numbers (x, y, theta)"
+            )
         if not self.segments:
             raise ReferencePathError("a reference needs at least one segment")
         if not (np.isfinite(self.speed) and self.speed > 0.0):
@@ -187,7 +189,9 @@ class Reference:
         previous_direction = None
         for seg in self.segments:
             if not isinstance(seg, Segment):
-                raise ReferencePathError(f"segments must be Segment objects, got {type(seg).__name__}")
+                raise ReferencePathError(
+                    f"segments must be Segment objects, got {type(seg).__name__}"
+                )
             if previous_direction is not None and seg.direction != previous_direction:
                 if self.cusp_dwell > 0.0:
                     rows_t.append(t), rows_pose.append(pose.copy())
@@ -211,7 +215,8 @@ class Reference:
             [float(a) for a in self._t_start],
             tuple(
                 (float(p[0]), float(p[1]), float(p[2]), float(sg), float(kp), float(sp))
-                for p, sg, kp, sp in zip(self._pose0, self._sigma, self._kappa, self._speed)
+                for p, sg, kp, sp in zip(self._pose0, self._sigma, self._kappa, self._speed,
+                                         strict=True)
             ),
         )
 
@@ -252,7 +257,8 @@ class Reference:
         return x, y, th, v, w
 
     def direction_at(self, t) -> np.ndarray:
-        """Direction at times ``t``: +1 push, -1 pull, 0 at rest (dwell, before start, after goal)."""
+        """Direction at times ``t``: +1 push, -1 pull, 0 at rest (dwell, before start, after goal).
+        """
         t = np.atleast_1d(np.asarray(t, dtype=float))
         k = np.clip(np.searchsorted(self._t_start, t, side="right") - 1, 0, len(self._t_start) - 1)
         moving = (t >= self.t0) & (t < self._t_end)
@@ -288,7 +294,7 @@ def _pull_intervals(bounds, directions) -> list[tuple[float, float]]:
     pulling = np.asarray(directions) == PULL
     edges = np.diff(np.concatenate(([0], pulling.astype(int), [0])))
     return [(float(bounds[i]), float(bounds[j]))
-            for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))
+            for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True)
             if bounds[j] > bounds[i]]
 
 
@@ -298,8 +304,8 @@ class SampledReference:
     The samples must describe a continuous motion: between consecutive samples the position may
     move at most ``max(|v_k|, |v_k+1|) dt (1 + rel_tol) + pos_tol`` and the (unwrapped) heading at
     most ``max(|w_k|, |w_k+1|) dt (1 + rel_tol) + angle_tol``; anything more is a jump and raises
-    :class:`ReferencePathError`. The sign of ``v`` must agree with ``direction`` (v <= 0 when pushing,
-    >= 0 when pulling, 0 at rest, within ``speed_tol``). The same query methods as
+    :class:`ReferencePathError`. The sign of ``v`` must agree with ``direction`` (v <= 0 when
+    pushing, >= 0 when pulling, 0 at rest, within ``speed_tol``). The same query methods as
     :class:`Reference` are offered (:meth:`sample`, :meth:`sample_at`,
     :meth:`direction_at`, :attr:`t_end`, :attr:`goal`, :attr:`length`).
 
@@ -344,12 +350,16 @@ class SampledReference:
         m = arrays[0].size
         if m < 2:
             raise ReferencePathError(f"a sampled reference needs at least 2 samples, got {m}")
-        for name, a in zip(names, arrays):
+        for name, a in zip(names, arrays, strict=True):
             if a.size != m:
-                raise ReferencePathError(f"{name} has {a.size} samples, t has {m}: sizes must agree")
+                raise ReferencePathError(
+                    f"{name} has {a.size} samples, t has {m}: sizes must agree"
+                )
             bad = np.flatnonzero(~np.isfinite(a))
             if bad.size:
-                raise ReferencePathError(f"{name}[{bad[0]}] = {a[bad[0]]!r}: samples must be finite")
+                raise ReferencePathError(
+                    f"{name}[{bad[0]}] = {a[bad[0]]!r}: samples must be finite"
+                )
         for name, value in (
             ("pos_tol", pos_tol),
             ("angle_tol", angle_tol),

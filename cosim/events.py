@@ -28,7 +28,9 @@ def _positive(name: str, value, allow_zero: bool = False) -> float:
     ok = isinstance(value, (int, float)) and math.isfinite(value)
     ok = ok and (value >= 0 if allow_zero else value > 0)
     if not ok:
-        raise CosimInputError(f"{name} = {value!r}: must be a finite number {'>= 0' if allow_zero else '> 0'}")
+        raise CosimInputError(
+            f"{name} = {value!r}: must be a finite number {'>= 0' if allow_zero else '> 0'}"
+        )
     return float(value)
 
 
@@ -117,11 +119,14 @@ class EventSchedule:
                     raise CosimInputError(f"{where}.joint = {ev.joint!r}: allowed are 1..{n}")
                 biases.append(ev)
             else:
-                raise CosimInputError(f"{where} = {ev!r}: allowed are Push, Slide and SetBias events")
+                raise CosimInputError(
+                    f"{where} = {ev!r}: allowed are Push, Slide and SetBias events"
+                )
             if not (isinstance(ev.t, (int, float)) and math.isfinite(ev.t) and ev.t >= 0):
                 raise CosimInputError(f"{where}.t = {ev.t!r} s: must be finite and >= 0")
             if ev.t > t_end:
-                log.warning("%s at t = %.3f s is after the end of the run (%.3f s)", where, ev.t, t_end)
+                log.warning("%s at t = %.3f s is after the end of the run (%.3f s)",
+                            where, ev.t, t_end)
         self.biases = sorted(biases, key=lambda e: e.t)
         self._next_bias = 0
         self._slide_speed: dict[int, float] = {}  # trailer -> slide speed [m/s] set in the FMU

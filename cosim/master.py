@@ -196,7 +196,8 @@ class Result:
         csv_path = out / "results.csv"
         _atomic_write(csv_path, lambda f: _write_csv(f, self.data), binary=False)
         npz_path = out / "results.npz"
-        _atomic_write(npz_path, lambda f: np.savez_compressed(f, **{k: self.data[k] for k in names}))
+        _atomic_write(npz_path,
+                      lambda f: np.savez_compressed(f, **{k: self.data[k] for k in names}))
         summary_path = out / "summary.json"
         _atomic_write(summary_path, lambda f: json.dump(self.summary, f, indent=2), binary=False)
         self.files = {"csv": str(csv_path), "npz": str(npz_path), "summary": str(summary_path)}
@@ -369,14 +370,18 @@ class _Run:
         if flags[n]:
             phi = y[self.io.phi]
             worst = int(np.argmax(np.abs(phi))) + 1
-            return STATUS_JACKKNIFE, (f"jackknife at t = {t:.3f} s: |phi[{worst}]| = "
-                                      f"{math.degrees(abs(phi[worst - 1])):.1f} deg exceeds phi_max")
+            return STATUS_JACKKNIFE, (
+                f"jackknife at t = {t:.3f} s: |phi[{worst}]| = "
+                f"{math.degrees(abs(phi[worst - 1])):.1f} deg exceeds phi_max"
+            )
         if goal.check and t >= goal.t_end - 1e-12:
             i_x, i_y, i_th = self.io.last
             x_n, y_n, th_n = y[i_x], y[i_y], y[i_th]
             dist = math.hypot(x_n - goal.pose[0], y_n - goal.pose[1])
             if dist <= goal.position and abs(wrap_scalar(th_n - goal.pose[2])) <= goal.heading:
-                return STATUS_GOAL, f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
+                return STATUS_GOAL, (
+                    f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
+                )
         return None
 
 
@@ -463,7 +468,9 @@ def simulate(
     if initial is None:
         initial = InitialState.behind_reference(reference, plant.geometry())
     if len(initial.theta) != n + 1:
-        raise CosimInputError(f"initial.theta has {len(initial.theta)} headings; need n + 1 = {n + 1}")
+        raise CosimInputError(
+            f"initial.theta has {len(initial.theta)} headings; need n + 1 = {n + 1}"
+        )
     if hasattr(ctrl, "reset"):
         # rate limits start from the robot's initial velocity one step before t0
         ctrl.reset(initial.v0, initial.w0, t0 - step)
@@ -472,7 +479,10 @@ def simulate(
     slave = TrailerTrainSlave(fmu)
     if slave.n != n:
         slave.close()
-        raise CosimInputError(f"the FMU {Path(fmu).name} has n = {slave.n} trailers; the controller's chain has {n}")
+        raise CosimInputError(
+            f"the FMU {Path(fmu).name} has n = {slave.n} trailers; "
+            f"the controller's chain has {n}"
+        )
     recorder = _recorder(n, min(n_steps + 1, 4096))
     show = progress if progress is not None else (sys.stderr.isatty() and n_steps > 200)
     wall_start = _time.perf_counter()
@@ -509,7 +519,9 @@ def _timing(reference, initial, step: float, horizon, settle_time) -> tuple[floa
     settle_time = _positive("settle_time", settle_time, allow_zero=True)
     if reference is None:
         if horizon is None or initial is None:
-            raise CosimInputError("a run without a reference (open loop) needs a horizon and an initial state")
+            raise CosimInputError(
+                "a run without a reference (open loop) needs a horizon and an initial state"
+            )
     elif not (hasattr(reference, "sample_at") and hasattr(reference, "t_end")):
         raise CosimInputError(f"reference = {reference!r}: need a Reference or SampledReference")
     t0 = float(getattr(reference, "t0", 0.0))
@@ -527,14 +539,18 @@ def _parts(controller, sensors, plant):
     elif hasattr(controller, "command") and hasattr(controller, "n"):
         ctrl = controller  # BackwardController or an open-loop command profile
     else:
-        raise CosimInputError(f"controller = {controller!r}: need a ControllerConfig or BackwardController")
+        raise CosimInputError(
+            f"controller = {controller!r}: need a ControllerConfig or BackwardController"
+        )
     n = ctrl.n
     sens = sensors if isinstance(sensors, Sensors) else Sensors(sensors or SensorConfig(n_joints=n))
     if sens.n != n:
         raise CosimInputError(f"sensors measure {sens.n} joints; the controller's chain has {n}")
     plant = plant or PlantConfig(n_trailers=n)
     if plant.n_trailers != n:
-        raise CosimInputError(f"plant.n_trailers = {plant.n_trailers}; the controller's chain has {n}")
+        raise CosimInputError(
+            f"plant.n_trailers = {plant.n_trailers}; the controller's chain has {n}"
+        )
     return ctrl, sens, plant
 
 
@@ -570,13 +586,15 @@ def _summarize(data, n, status, message, wall, step) -> dict:
         heading_error_rad={"rms": _rms(e_th), "max": float(np.max(np.abs(e_th))),
                            "final": float(e_th[-1])},
         longitudinal_error_m={"rms": _rms(data["e_lon"]), "final": float(data["e_lon"][-1])},
-        max_abs_phi_deg=[float(np.degrees(np.max(np.abs(data[f"phi{i}"])))) for i in range(1, n + 1)],
+        max_abs_phi_deg=[float(np.degrees(np.max(np.abs(data[f"phi{i}"]))))
+                         for i in range(1, n + 1)],
         steps_per_second=round((len(data) - 1) / wall, 1) if wall > 0 else None,
     )
     ratios, slips = [], []
     for i in range(1, n + 1):
         f = np.abs(data[f"F_lat{i}"])
-        ratios.append(float(np.max(f) / data[f"F_lat_max{i}"][0]) if data[f"F_lat_max{i}"][0] > 0 else None)
+        ratios.append(float(np.max(f) / data[f"F_lat_max{i}"][0])
+                      if data[f"F_lat_max{i}"][0] > 0 else None)
         flag = data[f"slipping{i}"] > 0.5
         rising = np.flatnonzero(flag[1:] & ~flag[:-1]) + 1
         starts = ([0] if flag[0] else []) + rising.tolist()

@@ -29,8 +29,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-
 from pushtrain.errors import SensorError
+
 __all__ = ["Measurement", "SensorConfig", "SensorError", "Sensors"]
 
 logger = logging.getLogger(__name__)

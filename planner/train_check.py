@@ -521,7 +521,7 @@ def check_train(
     moving_dir = _last_moving_direction(traj.direction, segments)
 
     failure = None
-    collisions = [(int(k), int(i)) for k, i in zip(*np.nonzero(~inside))]
+    collisions = [(int(k), int(i)) for k, i in zip(*np.nonzero(~inside), strict=True)]
     k_coll = np.flatnonzero(~inside.all(axis=1))
     k_joint = np.flatnonzero((abs_phi > train.phi_max).any(axis=1))
     t_coll = traj.t[keep[k_coll[0]]] if k_coll.size else math.inf

@@ -27,7 +27,8 @@ def test_the_lateral_force_turns_with_the_trailer(theta):
     """Along the left normal of the heading it is given at each step, plus the world force."""
     events = EventSchedule([Push(0.0, 1.0, lateral=-12.0, fx=2.0, fy=-1.0)], 2, 5.0)
     fx, fy = events.push_force(0.5, theta)
-    assert (fx - 2.0) * math.cos(theta) + (fy + 1.0) * math.sin(theta) == pytest.approx(0.0, abs=1e-12)
+    assert ((fx - 2.0) * math.cos(theta) + (fy + 1.0) * math.sin(theta)
+            == pytest.approx(0.0, abs=1e-12))
     assert -(fx - 2.0) * math.sin(theta) + (fy + 1.0) * math.cos(theta) == pytest.approx(-12.0)
 
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 from fmpy import read_model_description
+
 from pushtrain.fmu import FmuBuildError, build_fmu
 from pushtrain.fmu.build import render_variables_header
 
@@ -123,5 +124,7 @@ def test_strict_build_with_werror_packages_sources_and_binary(tmp_path, monkeypa
 
 @pytest.mark.parametrize("bad", [0, 51, -1, 2.5, "3", True])
 def test_out_of_range_n_is_refused_with_the_value(bad):
-    with pytest.raises(FmuBuildError, match=re.escape(repr(bad)) if not isinstance(bad, int) or isinstance(bad, bool) else str(bad)):
+    match = (re.escape(repr(bad)) if not isinstance(bad, int) or isinstance(bad, bool)
+             else str(bad))
+    with pytest.raises(FmuBuildError, match=match):
         build_fmu(bad)

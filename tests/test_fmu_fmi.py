@@ -12,6 +12,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
+
 from pushtrain.fmu.variables import variables_for
 
 N_DEFAULT = 3
@@ -224,7 +225,7 @@ def test_values_right_after_instantiate_equal_xml_start(built_fmu_sim):
         values = sim.get([v.name for v in variables])
     except FMICallException:
         pytest.skip("the FMU refuses fmi2GetXXX in the Instantiated state (allowed by FMI 2.0)")
-    mismatched = {v.name: (got, xml_start(v)) for v, got in zip(variables, values)
+    mismatched = {v.name: (got, xml_start(v)) for v, got in zip(variables, values, strict=True)
                   if got != xml_start(v)}
     assert mismatched == {}
 
@@ -236,7 +237,7 @@ def test_values_in_initialization_mode_equal_xml_start(built_fmu_sim, n_trailers
     sim.fmu.enterInitializationMode()
     variables = [v for v in sim.md.modelVariables if v.start is not None]
     values = sim.get([v.name for v in variables])
-    mismatched = {v.name: (got, xml_start(v)) for v, got in zip(variables, values)
+    mismatched = {v.name: (got, xml_start(v)) for v, got in zip(variables, values, strict=True)
                   if got != xml_start(v)}
     assert mismatched == {}
     assert sim.get(["n"]) == [n_trailers]
@@ -290,7 +291,7 @@ def _derived_dependencies(sim, inputs, outputs):
         value = sim.real(name)
         for delta in (1e-6, -1e-3, 0.5, -50.0, 2e3):
             sim.set({name: value + delta})
-            for out, old, new in zip(outputs, base, sim.get(outputs)):
+            for out, old, new in zip(outputs, base, sim.get(outputs), strict=True):
                 if new != old:
                     found[out].add(name)
         sim.set({name: value})
@@ -406,7 +407,7 @@ def test_wrong_communication_point_is_refused(built_fmu_sim, offset):
 def _constant_speed_run(sim, points):
     """Step through the communication points ``points``; return x[0] at each."""
     xs = []
-    for t0, t1 in zip(points[:-1], points[1:]):
+    for t0, t1 in zip(points[:-1], points[1:], strict=True):
         sim.fmu.doStep(currentCommunicationPoint=t0, communicationStepSize=t1 - t0)
         xs.append(sim.real("x[0]"))
     return np.array(xs)

@@ -197,7 +197,7 @@ def test_forces_follow_new_inputs_and_states(built_fmu_sim, n_trailers):
     params, inputs = random_case(rng, n_trailers)
     sim = built_fmu_sim(n_trailers)
     sim.initialize(params, inputs)
-    for k in range(6):
+    for _k in range(6):
         for _ in range(20):
             sim.step(0.01)
         v0, w0 = sim.real("v[0]"), sim.real("w[0]")

@@ -238,7 +238,7 @@ def test_trajectory_matches_scipy_integration(built_fmu_sim, n_trailers, clippin
     h, per_segment, segments = 0.1, 5, 8
     v_cmd, w_cmd = v_start, w_start
     clipped = False
-    for seg in range(segments):
+    for _seg in range(segments):
         if clipping:
             v_cmd = float(rng.uniform(-0.4, 0.4))
             w_cmd = float(rng.uniform(-0.5, 0.5))

@@ -13,8 +13,8 @@ import math
 import pytest
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
-from pushtrain.fmu.variables import variables_for
 
+from pushtrain.fmu.variables import variables_for
 from pushtrain.limits import BOUNDS, Bound, check
 
 N = 3

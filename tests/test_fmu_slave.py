@@ -30,5 +30,6 @@ def test_a_failing_read_says_when_and_what(fmu3):
         slave.start({})
         slave.time = 1.25
         read = slave._reader(["x[0]", "y[0]"], fmi2Real, failing_get)
-        with pytest.raises(CosimError, match=r"reading x\[0\] \.\. y\[0\] failed at t = 1.250000 s"):
+        with pytest.raises(CosimError,
+                           match=r"reading x\[0\] \.\. y\[0\] failed at t = 1.250000 s"):
             read()

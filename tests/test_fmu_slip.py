@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from pushtrain.core.controller import ControllerConfig
-from pushtrain.cosim.master import InitialState, PlantConfig, Push, simulate
 from pushtrain.core.openloop import ConstantCommand, RotationProfile
 from pushtrain.core.reference import Reference, Segment
+from pushtrain.cosim.master import InitialState, PlantConfig, Push, simulate
 
-M, I = 42.1, 3.5083
+M, INERTIA = 42.1, 3.5083
 
 
 AT_REST = InitialState(0.0, 0.0, np.zeros(4))
@@ -63,7 +63,8 @@ def coulomb_problems(d, n=3, speed_tol=1e-12):
             if np.any(bad):
                 k = int(np.argmax(bad))
                 problems.append(f"trailer {i} {what} at t = {d['t'][k]:.4f} s ({int(bad.sum())} "
-                                f"samples): F = {force[k]:.6g} N of {limit[k]:.6g} N, u = {u[k]:.3g}")
+                                f"samples): F = {force[k]:.6g} N of {limit[k]:.6g} N, "
+                                f"u = {u[k]:.3g}")
     return problems
 
 
@@ -108,7 +109,7 @@ def test_sliding_wheels_without_robot_motion_only_lose_energy(fmu3):
     initial = InitialState(0.0, 0.0, np.zeros(4), w0=1.5)
     plant = PlantConfig(3, slip_mode=1, robot_alpha_max=1000.0, robot_tau=0.01)
     d = simulate(fmu3, None, HOLD, initial=initial, plant=plant, horizon=3.0).data
-    ke = sum(0.5 * M * (d[f"v{i}"] ** 2 + d[f"u{i}"] ** 2) + 0.5 * I * d[f"w{i}"] ** 2
+    ke = sum(0.5 * M * (d[f"v{i}"] ** 2 + d[f"u{i}"] ** 2) + 0.5 * INERTIA * d[f"w{i}"] ** 2
              for i in (1, 2, 3))
     still = int(np.searchsorted(d["t"], 0.15))  # robot at rest (|w0| < 1e-6 rad/s) from here
     assert abs(d["w0"][still]) < 1e-5
@@ -129,7 +130,7 @@ def test_frictionless_sliding_conserves_energy(fmu3):
     plant = PlantConfig(3, slip_mode=1, mu=0.0, robot_alpha_max=1000.0, robot_tau=0.005,
                         slip_substep=2e-4)
     d = simulate(fmu3, None, HOLD, initial=initial, plant=plant, horizon=4.0).data
-    ke = sum(0.5 * M * (d[f"v{i}"] ** 2 + d[f"u{i}"] ** 2) + 0.5 * I * d[f"w{i}"] ** 2
+    ke = sum(0.5 * M * (d[f"v{i}"] ** 2 + d[f"u{i}"] ** 2) + 0.5 * INERTIA * d[f"w{i}"] ** 2
              for i in (1, 2, 3))
     still = int(np.searchsorted(d["t"], 0.1))
     assert abs(d["w0"][still]) < 1e-6 and ke[still] > 1.0
@@ -173,7 +174,7 @@ def test_slide_input_is_refused_in_slip_mode_1(fmu3):
             slave.real_writer(["slide[3]"])([0.2])
 
 
-# -- issue: sticking wheels flagged as slipping; F_lat above the limit ------------------------------
+# -- issue: sticking wheels flagged as slipping; F_lat above the limit ----------------------------
 def _run_pushed_while_turning(sim, slip_substep, steps=800, h=0.005):
     """The reported scenario, through the FMU's own inputs: the robot reverses and turns
     (v = -0.1 m/s, w = 0.1 rad/s), trailers 1-2 have mu = 0.5, and a world-frame push_y of 1.5x
@@ -193,7 +194,7 @@ def _run_pushed_while_turning(sim, slip_substep, steps=800, h=0.005):
         sim.set({"push_y": 1.5 * limit if 1.0 <= t < 3.0 else 0.0})
         sim.step(h)
         rows["t"].append(t + h)
-        for key, value in zip(names, sim.get(list(names.values()))):
+        for key, value in zip(names, sim.get(list(names.values())), strict=True):
             rows[key].append(float(value))
     return {key: np.array(values) for key, values in rows.items()}
 

@@ -1,4 +1,5 @@
-"""The slip-aware governor: its force model against the FMU, and a manoeuvre it keeps from sliding."""
+"""The slip-aware governor: its force model against the FMU, and a manoeuvre it keeps from sliding.
+"""
 
 import json
 from pathlib import Path
@@ -8,9 +9,9 @@ import pytest
 from click.testing import CliRunner
 
 from pushtrain.cli.main import cli
-from pushtrain.cosim.fmu_slave import TrailerTrainSlave
 from pushtrain.core.governor import GovernorConfig, SlipGovernor, lateral_forces
 from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.cosim.fmu_slave import TrailerTrainSlave
 from pushtrain.fmu import build_fmu
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "slip_governor.toml"
@@ -34,8 +35,8 @@ def test_the_governors_force_model_equals_the_fmus(n):
             slave.start(start)
             slave.real_writer(["v_cmd", "w_cmd"])([v_cmd, w_cmd])
             expected = slave.get_reals([f"F_lat[{i}]" for i in range(1, n + 1)])
-        got = lateral_forces(theta[:-1] - theta[1:], v0, w0, (v_cmd - v0) / 0.05, (w_cmd - w0) / 0.05,
-                             ChainGeometry(front, rear), mass, inertia)
+        got = lateral_forces(theta[:-1] - theta[1:], v0, w0, (v_cmd - v0) / 0.05,
+                             (w_cmd - w0) / 0.05, ChainGeometry(front, rear), mass, inertia)
         np.testing.assert_allclose(got, expected, rtol=1e-10, atol=1e-9)
 
 
@@ -65,7 +66,8 @@ def test_the_manoeuvre_slides_without_the_governor_and_not_with_it(tmp_path):
         path = tmp_path / f"gov_{governor}.toml"
         path.write_text(text)
         out = tmp_path / f"out_{governor}"
-        result = CliRunner().invoke(cli, ["plan-and-run", str(path), "--out", str(out), "--no-plots"])
+        result = CliRunner().invoke(cli, ["plan-and-run", str(path), "--out", str(out),
+                                          "--no-plots"])
         assert result.exit_code == 0, result.output
         runs[governor] = json.loads((out / "summary.json").read_text())
     with_gov, without = runs[True], runs[False]

@@ -1,4 +1,5 @@
-"""Closed loop through the real FMU: the paper's experiments (Sec. 4.2-4.3) and the master's contract."""
+"""Closed loop through the real FMU: the paper's experiments (Sec. 4.2-4.3) and the master's
+contract."""
 
 import json
 import math
@@ -7,6 +8,8 @@ import numpy as np
 import pytest
 
 from pushtrain.core.controller import ControllerConfig, ControllerError
+from pushtrain.core.openloop import ConstantCommand
+from pushtrain.core.reference import Reference, ReferencePathError, Segment
 from pushtrain.cosim.master import (
     CosimError,
     InitialState,
@@ -16,8 +19,6 @@ from pushtrain.cosim.master import (
     Slide,
     simulate,
 )
-from pushtrain.core.openloop import ConstantCommand
-from pushtrain.core.reference import Reference, ReferencePathError, Segment
 from pushtrain.cosim.sensors import SensorConfig
 
 D = 0.52
@@ -30,7 +31,8 @@ def _at(data, t):
 def test_open_loop_pushing_diverges_and_the_closed_loop_holds(fmu3):
     geom = PlantConfig(n_trailers=3).geometry()
     straight = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 4.0)], speed=0.08)
-    initial = InitialState.behind_reference(straight, geom, joint_angles=np.radians([0.0, 0.0, 1.0]))
+    initial = InitialState.behind_reference(straight, geom,
+                                            joint_angles=np.radians([0.0, 0.0, 1.0]))
     open_loop = simulate(fmu3, None, ConstantCommand(3, -0.08), initial=initial, horizon=50.0)
     closed = simulate(fmu3, straight, ControllerConfig.uniform(3), initial=initial, horizon=50.0,
                       check_goal=False)
@@ -57,7 +59,8 @@ def test_straight_corridor_disturbance_is_rejected_fig9(fmu3, tmp_path):
         assert abs(math.degrees(d[f"phi{i}"][-1])) < 0.5
     assert result.status == "goal_reached"
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["status"] == "goal_reached" and summary["lateral_error_m"]["max"] == pytest.approx(peak)
+    assert (summary["status"] == "goal_reached"
+            and summary["lateral_error_m"]["max"] == pytest.approx(peak))
     assert (tmp_path / "results.csv").read_text().splitlines()[0].startswith("t,x0,")
     npz = np.load(tmp_path / "results.npz")
     assert np.array_equal(npz["e_lat"], d["e_lat"])
@@ -130,7 +133,8 @@ def test_reference_with_a_jump_is_refused():
 def test_jackknife_stops_the_run_with_a_clear_status(fmu3):
     geom = PlantConfig(n_trailers=3).geometry()
     straight = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 4.0)], speed=0.08)
-    initial = InitialState.behind_reference(straight, geom, joint_angles=np.radians([0.0, 0.0, 5.0]))
+    initial = InitialState.behind_reference(straight, geom,
+                                            joint_angles=np.radians([0.0, 0.0, 5.0]))
     result = simulate(fmu3, None, ConstantCommand(3, -0.1), initial=initial, horizon=200.0,
                       plant=PlantConfig(n_trailers=3, phi_max=math.radians(45.0)))
     assert result.status == "jackknifed"
@@ -160,8 +164,8 @@ def test_joint_bias_steady_offset_matches_the_analysis_fig14(fmu3, bias_deg, joi
 def test_a_sampled_reference_drives_the_same_run_as_its_segments(fmu3):
     from pushtrain.core.reference import SampledReference
 
-    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 0.5), Segment("arc", 0.5, 0.8)],
-                                  speed=0.08)
+    ref = Reference.from_segments((0.0, 0.0, math.pi),
+                                  [Segment("line", 0.5), Segment("arc", 0.5, 0.8)], speed=0.08)
     sampled = SampledReference.from_reference(ref, 0.005)
     a = simulate(fmu3, ref, ControllerConfig.uniform(3))
     b = simulate(fmu3, sampled, ControllerConfig.uniform(3))
@@ -176,8 +180,8 @@ def test_the_lateral_push_turns_with_the_trailer_and_ends_on_time(fmu3):
     ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("arc", 2.0, 1 / 1.5)], speed=0.08)
     kwargs = dict(horizon=16.0, check_goal=False)
     quiet = simulate(fmu3, ref, ControllerConfig.uniform(3), **kwargs)
-    pushed = simulate(fmu3, ref, ControllerConfig.uniform(3), events=[Push(2.0, 10.0, lateral=30.0)],
-                      **kwargs)
+    pushed = simulate(fmu3, ref, ControllerConfig.uniform(3),
+                      events=[Push(2.0, 10.0, lateral=30.0)], **kwargs)
     d, t = pushed.data, pushed.data["t"]
     on = (t >= 2.0 - 1e-9) & (t < 12.0 - 1e-9)
     assert np.ptp(d["theta3"][on]) > 0.25  # the trailer turns by more than 14 deg

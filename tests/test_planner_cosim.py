@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 
-from pushtrain.cosim.master import InitialState, simulate
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.cosim.master import InitialState, simulate
 from pushtrain.planner import Train, World, check_train
 from pushtrain.planner.train_check import TrackerConfig, default_controller
 

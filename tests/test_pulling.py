@@ -14,7 +14,14 @@ from pushtrain.core.kinematics import (
     joint_angles,
 )
 from pushtrain.core.pulling import PullGuide, straight_chain_mismatch
-from pushtrain.core.reference import PULL, PUSH, Reference, ReferencePathError, SampledReference, Segment
+from pushtrain.core.reference import (
+    PULL,
+    PUSH,
+    Reference,
+    ReferencePathError,
+    SampledReference,
+    Segment,
+)
 from pushtrain.planner.train_check import default_controller, simulate_tracking
 
 GEOM = ChainGeometry.uniform(3, 0.52)
@@ -119,7 +126,7 @@ def test_straight_chain_mismatch_agrees_with_the_guide_and_decays_with_a_lead_in
         assert m == pytest.approx(offsets.max(), abs=5e-3)
         mismatches.append(m)
     assert mismatches[0] > 0.5  # an arc pulled from a straight chain needs a bent one
-    assert all(a > b for a, b in zip(mismatches, mismatches[1:]))
+    assert all(a > b for a, b in zip(mismatches, mismatches[1:], strict=False))
     assert mismatches[-1] < 0.05
     straight = np.column_stack((np.linspace(0, 2, 50), np.zeros(50), np.zeros(50)))
     assert straight_chain_mismatch(GEOM, straight) == pytest.approx(0.0, abs=1e-12)

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from pushtrain.core.reference import (
     PULL,
     PUSH,
@@ -109,7 +110,7 @@ def test_sampled_reference_reproduces_the_analytic_one():
     assert sampled.t_end == pytest.approx(ref.t_end, abs=0.01)
     assert sampled.length == pytest.approx(ref.length, rel=1e-4)
     t = np.linspace(ref.t0, ref.t_end - 0.02, 777)
-    for a, b in zip(sampled.sample(t), ref.sample(t)):
+    for a, b in zip(sampled.sample(t), ref.sample(t), strict=True):
         np.testing.assert_allclose(a[1:-1], b[1:-1], atol=2e-3)
     for tk in (3.0, 30.0, 45.0, 60.0):
         assert sampled.sample_at(tk)[:3] == pytest.approx(ref.sample_at(tk)[:3], abs=1e-5)

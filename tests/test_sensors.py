@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from pushtrain.cosim.sensors import Measurement, SensorConfig, SensorError, Sensors
 
 NOISY = dict(joint_noise_std=0.01, pos_noise_std=0.02, heading_noise_std=0.005)
