@@ -14,6 +14,8 @@ import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.core.openloop import RotationProfile
+from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.cosim.master import (
     InitialState,
     PlantConfig,
@@ -23,8 +25,6 @@ from pushtrain.cosim.master import (
     Slide,
     simulate,
 )
-from pushtrain.core.openloop import RotationProfile
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.fmu import build_fmu
 

@@ -25,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from pushtrain.errors import FieldErrors, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
-from pushtrain.limits import BOUNDS
+from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS
 from pushtrain.validation import field_errors, read_toml
 
 __all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
@@ -266,7 +266,7 @@ class Scenario(_Section):
 def _bound_problem(where: str, bound_name: str, value, deg: bool = False):
     """(where, value, allowed) if ``value`` is outside the plausible range of ``bound_name``
     (:data:`pushtrain.limits.BOUNDS`); ``deg``: the field is in degrees, the bound in radians."""
-    bound = BOUNDS[bound_name]
+    bound = BOUNDS.get(bound_name) or SCENARIO_BOUNDS[bound_name]
     lo, hi, unit = bound.lo, bound.hi, bound.unit
     if deg:
         lo, hi, unit = math.degrees(lo), math.degrees(hi), unit.replace("rad", "deg")

@@ -3,7 +3,9 @@
 Each parameter of the TrailerTrain FMU that describes the train or the robot has a :class:`Bound`
 with the reason for its range. The FMU's ``min``/``max`` attributes and the C code's checks in
 ``fmi2ExitInitializationMode`` are generated from this table (``fmu/variables.py``,
-``fmu/build.py``), and scenario validation can use :func:`check` for the same messages.
+``fmu/build.py``), and the scenario model (``mission/scenario.py``) checks the same ranges.
+:data:`SCENARIO_BOUNDS` adds the scenario settings that are not FMU parameters (the step,
+the horizon, body sizes, speed limits, gains, map coordinates).
 Per-trailer parameters (``front``, ``mass``, ...) have one bound for every element.
 
 A bound says what is physically plausible for this model, not what the numerics can handle; the
@@ -72,6 +74,13 @@ BOUNDS: dict[str, Bound] = {
         Bound("slip_substep", 1e-6, 0.01, "s",
               "smaller makes a 5 ms step take over 5000 sliding substeps; friction impulses "
               "need substeps well below the 5 ms communication step"),
+    )
+}
+"""The FMU's parameters: each becomes ``min``/``max`` in the modelDescription and a C check."""
+
+SCENARIO_BOUNDS: dict[str, Bound] = {
+    bound.name: bound
+    for bound in (
         # Scenario settings that are not FMU parameters (named by their scenario path).
         Bound("sim.step", 1e-4, 0.1, "s",
               "the paper samples every 5 ms; a step over 0.1 s lets the chain move further "
@@ -95,6 +104,8 @@ BOUNDS: dict[str, Bound] = {
               "a facility is smaller than 100 km across"),
     )
 }
+"""Scenario settings that are not FMU parameters; the scenario model checks them with
+:data:`BOUNDS`."""
 
 
 def check(name: str, value) -> str | None:

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from pushtrain.cli.main import cli
 from pushtrain.errors import ScenarioError
-from pushtrain.limits import BOUNDS
+from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS
 from pushtrain.mission.scenario import parse_scenario
 
 SCRIPTED = {
@@ -83,7 +83,7 @@ def _where(path):
 
 @pytest.mark.parametrize("path, bound_name, factor", BOUNDED_FIELDS)
 def test_each_bound_accepts_its_ends_and_rejects_beyond_them(path, bound_name, factor):
-    bound = BOUNDS[bound_name]
+    bound = BOUNDS.get(bound_name) or SCENARIO_BOUNDS[bound_name]
     for end in (bound.lo, bound.hi):
         value = _value(path, end, factor)
         if path == "sim.horizon":
