@@ -298,6 +298,19 @@ def _pull_intervals(bounds, directions) -> list[tuple[float, float]]:
             if bounds[j] > bounds[i]]
 
 
+def _check_no_jumps(what: str, unit: str, rates: str, change, rate, t, dt, rel_tol, abs_tol):
+    """Raise if a sampled ``change`` between neighbours exceeds what the larger of the two
+    neighbouring ``rate`` samples allows over ``dt`` (plus tolerances)."""
+    allowed = np.maximum(np.abs(rate[:-1]), np.abs(rate[1:])) * dt * (1.0 + rel_tol) + abs_tol
+    bad = np.flatnonzero(change > allowed)
+    if bad.size:
+        k = int(bad[0])
+        raise ReferencePathError(
+            f"{what} jumps by {change[k]:.6g} {unit} between t = {t[k]!r} s and {t[k + 1]!r} s;"
+            f" at most {allowed[k]:.6g} {unit} is allowed by the sampled {rates}"
+        )
+
+
 class SampledReference:
     """Reference of the last trailer given as samples (e.g. from a planner), linearly interpolated.
 
@@ -396,23 +409,9 @@ class SampledReference:
             )
         theta = np.unwrap(theta)
         step = np.hypot(np.diff(x), np.diff(y))
-        allowed = np.maximum(np.abs(v[:-1]), np.abs(v[1:])) * dt * (1.0 + rel_tol) + pos_tol
-        bad = np.flatnonzero(step > allowed)
-        if bad.size:
-            k = int(bad[0])
-            raise ReferencePathError(
-                f"position jumps by {step[k]:.6g} m between t = {t[k]!r} s and {t[k + 1]!r} s;"
-                f" at most {allowed[k]:.6g} m is allowed by the sampled speeds"
-            )
-        turn = np.abs(np.diff(theta))
-        allowed = np.maximum(np.abs(w[:-1]), np.abs(w[1:])) * dt * (1.0 + rel_tol) + angle_tol
-        bad = np.flatnonzero(turn > allowed)
-        if bad.size:
-            k = int(bad[0])
-            raise ReferencePathError(
-                f"heading jumps by {turn[k]:.6g} rad between t = {t[k]!r} s and {t[k + 1]!r} s;"
-                f" at most {allowed[k]:.6g} rad is allowed by the sampled yaw rates"
-            )
+        _check_no_jumps("position", "m", "speeds", step, v, t, dt, rel_tol, pos_tol)
+        _check_no_jumps("heading", "rad", "yaw rates", np.abs(np.diff(theta)), w, t, dt,
+                        rel_tol, angle_tol)
         self._t, self._x, self._y, self._theta = t, x, y, theta
         self._v, self._w, self._direction = v, w, direction.astype(int)
         self._s = np.concatenate(([0.0], np.cumsum(step)))  # distance travelled [m]

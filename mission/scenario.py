@@ -21,12 +21,12 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from pushtrain.errors import FieldErrors, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS
-from pushtrain.validation import field_errors, read_toml
+from pushtrain.validation import read_toml, validate_model
 
 __all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
 
@@ -357,10 +357,7 @@ def _inconsistent_run(sc: "Scenario") -> list[tuple[str, object, str]]:
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
     """Validate plain data (a parsed TOML document) into a :class:`Scenario`."""
-    try:
-        return Scenario.model_validate(data)
-    except ValidationError as exc:
-        raise ScenarioError(source, field_errors(exc)) from None
+    return validate_model(Scenario, data, source, ScenarioError)
 
 
 def load_scenario(path) -> Scenario:

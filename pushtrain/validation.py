@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pushtrain.errors import FieldErrors
 
-__all__ = ["field_errors", "read_toml"]
+__all__ = ["field_errors", "read_toml", "validate_model"]
 
 
 def _is_branch(part) -> bool:
@@ -102,3 +102,14 @@ def read_toml(path, error_cls) -> dict:
                                      "not valid TOML: nested too deeply")]) from None
     data.setdefault("name", path.stem)
     return data
+
+
+def validate_model(model, data: dict, source: str, error_cls):
+    """``model.model_validate(data)``; a pydantic ``ValidationError`` becomes
+    ``error_cls(source, [(where, value, allowed), ...])`` with every problem at once."""
+    from pydantic import ValidationError
+
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise error_cls(source, field_errors(exc)) from None

@@ -24,12 +24,11 @@ from pydantic import (
     Field,
     StrictBool,
     StrictInt,
-    ValidationError,
     model_validator,
 )
 
 from pushtrain.errors import FieldErrors, SweepError
-from pushtrain.validation import field_errors, read_toml
+from pushtrain.validation import read_toml, validate_model
 
 __all__ = [
     "SweepError",
@@ -345,10 +344,7 @@ def parse_sweep_spec(data: dict, source: str = "<sweep>") -> SweepSpec:
     SweepError
         Every problem at once, each with its field path, value and what is allowed.
     """
-    try:
-        return SweepSpec.model_validate(data)
-    except ValidationError as exc:
-        raise SweepError(source, field_errors(exc)) from None
+    return validate_model(SweepSpec, data, source, SweepError)
 
 
 def load_sweep_spec(path) -> SweepSpec:
