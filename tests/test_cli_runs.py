@@ -104,16 +104,37 @@ def test_a_failed_plan_after_a_successful_run_leaves_only_the_failed_run(tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
 
 
-def test_late_bad_input_replaces_the_previous_run_and_says_invalid(tmp_path):
-    """A slide event with slip_mode 1 passes the scenario check and is refused by the
-    co-simulation: exit 2, and the folder holds the refused run only."""
+def test_a_bad_scenario_is_refused_before_the_previous_run_is_touched(tmp_path):
+    """A slide event with slip_mode 1 is refused by the scenario check: exit 2 naming both
+    fields, and the previous run stays whole (nothing was started)."""
     out = tmp_path / "out"
     assert _invoke(["run", _short(tmp_path), "--no-plots", "--out", str(out)]).exit_code == 1
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
     bad = _scenario(tmp_path, "straight_push", "late",
                     append="horizon = 0.5\n[fmu]\nslip_mode = 1\n")
     result = _invoke(["run", bad, "--no-plots", "--out", str(out)])
     assert result.exit_code == 2, result.output
-    assert "slip_mode" in result.output
+    assert "events[0].type" in result.output and "slip_mode" in result.output
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_late_bad_input_replaces_the_previous_run_and_says_invalid(tmp_path, monkeypatch):
+    """An input error that only the co-simulation finds (injected here: the scenario check
+    leaves none that we know of) gives exit 2, and the folder holds the refused run only."""
+    from pushtrain.errors import CosimInputError
+    from pushtrain.mission import runner
+
+    out = tmp_path / "out"
+    assert _invoke(["run", _short(tmp_path), "--no-plots", "--out", str(out)]).exit_code == 1
+
+    def refuse(*args, **kwargs):
+        raise CosimInputError("plant.slip_mode = 1: injected refusal of the co-simulation")
+
+    monkeypatch.setattr(runner, "run_scenario", refuse)
+    late = _scenario(tmp_path, "straight_push", "late", append="horizon = 0.5\n")
+    result = _invoke(["run", late, "--no-plots", "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert "injected refusal" in result.output
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "invalid" and summary["scenario"] == "late"
     assert not (out / "results.npz").exists()
