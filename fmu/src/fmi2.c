@@ -28,7 +28,7 @@ typedef enum {
    fmi2Reset and fmi2FreeInstance are allowed (and fmi2SetDebugLogging). */
 #define ERROR_MODES (ANY_MODE | mode_error)
 #define MSG_LEN 512
-#define STATE_MAGIC 0x54524e31u /* "TRN1" */
+#define STATE_MAGIC 0x54524e32u /* "TRN2": state q = x0, y0, v0, w0, theta[0..n] */
 
 typedef struct {
     ModelData data;
@@ -324,7 +324,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         FAIL("vr or value is NULL");
     }
     for (k = 0; k < nvr; k++) {
-        if (!current && model_needs_outputs(vr[k])) {
+        if (!current && model_needs_outputs(&inst->data, vr[k])) {
             if (ensure_outputs(inst, __func__) != fmi2OK) {
                 return fmi2Error;
             }
@@ -366,7 +366,7 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
     }
     for (k = 0; k < nvr; k++) {
         bool v;
-        if (!current && model_needs_outputs(vr[k])) {
+        if (!current && model_needs_outputs(&inst->data, vr[k])) {
             if (ensure_outputs(inst, __func__) != fmi2OK) {
                 return fmi2Error;
             }
@@ -481,7 +481,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     const SavedState *saved = (const SavedState *)FMUstate;
     BEGIN(ERROR_MODES);
     if (saved == NULL || saved->magic != STATE_MAGIC || saved->size != sizeof(SavedState)) {
-        FAIL("FMUstate is NULL or not a TrailerTrain state of this build (n = %d)", N_TRAILERS);
+        FAIL("FMUstate is NULL or not a TrailerTrain state of this build (n = %d)", inst->data.n);
     }
     inst->data = saved->data;
     inst->mode = saved->mode;
@@ -525,7 +525,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     BEGIN(ANY_MODE);
     if (serializedState == NULL || FMUstate == NULL || size != sizeof(SavedState)) {
         FAIL("serialized state has %u bytes; this build (n = %d) expects %u", (unsigned)size,
-             N_TRAILERS, (unsigned)sizeof(SavedState));
+             inst->data.n, (unsigned)sizeof(SavedState));
     }
     memcpy(&header, serializedState, sizeof(SavedState));
     if (header.magic != STATE_MAGIC || header.size != sizeof(SavedState)) {

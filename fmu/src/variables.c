@@ -18,7 +18,7 @@ typedef struct {
     int index; /* body index i of an array element; the scalar's vr for scalars */
 } VarRef;
 
-static bool decode(unsigned vr, VarRef *out) {
+static bool decode(const ModelData *m, unsigned vr, VarRef *out) {
     const unsigned block = vr / VR_STRIDE, index = vr % VR_STRIDE;
     const VarInfo *info;
     if (block >= BLOCK_END) {
@@ -29,7 +29,7 @@ static bool decode(unsigned vr, VarRef *out) {
         return false;
     }
     if (block != 0
-        && ((int)index < info->first || (int)index > N_TRAILERS + info->last_offset)) {
+        && ((int)index < info->first || (int)index > m->n + info->last_offset)) {
         return false;
     }
     out->info = info;
@@ -38,9 +38,9 @@ static bool decode(unsigned vr, VarRef *out) {
     return true;
 }
 
-const char *model_variable_name(unsigned vr, char *buffer, size_t len) {
+const char *model_variable_name(const ModelData *m, unsigned vr, char *buffer, size_t len) {
     VarRef r;
-    if (!decode(vr, &r)) {
+    if (!decode(m, vr, &r)) {
         snprintf(buffer, len, "(unknown value reference %u)", vr);
     } else if (r.block == 0) {
         snprintf(buffer, len, "%s", r.info->name);
@@ -50,9 +50,9 @@ const char *model_variable_name(unsigned vr, char *buffer, size_t len) {
     return buffer;
 }
 
-bool model_needs_outputs(unsigned vr) {
+bool model_needs_outputs(const ModelData *m, unsigned vr) {
     VarRef r;
-    return decode(vr, &r)
+    return decode(m, vr, &r)
            && (r.info->causality == var_output || r.info->causality == var_calculated_parameter);
 }
 
@@ -114,15 +114,16 @@ static double *real_variable(ModelData *m, VarRef r) {
 static const char *const type_names[] = {"Real", "Integer", "Boolean"};
 
 /* r is a known variable of type `type`; else writes why not into msg. */
-static bool check_type(unsigned vr, VarType type, VarRef *r, char *msg, size_t len) {
+static bool check_type(const ModelData *m, unsigned vr, VarType type, VarRef *r, char *msg,
+                       size_t len) {
     char name[64];
-    if (!decode(vr, r)) {
+    if (!decode(m, vr, r)) {
         snprintf(msg, len, "unknown value reference %u", vr);
         return false;
     }
     if (r->info->type != type) {
         snprintf(msg, len, "%s (value reference %u) is a%s %s, not a%s %s",
-                 model_variable_name(vr, name, sizeof(name)), vr,
+                 model_variable_name(m, vr, name, sizeof(name)), vr,
                  r->info->type == var_integer ? "n" : "", type_names[r->info->type],
                  type == var_integer ? "n" : "", type_names[type]);
         return false;
@@ -135,7 +136,7 @@ static bool check_type(unsigned vr, VarType type, VarRef *r, char *msg, size_t l
 bool model_get_real(const ModelData *m, unsigned vr, double *value, char *msg, size_t len) {
     VarRef r;
     const double *p;
-    if (!check_type(vr, var_real, &r, msg, len)) {
+    if (!check_type(m, vr, var_real, &r, msg, len)) {
         return false;
     }
     p = real_variable((ModelData *)m, r); /* only read */
@@ -150,7 +151,7 @@ bool model_get_real(const ModelData *m, unsigned vr, double *value, char *msg, s
 /* the Integer variable r (a scalar) */
 static bool integer_value(const ModelData *m, VarRef r, int *value) {
     switch ((enum ScalarVr)r.index) {
-    case vr_n: *value = N_TRAILERS; return true;
+    case vr_n: *value = m->n; return true;
     case vr_slip_mode: *value = m->slip_mode; return true;
     default: return false;
     }
@@ -158,7 +159,7 @@ static bool integer_value(const ModelData *m, VarRef r, int *value) {
 
 bool model_get_integer(const ModelData *m, unsigned vr, int *value, char *msg, size_t len) {
     VarRef r;
-    if (!check_type(vr, var_integer, &r, msg, len)) {
+    if (!check_type(m, vr, var_integer, &r, msg, len)) {
         return false;
     }
     if (r.block != 0 || !integer_value(m, r, value)) {
@@ -170,7 +171,7 @@ bool model_get_integer(const ModelData *m, unsigned vr, int *value, char *msg, s
 
 bool model_get_boolean(const ModelData *m, unsigned vr, bool *value, char *msg, size_t len) {
     VarRef r;
-    if (!check_type(vr, var_boolean, &r, msg, len)) {
+    if (!check_type(m, vr, var_boolean, &r, msg, len)) {
         return false;
     }
     if (r.block == 0 && r.index == vr_jackknifed) {
@@ -189,9 +190,10 @@ bool model_get_boolean(const ModelData *m, unsigned vr, bool *value, char *msg, 
 
 /* Only inputs and parameters can be set, parameters only in the setup phase (before the end of
    initialization); r is a known variable. */
-static bool settable(unsigned vr, VarRef r, bool setup, char *msg, size_t len) {
+static bool settable(const ModelData *m, unsigned vr, VarRef r, bool setup, char *msg,
+                     size_t len) {
     char name[64];
-    model_variable_name(vr, name, sizeof(name));
+    model_variable_name(m, vr, name, sizeof(name));
     switch (r.info->causality) {
     case var_input:
         return true;
@@ -207,7 +209,7 @@ static bool settable(unsigned vr, VarRef r, bool setup, char *msg, size_t len) {
     }
     if (r.block == 0 && r.index == vr_n) {
         snprintf(msg, len, "n is a constant fixed by the build (n = %d); build another FMU for "
-                 "another number of trailers", N_TRAILERS);
+                 "another number of trailers", m->n);
     } else {
         snprintf(msg, len, "%s is an output or calculated parameter and cannot be set", name);
     }
@@ -218,7 +220,7 @@ bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *m
     VarRef r;
     double *p;
     char name[64];
-    if (!check_type(vr, var_real, &r, msg, len) || !settable(vr, r, setup, msg, len)) {
+    if (!check_type(m, vr, var_real, &r, msg, len) || !settable(m, vr, r, setup, msg, len)) {
         return false;
     }
     p = real_variable(m, r);
@@ -229,7 +231,7 @@ bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *m
     if (r.info->causality == var_input) {
         if (!isfinite(value)) {
             snprintf(msg, len, "input %s = %g: must be finite",
-                     model_variable_name(vr, name, sizeof(name)), value);
+                     model_variable_name(m, vr, name, sizeof(name)), value);
             return false;
         }
         if (r.block == blk_slide && value != 0.0 && m->slip_mode == 1 && !setup) {
@@ -237,7 +239,7 @@ bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *m
                ends (model_check_combinations), whatever order the importer sets them in */
             snprintf(msg, len, "input %s = %g: an imposed slide is the kinematic disturbance of "
                      "slip_mode 0; with slip_mode = 1 push the trailer with push_x, push_y instead",
-                     model_variable_name(vr, name, sizeof(name)), value);
+                     model_variable_name(m, vr, name, sizeof(name)), value);
             return false;
         }
         m->outputs_valid = false; /* outputs depend directly on the inputs */
@@ -248,7 +250,7 @@ bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *m
 
 bool model_set_integer(ModelData *m, unsigned vr, int value, bool setup, char *msg, size_t len) {
     VarRef r;
-    if (!check_type(vr, var_integer, &r, msg, len) || !settable(vr, r, setup, msg, len)) {
+    if (!check_type(m, vr, var_integer, &r, msg, len) || !settable(m, vr, r, setup, msg, len)) {
         return false;
     }
     if (r.block == 0 && r.index == vr_slip_mode) {
@@ -264,7 +266,7 @@ bool model_set_boolean(ModelData *m, unsigned vr, bool value, bool setup, char *
     VarRef r;
     (void)m;
     (void)value;
-    if (!check_type(vr, var_boolean, &r, msg, len) || !settable(vr, r, setup, msg, len)) {
+    if (!check_type(m, vr, var_boolean, &r, msg, len) || !settable(m, vr, r, setup, msg, len)) {
         return false;
     }
     snprintf(msg, len, "%s has no storage in this build", r.info->name);
@@ -322,7 +324,7 @@ bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
         if (r.info->name == NULL || r.info->causality != var_parameter) {
             continue;
         }
-        for (r.index = r.info->first; r.index <= N_TRAILERS + r.info->last_offset; r.index++) {
+        for (r.index = r.info->first; r.index <= m->n + r.info->last_offset; r.index++) {
             if (!check_parameter(m, r, msg, len)) {
                 return false;
             }
