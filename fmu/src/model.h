@@ -14,6 +14,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
 /* generated per build: FMI_VERSION, MAX_TRAILERS, DEFAULT_TRAILERS, MODEL_GUID */
 #include "build_config.h"
@@ -48,6 +49,7 @@ static inline double pt_clamp(double value, double lo, double hi) {
    Per-body arrays hold index i = 0..n; the elements beyond n are zero and never read. */
 typedef struct {
     int n;                          /* number of trailers, 1..MAX_TRAILERS */
+    int n_bodies_set;               /* FMI 3.0: n_bodies as set (0: not set since checked) */
 
     /* parameters */
     double front[MAX_BODIES];       /* F_i, i = 1..n [m] */
@@ -107,25 +109,44 @@ PT_INTERNAL void model_rk4_step(const ModelData *m, double *q, double dt);
 PT_INTERNAL void model_integrate(ModelData *m, double h, double t_end);
 
 /* variables.c: get and set by value reference. The numbering, names, types and causalities are
-   generated from fmu/variables.py (variables.h, included by variables.c only). On failure the
-   functions write "what is wrong" into msg and return false. Outputs are read as last computed:
-   make them current first when model_needs_outputs(vr). Parameters can be set only in the setup
-   phase (setup = true: before initialization ends). */
+   generated from fmu/variables.py (variables.h, included by variables.c only). A value reference
+   stands for one value (a scalar; an element x[i] in FMI 2.0) or for a whole array (FMI 3.0: x
+   holds x[0] .. x[n] at the instance's n). The functions move its values through
+   values[*index ..] (at most n_values in all) and advance *index; on failure they write "what is
+   wrong" into msg and return false. Outputs are read as last computed: make them current first
+   when model_needs_outputs(vr). What can be set depends on the phase. */
+typedef enum {
+    phase_instantiated,   /* parameters, inputs and the structural parameters */
+    phase_configuration,  /* FMI 3.0 Configuration Mode: only the structural parameters */
+    phase_initialization, /* parameters and inputs */
+    phase_running         /* after initialization: inputs */
+} SetPhase;
 PT_INTERNAL const char *model_variable_name(const ModelData *m, unsigned vr, char *buffer,
                                             size_t len);
 PT_INTERNAL bool model_needs_outputs(const ModelData *m, unsigned vr);
-PT_INTERNAL bool model_get_real(const ModelData *m, unsigned vr, double *value, char *msg,
-                                size_t len);
-PT_INTERNAL bool model_get_integer(const ModelData *m, unsigned vr, int *value, char *msg,
+PT_INTERNAL bool model_get_real(const ModelData *m, unsigned vr, double values[], size_t n_values,
+                                size_t *index, char *msg, size_t len);
+PT_INTERNAL bool model_get_integer(const ModelData *m, unsigned vr, int values[], size_t n_values,
+                                   size_t *index, char *msg, size_t len);
+PT_INTERNAL bool model_get_boolean(const ModelData *m, unsigned vr, bool values[],
+                                   size_t n_values, size_t *index, char *msg, size_t len);
+PT_INTERNAL bool model_get_uint64(const ModelData *m, unsigned vr, uint64_t values[],
+                                  size_t n_values, size_t *index, char *msg, size_t len);
+PT_INTERNAL bool model_set_real(ModelData *m, unsigned vr, const double values[], size_t n_values,
+                                size_t *index, SetPhase phase, char *msg, size_t len);
+PT_INTERNAL bool model_set_integer(ModelData *m, unsigned vr, const int values[],
+                                   size_t n_values, size_t *index, SetPhase phase, char *msg,
                                    size_t len);
-PT_INTERNAL bool model_get_boolean(const ModelData *m, unsigned vr, bool *value, char *msg,
+PT_INTERNAL bool model_set_boolean(ModelData *m, unsigned vr, const bool values[],
+                                   size_t n_values, size_t *index, SetPhase phase, char *msg,
                                    size_t len);
-PT_INTERNAL bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *msg,
-                                size_t len);
-PT_INTERNAL bool model_set_integer(ModelData *m, unsigned vr, int value, bool setup, char *msg,
-                                   size_t len);
-PT_INTERNAL bool model_set_boolean(ModelData *m, unsigned vr, bool value, bool setup, char *msg,
-                                   size_t len);
+/* FMI 3.0 structural parameters: setting n resizes (model_set_trailers) at once, after a range
+   check; n_bodies is remembered and must equal n + 1 when configuration ends. */
+PT_INTERNAL bool model_set_uint64(ModelData *m, unsigned vr, const uint64_t values[],
+                                  size_t n_values, size_t *index, SetPhase phase, char *msg,
+                                  size_t len);
+/* When configuration ends: n_bodies, if it was set, equals n + 1 (then it is forgotten). */
+PT_INTERNAL bool model_check_structure(ModelData *m, char *msg, size_t len);
 
 /* chain.c */
 /* Velocities of all bodies: v[i], w[i] and cos/sin of phi_i (index 1..n). */
