@@ -177,13 +177,15 @@ def main() -> None:
                   f"{' (bit-identical)' if identical else ''}")
     if args.fmusim:
         for n in N_VALUES:
-            print(f"fmusim n = {n:2d}: max |fmusim - fmpy| = {fmusim_check(args.fmusim, fmu3, n):.3g}")
+            worst = fmusim_check(args.fmusim, fmu3, n)
+            print(f"fmusim n = {n:2d}: max |fmusim - fmpy| = {worst:.3g}")
     else:
         print("fmusim: skipped (no --fmusim PATH; see this file's docstring to build it)")
     print(ecos_check(fmu3))
     for n in (3, 50):
         cost2, cost3 = master_step_cost(build_fmu(n), n), master_step_cost(fmu3, n)
-        print(f"master wrapper per step, n = {n:2d}: FMI 2.0 {cost2:.1f} us, FMI 3.0 {cost3:.1f} us")
+        print(f"master wrapper per step, n = {n:2d}: FMI 2.0 {cost2:.1f} us, "
+              f"FMI 3.0 {cost3:.1f} us")
 
 
 if __name__ == "__main__":

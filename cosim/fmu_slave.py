@@ -265,7 +265,8 @@ class TrailerTrainSlave:
         for name, value in values.items():
             groups.setdefault(self._type(name), {})[name] = value
         for kind, group in groups.items():
-            convert = {"Boolean": bool, "Integer": int, "Int32": int, "UInt64": int}.get(kind, float)
+            convert = {"Boolean": bool, "Integer": int, "Int32": int,
+                       "UInt64": int}.get(kind, float)
             given = [convert(v) for v in group.values()]
             plan = _Plan(self, group)
             if plan.identity:

@@ -159,7 +159,8 @@ def _build_into(fmi_version: int, n: int | None, target: Path, strict: bool, gui
         build_dir.mkdir()
         _compile(unzipdir, build_dir, strict)
         platform = fmpy.platform if fmi_version == 2 else fmpy.platform_tuple
-        binary = unzipdir / "binaries" / platform / f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
+        library = f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
+        binary = unzipdir / "binaries" / platform / library
         if not binary.is_file():
             raise FmuBuildError(f"the build produced no {binary.relative_to(unzipdir)}")
         def write_zip(partial: Path) -> None:

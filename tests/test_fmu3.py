@@ -252,7 +252,7 @@ def test_two_instances_with_different_n_run_side_by_side(fmu3):
         solo.append(sim.get("theta", n + 1))
     pair = [started(2, "a"), started(7, "b")]
     run(pair)
-    for alone, sim, n in zip(solo, pair, (2, 7)):
+    for alone, sim, n in zip(solo, pair, (2, 7), strict=True):
         np.testing.assert_array_equal(sim.get("theta", n + 1), alone)
         assert alone.size == n + 1 and np.ptp(alone) > 0.01
 
