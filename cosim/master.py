@@ -422,7 +422,8 @@ def simulate(
     Parameters
     ----------
     fmu : path-like
-        A TrailerTrain ``.fmu`` (see :func:`pushtrain.fmu.build_fmu`).
+        A TrailerTrain ``.fmu`` (see :func:`pushtrain.fmu.build_fmu`): FMI 2.0 built for the
+        controller's n, or FMI 3.0 (configured for that n).
     reference : Reference or SampledReference
         The last trailer's reference.
     controller : ControllerConfig or BackwardController
@@ -476,7 +477,7 @@ def simulate(
         ctrl.reset(initial.v0, initial.w0, t0 - step)
     loop = TrackingLoop(ctrl, reference)
 
-    slave = TrailerTrainSlave(fmu)
+    slave = TrailerTrainSlave(fmu, n_trailers=n)  # FMI 3.0: configured for n; FMI 2.0: fixed
     if slave.n != n:
         slave.close()
         raise CosimInputError(

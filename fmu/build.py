@@ -1,11 +1,13 @@
-"""Build the TrailerTrain FMU for a given number of trailers from the C sources in ``fmu/src``.
+"""Build the TrailerTrain FMU from the C sources in ``fmu/src``: FMI 2.0 for one n, or FMI 3.0
+for every n.
 
-The build renders ``modelDescription.xml``, a ``build_config.h`` (N_TRAILERS, GUID) for that n and
-``variables.h`` (value references, names, types and causalities of the variable table, so the C
-code never retypes them), lets fmpy's build helper write the CMake cache for its own ``CMakeLists.txt`` (the FMI 2.0 headers
-come from the installed fmpy), compiles, and zips a self-contained ``.fmu`` with
-``binaries/linux64/TrailerTrain.so`` and ``sources/`` so other tools can rebuild it. Builds are
-cached by a hash of the sources, n and the build options.
+The build renders the generated files (:mod:`.render`: ``modelDescription.xml``, FMI 3.0's
+``sources/buildDescription.xml``, ``build_config.h`` and ``variables.h``, so the C code never
+retypes the variable table), lets fmpy's build helper write the CMake cache for its own
+``CMakeLists.txt`` (the FMI headers come from the installed fmpy), compiles, and zips a
+self-contained ``.fmu`` with the binary (``binaries/linux64/`` for FMI 2.0,
+``binaries/x86_64-linux/`` for FMI 3.0) and ``sources/`` so other tools can rebuild it. Builds
+are cached by a hash of the sources, the FMI version, n and the build options.
 """
 
 from __future__ import annotations
@@ -18,49 +20,41 @@ import subprocess
 import sys
 import tempfile
 import uuid
-import xml.etree.ElementTree as ET
 import zipfile
-from datetime import UTC, datetime
 from importlib import resources
 from pathlib import Path
 
-from pushtrain import __version__
 from pushtrain.errors import FmuBuildError, FmuInputError
 from pushtrain.files import atomic_write
-from pushtrain.limits import BOUNDS
 
-from .variables import ARRAYS, MAX_TRAILERS, SCALARS, VR_STRIDE, variables_for
+from .render import (
+    HEADER_FILES,
+    MODEL_IDENTIFIER,
+    check_n,
+    render_build_config,
+    render_build_description,
+    render_model_description,
+    render_model_description3,
+    render_variables_header,
+    source_files,
+)
+from .variables import MAX_TRAILERS
 
 __all__ = [
-    "MODEL_IDENTIFIER",
+    "FMI_VERSIONS",
     "FmuBuildError",
+    "MODEL_IDENTIFIER",
     "build_fmu",
     "cache_dir",
     "render_model_description",
+    "render_model_description3",
     "render_variables_header",
 ]
 
 log = logging.getLogger(__name__)
 
-MODEL_IDENTIFIER = "TrailerTrain"
-SOURCE_FILES = ("model.c", "variables.c", "chain.c", "forces.c", "slip.c", "fmi2.c")
-HEADER_FILES = ("model.h",)
-DEFAULT_STEP = 0.005
-BUILD_FORMAT = "2"  # bump when the rendering or packaging changes
-
-UNITS = ("m", "m/s", "m/s2", "rad", "rad/s", "rad/s2", "N", "kg", "kg.m2", "s")
-_BASE_UNITS = {
-    "m": {"m": "1"},
-    "m/s": {"m": "1", "s": "-1"},
-    "m/s2": {"m": "1", "s": "-2"},
-    "rad": {"rad": "1"},
-    "rad/s": {"rad": "1", "s": "-1"},
-    "rad/s2": {"rad": "1", "s": "-2"},
-    "N": {"kg": "1", "m": "1", "s": "-2"},
-    "kg": {"kg": "1"},
-    "kg.m2": {"kg": "1", "m": "2"},
-    "s": {"s": "1"},
-}
+FMI_VERSIONS = (2, 3)
+BUILD_FORMAT = "3"  # bump when the rendering or packaging changes
 
 
 def cache_dir() -> Path:
@@ -74,243 +68,33 @@ def _source_dir():
     return resources.files("pushtrain.fmu") / "src"
 
 
-def _check_n(n_trailers) -> int:
-    if isinstance(n_trailers, bool) or not isinstance(n_trailers, (int,)) and not (
-        hasattr(n_trailers, "__index__")
-    ):
-        raise FmuInputError(
-            f"n_trailers = {n_trailers!r}: must be an integer from 1 to {MAX_TRAILERS}"
-        )
-    n = int(n_trailers)
-    if not 1 <= n <= MAX_TRAILERS:
-        raise FmuInputError(f"n_trailers = {n}: must be from 1 to {MAX_TRAILERS}")
-    return n
+def _generated_files(fmi_version: int, n: int | None, guid: str,
+                     generated: str | None = None) -> dict[str, bytes]:
+    """The rendered files of a build, by their path in the FMU archive."""
+    files = {
+        "sources/build_config.h": render_build_config(fmi_version, n, guid).encode(),
+        "sources/variables.h": render_variables_header(fmi_version).encode(),
+    }
+    if fmi_version == 2:
+        files["modelDescription.xml"] = render_model_description(n, guid, generated)
+    else:
+        files["modelDescription.xml"] = render_model_description3(guid, generated)
+        files["sources/buildDescription.xml"] = render_build_description()
+    return files
 
 
-def _fingerprint(n: int, strict: bool) -> str:
+def _fingerprint(n: int | None, strict: bool, fmi_version: int = 2) -> str:
     digest = hashlib.sha256()
-    digest.update(f"format={BUILD_FORMAT};n={n};strict={strict}".encode())
+    digest.update(f"format={BUILD_FORMAT};fmi={fmi_version};n={n};strict={strict}".encode())
     src = _source_dir()
-    for name in SOURCE_FILES + HEADER_FILES:
+    for name in source_files(fmi_version) + HEADER_FILES:
         digest.update(name.encode())
         digest.update((src / name).read_bytes())
     # what the tables render to (variables.py and everything it reads), not the date of a build
-    digest.update(render_model_description(n, "{guid}", generated="{date}"))
-    digest.update(render_variables_header().encode())
+    for path, data in sorted(_generated_files(fmi_version, n, "{guid}", "{date}").items()):
+        digest.update(path.encode())
+        digest.update(data)
     return digest.hexdigest()
-
-
-def _fmt(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return repr(value)
-    return str(value)
-
-
-def generation_time() -> str:
-    """When this build is made, ISO 8601 UTC (``$SOURCE_DATE_EPOCH`` if set, for reproducible
-    builds). It is written into the XML only: the cache key does not depend on it."""
-    epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    moment = (datetime.fromtimestamp(int(epoch), UTC) if epoch
-              else datetime.now(UTC))
-    return moment.strftime("%Y-%m-%dT%H:%M:%SZ")
-
-
-def render_model_description(n_trailers: int, guid: str, generated: str | None = None) -> bytes:
-    """The ``modelDescription.xml`` of a TrailerTrain FMU with ``n_trailers`` trailers.
-
-    ``generated`` is its generationDateAndTime (default: :func:`generation_time`).
-    """
-    n = _check_n(n_trailers)
-    root = ET.Element(
-        "fmiModelDescription",
-        {
-            "fmiVersion": "2.0",
-            "modelName": MODEL_IDENTIFIER,
-            "guid": guid,
-            "description": f"Holonomic robot pushing or pulling {n} passive off-hooked trailers "
-            "(chain kinematics, robot velocity loop, lateral wheel forces)",
-            "generationTool": f"pushtrain {__version__}",
-            "generationDateAndTime": generated or generation_time(),
-            "variableNamingConvention": "structured",
-            "numberOfEventIndicators": "0",
-        },
-    )
-    cs = ET.SubElement(
-        root,
-        "CoSimulation",
-        {
-            "modelIdentifier": MODEL_IDENTIFIER,
-            "canHandleVariableCommunicationStepSize": "true",
-            "canGetAndSetFMUstate": "true",
-            "canSerializeFMUstate": "true",
-            "canNotUseMemoryManagementFunctions": "true",
-            "canBeInstantiatedOnlyOncePerProcess": "false",
-            "providesDirectionalDerivative": "false",
-        },
-    )
-    files = ET.SubElement(cs, "SourceFiles")
-    for name in SOURCE_FILES:
-        ET.SubElement(files, "File", {"name": name})
-
-    units = ET.SubElement(root, "UnitDefinitions")
-    for name in UNITS:
-        unit = ET.SubElement(units, "Unit", {"name": name})
-        ET.SubElement(unit, "BaseUnit", _BASE_UNITS[name])
-
-    categories = ET.SubElement(root, "LogCategories")
-    for name, text in (
-        ("logStatusError", "Errors: bad parameters, refused calls, non-finite states"),
-        ("logStatusWarning", "Warnings"),
-        ("logDebug", "One message per communication step (off unless asked for)"),
-    ):
-        ET.SubElement(categories, "Category", {"name": name, "description": text})
-
-    ET.SubElement(
-        root,
-        "DefaultExperiment",
-        {"startTime": "0.0", "stopTime": "10.0", "stepSize": _fmt(DEFAULT_STEP)},
-    )
-
-    variables = variables_for(n)
-    model_vars = ET.SubElement(root, "ModelVariables")
-    for var in variables:
-        attrs = {
-            "name": var.name,
-            "valueReference": str(var.vr),
-            "description": var.description,
-            "causality": var.causality,
-            "variability": var.variability,
-        }
-        if var.initial is not None:
-            attrs["initial"] = var.initial
-        sv = ET.SubElement(model_vars, "ScalarVariable", attrs)
-        type_attrs = {}
-        if var.unit:
-            type_attrs["unit"] = var.unit
-        if var.min is not None:
-            type_attrs["min"] = _fmt(var.min)
-        if var.max is not None:
-            type_attrs["max"] = _fmt(var.max)
-        if var.name == "n":
-            type_attrs["start"] = str(n)
-        elif var.start is not None:
-            type_attrs["start"] = _fmt(var.start)
-        ET.SubElement(sv, var.type, type_attrs)
-
-    index = {var.name: k + 1 for k, var in enumerate(variables)}
-    structure = ET.SubElement(root, "ModelStructure")
-    outputs = ET.SubElement(structure, "Outputs")
-    for var in variables:
-        if var.causality != "output":
-            continue
-        # the inputs it depends on directly (the variable table's feedthrough); "" = state only
-        refs = sorted(index[name] for name in var.depends_on)
-        attrs = {"index": str(index[var.name]), "dependencies": " ".join(map(str, refs))}
-        if refs:
-            attrs["dependenciesKind"] = " ".join("dependent" for _ in refs)
-        ET.SubElement(outputs, "Unknown", attrs)
-    initial = ET.SubElement(structure, "InitialUnknowns")
-    for var in variables:
-        if (var.causality == "output" and var.initial in ("approx", "calculated")) or (
-            var.causality == "calculatedParameter"
-        ):
-            ET.SubElement(initial, "Unknown", {"index": str(index[var.name])})
-
-    ET.indent(root, space="  ")
-    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
-
-
-def _render_build_config(n: int, guid: str) -> str:
-    return (
-        "/* Generated by pushtrain.fmu.build for this FMU: do not edit. */\n"
-        "#ifndef TRAILERTRAIN_BUILD_CONFIG_H\n#define TRAILERTRAIN_BUILD_CONFIG_H\n"
-        f"#define N_TRAILERS {n}\n"
-        f'#define MODEL_GUID "{guid}"\n'
-        "#endif\n"
-    )
-
-
-_C_TYPES = {"Real": "var_real", "Integer": "var_integer", "Boolean": "var_boolean"}
-_C_CAUSALITIES = {
-    "input": "var_input",
-    "output": "var_output",
-    "parameter": "var_parameter",
-    "calculatedParameter": "var_calculated_parameter",
-    "local": "var_local",
-}
-
-
-def render_variables_header() -> str:
-    """``variables.h``: the C view of :mod:`pushtrain.fmu.variables` (the same for every n).
-
-    Value-reference enums (``vr_<scalar>``, ``blk_<block>``) and one ``VarInfo`` table per kind,
-    indexed by them. Only ``variables.c`` includes it; the rest of the C code asks that file.
-    """
-    lines = [
-        "/* Generated by pushtrain.fmu.build from fmu/variables.py: do not edit.",
-        " * Scalar s has value reference vr_s (< VR_STRIDE); element i of array block b has",
-        " * VR_STRIDE * blk_b + i, for i from first to N_TRAILERS + last_offset. */",
-        "#ifndef TRAILERTRAIN_VARIABLES_H",
-        "#define TRAILERTRAIN_VARIABLES_H",
-        "",
-        f"#define VR_STRIDE {VR_STRIDE}",
-        "",
-        "enum ScalarVr {",
-        ",\n".join(f"    vr_{v.name} = {v.vr}" for v in SCALARS),
-        "};",
-        f"#define SCALAR_VR_END {max(v.vr for v in SCALARS) + 1}",
-        "",
-        "enum Block {",
-        ",\n".join(f"    blk_{b.name} = {b.block}" for b in ARRAYS),
-        "};",
-        f"#define BLOCK_END {max(b.block for b in ARRAYS) + 1}",
-        "",
-        "typedef enum { var_real, var_integer, var_boolean } VarType;",
-        "typedef enum {",
-        "    var_input, var_output, var_parameter, var_calculated_parameter, var_local",
-        "} VarCausality;",
-        "",
-        "typedef struct {",
-        "    const char *name; /* NULL: no variable has this number */",
-        "    VarType type;",
-        "    VarCausality causality;",
-        "    int first, last_offset; /* array blocks: i runs from first to N_TRAILERS + last_offset */",
-        "    int bounded;            /* parameters: min <= value <= max is checked */",
-        "    double min, max;",
-        "    const char *unit, *reason; /* for the message when a value is out of range */",
-        "} VarInfo;",
-        "",
-        "static const VarInfo scalar_info[SCALAR_VR_END] = {",
-    ]
-    lines += [f"    [vr_{v.name}] = {_var_info(v, 0, 0)}," for v in SCALARS]
-    lines += ["};", "", "static const VarInfo block_info[BLOCK_END] = {"]
-    lines += [
-        f"    [blk_{b.name}] = {_var_info(b, b.first, -1 if b.to_n_minus_1 else 0)},"
-        for b in ARRAYS
-    ]
-    lines += ["};", "", "#endif", ""]
-    return "\n".join(lines)
-
-
-def _c_string(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def _var_info(row, first: int, last_offset: int) -> str:
-    """One VarInfo initializer; bounds and their reason from the table (pushtrain.limits)."""
-    fields = [_c_string(row.name), _C_TYPES[row.type], _C_CAUSALITIES[row.causality],
-              str(first), str(last_offset)]
-    if row.min is None:
-        fields += ["0", "0.0", "0.0", "NULL", "NULL"]
-    else:
-        bound = BOUNDS.get(row.name)
-        reason = bound.reason if bound is not None else row.description
-        unit = bound.unit if bound is not None else (row.unit or "")
-        fields += ["1", repr(float(row.min)), repr(float(row.max)), _c_string(unit),
-                   _c_string(reason)]
-    return "{" + ", ".join(fields) + "}"
 
 
 def _cmake_env() -> dict:
@@ -359,7 +143,7 @@ def _compile(unzipdir: Path, build_dir: Path, strict: bool) -> None:
             log.warning("compiler: %s", line)
 
 
-def _build_into(n: int, target: Path, strict: bool, guid: str) -> None:
+def _build_into(fmi_version: int, n: int | None, target: Path, strict: bool, guid: str) -> None:
     import fmpy
 
     with tempfile.TemporaryDirectory(prefix="pushtrain-fmu-") as tmp:
@@ -367,15 +151,16 @@ def _build_into(n: int, target: Path, strict: bool, guid: str) -> None:
         sources = unzipdir / "sources"
         sources.mkdir(parents=True)
         src = _source_dir()
-        for name in SOURCE_FILES + HEADER_FILES:
+        for name in source_files(fmi_version) + HEADER_FILES:
             (sources / name).write_bytes((src / name).read_bytes())
-        (sources / "build_config.h").write_text(_render_build_config(n, guid))
-        (sources / "variables.h").write_text(render_variables_header())
-        (unzipdir / "modelDescription.xml").write_bytes(render_model_description(n, guid))
+        for path, data in _generated_files(fmi_version, n, guid).items():
+            (unzipdir / path).write_bytes(data)
         build_dir = Path(tmp) / "build"
         build_dir.mkdir()
         _compile(unzipdir, build_dir, strict)
-        binary = unzipdir / "binaries" / fmpy.platform / f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
+        platform = fmpy.platform if fmi_version == 2 else fmpy.platform_tuple
+        library = f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
+        binary = unzipdir / "binaries" / platform / library
         if not binary.is_file():
             raise FmuBuildError(f"the build produced no {binary.relative_to(unzipdir)}")
         def write_zip(partial: Path) -> None:
@@ -387,15 +172,19 @@ def _build_into(n: int, target: Path, strict: bool, guid: str) -> None:
         atomic_write(target, write_zip)
 
 
-def build_fmu(n_trailers: int, output_path=None, *, strict: bool = False, force: bool = False) -> Path:
-    """Build (or take from the cache) the TrailerTrain FMU for ``n_trailers`` trailers.
+def build_fmu(n_trailers: int | None = None, output_path=None, *, fmi_version: int = 2,
+              strict: bool = False, force: bool = False) -> Path:
+    """Build (or take from the cache) a TrailerTrain FMU.
 
     Parameters
     ----------
-    n_trailers : int
-        Number of trailers, 1 to 50.
+    n_trailers : int, optional
+        FMI 2.0: the number of trailers, 1 to 50, fixed by the build. FMI 3.0: leave it out; the
+        one FMU serves every n (its structural parameter ``n``).
     output_path : path-like, optional
         Where to write the ``.fmu``; by default the cached file itself is returned.
+    fmi_version : {2, 3}
+        FMI 2.0 Co-Simulation (scalars ``x[0]``, ...) or FMI 3.0 Co-Simulation (arrays).
     strict : bool
         Compile with ``-Werror`` (development builds).
     force : bool
@@ -408,17 +197,30 @@ def build_fmu(n_trailers: int, output_path=None, *, strict: bool = False, force:
 
     Raises
     ------
+    FmuInputError
+        ``n_trailers`` out of range or missing (FMI 2.0) or given (FMI 3.0), or an unknown
+        ``fmi_version``.
     FmuBuildError
-        ``n_trailers`` out of range, cmake missing, or the compiler failed.
+        cmake missing, or the compiler failed.
     """
-    n = _check_n(n_trailers)
-    fingerprint = _fingerprint(n, strict)
-    cached = cache_dir() / f"{MODEL_IDENTIFIER}-n{n}-{fingerprint[:16]}.fmu"
+    if isinstance(fmi_version, bool) or fmi_version not in FMI_VERSIONS:
+        raise FmuInputError(f"fmi_version = {fmi_version!r}: allowed are 2 and 3")
+    if fmi_version == 2:
+        n = check_n(n_trailers)
+        name, what = f"{MODEL_IDENTIFIER}-n{n}", f"FMI 2.0, n = {n}"
+    elif n_trailers is not None:
+        raise FmuInputError(
+            f"n_trailers = {n_trailers!r} with fmi_version = 3: the FMI 3.0 FMU serves every n "
+            f"from 1 to {MAX_TRAILERS}; set its structural parameter n instead")
+    else:
+        n, name, what = None, f"{MODEL_IDENTIFIER}3", "FMI 3.0, n = 1.." + str(MAX_TRAILERS)
+    fingerprint = _fingerprint(n, strict, fmi_version)
+    cached = cache_dir() / f"{name}-{fingerprint[:16]}.fmu"
     if force or not cached.is_file():
         cached.parent.mkdir(parents=True, exist_ok=True)
         guid = "{" + str(uuid.UUID(fingerprint[:32])) + "}"
-        log.info("building %s for n = %d into %s", MODEL_IDENTIFIER, n, cached)
-        _build_into(n, cached, strict, guid)
+        log.info("building %s (%s) into %s", MODEL_IDENTIFIER, what, cached)
+        _build_into(fmi_version, n, cached, strict, guid)
     else:
         log.debug("using cached %s", cached)
     if output_path is None:

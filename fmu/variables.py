@@ -1,11 +1,19 @@
 """The TrailerTrain FMU's variables: the one table that describes them.
 
-The builder renders ``modelDescription.xml`` and the C header ``variables.h`` (value-reference
+The builder renders both model descriptions and the C header ``variables.h`` (value-reference
 enums, names, types, causalities) from it, so adding a variable means a row here plus its place in
-the C model (``src/variables.c``; the compiler names a missing one). Value references: scalars have
-``vr < 100``; element ``i`` of array block ``b`` has ``vr = 100 * b + i`` with ``i`` the body index
-(0 = robot, 1..n trailers). Start values here must equal what the C code sets in
-``model_set_defaults`` (tested through the built FMU).
+the C model (``src/variables.c``; the compiler names a missing one). Start values here must equal
+what the C code sets in ``model_set_defaults`` (tested through the built FMUs).
+
+- FMI 2.0 (one build per n): scalars have ``vr < 100``; element ``i`` of array block ``b`` is the
+  scalar variable ``name[i]`` with ``vr = 100 * b + i``, ``i`` the body index (0 = robot, 1..n
+  trailers).
+- FMI 3.0 (one build for every n): the same scalars; block ``b`` is one array variable ``name``
+  with ``vr = 100 * b`` whose elements are ``name[first]`` .. ``name[last]`` of the FMI 2.0
+  contract, in that order. Its ``<Dimension>`` references the structural parameter ``n`` (n
+  elements: the per-trailer blocks and ``rear``) or ``n_bodies`` (n + 1 elements: the per-body
+  blocks, robot first), because a dimension can only be the value of a variable, never ``n + 1``;
+  the FMU keeps ``n_bodies = n + 1``.
 """
 
 from __future__ import annotations
@@ -16,18 +24,24 @@ from pushtrain.limits import BOUNDS
 
 __all__ = [
     "ARRAYS",
+    "ArrayBlock",
+    "DEFAULT_TRAILERS",
     "FEEDTHROUGH",
+    "FMI_VERSIONS",
+    "MAX_TRAILERS",
     "SCALARS",
     "VR_STRIDE",
-    "ArrayBlock",
     "Variable",
     "describe",
     "direct_inputs",
+    "scalars_for",
     "variables_for",
 ]
 
 VR_STRIDE = 100
 MAX_TRAILERS = 50
+DEFAULT_TRAILERS = 3  # FMI 3.0: the start value of the structural parameter n
+FMI_VERSIONS = (2, 3)
 
 # Table 1 of the paper: 42.1 kg, 0.6 m x 0.8 m body -> centroidal inertia m (a^2 + b^2) / 12.
 TRAILER_MASS = 42.1
@@ -66,12 +80,15 @@ def direct_inputs(feedthrough: str, i: int, n_trailers: int) -> list[str]:
 
 @dataclass(frozen=True)
 class Variable:
-    """One scalar FMI variable."""
+    """One scalar FMI variable (``type`` in FMI 2.0 spelling; FMI 3.0 renders Real as Float64 and
+    Integer as Int32; UInt64 exists in FMI 3.0 only)."""
 
     name: str
     vr: int
-    type: str  # "Real", "Integer", "Boolean"
-    causality: str  # "input", "output", "parameter", "calculatedParameter", "local"
+    type: str  # "Real", "Integer", "Boolean", "UInt64"
+    # "input", "output", "parameter", "calculatedParameter", "local", and in FMI 3.0
+    # "structuralParameter", "independent"
+    causality: str
     variability: str  # "constant", "fixed", "tunable", "discrete", "continuous"
     description: str
     start: float | int | bool | None = None
@@ -80,6 +97,7 @@ class Variable:
     depends_on: tuple[str, ...] = ()  # outputs: the inputs of their direct feedthrough
     min: float | int | None = None
     max: float | int | None = None
+    versions: tuple[int, ...] = FMI_VERSIONS  # the FMI versions that have this variable
 
 
 @dataclass(frozen=True)
@@ -103,6 +121,15 @@ class ArrayBlock:
     feedthrough: str = "none"  # outputs: see FEEDTHROUGH
     min: float | int | None = None
     max: float | int | None = None
+
+    def count(self, n_trailers: int) -> int:
+        """Number of elements for ``n_trailers`` trailers (n or n + 1)."""
+        return n_trailers + 1 - self.first - (1 if self.to_n_minus_1 else 0)
+
+    @property
+    def size_variable(self) -> str:
+        """The FMI 3.0 structural parameter that holds the length: ``n`` or ``n_bodies``."""
+        return "n" if self.count(1) == 1 else "n_bodies"
 
 
 def _bounded(row):
@@ -140,11 +167,21 @@ SCALARS: tuple[Variable, ...] = tuple(map(_bounded, (
     Variable("max_substep", 15, "Real", "parameter", "fixed",
              "Largest internal RK4 substep", 0.005, "s"),
     Variable("n", 16, "Integer", "output", "constant",
-             "Number of trailers (fixed by the build)", None, None, "exact"),
+             "Number of trailers (fixed by the build)", None, None, "exact", versions=(2,)),
+    Variable("n", 16, "UInt64", "structuralParameter", "fixed",
+             "Number of trailers: the length of the per-trailer arrays and of rear; set it "
+             "before initialization (Configuration Mode or Instantiated)",
+             DEFAULT_TRAILERS, min=1, max=MAX_TRAILERS, versions=(3,)),
     Variable("jackknifed", 17, "Boolean", "output", "discrete",
              "Some absolute joint angle |phi| exceeds phi_max", None, None, "calculated"),
     Variable("slip_substep", 18, "Real", "parameter", "fixed",
              "Largest internal substep while some wheel slides, slip_mode 1", 0.0005, "s"),
+    Variable("time", 0, "Real", "independent", "continuous", "Simulation time", unit="s",
+             versions=(3,)),
+    Variable("n_bodies", 19, "UInt64", "structuralParameter", "fixed",
+             "Number of bodies, n + 1 (robot and trailers): the length of the per-body arrays; "
+             "it follows n (setting it to another value is an error)",
+             DEFAULT_TRAILERS + 1, min=2, max=MAX_TRAILERS + 1, versions=(3,)),
 )))
 
 ARRAYS: tuple[ArrayBlock, ...] = tuple(map(_bounded, (
@@ -217,9 +254,17 @@ def describe(template: str, i: int) -> str:
     return template.format(i=i, prev=i - 1, body=_body(i), prev_body=_body(i - 1), point=point)
 
 
+def scalars_for(fmi_version: int) -> list[Variable]:
+    """The scalar variables of an FMI 2.0 or 3.0 FMU, ordered by value reference."""
+    if fmi_version not in FMI_VERSIONS:
+        raise ValueError(f"fmi_version = {fmi_version!r}: allowed are 2 and 3")
+    return sorted((v for v in SCALARS if fmi_version in v.versions), key=lambda v: v.vr)
+
+
 def variables_for(n_trailers: int) -> list[Variable]:
-    """Every scalar variable of an FMU built for ``n_trailers``, ordered by value reference."""
-    out = list(SCALARS)
+    """Every scalar variable of an FMI 2.0 FMU built for ``n_trailers``, ordered by value
+    reference."""
+    out = scalars_for(2)
     for block in ARRAYS:
         last = n_trailers - 1 if block.to_n_minus_1 else n_trailers
         for i in range(block.first, last + 1):

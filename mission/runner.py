@@ -214,12 +214,13 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
                  progress: bool | None = None, fmu=None) -> Result:
     """Co-simulate ``sc`` along ``reference`` (or its scripted reference / the rotation profile).
 
-    ``fmu`` is the TrailerTrain FMU to use (default: built for ``train.n``). With ``out_dir``,
+    ``fmu`` is the TrailerTrain FMU to use (default: ``[fmu] fmi_version`` 2 builds one for
+    ``train.n``, 3 takes the FMI 3.0 FMU that serves every n). With ``out_dir``,
     writes ``results.csv``, ``results.npz`` and ``summary.json`` there; without, writes nothing.
     The recorded motion is checked against the map (status ``collision`` if a body leaves it).
     """
     if fmu is None:
-        fmu = build_fmu(sc.train.n)
+        fmu = build_fmu(sc.train.n) if sc.fmu.fmi_version == 2 else build_fmu(fmi_version=3)
     plant = plant_of(sc)
     if sc.mission.kind == "rotation":
         rot = sc.rotation

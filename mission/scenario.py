@@ -185,6 +185,8 @@ class RotationSection(_Section):
 class FmuSection(_Section):
     slip_mode: Literal[0, 1] = 0
     max_substep: PositiveFloat = 0.005
+    # 2: an FMI 2.0 FMU built for train.n (cached per n); 3: the one FMI 3.0 FMU, n set at start
+    fmi_version: Literal[2, 3] = 2
 
 
 class SimSection(_Section):

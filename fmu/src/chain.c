@@ -22,7 +22,7 @@ void chain_velocities(const ModelData *m, const double *q, double *c, double *s,
     w[0] = q[IX_W0];
     c[0] = 1.0;
     s[0] = 0.0;
-    for (i = 1; i <= N_TRAILERS; i++) {
+    for (i = 1; i <= m->n; i++) {
         const double phi = q[IX_THETA + i - 1] - q[IX_THETA + i];
         const double u_prev = (i == 1) ? 0.0 : m->slide[i - 1];
         const double r = m->rear[i - 1];
@@ -39,12 +39,12 @@ void robot_accelerations(const ModelData *m, const double *q, double *dv0, doubl
 }
 
 void chain_derivatives(const ModelData *m, const double *q, double *dq) {
-    double c[NB], s[NB], v[NB], w[NB];
+    double c[MAX_BODIES], s[MAX_BODIES], v[MAX_BODIES], w[MAX_BODIES];
     int i;
     chain_velocities(m, q, c, s, v, w);
     dq[IX_X0] = v[0] * cos(q[IX_THETA]);  /* robot moves along its heading */
     dq[IX_Y0] = v[0] * sin(q[IX_THETA]);
-    for (i = 0; i <= N_TRAILERS; i++) {
+    for (i = 0; i <= m->n; i++) {
         dq[IX_THETA + i] = w[i];
     }
     robot_accelerations(m, q, &dq[IX_V0], &dq[IX_W0]);
@@ -60,7 +60,7 @@ void chain_accelerations(const ModelData *m, const double *c, const double *s, c
     int i;
     dv[0] = dv0;
     dw[0] = dw0;
-    for (i = 1; i <= N_TRAILERS; i++) {
+    for (i = 1; i <= m->n; i++) {
         const double u_prev = (i == 1) ? 0.0 : m->slide[i - 1];
         const double r = m->rear[i - 1];
         const double phidot = w[i - 1] - w[i];

@@ -20,22 +20,23 @@
 void lateral_forces(const ModelData *m, const double *q, const double *v, const double *w,
                     const double *dv, const double *dw, double *F_lat, double *hitch_fx,
                     double *hitch_fy) {
+    const int n = m->n;
     double next_fx = 0.0, next_fy = 0.0; /* f_{i+1}, world frame */
     int i;
-    for (i = N_TRAILERS; i >= 1; i--) {
+    for (i = n; i >= 1; i--) {
         const double theta = q[IX_THETA + i];
         const double ex = cos(theta), ey = sin(theta);
         const double nx = -ey, ny = ex;
         const double total_mass = m->mass[i] + m->payload[i];
         const double a_e = dv[i] - m->slide[i] * w[i];
         const double a_n = v[i] * w[i];
-        const double push_x = (i == N_TRAILERS) ? m->push_x : 0.0;
-        const double push_y = (i == N_TRAILERS) ? m->push_y : 0.0;
+        const double push_x = (i == n) ? m->push_x : 0.0;
+        const double push_y = (i == n) ? m->push_y : 0.0;
         const double next_e = ex * next_fx + ey * next_fy;
         const double next_n = nx * next_fx + ny * next_fy;
         const double push_e = ex * push_x + ey * push_y;
         const double push_n = nx * push_x + ny * push_y;
-        const double rear_link = (i < N_TRAILERS) ? m->rear[i] : 0.0;
+        const double rear_link = (i < n) ? m->rear[i] : 0.0;
         const double f_n = (m->inertia[i] * dw[i] - rear_link * next_n) / m->front[i];
         const double f_e = total_mass * a_e + next_e - push_e;
         F_lat[i] = total_mass * a_n - f_n + next_n - push_n;

@@ -10,19 +10,26 @@
 
 #define PT_PI 3.14159265358979323846
 
-void model_set_defaults(ModelData *m) {
+/* The per-body parameters and inputs at their start values for m->n trailers. */
+static void set_array_defaults(ModelData *m) {
+    const int n = m->n;
     int i;
-    memset(m, 0, sizeof(*m));
-    for (i = 0; i <= N_TRAILERS; i++) {
-        m->front[i] = (i >= 1) ? 0.52 : 0.0;
-        m->rear[i] = (i < N_TRAILERS) ? 0.52 : 0.0;
-        m->mass[i] = (i >= 1) ? 42.1 : 0.0;
-        m->inertia[i] = (i >= 1) ? 3.5083 : 0.0;
+    for (i = 0; i < MAX_BODIES; i++) {
+        m->front[i] = (i >= 1 && i <= n) ? 0.52 : 0.0;
+        m->rear[i] = (i < n) ? 0.52 : 0.0;
+        m->mass[i] = (i >= 1 && i <= n) ? 42.1 : 0.0;
+        m->inertia[i] = (i >= 1 && i <= n) ? 3.5083 : 0.0;
         m->payload[i] = 0.0;
-        m->mu[i] = (i >= 1) ? 0.09 : 0.0;
+        m->mu[i] = (i >= 1 && i <= n) ? 0.09 : 0.0;
         m->theta_start[i] = 0.0;
         m->slide[i] = 0.0;
     }
+}
+
+void model_set_defaults(ModelData *m) {
+    memset(m, 0, sizeof(*m));
+    m->n = DEFAULT_TRAILERS;
+    set_array_defaults(m);
     m->g = 9.81;
     m->robot_tau = 0.05;
     m->robot_acc_max = 1.0;
@@ -43,17 +50,23 @@ void model_set_defaults(ModelData *m) {
     model_state_from_start(m);
 }
 
+void model_set_trailers(ModelData *m, int n) {
+    m->n = n;
+    set_array_defaults(m);
+    model_state_from_start(m);
+}
+
 void model_state_from_start(ModelData *m) {
     int i;
     m->q[IX_X0] = m->x0_start;
     m->q[IX_Y0] = m->y0_start;
-    for (i = 0; i <= N_TRAILERS; i++) {
+    for (i = 0; i <= m->n; i++) {
         m->q[IX_THETA + i] = m->theta_start[i];
     }
     m->q[IX_V0] = m->v_start;
     m->q[IX_W0] = m->w_start;
     m->dynamic = false;
-    for (i = 0; i <= N_TRAILERS; i++) {
+    for (i = 0; i <= m->n; i++) {
         m->wt[i] = 0.0;
         m->alpha_dyn[i] = 0.0;
         m->f_dyn[i] = 0.0;
@@ -64,7 +77,7 @@ void model_state_from_start(ModelData *m) {
 
 bool model_check_combinations(const ModelData *m, char *msg, size_t len) {
     int i;
-    for (i = 1; i <= N_TRAILERS; i++) {
+    for (i = 1; i <= m->n; i++) {
         if (m->slip_mode == 1 && m->slide[i] != 0.0) {
             snprintf(msg, len, "slip_mode = 1 with slide[%d] = %g: an imposed slide is the "
                      "kinematic disturbance of slip_mode 0; with slip_mode = 1 push the trailer "
@@ -86,7 +99,7 @@ static double wrap_angle(double angle) {
 
 /* Rolling outputs at the state: velocities, and the wheel and hitch forces rolling needs. */
 static void rolling_outputs(ModelData *m, double *F_lat, double *hitch_fx, double *hitch_fy) {
-    double c[NB], s[NB], dv[NB], dw[NB];
+    double c[MAX_BODIES], s[MAX_BODIES], dv[MAX_BODIES], dw[MAX_BODIES];
     double dv0, dw0;
     chain_velocities(m, m->q, c, s, m->v, m->w);
     robot_accelerations(m, m->q, &dv0, &dw0);
@@ -101,7 +114,7 @@ void model_compute_outputs(ModelData *m) {
         slip_outputs(m); /* some wheel slides: velocities and forces from the dynamics */
     } else {
         rolling_outputs(m, m->F_lat, m->hitch_fx, m->hitch_fy);
-        for (i = 1; i <= N_TRAILERS; i++) {
+        for (i = 1; i <= m->n; i++) {
             m->slide_speed[i] = m->slide[i];
             if (m->slip_mode == 1 && fabs(m->F_lat[i]) > m->F_lat_max[i]) {
                 sliding = true; /* rolling would need more than friction with these inputs */
@@ -116,7 +129,7 @@ void model_compute_outputs(ModelData *m) {
     m->y[0] = m->q[IX_Y0];
     m->phi[0] = 0.0;
     m->jackknifed = false;
-    for (i = 1; i <= N_TRAILERS; i++) {
+    for (i = 1; i <= m->n; i++) {
         const double th_prev = m->q[IX_THETA + i - 1], th = m->q[IX_THETA + i];
         const double r = m->rear[i - 1], f = m->front[i];
         m->x[i] = m->x[i - 1] - r * cos(th_prev) - f * cos(th);
@@ -138,7 +151,7 @@ void model_compute_outputs(ModelData *m) {
 
 bool model_state_is_finite(const ModelData *m) {
     int k;
-    for (k = 0; k < N_STATE; k++) {
+    for (k = 0; k < N_STATE(m); k++) {
         if (!isfinite(m->q[k])) {
             return false;
         }
@@ -148,7 +161,7 @@ bool model_state_is_finite(const ModelData *m) {
 
 bool model_outputs_are_finite(const ModelData *m) {
     int i;
-    for (i = 0; i <= N_TRAILERS; i++) {
+    for (i = 0; i <= m->n; i++) {
         if (!isfinite(m->x[i]) || !isfinite(m->y[i]) || !isfinite(m->v[i]) || !isfinite(m->w[i])
             || !isfinite(m->slide_speed[i]) || !isfinite(m->wt[i])
             || !isfinite(m->F_lat[i]) || !isfinite(m->hitch_fx[i]) || !isfinite(m->hitch_fy[i])) {
@@ -159,16 +172,17 @@ bool model_outputs_are_finite(const ModelData *m) {
 }
 
 void model_rk4_step(const ModelData *m, double *q, double dt) {
-    double k1[N_STATE], k2[N_STATE], k3[N_STATE], k4[N_STATE], tmp[N_STATE];
+    double k1[MAX_STATE], k2[MAX_STATE], k3[MAX_STATE], k4[MAX_STATE], tmp[MAX_STATE];
+    const int n_state = N_STATE(m);
     int k;
     chain_derivatives(m, q, k1);
-    for (k = 0; k < N_STATE; k++) tmp[k] = q[k] + 0.5 * dt * k1[k];
+    for (k = 0; k < n_state; k++) tmp[k] = q[k] + 0.5 * dt * k1[k];
     chain_derivatives(m, tmp, k2);
-    for (k = 0; k < N_STATE; k++) tmp[k] = q[k] + 0.5 * dt * k2[k];
+    for (k = 0; k < n_state; k++) tmp[k] = q[k] + 0.5 * dt * k2[k];
     chain_derivatives(m, tmp, k3);
-    for (k = 0; k < N_STATE; k++) tmp[k] = q[k] + dt * k3[k];
+    for (k = 0; k < n_state; k++) tmp[k] = q[k] + dt * k3[k];
     chain_derivatives(m, tmp, k4);
-    for (k = 0; k < N_STATE; k++) {
+    for (k = 0; k < n_state; k++) {
         q[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
     }
 }

@@ -1,10 +1,12 @@
 /*
  * TrailerTrain: a holonomic robot with n passive off-hooked trailers (the plant of pushtrain).
  *
- * Bodies i = 0..N_TRAILERS: 0 is the robot, 1..n the trailers. Headings theta[i] from +x, CCW
- * positive, pointing toward the robot. The physics (chain kinematics, accelerations, lateral
- * wheel forces, integration) lives in chain.c, forces.c, slip.c and model.c, access to the variables
- * by value reference in variables.c; none of them knows the FMI version. The FMI 2.0 glue is fmi2.c.
+ * Bodies i = 0..n: 0 is the robot, 1..n the trailers. Headings theta[i] from +x, CCW positive,
+ * pointing toward the robot. The number of trailers n is data of the instance (ModelData.n):
+ * fixed by the build for FMI 2.0 (MAX_TRAILERS = n), a structural parameter up to MAX_TRAILERS
+ * for FMI 3.0. The physics (chain kinematics, accelerations, lateral wheel forces, integration)
+ * lives in chain.c, forces.c, slip.c and model.c, access to the variables by value reference in
+ * variables.c; none of them knows the FMI version. The glue is fmi2.c or fmi3.c over instance.c.
  * The derivations are in the comments of chain.c, forces.c and slip.c.
  */
 #ifndef TRAILERTRAIN_MODEL_H
@@ -12,11 +14,16 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
-#include "build_config.h" /* generated per build: N_TRAILERS, MODEL_GUID */
+/* generated per build: FMI_VERSION, MAX_TRAILERS, DEFAULT_TRAILERS, MODEL_GUID */
+#include "build_config.h"
 
-#if !defined(N_TRAILERS) || N_TRAILERS < 1 || N_TRAILERS > 50
-#error "N_TRAILERS must be defined in build_config.h as 1..50"
+#if !defined(MAX_TRAILERS) || MAX_TRAILERS < 1 || MAX_TRAILERS > 50
+#error "MAX_TRAILERS must be defined in build_config.h as 1..50"
+#endif
+#if !defined(DEFAULT_TRAILERS) || DEFAULT_TRAILERS < 1 || DEFAULT_TRAILERS > MAX_TRAILERS
+#error "DEFAULT_TRAILERS must be defined in build_config.h as 1..MAX_TRAILERS"
 #endif
 
 #if defined(__GNUC__)
@@ -25,57 +32,66 @@
 #define PT_INTERNAL
 #endif
 
-#define NB (N_TRAILERS + 1)          /* number of bodies */
-#define N_STATE (N_TRAILERS + 5)     /* x0, y0, theta[0..n], v0, w0 */
+#define MAX_BODIES (MAX_TRAILERS + 1)  /* array size of the per-body quantities */
+#define MAX_STATE (MAX_TRAILERS + 5)   /* x0, y0, v0, w0, theta[0..n] */
 #define IX_X0 0
 #define IX_Y0 1
-#define IX_THETA 2                   /* theta[i] at IX_THETA + i */
-#define IX_V0 (N_TRAILERS + 3)
-#define IX_W0 (N_TRAILERS + 4)
+#define IX_V0 2
+#define IX_W0 3
+#define IX_THETA 4                     /* theta[i] at IX_THETA + i */
+#define N_STATE(m) ((m)->n + 5)        /* the state's length for the instance's n */
 
 static inline double pt_clamp(double value, double lo, double hi) {
     return value < lo ? lo : (value > hi ? hi : value);
 }
 
-/* Everything an instance computes with. Plain data without pointers, so an FMU state is a copy. */
+/* Everything an instance computes with. Plain data without pointers, so an FMU state is a copy.
+   Per-body arrays hold index i = 0..n; the elements beyond n are zero and never read. */
 typedef struct {
+    int n;                          /* number of trailers, 1..MAX_TRAILERS */
+    int n_bodies_set;               /* FMI 3.0: n_bodies as set (0: not set since checked) */
+
     /* parameters */
-    double front[NB];       /* F_i, i = 1..n [m] */
-    double rear[NB];        /* R_i, i = 0..n-1 [m] */
-    double mass[NB];        /* [kg] */
-    double inertia[NB];     /* about the axle midpoint [kg m^2] */
-    double payload[NB];     /* point mass at the axle midpoint [kg] */
-    double mu[NB];          /* lateral friction coefficient [-] */
-    double theta_start[NB]; /* [rad] */
+    double front[MAX_BODIES];       /* F_i, i = 1..n [m] */
+    double rear[MAX_BODIES];        /* R_i, i = 0..n-1 [m] */
+    double mass[MAX_BODIES];        /* [kg] */
+    double inertia[MAX_BODIES];     /* about the axle midpoint [kg m^2] */
+    double payload[MAX_BODIES];     /* point mass at the axle midpoint [kg] */
+    double mu[MAX_BODIES];          /* lateral friction coefficient [-] */
+    double theta_start[MAX_BODIES]; /* [rad] */
     double g, robot_tau, robot_acc_max, robot_alpha_max, phi_max;
     double x0_start, y0_start, v_start, w_start, max_substep;
-    double slip_substep;    /* substep while some wheel slides (slip_mode 1) [s] */
+    double slip_substep;            /* substep while some wheel slides (slip_mode 1) [s] */
     int slip_mode;
 
     /* inputs */
     double v_cmd, w_cmd, push_x, push_y;
-    double slide[NB];       /* imposed lateral sliding speed u_i [m/s], i = 1..n */
+    double slide[MAX_BODIES];       /* imposed lateral sliding speed u_i [m/s], i = 1..n */
 
     /* continuous state and time */
     double time;
-    double q[N_STATE];
+    double q[MAX_STATE];
     /* slip_mode 1: while some wheel slides ("dynamic" regime) the trailer yaw rates are states */
     bool dynamic;
-    double wt[NB];          /* trailer yaw rates [rad/s], valid when dynamic */
-    double alpha_dyn[NB];   /* trailer yaw accelerations of the last dynamic substep [rad/s^2] */
-    double f_dyn[NB];       /* lateral wheel forces of the last dynamic substep [N] */
+    double wt[MAX_BODIES];          /* trailer yaw rates [rad/s], valid when dynamic */
+    double alpha_dyn[MAX_BODIES];   /* trailer yaw accelerations, last dynamic substep [rad/s^2] */
+    double f_dyn[MAX_BODIES];       /* lateral wheel forces of the last dynamic substep [N] */
 
     /* outputs, valid when outputs_valid */
     bool outputs_valid;
-    double x[NB], y[NB], phi[NB], v[NB], w[NB];
-    double F_lat[NB], F_lat_max[NB], hitch_fx[NB], hitch_fy[NB];
-    double slide_speed[NB]; /* lateral sliding speed of wheel i along n_i [m/s] */
-    bool slipping[NB];
+    double x[MAX_BODIES], y[MAX_BODIES], phi[MAX_BODIES], v[MAX_BODIES], w[MAX_BODIES];
+    double F_lat[MAX_BODIES], F_lat_max[MAX_BODIES], hitch_fx[MAX_BODIES], hitch_fy[MAX_BODIES];
+    double slide_speed[MAX_BODIES]; /* lateral sliding speed of wheel i along n_i [m/s] */
+    bool slipping[MAX_BODIES];
     bool jackknifed;
 } ModelData;
 
 /* model.c */
+/* Every variable at its start value, with n = DEFAULT_TRAILERS. */
 PT_INTERNAL void model_set_defaults(ModelData *m);
+/* n trailers (1..MAX_TRAILERS, checked by the caller): the per-body parameters and inputs return
+   to their start values, sized for the new n (FMI 3.0: a dimension change invalidates them). */
+PT_INTERNAL void model_set_trailers(ModelData *m, int n);
 PT_INTERNAL void model_state_from_start(ModelData *m);
 /* variables.c: checks every parameter against its range (the bounds of pushtrain/limits.py,
    generated into variables.h) and for finiteness; on failure writes "name = value: allowed lo to
@@ -93,24 +109,44 @@ PT_INTERNAL void model_rk4_step(const ModelData *m, double *q, double dt);
 PT_INTERNAL void model_integrate(ModelData *m, double h, double t_end);
 
 /* variables.c: get and set by value reference. The numbering, names, types and causalities are
-   generated from fmu/variables.py (variables.h, included by variables.c only). On failure the
-   functions write "what is wrong" into msg and return false. Outputs are read as last computed:
-   make them current first when model_needs_outputs(vr). Parameters can be set only in the setup
-   phase (setup = true: before initialization ends). */
-PT_INTERNAL const char *model_variable_name(unsigned vr, char *buffer, size_t len);
-PT_INTERNAL bool model_needs_outputs(unsigned vr);
-PT_INTERNAL bool model_get_real(const ModelData *m, unsigned vr, double *value, char *msg,
-                                size_t len);
-PT_INTERNAL bool model_get_integer(const ModelData *m, unsigned vr, int *value, char *msg,
+   generated from fmu/variables.py (variables.h, included by variables.c only). A value reference
+   stands for one value (a scalar; an element x[i] in FMI 2.0) or for a whole array (FMI 3.0: x
+   holds x[0] .. x[n] at the instance's n). The functions move its values through
+   values[*index ..] (at most n_values in all) and advance *index; on failure they write "what is
+   wrong" into msg and return false. Outputs are read as last computed: make them current first
+   when model_needs_outputs(vr). What can be set depends on the phase. */
+typedef enum {
+    phase_instantiated,   /* parameters, inputs and the structural parameters */
+    phase_configuration,  /* FMI 3.0 Configuration Mode: only the structural parameters */
+    phase_initialization, /* parameters and inputs */
+    phase_running         /* after initialization: inputs */
+} SetPhase;
+PT_INTERNAL const char *model_variable_name(const ModelData *m, unsigned vr, char *buffer,
+                                            size_t len);
+PT_INTERNAL bool model_needs_outputs(const ModelData *m, unsigned vr);
+PT_INTERNAL bool model_get_real(const ModelData *m, unsigned vr, double values[], size_t n_values,
+                                size_t *index, char *msg, size_t len);
+PT_INTERNAL bool model_get_integer(const ModelData *m, unsigned vr, int values[], size_t n_values,
+                                   size_t *index, char *msg, size_t len);
+PT_INTERNAL bool model_get_boolean(const ModelData *m, unsigned vr, bool values[],
+                                   size_t n_values, size_t *index, char *msg, size_t len);
+PT_INTERNAL bool model_get_uint64(const ModelData *m, unsigned vr, uint64_t values[],
+                                  size_t n_values, size_t *index, char *msg, size_t len);
+PT_INTERNAL bool model_set_real(ModelData *m, unsigned vr, const double values[], size_t n_values,
+                                size_t *index, SetPhase phase, char *msg, size_t len);
+PT_INTERNAL bool model_set_integer(ModelData *m, unsigned vr, const int values[],
+                                   size_t n_values, size_t *index, SetPhase phase, char *msg,
                                    size_t len);
-PT_INTERNAL bool model_get_boolean(const ModelData *m, unsigned vr, bool *value, char *msg,
+PT_INTERNAL bool model_set_boolean(ModelData *m, unsigned vr, const bool values[],
+                                   size_t n_values, size_t *index, SetPhase phase, char *msg,
                                    size_t len);
-PT_INTERNAL bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *msg,
-                                size_t len);
-PT_INTERNAL bool model_set_integer(ModelData *m, unsigned vr, int value, bool setup, char *msg,
-                                   size_t len);
-PT_INTERNAL bool model_set_boolean(ModelData *m, unsigned vr, bool value, bool setup, char *msg,
-                                   size_t len);
+/* FMI 3.0 structural parameters: setting n resizes (model_set_trailers) at once, after a range
+   check; n_bodies is remembered and must equal n + 1 when configuration ends. */
+PT_INTERNAL bool model_set_uint64(ModelData *m, unsigned vr, const uint64_t values[],
+                                  size_t n_values, size_t *index, SetPhase phase, char *msg,
+                                  size_t len);
+/* When configuration ends: n_bodies, if it was set, equals n + 1 (then it is forgotten). */
+PT_INTERNAL bool model_check_structure(ModelData *m, char *msg, size_t len);
 
 /* chain.c */
 /* Velocities of all bodies: v[i], w[i] and cos/sin of phi_i (index 1..n). */

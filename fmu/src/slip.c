@@ -107,7 +107,7 @@ static void robot_hitch(const ModelData *m, const double *q, double *vh, double 
 
 /* RK4 of the robot alone (its motion does not depend on the trailers). */
 static void robot_rk4(const ModelData *m, double *q, double dt) {
-    double k[4][5], tmp[N_STATE];
+    double k[4][5], tmp[MAX_STATE];
     const int idx[5] = {IX_X0, IX_Y0, IX_THETA, IX_V0, IX_W0};
     const double weight[4] = {0.0, 0.5, 0.5, 1.0};
     int stage, j;
@@ -127,14 +127,15 @@ static void robot_rk4(const ModelData *m, double *q, double dt) {
 }
 
 bool slip_wheels_roll(const ModelData *m, const double *q) {
-    double c[NB], s[NB], v[NB], w[NB], dv[NB], dw[NB], f[NB], hx[NB], hy[NB];
+    double c[MAX_BODIES], s[MAX_BODIES], v[MAX_BODIES], w[MAX_BODIES], dv[MAX_BODIES];
+    double dw[MAX_BODIES], f[MAX_BODIES], hx[MAX_BODIES], hy[MAX_BODIES];
     double dv0, dw0;
     int i;
     chain_velocities(m, q, c, s, v, w);
     robot_accelerations(m, q, &dv0, &dw0);
     chain_accelerations(m, c, s, v, w, dv0, dw0, dv, dw);
     lateral_forces(m, q, v, w, dv, dw, f, hx, hy);
-    for (i = 1; i <= N_TRAILERS; i++) {
+    for (i = 1; i <= m->n; i++) {
         if (fabs(f[i]) > m->F_lat_max[i]) {
             return false;
         }
@@ -143,10 +144,10 @@ bool slip_wheels_roll(const ModelData *m, const double *q) {
 }
 
 static void enter_dynamic(ModelData *m) {
-    double c[NB], s[NB], v[NB], w[NB];
+    double c[MAX_BODIES], s[MAX_BODIES], v[MAX_BODIES], w[MAX_BODIES];
     int i;
     chain_velocities(m, m->q, c, s, v, w);
-    for (i = 1; i <= N_TRAILERS; i++) {
+    for (i = 1; i <= m->n; i++) {
         m->wt[i] = w[i];
         m->f_dyn[i] = 0.0;
         m->alpha_dyn[i] = 0.0;
@@ -158,7 +159,7 @@ static void enter_dynamic(ModelData *m) {
    ct, st the cosines and sines of the trailer headings (index 1..n). */
 static void wheel_speed_map(const ModelData *m, const double *ct, const double *st,
                             const double *vh, double *jac, double *b) {
-    const int n = N_TRAILERS;
+    const int n = m->n;
     int i, k;
     for (i = 1; i <= n; i++) {
         b[i - 1] = -vh[0] * st[i] + vh[1] * ct[i];
@@ -175,8 +176,8 @@ static void wheel_speed_map(const ModelData *m, const double *ct, const double *
    and g_k = T_k n_k.a_h + sum_j S_kj wt_j^2 sin(th_j - th_k) - L_nk n_k.push. */
 static void trailer_dynamics(const ModelData *m, const double *ct, const double *st,
                              const double *wt, const double *ah, double *mass, double *g) {
-    enum { n = N_TRAILERS };
-    double s_mat[n * n], t_coef[n], tail = 0.0; /* tail: sum of the masses behind trailer k */
+    const int n = m->n;
+    double s_mat[MAX_TRAILERS * MAX_TRAILERS], t_coef[MAX_TRAILERS], tail = 0.0; /* tail: sum of the masses behind trailer k */
     int j, k;
     for (k = n; k >= 1; k--) {
         const double mk = m->mass[k] + m->payload[k];
@@ -210,11 +211,10 @@ static void trailer_dynamics(const ModelData *m, const double *ct, const double 
 
 /* M^-1 J^T (column by column, from the Cholesky factor chol) and A = J M^-1 J^T. J is lower
    triangular (L_ik = 0 for k > i) and A symmetric: A_ij = sum_{k <= i} J_ik (M^-1 J^T)_kj, j <= i. */
-static void coupling(const double *chol, const double *jac, double *minv_jt, double *a) {
-    enum { n = N_TRAILERS };
+static void coupling(int n, const double *chol, const double *jac, double *minv_jt, double *a) {
     int i, j, k;
     for (i = 0; i < n; i++) {
-        double col[n];
+        double col[MAX_TRAILERS];
         for (k = 0; k < n; k++) col[k] = jac[i * n + k];
         cholesky_solve(chol, n, col);
         for (k = 0; k < n; k++) minv_jt[k * n + i] = col[k];
@@ -231,12 +231,11 @@ static void coupling(const double *chol, const double *jac, double *minv_jt, dou
 
 /* The exact solution on the sticking set S (|lam_i| inside its bound): A_SS lam_S =
    -(u_free + A_SL lam_L)_S. Kept only if it stays within the bounds. */
-static void solve_sticking_set(const double *a, const double *u_free, const double *lim,
+static void solve_sticking_set(int n, const double *a, const double *u_free, const double *lim,
                                double *lam) {
-    enum { n = N_TRAILERS };
-    double sub[n * n], rhs[n];
-    int idx[n], ns = 0, r, c, j;
-    bool in_set[n];
+    double sub[MAX_TRAILERS * MAX_TRAILERS], rhs[MAX_TRAILERS];
+    int idx[MAX_TRAILERS] = {0}, ns = 0, r, c, j; /* zeroed: gcc cannot see ns <= n */
+    bool in_set[MAX_TRAILERS];
     for (j = 0; j < n; j++) {
         in_set[j] = fabs(lam[j]) < lim[j] * (1.0 - 1e-9);
         if (in_set[j]) idx[ns++] = j;
@@ -265,8 +264,8 @@ static void solve_sticking_set(const double *a, const double *u_free, const doub
 /* Box-constrained LCP: |lam_i| <= lim_i, u = u_free + A lam with u_i = 0 where |lam_i| < lim_i
    and lam_i opposing u_i where |lam_i| = lim_i. Projected Gauss-Seidel from the warm start in
    lam, then the exact solve on the sticking set. */
-static void solve_friction(const double *a, const double *u_free, const double *lim, double *lam) {
-    enum { n = N_TRAILERS };
+static void solve_friction(int n, const double *a, const double *u_free, const double *lim,
+                           double *lam) {
     double scale = 0.0;
     int i, j, it;
     for (i = 0; i < n; i++) scale = fmax(scale, lim[i]);
@@ -283,15 +282,19 @@ static void solve_friction(const double *a, const double *u_free, const double *
             break;
         }
     }
-    solve_sticking_set(a, u_free, lim, lam);
+    solve_sticking_set(n, a, u_free, lim, lam);
 }
 
 /* One substep of the dynamic regime; the friction impulses make the lateral wheel speeds
    consistent at the end of the substep (see the note at the top). */
 static void dynamic_step(ModelData *m, double dt) {
-    enum { n = N_TRAILERS };
-    double mass[n * n], g[n], jac[n * n], minv_jt[n * n], a[n * n], b[n], lim[n], lam[n];
-    double w_free[n], w_new[n], th_end[n], u_free[n], vh[2], ah[2], ct[NB], st[NB];
+    enum { nn = MAX_TRAILERS * MAX_TRAILERS };
+    const int n = m->n;
+    double mass[nn], g[MAX_TRAILERS], jac[nn], minv_jt[nn], a[nn], b[MAX_TRAILERS];
+    double lim[MAX_TRAILERS], lam[MAX_TRAILERS], w_free[MAX_TRAILERS], w_new[MAX_TRAILERS];
+    double u_free[MAX_TRAILERS], vh[2], ah[2];
+    /* zeroed because gcc cannot see that the loops fill the first n (ct, st: 1..n) */
+    double th_end[MAX_TRAILERS] = {0.0}, ct[MAX_BODIES] = {0.0}, st[MAX_BODIES] = {0.0};
     double *q = m->q;
     int i, k, it;
     bool all_stick = true;
@@ -328,8 +331,8 @@ static void dynamic_step(ModelData *m, double dt) {
             for (k = 0; k < n; k++) u += jac[i * n + k] * w_free[k];
             u_free[i] = u;
         }
-        coupling(mass, jac, minv_jt, a);
-        solve_friction(a, u_free, lim, lam);
+        coupling(n, mass, jac, minv_jt, a);
+        solve_friction(n, a, u_free, lim, lam);
         for (k = 0; k < n; k++) {
             double th;
             w_new[k] = w_free[k];
@@ -363,7 +366,7 @@ static void dynamic_step(ModelData *m, double dt) {
 double slip_advance(ModelData *m, double t_left, bool *rolls) {
     double dt;
     if (!m->dynamic && *rolls) {
-        double q_end[N_STATE];
+        double q_end[MAX_STATE];
         dt = t_left / ceil(t_left / m->max_substep - 1e-9); /* equal substeps, exact end */
         memcpy(q_end, m->q, sizeof(q_end));
         model_rk4_step(m, q_end, dt);
@@ -384,7 +387,7 @@ double slip_advance(ModelData *m, double t_left, bool *rolls) {
 
 /* Velocity outputs from the trailer yaw rates wt (index 1..n) at the current state. */
 static void write_velocities(ModelData *m, const double *wt) {
-    const int n = N_TRAILERS;
+    const int n = m->n;
     const double *q = m->q;
     double vh[2], ah[2];
     int i, k;
@@ -409,10 +412,10 @@ static void write_velocities(ModelData *m, const double *wt) {
 /* Force outputs from yaw rates wt, yaw accelerations alpha and lateral wheel forces f (index
    1..n) at the current state: F_lat and, from the axle accelerations, the hitch forces. */
 static void write_forces(ModelData *m, const double *wt, const double *alpha, const double *f) {
-    const int n = N_TRAILERS;
+    const int n = m->n;
     const double *q = m->q;
     double vh[2], ah[2], next_fx = 0.0, next_fy = 0.0;
-    double ax[NB], ay[NB];
+    double ax[MAX_BODIES], ay[MAX_BODIES];
     int i, k;
     robot_hitch(m, q, vh, ah);
     for (i = 1; i <= n; i++) {
@@ -445,9 +448,14 @@ void slip_outputs(ModelData *m) {
 }
 
 void slip_onset_outputs(ModelData *m) {
-    enum { n = N_TRAILERS };
-    double c[NB], s[NB], v[NB], wt[NB], ct[NB], st[NB], alpha[NB], f[NB];
-    double mass[n * n], g[n], jac[n * n], minv_jt[n * n], a[n * n], b[n], r[n], lim[n], lam[n];
+    enum { nn = MAX_TRAILERS * MAX_TRAILERS };
+    const int n = m->n;
+    double c[MAX_BODIES], s[MAX_BODIES], v[MAX_BODIES], wt[MAX_BODIES], alpha[MAX_BODIES];
+    double f[MAX_BODIES], mass[nn], g[MAX_TRAILERS], jac[nn], minv_jt[nn], a[nn];
+    double b[MAX_TRAILERS], lam[MAX_TRAILERS];
+    /* index 1..n (0..n-1) used; zeroed because gcc cannot see that the loops fill them */
+    double ct[MAX_BODIES] = {0.0}, st[MAX_BODIES] = {0.0};
+    double r[MAX_TRAILERS] = {0.0}, lim[MAX_TRAILERS] = {0.0};
     double vh[2], ah[2];
     const double *q = m->q;
     int i, k;
@@ -459,7 +467,7 @@ void slip_onset_outputs(ModelData *m) {
     }
     trailer_dynamics(m, ct, st, wt, ah, mass, g);
     wheel_speed_map(m, ct, st, vh, jac, b);
-    coupling(mass, jac, minv_jt, a);
+    coupling(n, mass, jac, minv_jt, a);
     cholesky_solve(mass, n, g); /* g <- M^-1 g */
     for (i = 1; i <= n; i++) { /* r = J M^-1 g + c */
         double ri = ah[1] * ct[i] - ah[0] * st[i] - wt[i] * (vh[0] * ct[i] + vh[1] * st[i]);
@@ -472,7 +480,7 @@ void slip_onset_outputs(ModelData *m) {
         lim[i - 1] = m->F_lat_max[i];
         lam[i - 1] = pt_clamp(m->F_lat[i], -lim[i - 1], lim[i - 1]); /* warm start */
     }
-    solve_friction(a, r, lim, lam);
+    solve_friction(n, a, r, lim, lam);
     alpha[0] = f[0] = 0.0;
     for (k = 0; k < n; k++) {
         alpha[k + 1] = g[k];

@@ -5,6 +5,11 @@
  * from fmu/variables.py; this file only says where each variable lives in ModelData. The switches
  * over the generated enums have no default, so -Wswitch names any variable left out here.
  * Outputs are read as last computed: the caller makes them current first (model_needs_outputs).
+ *
+ * A value reference stands for `count` values: 1 for a scalar and for an element x[i] of the FMI
+ * 2.0 build, the array's length at the instance's n for an FMI 3.0 array (x: x[0] .. x[n]).
+ * The get/set functions move them through values[*index ..] and advance *index.
+ * time and n_bodies exist in FMI 3.0 only (#if FMI_VERSION == 3).
  */
 #include <math.h>
 #include <stdio.h>
@@ -15,10 +20,11 @@
 typedef struct {
     const VarInfo *info;
     int block; /* 0 for scalars */
-    int index; /* body index i of an array element; the scalar's vr for scalars */
+    int first; /* body index i of the first value; the scalar's vr for scalars */
+    int count; /* number of values */
 } VarRef;
 
-static bool decode(unsigned vr, VarRef *out) {
+static bool decode(const ModelData *m, unsigned vr, VarRef *out) {
     const unsigned block = vr / VR_STRIDE, index = vr % VR_STRIDE;
     const VarInfo *info;
     if (block >= BLOCK_END) {
@@ -28,31 +34,48 @@ static bool decode(unsigned vr, VarRef *out) {
     if (info == NULL || info->name == NULL) {
         return false;
     }
-    if (block != 0
-        && ((int)index < info->first || (int)index > N_TRAILERS + info->last_offset)) {
-        return false;
-    }
     out->info = info;
     out->block = (int)block;
-    out->index = (int)index;
+    out->first = (int)index;
+    out->count = 1;
+    if (block != 0) {
+#if FMI_VERSION == 3
+        if (index != 0) { /* FMI 3.0: one array variable per block */
+            return false;
+        }
+        out->first = info->first;
+        out->count = m->n + info->last_offset - info->first + 1;
+#else
+        if ((int)index < info->first || (int)index > m->n + info->last_offset) {
+            return false;
+        }
+#endif
+    }
     return true;
 }
 
-const char *model_variable_name(unsigned vr, char *buffer, size_t len) {
-    VarRef r;
-    if (!decode(vr, &r)) {
-        snprintf(buffer, len, "(unknown value reference %u)", vr);
-    } else if (r.block == 0) {
+/* "name" of a scalar or an FMI 3.0 array, "name[i]" of element k of r (body index i). */
+static const char *element_name(VarRef r, int k, char *buffer, size_t len) {
+    if (r.block == 0 || (FMI_VERSION == 3 && k < 0)) {
         snprintf(buffer, len, "%s", r.info->name);
     } else {
-        snprintf(buffer, len, "%s[%d]", r.info->name, r.index);
+        snprintf(buffer, len, "%s[%d]", r.info->name, r.first + (k < 0 ? 0 : k));
     }
     return buffer;
 }
 
-bool model_needs_outputs(unsigned vr) {
+const char *model_variable_name(const ModelData *m, unsigned vr, char *buffer, size_t len) {
     VarRef r;
-    return decode(vr, &r)
+    if (!decode(m, vr, &r)) {
+        snprintf(buffer, len, "(unknown value reference %u)", vr);
+        return buffer;
+    }
+    return element_name(r, -1, buffer, len);
+}
+
+bool model_needs_outputs(const ModelData *m, unsigned vr) {
+    VarRef r;
+    return decode(m, vr, &r)
            && (r.info->causality == var_output || r.info->causality == var_calculated_parameter);
 }
 
@@ -60,6 +83,10 @@ bool model_needs_outputs(unsigned vr) {
 
 static double *real_scalar(ModelData *m, enum ScalarVr vr) {
     switch (vr) {
+#if FMI_VERSION == 3
+    case vr_time: return &m->time;
+    case vr_n_bodies: break; /* not Real */
+#endif
     case vr_v_cmd: return &m->v_cmd;
     case vr_w_cmd: return &m->w_cmd;
     case vr_push_x: return &m->push_x;
@@ -106,23 +133,25 @@ static double *real_element(ModelData *m, enum Block block, int i) {
     return NULL;
 }
 
-static double *real_variable(ModelData *m, VarRef r) {
-    return (r.block == 0) ? real_scalar(m, (enum ScalarVr)r.index)
-                          : real_element(m, (enum Block)r.block, r.index);
+/* value k (0..count-1) of the Real variable r */
+static double *real_value(ModelData *m, VarRef r, int k) {
+    return (r.block == 0) ? real_scalar(m, (enum ScalarVr)r.first)
+                          : real_element(m, (enum Block)r.block, r.first + k);
 }
 
-static const char *const type_names[] = {"Real", "Integer", "Boolean"};
+static const char *const type_names[] = {"Real", "Integer", "Boolean", "UInt64"};
 
 /* r is a known variable of type `type`; else writes why not into msg. */
-static bool check_type(unsigned vr, VarType type, VarRef *r, char *msg, size_t len) {
+static bool check_type(const ModelData *m, unsigned vr, VarType type, VarRef *r, char *msg,
+                       size_t len) {
     char name[64];
-    if (!decode(vr, r)) {
+    if (!decode(m, vr, r)) {
         snprintf(msg, len, "unknown value reference %u", vr);
         return false;
     }
     if (r->info->type != type) {
         snprintf(msg, len, "%s (value reference %u) is a%s %s, not a%s %s",
-                 model_variable_name(vr, name, sizeof(name)), vr,
+                 model_variable_name(m, vr, name, sizeof(name)), vr,
                  r->info->type == var_integer ? "n" : "", type_names[r->info->type],
                  type == var_integer ? "n" : "", type_names[type]);
         return false;
@@ -130,55 +159,100 @@ static bool check_type(unsigned vr, VarType type, VarRef *r, char *msg, size_t l
     return true;
 }
 
+/* values[*index ..] has room for r's values; else writes why not into msg. */
+static bool check_room(const ModelData *m, VarRef r, size_t n_values, size_t index, char *msg,
+                       size_t len) {
+    char name[64];
+    if (index <= n_values && (size_t)r.count <= n_values - index) {
+        return true;
+    }
+    snprintf(msg, len, "%s has %d value%s (n = %d) but nValues = %u leaves room for %u",
+             element_name(r, -1, name, sizeof(name)), r.count, r.count == 1 ? "" : "s", m->n,
+             (unsigned)n_values, (unsigned)(index <= n_values ? n_values - index : 0));
+    return false;
+}
+
 /* ---------------------------------------------------------------- get */
 
-bool model_get_real(const ModelData *m, unsigned vr, double *value, char *msg, size_t len) {
+bool model_get_real(const ModelData *m, unsigned vr, double values[], size_t n_values,
+                    size_t *index, char *msg, size_t len) {
     VarRef r;
-    const double *p;
-    if (!check_type(vr, var_real, &r, msg, len)) {
+    int k;
+    if (!check_type(m, vr, var_real, &r, msg, len)
+        || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
     }
-    p = real_variable((ModelData *)m, r); /* only read */
-    if (p == NULL) { /* a Real in variables.py that has no place in ModelData */
-        snprintf(msg, len, "%s has no storage in this build", r.info->name);
-        return false;
+    for (k = 0; k < r.count; k++) {
+        const double *p = real_value((ModelData *)m, r, k); /* only read */
+        if (p == NULL) { /* a Real in variables.py that has no place in ModelData */
+            snprintf(msg, len, "%s has no storage in this build", r.info->name);
+            return false;
+        }
+        values[(*index)++] = *p;
     }
-    *value = *p;
     return true;
 }
 
 /* the Integer variable r (a scalar) */
 static bool integer_value(const ModelData *m, VarRef r, int *value) {
-    switch ((enum ScalarVr)r.index) {
-    case vr_n: *value = N_TRAILERS; return true;
+    switch ((enum ScalarVr)r.first) {
+    case vr_n: *value = m->n; return true; /* FMI 2.0: a constant output */
     case vr_slip_mode: *value = m->slip_mode; return true;
     default: return false;
     }
 }
 
-bool model_get_integer(const ModelData *m, unsigned vr, int *value, char *msg, size_t len) {
+bool model_get_integer(const ModelData *m, unsigned vr, int values[], size_t n_values,
+                       size_t *index, char *msg, size_t len) {
     VarRef r;
-    if (!check_type(vr, var_integer, &r, msg, len)) {
+    if (!check_type(m, vr, var_integer, &r, msg, len)
+        || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
     }
-    if (r.block != 0 || !integer_value(m, r, value)) {
+    if (r.block != 0 || !integer_value(m, r, &values[*index])) {
+        snprintf(msg, len, "%s has no storage in this build", r.info->name);
+        return false;
+    }
+    (*index)++;
+    return true;
+}
+
+bool model_get_uint64(const ModelData *m, unsigned vr, uint64_t values[], size_t n_values,
+                      size_t *index, char *msg, size_t len) {
+    VarRef r;
+    if (!check_type(m, vr, var_uint64, &r, msg, len)
+        || !check_room(m, r, n_values, *index, msg, len)) {
+        return false;
+    }
+    if (r.block == 0 && r.first == vr_n) {
+        values[(*index)++] = (uint64_t)m->n;
+#if FMI_VERSION == 3
+    } else if (r.block == 0 && r.first == vr_n_bodies) {
+        values[(*index)++] = (uint64_t)m->n + 1u;
+#endif
+    } else {
         snprintf(msg, len, "%s has no storage in this build", r.info->name);
         return false;
     }
     return true;
 }
 
-bool model_get_boolean(const ModelData *m, unsigned vr, bool *value, char *msg, size_t len) {
+bool model_get_boolean(const ModelData *m, unsigned vr, bool values[], size_t n_values,
+                       size_t *index, char *msg, size_t len) {
     VarRef r;
-    if (!check_type(vr, var_boolean, &r, msg, len)) {
+    int k;
+    if (!check_type(m, vr, var_boolean, &r, msg, len)
+        || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
     }
-    if (r.block == 0 && r.index == vr_jackknifed) {
-        *value = m->jackknifed;
+    if (r.block == 0 && r.first == vr_jackknifed) {
+        values[(*index)++] = m->jackknifed;
         return true;
     }
     if (r.block == blk_slipping) {
-        *value = m->slipping[r.index];
+        for (k = 0; k < r.count; k++) {
+            values[(*index)++] = m->slipping[r.first + k];
+        }
         return true;
     }
     snprintf(msg, len, "%s has no storage in this build", r.info->name);
@@ -187,115 +261,196 @@ bool model_get_boolean(const ModelData *m, unsigned vr, bool *value, char *msg, 
 
 /* ---------------------------------------------------------------- set */
 
-/* Only inputs and parameters can be set, parameters only in the setup phase (before the end of
-   initialization); r is a known variable. */
-static bool settable(unsigned vr, VarRef r, bool setup, char *msg, size_t len) {
+/* Inputs can be set after initialization too, parameters only before its end, structural
+   parameters only before it begins (and they alone in Configuration Mode); r is a known
+   variable. */
+static bool settable(const ModelData *m, unsigned vr, VarRef r, SetPhase phase, char *msg,
+                     size_t len) {
     char name[64];
-    model_variable_name(vr, name, sizeof(name));
+    model_variable_name(m, vr, name, sizeof(name));
+    if (phase == phase_configuration && r.info->causality != var_structural_parameter) {
+        snprintf(msg, len, "%s cannot be set in Configuration Mode: only the structural "
+                 "parameters (n, n_bodies) can; leave it with fmi3ExitConfigurationMode first",
+                 name);
+        return false;
+    }
     switch (r.info->causality) {
     case var_input:
         return true;
     case var_parameter:
-        if (!setup) {
+        if (phase == phase_running) {
             snprintf(msg, len, "parameter %s is fixed: it can be set only in Instantiated or "
                      "Initialization Mode", name);
             return false;
         }
         return true;
+    case var_structural_parameter:
+        if (phase == phase_instantiated || phase == phase_configuration) {
+            return true;
+        }
+        snprintf(msg, len, "%s is a structural parameter (now n = %d): it can be set only "
+                 "before initialization, in Configuration Mode or Instantiated", name, m->n);
+        return false;
+    case var_independent:
+        snprintf(msg, len, "%s is the independent variable: it cannot be set", name);
+        return false;
     case var_output: case var_calculated_parameter: case var_local:
         break;
     }
-    if (r.block == 0 && r.index == vr_n) {
+    if (r.block == 0 && r.first == vr_n) {
         snprintf(msg, len, "n is a constant fixed by the build (n = %d); build another FMU for "
-                 "another number of trailers", N_TRAILERS);
+                 "another number of trailers", m->n);
     } else {
         snprintf(msg, len, "%s is an output or calculated parameter and cannot be set", name);
     }
     return false;
 }
 
-bool model_set_real(ModelData *m, unsigned vr, double value, bool setup, char *msg, size_t len) {
-    VarRef r;
-    double *p;
+/* An input value: finite, and no imposed slide once slip_mode 1 is fixed. */
+static bool check_input(const ModelData *m, VarRef r, int k, double value, SetPhase phase,
+                        char *msg, size_t len) {
     char name[64];
-    if (!check_type(vr, var_real, &r, msg, len) || !settable(vr, r, setup, msg, len)) {
+    if (!isfinite(value)) {
+        snprintf(msg, len, "input %s = %g: must be finite",
+                 element_name(r, k, name, sizeof(name)), value);
         return false;
     }
-    p = real_variable(m, r);
-    if (p == NULL) {
-        snprintf(msg, len, "%s has no storage in this build", r.info->name);
+    if (r.block == blk_slide && value != 0.0 && m->slip_mode == 1 && phase == phase_running) {
+        /* slip_mode is fixed now; before, the combination is checked when initialization
+           ends (model_check_combinations), whatever order the importer sets them in */
+        snprintf(msg, len, "input %s = %g: an imposed slide is the kinematic disturbance of "
+                 "slip_mode 0; with slip_mode = 1 push the trailer with push_x, push_y instead",
+                 element_name(r, k, name, sizeof(name)), value);
         return false;
     }
-    if (r.info->causality == var_input) {
-        if (!isfinite(value)) {
-            snprintf(msg, len, "input %s = %g: must be finite",
-                     model_variable_name(vr, name, sizeof(name)), value);
-            return false;
-        }
-        if (r.block == blk_slide && value != 0.0 && m->slip_mode == 1 && !setup) {
-            /* slip_mode is fixed now; before, the combination is checked when initialization
-               ends (model_check_combinations), whatever order the importer sets them in */
-            snprintf(msg, len, "input %s = %g: an imposed slide is the kinematic disturbance of "
-                     "slip_mode 0; with slip_mode = 1 push the trailer with push_x, push_y instead",
-                     model_variable_name(vr, name, sizeof(name)), value);
-            return false;
-        }
-        m->outputs_valid = false; /* outputs depend directly on the inputs */
-    }
-    *p = value; /* parameters are checked in model_check_parameters */
     return true;
 }
 
-bool model_set_integer(ModelData *m, unsigned vr, int value, bool setup, char *msg, size_t len) {
+bool model_set_real(ModelData *m, unsigned vr, const double values[], size_t n_values,
+                    size_t *index, SetPhase phase, char *msg, size_t len) {
     VarRef r;
-    if (!check_type(vr, var_integer, &r, msg, len) || !settable(vr, r, setup, msg, len)) {
+    int k;
+    if (!check_type(m, vr, var_real, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
+        || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
     }
-    if (r.block == 0 && r.index == vr_slip_mode) {
-        m->slip_mode = value; /* checked in model_check_parameters */
+    for (k = 0; k < r.count; k++) {
+        double *p = real_value(m, r, k);
+        const double value = values[*index];
+        if (p == NULL) {
+            snprintf(msg, len, "%s has no storage in this build", r.info->name);
+            return false;
+        }
+        if (r.info->causality == var_input) {
+            if (!check_input(m, r, k, value, phase, msg, len)) {
+                return false;
+            }
+            m->outputs_valid = false; /* outputs depend directly on the inputs */
+        }
+        *p = value; /* parameters are checked in model_check_parameters */
+        (*index)++;
+    }
+    return true;
+}
+
+bool model_set_integer(ModelData *m, unsigned vr, const int values[], size_t n_values,
+                       size_t *index, SetPhase phase, char *msg, size_t len) {
+    VarRef r;
+    if (!check_type(m, vr, var_integer, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
+        || !check_room(m, r, n_values, *index, msg, len)) {
+        return false;
+    }
+    if (r.block == 0 && r.first == vr_slip_mode) {
+        m->slip_mode = values[(*index)++]; /* checked in model_check_parameters */
         return true;
     }
     snprintf(msg, len, "%s has no storage in this build", r.info->name);
     return false;
 }
 
-bool model_set_boolean(ModelData *m, unsigned vr, bool value, bool setup, char *msg,
-                       size_t len) {
+/* A structural parameter's value against its range: n sizes the arrays, so it is checked now. */
+static bool check_structural(VarRef r, uint64_t value, char *msg, size_t len) {
+    if ((double)value >= r.info->min && (double)value <= r.info->max) {
+        return true;
+    }
+    snprintf(msg, len, "%s = %llu: allowed %g to %g (%s)", r.info->name,
+             (unsigned long long)value, r.info->min, r.info->max, r.info->reason);
+    return false;
+}
+
+bool model_set_uint64(ModelData *m, unsigned vr, const uint64_t values[], size_t n_values,
+                      size_t *index, SetPhase phase, char *msg, size_t len) {
+    VarRef r;
+    uint64_t value;
+    if (!check_type(m, vr, var_uint64, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
+        || !check_room(m, r, n_values, *index, msg, len)) {
+        return false;
+    }
+    value = values[*index];
+    if (!check_structural(r, value, msg, len)) {
+        return false;
+    }
+    if (r.block == 0 && r.first == vr_n) {
+        if ((int)value != m->n) {
+            model_set_trailers(m, (int)value);
+        }
+#if FMI_VERSION == 3
+    } else if (r.block == 0 && r.first == vr_n_bodies) {
+        m->n_bodies_set = (int)value; /* must be n + 1 when configuration ends */
+#endif
+    } else {
+        snprintf(msg, len, "%s has no storage in this build", r.info->name);
+        return false;
+    }
+    (*index)++;
+    return true;
+}
+
+bool model_set_boolean(ModelData *m, unsigned vr, const bool values[], size_t n_values,
+                       size_t *index, SetPhase phase, char *msg, size_t len) {
     VarRef r;
     (void)m;
-    (void)value;
-    if (!check_type(vr, var_boolean, &r, msg, len) || !settable(vr, r, setup, msg, len)) {
+    (void)values;
+    if (!check_type(m, vr, var_boolean, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
+        || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
     }
     snprintf(msg, len, "%s has no storage in this build", r.info->name);
     return false;
 }
 
+bool model_check_structure(ModelData *m, char *msg, size_t len) {
+    if (m->n_bodies_set != 0 && m->n_bodies_set != m->n + 1) {
+        snprintf(msg, len, "n_bodies = %d: must be n + 1 = %d (n_bodies follows n: set n alone)",
+                 m->n_bodies_set, m->n + 1);
+        return false;
+    }
+    m->n_bodies_set = 0;
+    return true;
+}
+
 /* ---------------------------------------------------------------- parameter checks */
 
-/* value of parameter r (Real or Integer) as a double; NaN if it has no storage */
-static double parameter_value(const ModelData *m, VarRef r) {
+/* value of parameter r (a Real or Integer scalar, or element k of a Real array) as a double;
+   NaN if it has no storage */
+static double parameter_value(const ModelData *m, VarRef r, int k) {
     const double *p;
     int value;
     if (r.info->type == var_integer) {
         return (r.block == 0 && integer_value(m, r, &value)) ? (double)value : NAN;
     }
-    p = real_variable((ModelData *)m, r); /* only read */
+    p = real_value((ModelData *)m, r, k); /* only read */
     return p != NULL ? *p : NAN;
 }
 
-static bool check_parameter(const ModelData *m, VarRef r, char *msg, size_t len) {
+static bool check_parameter(const ModelData *m, VarRef r, int k, char *msg, size_t len) {
     const VarInfo *info = r.info;
-    const double value = parameter_value(m, r);
+    const double value = parameter_value(m, r, k);
     char name[64];
     if (info->bounded ? (value >= info->min && value <= info->max) : isfinite(value)) {
         return true;
     }
-    if (r.block == 0) {
-        snprintf(name, sizeof(name), "%s", info->name);
-    } else {
-        snprintf(name, sizeof(name), "%s[%d]", info->name, r.index);
-    }
+    element_name(r, k, name, sizeof(name));
     if (info->bounded) {
         snprintf(msg, len, "%s = %g: allowed %g to %g%s%s (%s)", name, value, info->min,
                  info->max, info->unit[0] ? " " : "", info->unit, info->reason);
@@ -307,12 +462,13 @@ static bool check_parameter(const ModelData *m, VarRef r, char *msg, size_t len)
 
 bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
     VarRef r;
-    int block;
-    for (r.index = 1; r.index < SCALAR_VR_END; r.index++) {
+    int block, k;
+    for (r.first = 1; r.first < SCALAR_VR_END; r.first++) {
         r.block = 0;
-        r.info = &scalar_info[r.index];
+        r.count = 1;
+        r.info = &scalar_info[r.first];
         if (r.info->name != NULL && r.info->causality == var_parameter
-            && !check_parameter(m, r, msg, len)) {
+            && !check_parameter(m, r, 0, msg, len)) {
             return false;
         }
     }
@@ -322,8 +478,10 @@ bool model_check_parameters(const ModelData *m, char *msg, size_t len) {
         if (r.info->name == NULL || r.info->causality != var_parameter) {
             continue;
         }
-        for (r.index = r.info->first; r.index <= N_TRAILERS + r.info->last_offset; r.index++) {
-            if (!check_parameter(m, r, msg, len)) {
+        r.first = r.info->first;
+        r.count = m->n + r.info->last_offset - r.info->first + 1;
+        for (k = 0; k < r.count; k++) {
+            if (!check_parameter(m, r, k, msg, len)) {
                 return false;
             }
         }
