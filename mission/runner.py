@@ -94,7 +94,10 @@ def plant_of(sc: Scenario) -> PlantConfig:
 def controller_of(sc: Scenario) -> ControllerConfig:
     """Gains, robot limits and the controller's own chain model (``model_link`` or the plant's)."""
     c = sc.controller
-    geom = geometry_of(sc) if c.model_link is None else ChainGeometry.uniform(sc.train.n, c.model_link)
+    if c.model_link is None:
+        geom = geometry_of(sc)
+    else:
+        geom = ChainGeometry.uniform(sc.train.n, c.model_link)
     return ControllerConfig(
         geometry=geom, k_x=c.k_x, k_y=c.k_y, k_theta=c.k_theta, v_max=sc.robot.v_max,
         w_max=math.radians(sc.robot.w_max_deg), acc_max=c.acc_max,
@@ -110,7 +113,8 @@ def governed(sc: Scenario, config: ControllerConfig):
     t, r = sc.train, sc.robot
     gov = SlipGovernor(GovernorConfig(
         config.geometry, _per_trailer(t.mass, t.n) + _per_trailer(t.payload, t.n),
-        _per_trailer(t.inertia, t.n), _per_trailer(t.mu, t.n), fraction=sc.controller.governor_fraction,
+        _per_trailer(t.inertia, t.n), _per_trailer(t.mu, t.n),
+        fraction=sc.controller.governor_fraction,
         tau=r.tau, acc_max=r.acc_max, alpha_max=math.radians(r.alpha_max_deg)))
     return GovernedController(BackwardController(config), gov, dt=sc.sim.step)
 
@@ -169,7 +173,8 @@ def _start_headings(sc: Scenario) -> np.ndarray:
     """Headings of robot and trailers at the start: the last trailer's heading plus the joints."""
     n = sc.train.n
     th_n = math.radians(sc.start.theta_deg)
-    phi = np.zeros(n) if sc.start.joint_angles_deg is None else np.radians(sc.start.joint_angles_deg)
+    angles = sc.start.joint_angles_deg
+    phi = np.zeros(n) if angles is None else np.radians(angles)
     return th_n + np.concatenate((np.cumsum(phi[::-1])[::-1], [0.0]))
 
 
