@@ -166,6 +166,28 @@ def test_a_scripted_run_that_collides_exits_1(tmp_path):
     assert json.loads((out / "summary.json").read_text())["status"] == "collision"
 
 
+@pytest.mark.parametrize("exit_code, status", [(2, "invalid"), (1, "failed")])
+def test_a_command_error_inside_a_run_folder_is_recorded_with_its_exit_code(tmp_path, exit_code,
+                                                                             status):
+    """A click error raised while the run folder is open keeps its exit code, and summary.json
+    says why the run ended: bad input found late (2) is ``invalid``, anything else ``failed``."""
+    import click
+
+    from pushtrain.cli.common import BadInput
+    from pushtrain.cli.rundir import run_folder
+
+    error = BadInput("refused late") if exit_code == 2 else click.ClickException("broke")
+    error.exit_code = exit_code
+    out = tmp_path / "out"
+    with pytest.raises(click.ClickException) as info:
+        with run_folder(str(out), "late"):
+            raise error
+    assert info.value.exit_code == exit_code
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary == {"status": status, "message": error.format_message(),
+                       "exit_code": exit_code}
+
+
 # ----------------------------------------------------------------------------------- files
 def test_run_with_path_writes_path_json(tmp_path):
     path_file = tmp_path / "saved.json"

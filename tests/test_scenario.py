@@ -140,3 +140,41 @@ def test_validate_exits_2_naming_the_field(tmp_path, text, field):
     done = CliRunner().invoke(cli, ["validate", str(path)])
     assert done.exit_code == 2, done.output
     assert field in done.output and "Traceback" not in done.output
+
+
+# The bound test above checks each field against the table it is computed from, so it cannot
+# notice a wrong number in the table; these pin the ranges the table's reasons promise.
+@pytest.mark.parametrize("path, value", [
+    ("sim.step", 0.1), ("sim.step", 0.005), ("sim.step", 1e-4),
+    ("train.mass", 2.0), ("train.mass", 5000.0), ("train.mu", 0.0), ("train.mu", 1.0),
+    ("train.link", 0.05), ("train.link", 10.0), ("robot.tau", 0.001), ("robot.v_max", 5.0),
+    ("robot.w_max_deg", 500.0), ("robot.alpha_max_deg", 5e5), ("controller.k_y", 1e3),
+])
+def test_plausible_values_are_accepted(path, value):
+    parse_scenario(_with(path, value))
+
+
+@pytest.mark.parametrize("path, value", [
+    ("sim.step", 0.2),  # the chain moves further between two commands than can be corrected
+    ("sim.step", 5e-5), ("train.mass", 0.5), ("train.mass", 2e4), ("train.mu", 2.5),
+    ("train.link", 0.04), ("train.link", 11.0), ("robot.tau", 5e-4), ("robot.tau", 11.0),
+    ("robot.v_max", 6.0), ("robot.w_max_deg", 600.0), ("controller.k_y", 2e3),
+])
+def test_implausible_values_are_refused_naming_the_field(path, value):
+    problems = _problems(_with(path, value))
+    assert [p[0] for p in problems] == [path], problems
+    assert "allowed" in problems[0][2]
+
+
+def test_event_trailers_and_joints_are_numbered_1_to_n():
+    def events(**fields):
+        if "trailer" in fields:
+            kind = {"type": "slide", "t": 1.0, "duration": 1.0, "distance": 0.1}
+        else:
+            kind = {"type": "bias", "t": 1.0, "bias_deg": 2.0}
+        return {**SCRIPTED, "train": {"n": 3}, "events": [{**kind, **fields}]}
+
+    for fields in ({"trailer": 1}, {"trailer": 3}, {"joint": 1}, {"joint": 3}):
+        parse_scenario(events(**fields))
+    for fields, where in (({"trailer": 4}, "events[0].trailer"), ({"joint": 4}, "events[0].joint")):
+        assert [p[0] for p in _problems(events(**fields))] == [where]

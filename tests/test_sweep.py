@@ -363,6 +363,88 @@ def test_report_plots_exist_for_each_parameter_and_the_bias(serial8):
     assert report["bias_prediction"]["max_deviation_over_largest_prediction"] < 0.03
 
 
+def _fake_result(summary: dict, status: str = "goal_reached", e_lat=0.004, t_end: float = 20.0):
+    """A stand-in for a co-simulation's Result (status, message, summary, data)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    t = np.arange(0.0, t_end + 1e-9, 0.5)
+    data = np.zeros(t.size, dtype=[("t", float), ("e_lat", float)])
+    data["t"], data["e_lat"] = t, e_lat
+    return SimpleNamespace(status=status, message="done", summary=summary, data=data)
+
+
+def test_each_metric_comes_from_its_own_entry_of_the_summary():
+    from pushtrain.studies.sweep import metrics_of
+
+    summary = {"lateral_error_m": {"rms": 0.011, "max": 0.022, "final": 0.033},
+               "heading_error_rad": {"rms": math.radians(1.5), "max": math.radians(2.5)},
+               "max_abs_phi_deg": [10.0, 40.0, 20.0], "max_F_lat_ratio": [0.2, 0.7, None],
+               "slip": [{"events": 2, "time_slipping_s": 0.5},
+                        {"events": 1, "time_slipping_s": 0.25}],
+               "t_final": 123.0, "steps": 24600, "wall_time_s": 4.5}
+    e_lat = [0.1] * 21 + [0.044] * 20  # the last 10 s: 0.044 m
+    row = metrics_of(_fake_result(summary, e_lat=e_lat), steady_window=9.5)
+    assert row.pop("steady_lat_m") == pytest.approx(0.044)
+    assert row.pop("rms_heading_deg") == pytest.approx(1.5)
+    assert row.pop("max_heading_deg") == pytest.approx(2.5)
+    assert row == {"status": "goal_reached", "message": "done", "rms_lat_m": 0.011,
+                   "max_lat_m": 0.022, "final_lat_m": 0.033, "max_abs_phi_deg": 40.0,
+                   "max_F_lat_ratio": 0.7, "slip_events": 3, "slip_time_s": 0.75,
+                   "t_final": 123.0, "steps": 24600, "wall_time_s": 4.5}
+    assert set(row) | {"steady_lat_m", "rms_heading_deg", "max_heading_deg"} \
+        == set(METRICS) | {"status", "message"}
+
+
+def test_seed_per_run_gives_each_run_the_spec_seed_plus_its_index(base):
+    values = {"path": "controller.k_y", "values": [3.0, 4.0, 5.0]}
+    runs, _, _ = prepare_runs(base, parse_sweep_spec(
+        {"seed": 5, "seed_per_run": True, "parameters": [values]}))
+    assert [r.payload["scenario"]["seed"] for r in runs] == [5, 6, 7]
+    runs, _, _ = prepare_runs(base, parse_sweep_spec({"seed": 5, "parameters": [values]}))
+    assert [r.payload["scenario"]["seed"] for r in runs] == [base.seed] * 3
+
+
+def _fake_task(payload, shared):
+    """Task function standing in for a co-simulation: instant, depends on the run's K_y."""
+    k_y = payload["scenario"]["controller"]["k_y"]
+    summary = {"lateral_error_m": {"rms": 0.01 / k_y, "max": 0.02 / k_y, "final": 0.0},
+               "max_abs_phi_deg": [1.0], "max_F_lat_ratio": [0.1], "slip": [], "steps": 10,
+               "wall_time_s": 0.0}
+    return _fake_result(summary)
+
+
+def _no_cluster(*args, **kwargs):
+    raise AssertionError("a Dask cluster was started")
+
+
+def test_cli_workers_0_runs_serially_and_max_runs_stops_then_resumes(tmp_path, monkeypatch):
+    """--workers 0: no cluster, the runs in this process; --max-runs N: N runs now, the rest on
+    the next call with the same --out."""
+    import pushtrain.studies.sweep as library
+    from pushtrain.cli.main import cli
+
+    monkeypatch.setattr(library, "run_task", _fake_task)  # seen only by runs in this process
+    monkeypatch.setattr(library, "_local_client", _no_cluster)
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(SPEC8_TOML)
+    out = tmp_path / "out"
+    args = ["sweep", str(tmp_path / "base.toml"), "--spec", str(tmp_path / "spec.toml"),
+            "--workers", "0", "--out", str(out), "--no-plots"]
+    first = CliRunner().invoke(cli, [*args, "--max-runs", "3"])
+    assert first.exit_code == 0, first.output
+    assert "3 run now, 0 resumed" in first.stdout
+    assert "incomplete: 5 run(s) still to do" in first.stdout
+    assert len(read_results(out / "results.csv")) == 3
+    second = CliRunner().invoke(cli, args)
+    assert second.exit_code == 0, second.output
+    assert "5 run now, 3 resumed from earlier chunks" in second.stdout
+    rows = read_results(out / "results.csv")
+    assert len(rows) == 8 and all(r["ok"] for r in rows)
+    assert [r["rms_lat_m"] for r in rows] == pytest.approx([0.01 / k for k in (4, 6) * 4])
+
+
 # ------------------------------------------------------------------------------------------ CLI
 @pytest.mark.parametrize("workers", ["0", "2"])
 def test_cli_sweep(tmp_path, workers):
