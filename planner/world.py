@@ -25,6 +25,8 @@ from shapely.ops import unary_union
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.errors import PlanningInputError
 
+from .distance_field import DEFAULT_RESOLUTION, DistanceField
+
 __all__ = ["World", "BodyFootprint", "Train", "save_diagnostic", "draw_poses"]
 
 log = logging.getLogger(__name__)
@@ -73,7 +75,12 @@ class World:
 
     outline: Polygon
     obstacles: tuple = ()
+    occupancy: Any = None
+    """Optional raster source of the map (an occupancy grid with ``blocked`` (ny, nx) bool,
+    ``x0``, ``y0`` (centre of cell (0, 0), m) and ``resolution`` (m), axis-aligned): when set,
+    :meth:`distance_field` comes from it instead of rasterizing the polygons."""
     free: Any = field(init=False, repr=False)
+    _fields: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self):
         free = self.outline
@@ -81,6 +88,22 @@ class World:
             free = free.difference(unary_union(list(self.obstacles)))
         object.__setattr__(self, "free", free)
         shapely.prepare(free)
+
+    def distance_field(self, resolution: float | None = None) -> DistanceField:
+        """The signed distance field of this map (cached per resolution): from :attr:`occupancy`
+        at its own resolution if set, else from the polygons at ``resolution`` [m] (default
+        :data:`~pushtrain.planner.distance_field.DEFAULT_RESOLUTION`)."""
+        key = None if self.occupancy is not None else (resolution or DEFAULT_RESOLUTION)
+        cached = self._fields.get(key)
+        if cached is None:
+            if self.occupancy is not None:
+                grid = self.occupancy
+                cached = DistanceField.from_occupancy(grid.blocked, grid.x0, grid.y0,
+                                                      grid.resolution)
+            else:
+                cached = DistanceField.from_world(self, key)
+            self._fields[key] = cached
+        return cached
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -157,7 +180,8 @@ class World:
         return geom
 
     def with_obstacles(self, extra: Sequence[Polygon]) -> "World":
-        """A copy with ``extra`` obstacle polygons added."""
+        """A copy with ``extra`` obstacle polygons added (an occupancy grid is dropped: the copy's
+        distance field comes from its polygons)."""
         return World(self.outline, tuple(self.obstacles) + tuple(extra))
 
     def contains_point(self, x: float, y: float) -> bool:
