@@ -5,16 +5,22 @@ the loop reads as its three steps:
 
 apply inputs
     the events due (:class:`~pushtrain.cosim.events.EventSchedule`: joint-bias switches, the
-    push force on the last trailer, imposed slides), the FMU's outputs -> sensors (bias, noise,
-    quantization, backlash) -> :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample,
-    pull guide, Kanayama + inverse chain kinematics) -> the FMU's inputs;
+    push force on the last trailer, imposed slides), the FMU's states (robot pose, last
+    trailer's pose, joint angles) -> sensors (bias, noise, quantization, backlash) ->
+    :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, pull guide, Kanayama +
+    inverse chain kinematics) -> the FMU's inputs;
 record
-    the outputs again (the wheel forces depend directly on the inputs) with the inputs, the
-    reference and the tracking errors, one row by named blocks
-    (:class:`~pushtrain.cosim.recorder.Recorder`, a numpy structured array at the end);
+    every output (read after the inputs: the wheel forces depend directly on them) and the flags
+    straight into the recorder's row, with the inputs, the reference and the tracking errors;
+    one copy of the row per step (:class:`~pushtrain.cosim.recorder.Recorder`, a numpy
+    structured array at the end);
 do step
     ``fmi2DoStep`` from t_k to t_k + h, unless the last trailer reached the goal, a joint
     jackknifed or the horizon ended.
+
+Per step that is four FMI calls and one doStep, made through bare ctypes with preallocated
+arrays (:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), and scalar Python in between;
+``benchmarks/bench_cosim.py`` compares it with a raw-ctypes loop doing the same calls.
 
 Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save` CSV, NPZ and
 ``summary.json`` (each written atomically).
@@ -22,6 +28,7 @@ Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save`
 
 from __future__ import annotations
 
+import ctypes
 import json
 import logging
 import math
@@ -43,7 +50,7 @@ from pushtrain.files import atomic_write
 from .events import EventSchedule, Push, SetBias, Slide, _positive
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
 from .recorder import Recorder
-from .sensors import SensorConfig, Sensors
+from .sensors import Measurement, SensorConfig, Sensors
 
 __all__ = [
     "CosimError",
@@ -69,6 +76,8 @@ STATUS_JACKKNIFE = "jackknifed"
 STATUS_FMU_ERROR = "fmu_error"
 STATUS_TIME_LIMIT = "time_limit"
 STATUS_COMPLETED = "completed"  # fixed-horizon run without a goal check
+
+_new_tuple = tuple.__new__
 
 
 @dataclass
@@ -240,17 +249,18 @@ def _columns(n: int) -> list[str]:
 
 
 def _recorder(n: int, capacity: int) -> Recorder:
-    """The recorder of a run: the blocks the loop writes, the columns of :func:`_columns`."""
+    """The recorder of a run: the blocks the loop writes, the columns of :func:`_columns`.
+
+    The FMU's outputs and flags land in their blocks of the recorder's row straight from the FMU;
+    ``scalars`` holds the time, the inputs, the reference sample and the tracking errors."""
     joints = range(1, n + 1)
     blocks = [
-        ("t", ["t"]),
         ("outputs", [f"{col}{i}" for _, col, first in _OUTPUTS for i in range(first, n + 1)]),
-        ("phi_meas", [f"phi_meas{i}" for i in joints]),
-        ("F_lat_max", [f"F_lat_max{i}" for i in joints]),
         ("flags", [f"slipping{i}" for i in joints] + ["jackknifed"]),
-        ("inputs", ["v_cmd", "w_cmd", "push_x", "push_y", "slide"]),
-        ("reference", ["x_d", "y_d", "theta_d", "v_d", "w_d", "direction"]),
-        ("errors", ["e_lon", "e_lat", "e_theta"]),
+        ("F_lat_max", [f"F_lat_max{i}" for i in joints]),
+        ("phi_meas", [f"phi_meas{i}" for i in joints]),
+        ("scalars", ["t", "v_cmd", "w_cmd", "push_x", "push_y", "slide",
+                  "x_d", "y_d", "theta_d", "v_d", "w_d", "direction", "e_lon", "e_lat", "e_theta"]),
     ]
     return Recorder(blocks, _columns(n), capacity)
 
@@ -267,19 +277,28 @@ def _steps(horizon: float, step: float) -> int:
 
 
 class _PlantIO:
-    """The FMU's per-step reads and writes, by variable name (the outputs in ``_OUTPUTS`` order)."""
+    """The FMU's per-step reads and writes, by variable name.
 
-    def __init__(self, slave: TrailerTrainSlave, n: int):
+    ``read_state`` fills :attr:`pose` (robot pose, last trailer's pose) and :attr:`phi` (joint
+    angles): what the sensors measure, states that setting inputs does not change.
+    ``read_outputs`` (every output of ``_OUTPUTS``, in that order) and ``read_flags`` (slipping
+    1..n, jackknifed) write into the recorder's row; ``write_slide[i]`` sets ``slide[i]`` for
+    the trailers ``slid`` (1..n) that have Slide events."""
+
+    def __init__(self, slave: TrailerTrainSlave, n: int, recorder: Recorder, slid=()):
+        self.n = n
+        self.state = np.empty(n + 6)
+        self.pose, self.phi = self.state[:6], self.state[6:]
+        self.read_state = slave.real_reader(["x[0]", "y[0]", "theta[0]", f"x[{n}]", f"y[{n}]",
+                                             f"theta[{n}]"] + slave.names("phi", 1, n),
+                                            out=self.state)
         names = [f"{fmu}[{i}]" for fmu, _, first in _OUTPUTS for i in range(first, n + 1)]
-        at = {name: k for k, name in enumerate(names)}
-        self.read = slave.real_reader(names)
-        self.read_flags = slave.bool_reader(slave.names("slipping", 1, n) + ["jackknifed"])
+        self.read_outputs = slave.real_reader(names, out=recorder.view("outputs"))
+        self.read_flags = slave.bool_reader(slave.names("slipping", 1, n) + ["jackknifed"],
+                                            out=recorder.view("flags"))
         self.write_inputs = slave.real_writer(["v_cmd", "w_cmd", "push_x", "push_y"])
-        self.write_slide = {i: slave.real_writer([f"slide[{i}]"]) for i in range(1, n + 1)}
-        self.f_max = slave.get_reals(slave.names("F_lat_max", 1, n))
-        self.robot = (at["x[0]"], at["y[0]"], at["theta[0]"])
-        self.last = (at[f"x[{n}]"], at[f"y[{n}]"], at[f"theta[{n}]"])
-        self.phi = slice(at["phi[1]"], at[f"phi[{n}]"] + 1)
+        self.write_slide = {i: slave.real_writer([f"slide[{i}]"]) for i in slid}
+        recorder.view("F_lat_max")[:] = slave.get_reals(slave.names("F_lat_max", 1, n))
 
 
 @dataclass(frozen=True)
@@ -311,78 +330,90 @@ class _Run:
                  recorder: Recorder, goal: _Goal):
         self.slave, self.loop, self.sensors, self.events = slave, loop, sensors, events
         self.recorder, self.goal, self.n = recorder, goal, sensors.n
-        self.io = _PlantIO(slave, self.n)
+        slid = {self.n if ev.trailer is None else ev.trailer for ev in events.slides}
+        self.io = _PlantIO(slave, self.n, recorder, sorted(slid))
         self.measure_last = bool(getattr(sensors.config, "measure_last_pose", False))
+        self.phi_meas = recorder.view("phi_meas")
+        scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
+        self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
+        self.goal_pose = tuple(float(a) for a in goal.pose)
 
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
         """Step from ``t0`` (communication points t0 + k step, k = 0..n_steps); the status and
         message of a jackknife or the goal, or None if the horizon ended first."""
+        apply_inputs, record, do_step = self.apply_inputs, self.record, self.slave.do_step
         for k in range(n_steps + 1):
             t = t0 + k * step
-            inputs = self.apply_inputs(t)
-            stop = self.stop(t, *self.record(t, *inputs))
+            stop = record(t, *apply_inputs(t))
             if stop is not None:
                 return stop
             if k == n_steps:
                 return None
-            self.slave.do_step(t, step)
+            do_step(t, step)
             if bar is not None and k % 200 == 0:
                 bar.update(200 if k else 0)
         return None
 
     def apply_inputs(self, t: float):
-        """Events due, sensors -> tracking loop -> FMU inputs at ``t``; returns the measurement,
-        the inputs (v_cmd, w_cmd, push_x, push_y, slide of trailer n) and the reference sample."""
-        for bias in self.events.biases_due(t):
-            self.sensors.set_bias(bias.joint, bias.bias)
-        y = self.io.read()
-        (i_x, i_y, i_th), last = self.io.robot, self.io.last
-        if self.measure_last:
-            meas = self.sensors.measure(y[i_x], y[i_y], y[i_th], y[self.io.phi],
-                                        (y[last[0]], y[last[1]], y[last[2]]))
-        else:
-            meas = self.sensors.measure(y[i_x], y[i_y], y[i_th], y[self.io.phi])
+        """Events due, sensors -> tracking loop -> FMU inputs at ``t``. Returns the time and
+        the inputs (v_cmd, w_cmd, push_x, push_y, slide of trailer n), the reference sample
+        and the last trailer's true pose; the measured joint angles go into the row."""
+        events, sensors, io = self.events, self.sensors, self.io
+        if events.biases:
+            for bias in events.biases_due(t):
+                sensors.set_bias(bias.joint, bias.bias)
+        io.read_state()
+        x0, y0, th0, x_n, y_n, th_n = io.pose.tolist()
+        phi_meas = sensors.measure_joints(io.phi)  # the order of the noise draws: joints,
+        robot = sensors.measure_pose(x0, y0, th0)  # robot pose, last trailer's pose
+        last = sensors.measure_pose(x_n, y_n, th_n) if self.measure_last else None
+        self.phi_meas[...] = phi_meas
+        # Measurement(*robot, phi, last) without the NamedTuple's keyword handling
+        meas = _new_tuple(Measurement, (*robot, phi_meas.tolist(), last))
         v_cmd, w_cmd, _, ref = self.loop.command(t, meas)
-        push = self.events.push_force(t, y[last[2]])
-        self.io.write_inputs((v_cmd, w_cmd) + push)
-        for i, speed in self.events.slide_changes(t):
-            self.io.write_slide[i]((speed,))
-        return meas, (v_cmd, w_cmd) + push + (self.events.slide_speed(self.n),), ref
+        push_x, push_y = events.push_force(t, th_n) if events.pushes else (0.0, 0.0)
+        io.write_inputs((v_cmd, w_cmd, push_x, push_y))
+        slide = 0.0
+        if events.slides:
+            for i, speed in events.slide_changes(t):
+                io.write_slide[i]((speed,))
+            slide = events.slide_speed(self.n)
+        return (t, v_cmd, w_cmd, push_x, push_y, slide), ref, (x_n, y_n, th_n)
 
-    def record(self, t: float, meas, inputs: tuple, ref):
-        """One row at ``t``; the outputs are read again, since the forces depend directly on the
-        inputs just set. Returns the outputs and the Boolean flags."""
-        y = self.io.read()
+    def record(self, t: float, inputs: tuple, ref, last_pose) -> tuple[str, str] | None:
+        """Read the outputs (again: the forces depend directly on the inputs just set) and the
+        flags into the row, add the time, the inputs, the reference and the tracking errors,
+        commit the row; the status and message if the run ends at ``t`` (a jackknife, or the
+        goal reached)."""
+        self.io.read_outputs()
         flags = self.io.read_flags()
-        i_x, i_y, i_th = self.io.last
-        x_n, y_n, th_n = y[i_x], y[i_y], y[i_th]
+        x_n, y_n, th_n = last_pose
         # tracking error of the last trailer in the reference's (chain) frame
         dx, dy = x_n - ref.x, y_n - ref.y
         c, s = math.cos(ref.theta), math.sin(ref.theta)
-        errors = (c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
-        self.recorder.append(t=t, outputs=y, phi_meas=meas.phi, F_lat_max=self.io.f_max,
-                             flags=flags, inputs=inputs, reference=ref[:], errors=errors)
-        return y, flags
-
-    def stop(self, t: float, y, flags) -> tuple[str, str] | None:
-        """Status and message if the run ends at ``t``: a jackknife, or the goal reached."""
-        n, goal = self.n, self.goal
-        if flags[n]:
-            phi = y[self.io.phi]
-            worst = int(np.argmax(np.abs(phi))) + 1
-            return STATUS_JACKKNIFE, (
-                f"jackknife at t = {t:.3f} s: |phi[{worst}]| = "
-                f"{math.degrees(abs(phi[worst - 1])):.1f} deg exceeds phi_max"
-            )
+        self.scalars[:] = inputs + ref + (c * dx + s * dy, -s * dx + c * dy,
+                                         wrap_scalar(th_n - ref.theta))
+        self.recorder.commit()
+        if flags[self.n]:
+            return self._jackknife(t)
+        goal = self.goal
         if goal.check and t >= goal.t_end - 1e-12:
-            i_x, i_y, i_th = self.io.last
-            x_n, y_n, th_n = y[i_x], y[i_y], y[i_th]
-            dist = math.hypot(x_n - goal.pose[0], y_n - goal.pose[1])
-            if dist <= goal.position and abs(wrap_scalar(th_n - goal.pose[2])) <= goal.heading:
+            x_g, y_g, th_g = self.goal_pose
+            dist = math.hypot(x_n - x_g, y_n - y_g)
+            if dist <= goal.position and abs(wrap_scalar(th_n - th_g)) <= goal.heading:
                 return STATUS_GOAL, (
                     f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
                 )
         return None
+
+    def _jackknife(self, t: float) -> tuple[str, str]:
+        """Status and message of a jackknife at ``t``, naming the worst joint."""
+        phi = np.array([self.recorder.last(f"phi{i}") for i in range(1, self.n + 1)])
+        worst = int(np.argmax(np.abs(phi))) + 1
+        return STATUS_JACKKNIFE, (
+            f"jackknife at t = {t:.3f} s: |phi[{worst}]| = "
+            f"{math.degrees(abs(phi[worst - 1])):.1f} deg exceeds phi_max"
+        )
 
 
 def _horizon_end(recorder: Recorder, goal: _Goal, horizon: float, n: int) -> tuple[str, str]:
