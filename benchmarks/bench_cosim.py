@@ -37,6 +37,7 @@ import statistics
 import tempfile
 import time
 from ctypes import c_double, c_int, c_size_t, c_uint, c_void_p
+from types import SimpleNamespace
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -106,28 +107,40 @@ class RawLoop:
         address = ctypes.cast(getattr(self.slave.dll, name), c_void_p).value
         return ctypes.CFUNCTYPE(c_int)(address)
 
-    def run(self, inputs: np.ndarray, t0: float) -> tuple[float, np.ndarray]:
-        """Replay ``inputs`` (rows of v_cmd, w_cmd, push_x, push_y); (us per step, last outputs)."""
+    def _prepare(self, inputs: np.ndarray) -> SimpleNamespace:
+        """Every ctypes argument of the loop, built before it runs."""
         states, outputs, flags = _names(self.n)
         vr = self.vr
-        state_vr = (c_uint * len(states))(*[vr[k] for k in states])
-        out_vr = (c_uint * len(outputs))(*[vr[k] for k in outputs])
-        flag_vr = (c_uint * len(flags))(*[vr[k] for k in flags])
-        in_vr = (c_uint * 4)(*[vr[k] for k in ("v_cmd", "w_cmd", "push_x", "push_y")])
-        state_buf = (c_double * len(states))()
-        out_buf = (c_double * len(outputs))()
-        flag_buf = (c_int * len(flags))()
-        n_state, n_out = c_size_t(len(states)), c_size_t(len(outputs))
-        n_flag, n_in = c_size_t(len(flags)), c_size_t(4)
         rows = np.ascontiguousarray(inputs, dtype=float)
-        in_rows = [(c_double * 4).from_buffer(rows, 32 * k) for k in range(len(rows))]
-        comp = c_void_p(self.slave.component)
-        get_real, set_real = self._fn("fmi2GetReal"), self._fn("fmi2SetReal")
-        get_bool, do_step = self._fn("fmi2GetBoolean"), self._fn("fmi2DoStep")
-        h, true = c_double(STEP), c_int(1)
-        last = len(rows) - 1
+        return SimpleNamespace(
+            comp=c_void_p(self.slave.component), rows=rows,
+            state_vr=(c_uint * len(states))(*[vr[k] for k in states]),
+            out_vr=(c_uint * len(outputs))(*[vr[k] for k in outputs]),
+            flag_vr=(c_uint * len(flags))(*[vr[k] for k in flags]),
+            in_vr=(c_uint * 4)(*[vr[k] for k in ("v_cmd", "w_cmd", "push_x", "push_y")]),
+            state_buf=(c_double * len(states))(), out_buf=(c_double * len(outputs))(),
+            flag_buf=(c_int * len(flags))(),
+            n_state=c_size_t(len(states)), n_out=c_size_t(len(outputs)),
+            n_flag=c_size_t(len(flags)), n_in=c_size_t(4),
+            in_rows=[(c_double * 4).from_buffer(rows, 32 * k) for k in range(len(rows))],
+            get_real=self._fn("fmi2GetReal"), set_real=self._fn("fmi2SetReal"),
+            get_bool=self._fn("fmi2GetBoolean"), do_step=self._fn("fmi2DoStep"),
+            h=c_double(STEP), true=c_int(1))
+
+    def run(self, inputs: np.ndarray, t0: float) -> tuple[float, np.ndarray]:
+        """Replay ``inputs`` (rows of v_cmd, w_cmd, push_x, push_y); (us per step, last outputs).
+
+        The loop body is written out with local names: the floor the master is compared with."""
+        a = self._prepare(inputs)
+        comp, in_rows, h, true = a.comp, a.in_rows, a.h, a.true
+        get_real, set_real, get_bool, do_step = a.get_real, a.set_real, a.get_bool, a.do_step
+        state_vr, n_state, state_buf = a.state_vr, a.n_state, a.state_buf
+        out_vr, n_out, out_buf = a.out_vr, a.n_out, a.out_buf
+        flag_vr, n_flag, flag_buf = a.flag_vr, a.n_flag, a.flag_buf
+        in_vr, n_in = a.in_vr, a.n_in
+        last = len(in_rows) - 1
         start = time.process_time()
-        for k in range(len(rows)):
+        for k in range(last + 1):
             status = get_real(comp, state_vr, n_state, state_buf)
             status |= set_real(comp, in_vr, n_in, in_rows[k])
             status |= get_real(comp, out_vr, n_out, out_buf)
@@ -139,14 +152,36 @@ class RawLoop:
         wall = time.process_time() - start
         return wall / last * 1e6, np.array(out_buf)
 
+    def split(self, inputs: np.ndarray, t0: float) -> list[float]:
+        """The raw loop again, each call timed on its own (perf_counter_ns; adds a little to
+        each): us per step of get states, set inputs, get outputs, get flags, doStep."""
+        a = self._prepare(inputs)
+        calls = (lambda k: a.get_real(a.comp, a.state_vr, a.n_state, a.state_buf),
+                 lambda k: a.set_real(a.comp, a.in_vr, a.n_in, a.in_rows[k]),
+                 lambda k: a.get_real(a.comp, a.out_vr, a.n_out, a.out_buf),
+                 lambda k: a.get_bool(a.comp, a.flag_vr, a.n_flag, a.flag_buf),
+                 lambda k: a.do_step(a.comp, c_double(t0 + k * STEP), a.h, a.true))
+        spent = [0] * len(calls)
+        clock = time.perf_counter_ns
+        last = len(a.in_rows) - 1
+        for k in range(last + 1):
+            for j, call in enumerate(calls if k < last else calls[:-1]):
+                start = clock()
+                status = call(k)
+                spent[j] += clock() - start
+                if status > 1:
+                    raise SystemExit(f"raw loop: FMI call {j} failed at step {k}")
+        return [ns / last / 1e3 for ns in spent]
+
     def close(self) -> None:
         self.slave.terminate()
         self.slave.freeInstance()
         shutil.rmtree(self.unzip, ignore_errors=True)
 
 
-def run_raw(fmu, n: int, result) -> tuple[float, bool]:
-    """(us per step, whether its last outputs equal the master's last row) of the raw loop."""
+def run_raw(fmu, n: int, result, split: bool = False):
+    """(us per step, whether its last outputs equal the master's last row) of the raw loop;
+    with ``split`` the us per step of each of its five calls instead."""
     ref, cfg = mission(n)
     plant = PlantConfig(n_trailers=n)
     initial = InitialState.behind_reference(ref, plant.geometry())
@@ -155,6 +190,8 @@ def run_raw(fmu, n: int, result) -> tuple[float, bool]:
     try:
         raw.start({**plant.start_values(), **initial.start_values()}, float(data["t"][0]))
         inputs = np.column_stack([data[k] for k in ("v_cmd", "w_cmd", "push_x", "push_y")])
+        if split:
+            return raw.split(inputs, float(data["t"][0]))
         us, last = raw.run(inputs, float(data["t"][0]))
     finally:
         raw.close()
@@ -227,6 +264,10 @@ def main() -> None:
               f"{m - c:.2f} us/step = {(m - c) / r:.2f}x raw\n"
               f"  raw loop reproduces the master's outputs bit for bit: {same}; "
               f"replayed control law its commands: {same_law}")
+        parts = run_raw(fmu, n, result, split=True)
+        names = ("get states", "set inputs", "get outputs", "get flags", "doStep")
+        print("  raw loop by call (us/step, timed one by one): "
+              + ", ".join(f"{name} {us:.2f}" for name, us in zip(names, parts, strict=True)))
         if args.profile:
             profile(fmu, n, horizon)
 
