@@ -152,26 +152,21 @@ class RawLoop:
         wall = time.process_time() - start
         return wall / last * 1e6, np.array(out_buf)
 
-    def split(self, inputs: np.ndarray, t0: float) -> list[float]:
-        """The raw loop again, each call timed on its own (perf_counter_ns; adds a little to
-        each): us per step of get states, set inputs, get outputs, get flags, doStep."""
+    def run_without_gets(self, inputs: np.ndarray, t0: float) -> float:
+        """The raw loop with its set and doStep calls only: us per step (the rest of the raw
+        loop's time is the three getters)."""
         a = self._prepare(inputs)
-        calls = (lambda k: a.get_real(a.comp, a.state_vr, a.n_state, a.state_buf),
-                 lambda k: a.set_real(a.comp, a.in_vr, a.n_in, a.in_rows[k]),
-                 lambda k: a.get_real(a.comp, a.out_vr, a.n_out, a.out_buf),
-                 lambda k: a.get_bool(a.comp, a.flag_vr, a.n_flag, a.flag_buf),
-                 lambda k: a.do_step(a.comp, c_double(t0 + k * STEP), a.h, a.true))
-        spent = [0] * len(calls)
-        clock = time.perf_counter_ns
-        last = len(a.in_rows) - 1
+        comp, in_rows, h, true = a.comp, a.in_rows, a.h, a.true
+        set_real, do_step, in_vr, n_in = a.set_real, a.do_step, a.in_vr, a.n_in
+        last = len(in_rows) - 1
+        start = time.process_time()
         for k in range(last + 1):
-            for j, call in enumerate(calls if k < last else calls[:-1]):
-                start = clock()
-                status = call(k)
-                spent[j] += clock() - start
-                if status > 1:
-                    raise SystemExit(f"raw loop: FMI call {j} failed at step {k}")
-        return [ns / last / 1e3 for ns in spent]
+            status = set_real(comp, in_vr, n_in, in_rows[k])
+            if k < last:
+                status |= do_step(comp, c_double(t0 + k * STEP), h, true)
+            if status > 1:
+                raise SystemExit(f"raw loop: an FMI call failed at step {k} (status {status})")
+        return (time.process_time() - start) / last * 1e6
 
     def close(self) -> None:
         self.slave.terminate()
@@ -179,9 +174,9 @@ class RawLoop:
         shutil.rmtree(self.unzip, ignore_errors=True)
 
 
-def run_raw(fmu, n: int, result, split: bool = False):
+def run_raw(fmu, n: int, result, without_gets: bool = False):
     """(us per step, whether its last outputs equal the master's last row) of the raw loop;
-    with ``split`` the us per step of each of its five calls instead."""
+    with ``without_gets`` the us per step of its set and doStep calls alone instead."""
     ref, cfg = mission(n)
     plant = PlantConfig(n_trailers=n)
     initial = InitialState.behind_reference(ref, plant.geometry())
@@ -190,8 +185,8 @@ def run_raw(fmu, n: int, result, split: bool = False):
     try:
         raw.start({**plant.start_values(), **initial.start_values()}, float(data["t"][0]))
         inputs = np.column_stack([data[k] for k in ("v_cmd", "w_cmd", "push_x", "push_y")])
-        if split:
-            return raw.split(inputs, float(data["t"][0]))
+        if without_gets:
+            return raw.run_without_gets(inputs, float(data["t"][0]))
         us, last = raw.run(inputs, float(data["t"][0]))
     finally:
         raw.close()
@@ -258,16 +253,17 @@ def main() -> None:
         m, r, c = (statistics.median(x) for x in (masters, raws, laws))
         print(f"n = {n:2d}, {len(result.data) - 1} steps, medians of {args.repeats}:\n"
               f"  master {m:7.2f} us/step, raw ctypes {r:6.2f} us/step: "
-              f"RATIO master/raw = {m / r:.2f}x (target <= 1.5x)\n"
+              f"RATIO master/raw = {m / r:.2f}x (target <= 1.5x; of the fastest runs "
+              f"{min(masters):.2f} / {min(raws):.2f} = {min(masters) / min(raws):.2f}x)\n"
               f"  of the master's time, the Python control law (reference + controller, "
               f"replayed alone) {c:.2f} us/step = {100 * c / m:.0f} %; the rest "
               f"{m - c:.2f} us/step = {(m - c) / r:.2f}x raw\n"
               f"  raw loop reproduces the master's outputs bit for bit: {same}; "
               f"replayed control law its commands: {same_law}")
-        parts = run_raw(fmu, n, result, split=True)
-        names = ("get states", "set inputs", "get outputs", "get flags", "doStep")
-        print("  raw loop by call (us/step, timed one by one): "
-              + ", ".join(f"{name} {us:.2f}" for name, us in zip(names, parts, strict=True)))
+        bare = statistics.median(run_raw(fmu, n, result, without_gets=True)
+                                 for _ in range(args.repeats))
+        print(f"  of the raw loop's time, the three FMU getters {r - bare:.2f} us/step, "
+              f"set + doStep {bare:.2f} us/step")
         if args.profile:
             profile(fmu, n, horizon)
 

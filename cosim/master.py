@@ -332,78 +332,90 @@ class _Run:
         self.recorder, self.goal, self.n = recorder, goal, sensors.n
         slid = {self.n if ev.trailer is None else ev.trailer for ev in events.slides}
         self.io = _PlantIO(slave, self.n, recorder, sorted(slid))
-        self.measure_last = bool(getattr(sensors.config, "measure_last_pose", False))
-        self.phi_meas = recorder.view("phi_meas")
+        self.phi_meas, self.flags = recorder.view("phi_meas"), recorder.view("flags")
         scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
         self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
-        self.goal_pose = tuple(float(a) for a in goal.pose)
+        self.measure = self._measure_ideal if sensors.ideal else self._measure
 
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
         """Step from ``t0`` (communication points t0 + k step, k = 0..n_steps); the status and
-        message of a jackknife or the goal, or None if the horizon ended first."""
-        apply_inputs, record, do_step = self.apply_inputs, self.record, self.slave.do_step
+        message of a jackknife or the goal, or None if the horizon ended first.
+
+        Per step: four FMI calls, one doStep, scalar Python and one copy of the row (the
+        per-step objects are bound to locals once)."""
+        events, io, n, goal = self.events, self.io, self.n, self.goal
+        read_state, write_inputs = io.read_state, io.write_inputs
+        read_outputs, read_flags = io.read_outputs, io.read_flags
+        pose, measure, command = io.pose, self.measure, self.loop.command
+        scalars, flags, commit = self.scalars, self.flags, self.recorder.commit
+        do_step = self.slave.do_step
         for k in range(n_steps + 1):
             t = t0 + k * step
-            stop = record(t, *apply_inputs(t))
-            if stop is not None:
-                return stop
+            # apply inputs: events due, states -> sensors -> tracking loop -> FMU inputs
+            if events.biases:
+                for bias in events.biases_due(t):
+                    self.sensors.set_bias(bias.joint, bias.bias)
+            read_state()
+            x0, y0, th0, x_n, y_n, th_n = pose.tolist()
+            v_cmd, w_cmd, _, ref = command(t, measure(x0, y0, th0, x_n, y_n, th_n))
+            push_x, push_y = events.push_force(t, th_n) if events.pushes else (0.0, 0.0)
+            write_inputs((v_cmd, w_cmd, push_x, push_y))
+            slide = self._slide(t) if events.slides else 0.0
+            # record: every output and the flags, read after the inputs (the wheel forces depend
+            # directly on them), the time, inputs, reference and errors; one copy of the row
+            read_outputs()
+            read_flags()
+            dx, dy = x_n - ref.x, y_n - ref.y  # the last trailer's error in the reference frame
+            c, s = math.cos(ref.theta), math.sin(ref.theta)
+            scalars[:] = (t, v_cmd, w_cmd, push_x, push_y, slide) + ref + (
+                c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
+            commit()
+            if flags[n]:
+                return self._jackknife(t)
+            if goal.check and t >= goal.t_end - 1e-12:
+                reached = self._goal_reached(t, x_n, y_n, th_n)
+                if reached is not None:
+                    return reached
             if k == n_steps:
                 return None
+            # do step
             do_step(t, step)
             if bar is not None and k % 200 == 0:
                 bar.update(200 if k else 0)
         return None
 
-    def apply_inputs(self, t: float):
-        """Events due, sensors -> tracking loop -> FMU inputs at ``t``. Returns the time and
-        the inputs (v_cmd, w_cmd, push_x, push_y, slide of trailer n), the reference sample
-        and the last trailer's true pose; the measured joint angles go into the row."""
-        events, sensors, io = self.events, self.sensors, self.io
-        if events.biases:
-            for bias in events.biases_due(t):
-                sensors.set_bias(bias.joint, bias.bias)
-        io.read_state()
-        x0, y0, th0, x_n, y_n, th_n = io.pose.tolist()
-        phi_meas = sensors.measure_joints(io.phi)  # the order of the noise draws: joints,
-        robot = sensors.measure_pose(x0, y0, th0)  # robot pose, last trailer's pose
-        last = sensors.measure_pose(x_n, y_n, th_n) if self.measure_last else None
-        self.phi_meas[...] = phi_meas
-        # Measurement(*robot, phi, last) without the NamedTuple's keyword handling
-        meas = _new_tuple(Measurement, (*robot, phi_meas.tolist(), last))
-        v_cmd, w_cmd, _, ref = self.loop.command(t, meas)
-        push_x, push_y = events.push_force(t, th_n) if events.pushes else (0.0, 0.0)
-        io.write_inputs((v_cmd, w_cmd, push_x, push_y))
-        slide = 0.0
-        if events.slides:
-            for i, speed in events.slide_changes(t):
-                io.write_slide[i]((speed,))
-            slide = events.slide_speed(self.n)
-        return (t, v_cmd, w_cmd, push_x, push_y, slide), ref, (x_n, y_n, th_n)
+    def _measure_ideal(self, x0, y0, th0, x_n, y_n, th_n) -> Measurement:
+        """The measurement of sensors without noise, play or quantization: the true robot pose
+        and the joint angles plus their biases (into the row, and as floats for the controller),
+        equal to :meth:`Sensors.measure` bit for bit."""
+        reading = self.sensors.biased(self.io.phi)
+        self.phi_meas[...] = reading
+        return _new_tuple(Measurement, (x0, y0, th0, reading.tolist(), None))
 
-    def record(self, t: float, inputs: tuple, ref, last_pose) -> tuple[str, str] | None:
-        """Read the outputs (again: the forces depend directly on the inputs just set) and the
-        flags into the row, add the time, the inputs, the reference and the tracking errors,
-        commit the row; the status and message if the run ends at ``t`` (a jackknife, or the
-        goal reached)."""
-        self.io.read_outputs()
-        flags = self.io.read_flags()
-        x_n, y_n, th_n = last_pose
-        # tracking error of the last trailer in the reference's (chain) frame
-        dx, dy = x_n - ref.x, y_n - ref.y
-        c, s = math.cos(ref.theta), math.sin(ref.theta)
-        self.scalars[:] = inputs + ref + (c * dx + s * dy, -s * dx + c * dy,
-                                         wrap_scalar(th_n - ref.theta))
-        self.recorder.commit()
-        if flags[self.n]:
-            return self._jackknife(t)
+    def _measure(self, x0, y0, th0, x_n, y_n, th_n) -> Measurement:
+        """The measurement of :class:`Sensors` (noise drawn in its order: joints, robot pose,
+        last trailer's pose); the joint readings into the row, as floats for the controller."""
+        sensors = self.sensors
+        reading = sensors.measure_joints(self.io.phi)
+        robot = sensors.measure_pose(x0, y0, th0)
+        last = sensors.measure_pose(x_n, y_n, th_n) if sensors.config.measure_last_pose else None
+        self.phi_meas[...] = reading
+        return _new_tuple(Measurement, (*robot, reading.tolist(), last))
+
+    def _slide(self, t: float) -> float:
+        """Set the slide speeds [m/s] that change at ``t``; the last trailer's."""
+        for i, speed in self.events.slide_changes(t):
+            self.io.write_slide[i]((speed,))
+        return self.events.slide_speed(self.n)
+
+    def _goal_reached(self, t: float, x_n: float, y_n: float, th_n: float):
+        """Status and message if the last trailer's pose is within the goal's tolerance."""
         goal = self.goal
-        if goal.check and t >= goal.t_end - 1e-12:
-            x_g, y_g, th_g = self.goal_pose
-            dist = math.hypot(x_n - x_g, y_n - y_g)
-            if dist <= goal.position and abs(wrap_scalar(th_n - th_g)) <= goal.heading:
-                return STATUS_GOAL, (
-                    f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
-                )
+        dist = math.hypot(x_n - goal.pose[0], y_n - goal.pose[1])
+        if dist <= goal.position and abs(wrap_scalar(th_n - goal.pose[2])) <= goal.heading:
+            return STATUS_GOAL, (
+                f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
+            )
         return None
 
     def _jackknife(self, t: float) -> tuple[str, str]:
@@ -515,7 +527,8 @@ def simulate(
             f"the FMU {Path(fmu).name} has n = {slave.n} trailers; "
             f"the controller's chain has {n}"
         )
-    recorder = _recorder(n, min(n_steps + 1, 4096))
+    # rows for the whole run up to 8 MiB (pages never written cost no memory), then doubling
+    recorder = _recorder(n, min(n_steps + 1, max(4096, (8 << 20) // (8 * len(_columns(n))))))
     show = progress if progress is not None else (sys.stderr.isatty() and n_steps > 200)
     wall_start = _time.perf_counter()
     try:

@@ -8,9 +8,9 @@ the reference sample, ...), so no caller computes offsets into a flat row. Two w
   FMU reader can write into its view directly) and :meth:`~Recorder.commit` it: one copy of one
   row per step, the master's per-step path. Values not rewritten are kept from the row before.
 
-Storage is one float array that grows by doubling and is trimmed at the end, so a horizon much
-longer than the run costs nothing (``horizon = 1e9`` s asked a preallocating recorder for
-1.46 TiB).
+Storage is one float array (one row per point, the blocks side by side) that grows by doubling
+and is trimmed at the end, so a horizon much longer than the run costs nothing
+(``horizon = 1e9`` s asked a preallocating recorder for 1.46 TiB).
 """
 
 from __future__ import annotations
@@ -55,9 +55,10 @@ class Recorder:
             unknown = [c for c in self.columns if c not in self._where]
             raise CosimInputError(f"order must list every column once: missing {sorted(missing)}, "
                                   f"unknown {unknown}, {len(self.columns)} given")
-        self._order = np.array([self._where[c] for c in self.columns], dtype=np.intp)
+        self._runs = _runs([self._where[c] for c in self.columns])
+        self._dtype = np.dtype([(name, "f8") for name in self.columns])
         self._capacity = max(1, int(capacity))
-        self._store = np.full((self._capacity, len(self._where)), np.nan)
+        self._store = np.empty((self._capacity, len(self._where)))  # rows < self.rows are set
         self.row = np.full(len(self._where), np.nan)
         """The row the next :meth:`commit` records (its blocks through :meth:`view`)."""
         self.rows = 0
@@ -85,7 +86,7 @@ class Recorder:
 
     def _grow(self) -> None:
         self._capacity *= 2
-        new = np.full((self._capacity, self._store.shape[1]), np.nan)
+        new = np.empty((self._capacity, self._store.shape[1]))
         new[: self.rows] = self._store[: self.rows]
         self._store = new
 
@@ -101,5 +102,21 @@ class Recorder:
 
     def to_array(self) -> np.ndarray:
         """The rows so far as a structured array of float64 columns in :attr:`columns` order."""
-        table = np.ascontiguousarray(self._store[: self.rows][:, self._order])
-        return table.view([(name, "f8") for name in self.columns]).reshape(self.rows)
+        rows = self.rows
+        table = np.empty((rows, self._store.shape[1]))
+        for to, start, count in self._runs:  # a few block copies, not a gather per element
+            table[:, to:to + count] = self._store[:rows, start:start + count]
+        return table.view(self._dtype).reshape(rows)
+
+
+def _runs(where: list[int]) -> list[tuple[int, int, int]]:
+    """``(first result column, first row index, count)`` of each run of result columns that sit
+    side by side in a row too (``where[j]``: row index of result column j)."""
+    runs: list[tuple[int, int, int]] = []
+    for j, k in enumerate(where):
+        if runs and runs[-1][1] + runs[-1][2] == k:
+            to, start, count = runs[-1]
+            runs[-1] = (to, start, count + 1)
+        else:
+            runs.append((j, k, 1))
+    return runs

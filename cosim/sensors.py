@@ -151,6 +151,10 @@ class Sensors:
         self._half = 0.5 * config.joint_backlash
         self._joint_noise, self._q = config.joint_noise_std, config.joint_quantization
         self._pos_noise, self._heading_noise = config.pos_noise_std, config.heading_noise_std
+        self.ideal = not (self._half or self._joint_noise or self._q or self._pos_noise
+                          or self._heading_noise or config.measure_last_pose)
+        """No noise, play, quantization or last-pose measurement: a reading is the true value
+        (plus the joint biases), see :meth:`biased`."""
         self.reset()
 
     def reset(self) -> None:
@@ -172,6 +176,11 @@ class Sensors:
             raise SensorError(f"bias of joint {joint} = {value!r} rad: must be finite")
         self._bias[int(joint) - 1] = float(value)
         logger.debug("joint %d bias set to %g rad", joint, value)
+
+    def biased(self, phi: np.ndarray) -> np.ndarray:
+        """``phi`` (n,) [rad] plus the current joint biases (a new array): the joint readings of
+        :attr:`ideal` sensors, equal to :meth:`measure_joints` for them (no checks: per step)."""
+        return phi + self._bias
 
     def measure_joints(self, phi) -> np.ndarray:
         """Measured joint angles, shape (n,) [rad] (a new array), from the true ones (advances
