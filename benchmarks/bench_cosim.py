@@ -17,10 +17,12 @@ For n = 3 and n = 50, in one process, on the same FMI 2.0 FMU:
 Each is timed ``--repeats`` times, alternating, in CPU time of this process (the machine is
 shared: wall time would count other processes' turns); the medians of microseconds per 5 ms step
 and their ratio master / raw (the number judged; target <= 1.5) are printed. The master's time
-is the whole :func:`simulate` call (set-up, loop, result table) over its steps. Also printed: the
-control law's share (the tracking loop replayed alone on the master's measurements; it must give
-the master's commands bit for bit) and what the master costs without it. ``--profile`` adds a
-cProfile of one master run per n (top functions by own time).
+is the whole :func:`simulate` call (set-up, loop, result table) over its steps; a warm-up run
+first reads and extracts the FMU in this process (as for a sweep's later runs). Also printed:
+the control law's share (the tracking loop replayed alone on the master's measurements; it must
+give the master's commands bit for bit), what the master costs without it, and the raw loop's
+getter share (the raw loop without its three gets). ``--profile`` adds a cProfile of one master
+run per n (top functions by own time).
 
 Run: python benchmarks/bench_cosim.py [--repeats 5] [--profile] [--n 3 50]
 """
