@@ -4,7 +4,9 @@ For n = 3 and n = 50, in one process, on the same FMI 2.0 FMU:
 
 (a) master
     :func:`pushtrain.cosim.master.simulate` tracking an arc backward (check_goal off, so every
-    run takes the same number of steps): events, sensors, reference, controller, recorder, FMU.
+    run takes the same number of steps): events, sensors, reference, controller, recorder, FMU;
+    with the compiled control law (``implementation="c"``, the default: the number judged) and,
+    side by side, with the Python one (``"python"``), which must give the same run bit for bit.
 (b) raw
     a loop of bare ctypes calls on the FMU's own functions with preallocated value-reference and
     value arrays, doing per step the FMI calls the master does: ``fmi2GetReal`` of the states
@@ -19,10 +21,10 @@ shared: wall time would count other processes' turns); the medians of microsecon
 and their ratio master / raw (the number judged; target <= 1.5) are printed. The master's time
 is the whole :func:`simulate` call (set-up, loop, result table) over its steps; a warm-up run
 first reads and extracts the FMU in this process (as for a sweep's later runs). Also printed:
-the control law's share (the tracking loop replayed alone on the master's measurements; it must
-give the master's commands bit for bit), what the master costs without it, and the raw loop's
-getter share (the raw loop without its three gets). ``--profile`` adds a cProfile of one master
-run per n (top functions by own time).
+the control law's share, C and Python (the tracking loop replayed alone on the master's
+measurements; it must give the master's commands bit for bit), what the master costs without
+it, and the raw loop's getter share (the raw loop without its three gets). ``--profile`` adds a
+cProfile of one master run per n (top functions by own time).
 
 Run: python benchmarks/bench_cosim.py [--repeats 5] [--profile] [--n 3 50]
 """
@@ -46,6 +48,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference, Segment
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.master import InitialState, PlantConfig, simulate
@@ -62,11 +65,12 @@ def mission(n: int):
     return ref, ControllerConfig.uniform(n)
 
 
-def run_master(fmu, n: int, horizon: float):
+def run_master(fmu, n: int, horizon: float, implementation: str = "c"):
     """(microseconds per step, Result) of one :func:`simulate` run."""
     ref, cfg = mission(n)
     start = time.process_time()
-    result = simulate(fmu, ref, cfg, horizon=horizon, check_goal=False, progress=False)
+    result = simulate(fmu, ref, cfg, horizon=horizon, check_goal=False, progress=False,
+                      implementation=implementation)
     wall = time.process_time() - start
     if not result.ok:
         raise SystemExit(f"master run n = {n} ended early: {result.status}: {result.message}")
@@ -199,13 +203,13 @@ def run_raw(fmu, n: int, result, without_gets: bool = False):
     return us, bool(np.array_equal(last, expected))
 
 
-def control_law(n: int, result) -> tuple[float, bool]:
+def control_law(n: int, result, implementation: str = "c") -> tuple[float, bool]:
     """(us per step, whether it gives the master's commands bit for bit) of the control law
     alone: the tracking loop (reference sample + controller) replayed on the master's measured
     states (perfect sensors), with the joint angles handed over as the master hands them."""
     ref, cfg = mission(n)
     data = result.data
-    ctrl = BackwardController(cfg)
+    ctrl = {"c": NativeController, "python": BackwardController}[implementation](cfg)
     step = float(data["t"][1] - data["t"][0])
     ctrl.reset(0.0, 0.0, float(data["t"][0]) - step)
     loop = TrackingLoop(ctrl, ref)
@@ -242,26 +246,43 @@ def main() -> None:
     for n in args.n:
         fmu = build_fmu(n)
         horizon = HORIZON.get(n, 20.0)
-        run_master(fmu, n, horizon)  # warm-up: imports, caches
-        masters, raws, laws, same, same_law = [], [], [], True, True
+        run_master(fmu, n, horizon)  # warm-up: imports, caches, the C library
+        run_master(fmu, n, horizon, "python")
+        impls = ("c", "python")
+        masters = {impl: [] for impl in impls}
+        laws = {impl: [] for impl in impls}
+        raws, same, same_law, same_impl = [], True, True, True
         for _ in range(args.repeats):
-            us, result = run_master(fmu, n, horizon)
-            masters.append(us)
+            results = {}
+            for impl in impls:
+                us, results[impl] = run_master(fmu, n, horizon, impl)
+                masters[impl].append(us)
+            result = results["c"]
+            same_impl = same_impl and all(
+                np.array_equal(result.data[k], results["python"].data[k], equal_nan=True)
+                for k in result.data.dtype.names)
             us_raw, equal = run_raw(fmu, n, result)
             raws.append(us_raw)
-            us_law, equal_law = control_law(n, result)
-            laws.append(us_law)
-            same, same_law = same and equal, same_law and equal_law
-        m, r, c = (statistics.median(x) for x in (masters, raws, laws))
-        print(f"n = {n:2d}, {len(result.data) - 1} steps, medians of {args.repeats}:\n"
-              f"  master {m:7.2f} us/step, raw ctypes {r:6.2f} us/step: "
-              f"RATIO master/raw = {m / r:.2f}x (target <= 1.5x; of the fastest runs "
-              f"{min(masters):.2f} / {min(raws):.2f} = {min(masters) / min(raws):.2f}x)\n"
-              f"  of the master's time, the Python control law (reference + controller, "
-              f"replayed alone) {c:.2f} us/step = {100 * c / m:.0f} %; the rest "
-              f"{m - c:.2f} us/step = {(m - c) / r:.2f}x raw\n"
+            same = same and equal
+            for impl in impls:
+                us_law, equal_law = control_law(n, results[impl], impl)
+                laws[impl].append(us_law)
+                same_law = same_law and equal_law
+        r = statistics.median(raws)
+        print(f"n = {n:2d}, {len(result.data) - 1} steps, medians of {args.repeats}:")
+        for impl in impls:
+            m, c = statistics.median(masters[impl]), statistics.median(laws[impl])
+            judged = "judged; " if impl == "c" else ""
+            print(f"  master ({impl:6s}) {m:7.2f} us/step, raw ctypes {r:6.2f} us/step: "
+                  f"RATIO master/raw = {m / r:.2f}x ({judged}target <= 1.5x; of the fastest "
+                  f"runs {min(masters[impl]):.2f} / {min(raws):.2f} = "
+                  f"{min(masters[impl]) / min(raws):.2f}x)\n"
+                  f"    control law ({impl}: reference + controller, replayed alone) {c:.2f} "
+                  f"us/step = {100 * c / m:.0f} % of it; the rest {m - c:.2f} us/step = "
+                  f"{(m - c) / r:.2f}x raw")
+        print(f"  master runs with the C and the Python control law bit-identical: {same_impl}\n"
               f"  raw loop reproduces the master's outputs bit for bit: {same}; "
-              f"replayed control law its commands: {same_law}")
+              f"replayed control laws their masters' commands: {same_law}")
         bare = statistics.median(run_raw(fmu, n, result, without_gets=True)
                                  for _ in range(args.repeats))
         print(f"  of the raw loop's time, the three FMU getters {r - bare:.2f} us/step, "

@@ -161,6 +161,8 @@ _PROTOTYPES = {
     "pt_pull_run": (c_int, [P(PtChain), P(PtReference), c_double, c_double, c_double, D_PTR,
                             D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR]),
     "pt_leader_sample": (c_int, [P(PtLeader), c_double, P(PtSample)]),
+    "pt_track": (c_int, [P(PtController), P(PtControlState), P(PtReference), P(PtLeader),
+                         c_double, P(PtMeasurement), P(PtSample), D_PTR, P(PtControlInfo)]),
 }
 
 _lock = threading.Lock()

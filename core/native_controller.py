@@ -16,18 +16,25 @@ on).
 from __future__ import annotations
 
 import ctypes
+import struct
+from functools import partial
 
 import numpy as np
 
-from pushtrain.errors import ControllerError
+from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
 from .controller import MODE_PULL, MODE_PUSH, MODE_REST, ControlInfo, ControllerConfig, Gains
+from .native_reference import NativeLeader, NativeReference
+from .reference import Reference, ReferenceSample
 from .tracking import TrackingLoop
 
 __all__ = ["NativeController", "controller_struct"]
 
 _MODES = {0: MODE_REST, 1: MODE_PUSH, 2: MODE_PULL}
+_POSE = struct.Struct("@3d")  # PtMeasurement's x0, y0, theta0 (and x_n, y_n, theta_n)
+_SAMPLE = struct.Struct("@5di")  # PtSample
+_INFO = struct.Struct("@i11d")  # PtControlInfo
 
 
 def controller_struct(config: ControllerConfig, lib=None):
@@ -178,6 +185,26 @@ class NativeController:
         return ControllerError(f"control law failed at t = {t!r} s: "
                                f"{native.STATUS.get(status, status)}")
 
+    def tracker(self, reference, guide=None, info: bool = True):
+        """The whole control instant in one C call (``pt_track``), or None if ``reference``
+        is neither a :class:`~pushtrain.core.reference.Reference` nor a
+        :class:`~pushtrain.core.native_reference.NativeReference`.
+
+        Returns a function ``(t, measurement) -> (v0, w0, info, ref)`` as
+        :meth:`TrackingLoop.command <pushtrain.core.tracking.TrackingLoop.command>` with this
+        controller, ``reference`` and ``guide`` (the
+        :class:`~pushtrain.core.pulling.PullGuide` of ``reference``, or None): the reference is
+        copied into the C phase table and the guide's runs into the C leader table, so the C
+        sampling interpolates the same numbers. With ``info`` False the function returns None
+        in place of the ``ControlInfo``.
+        """
+        if isinstance(reference, Reference):
+            reference = NativeReference.from_reference(reference)
+        elif not isinstance(reference, NativeReference):
+            return None
+        leader = None if guide is None else NativeLeader.from_guide(guide)
+        return _Tracker(self, reference, leader, info).command
+
     def command_from(self, reference, t: float, measurement):
         """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t`` (as
         :meth:`BackwardController.command_from
@@ -185,3 +212,60 @@ class NativeController:
         if self._loop is None or self._loop.reference is not reference:
             self._loop = TrackingLoop(self, reference)
         return self._loop.command(t, measurement)[:3]
+
+
+class _Tracker:
+    """One control instant of :class:`NativeController` in C: reference sample, pull leader and
+    command (``pt_track``); :meth:`command` is what :meth:`NativeController.tracker` returns."""
+
+    def __init__(self, controller: NativeController, reference: NativeReference,
+                 leader: NativeLeader | None, info: bool = True):
+        self.controller, self.reference, self.leader = controller, reference, leader
+        self.info = info
+        n = controller.n
+        self._phi = (ctypes.c_double * n)()
+        self._meas = native.PtMeasurement()
+        self._meas.phi = ctypes.cast(self._phi, native.D_PTR)
+        self._last_offset = native.PtMeasurement.x_n.offset
+        self._sample = native.PtSample()
+        self._cmd = (ctypes.c_double * 2)()
+        self._info = native.PtControlInfo()
+        ctrl, state = controller._args[:2]
+        args = (ctrl, state, ctypes.byref(reference.struct),
+                None if leader is None else ctypes.byref(leader.struct))
+        track = controller._lib.pt_track
+        self._call = partial(track, *args)
+        self._rest = (ctypes.byref(self._meas), ctypes.byref(self._sample), self._cmd,
+                      ctypes.byref(self._info))
+
+    def command(self, t: float, measurement):
+        """``(v0 [m/s], w0 [rad/s], ControlInfo, ReferenceSample)`` at ``t`` [s]."""
+        phi = measurement.phi
+        if len(phi) != len(self._phi):
+            self.controller._set_phi(phi)  # raises the controller's message
+        self._phi[:] = phi
+        meas = self._meas
+        _POSE.pack_into(meas, 0, measurement.x0, measurement.y0, measurement.theta0)
+        last = getattr(measurement, "last_pose", None)
+        if last is None:
+            meas.has_last = 0
+        else:
+            meas.has_last = 1
+            _POSE.pack_into(meas, self._last_offset, *last)
+        status = self._call(t, *self._rest)
+        ref = ReferenceSample._make(_SAMPLE.unpack_from(self._sample))
+        if status:
+            raise self._error(status, t, measurement, ref)
+        cmd = self._cmd
+        if not self.info:
+            return cmd[0], cmd[1], None, ref
+        mode, *rest = _INFO.unpack_from(self._info)
+        return cmd[0], cmd[1], ControlInfo(_MODES[mode], *rest), ref
+
+    def _error(self, status: int, t, measurement, ref):
+        if status == 8:
+            return ReferencePathError(f"t = {t!r} s is not in a pulling run of the reference")
+        if status == 9:
+            return ReferencePathError(f"sampling the reference at t = {t!r} s: "
+                                      f"{native.STATUS[status]}")
+        return self.controller._error(status, t, measurement, ref)

@@ -38,9 +38,13 @@ class TrackingLoop:
     reference : Reference, SampledReference or None
         The last trailer's reference; None (open loop) hands the controller a resting sample
         with a NaN pose.
+    info : bool
+        False lets a compiled controller skip building its ``ControlInfo`` each call (the
+        co-simulation master does not record it): :meth:`command` may then return None in its
+        place.
     """
 
-    def __init__(self, controller, reference):
+    def __init__(self, controller, reference, info: bool = True):
         self.controller = controller
         self.reference = reference
         geometry = getattr(controller, "guide_geometry", None)
@@ -49,9 +53,19 @@ class TrackingLoop:
             self.guide = PullGuide(reference, geometry)
         self.reference_at = _no_reference if reference is None else reference.sample_at
         """``reference_at(t)``: the last trailer's :class:`ReferenceSample` at ``t`` [s]."""
+        tracker = getattr(controller, "tracker", None)
+        fast = None
+        if tracker is not None and reference is not None:
+            fast = tracker(reference, self.guide, info)
+        if fast is not None:
+            self.command = fast  # the whole instant in compiled code (NativeController)
 
     def command(self, t: float, measurement):
         """The controller's command at ``t`` [s] for ``measurement``.
+
+        A controller with a ``tracker(reference, guide, info)`` method
+        (:class:`~pushtrain.core.native_controller.NativeController`) replaces this method by
+        the function it returns, which does the same in one call.
 
         Returns ``(v0, w0, info, ref)``: the robot command [m/s, rad/s], the controller's
         diagnostics and the reference sample it tracked.

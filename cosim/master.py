@@ -43,6 +43,7 @@ import numpy as np
 
 from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
 from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
+from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.files import atomic_write
@@ -66,6 +67,7 @@ __all__ = [
     "STATUS_JACKKNIFE",
     "STATUS_FMU_ERROR",
     "STATUS_TIME_LIMIT",
+    "IMPLEMENTATIONS",
 ]
 
 log = logging.getLogger(__name__)
@@ -459,6 +461,7 @@ def simulate(
     check_goal: bool = True,
     progress: bool | None = None,
     out_dir=None,
+    implementation: str = "c",
 ) -> Result:
     """Co-simulate the FMU with the backward controller tracking ``reference``.
 
@@ -469,8 +472,9 @@ def simulate(
         controller's n, or FMI 3.0 (configured for that n).
     reference : Reference or SampledReference
         The last trailer's reference.
-    controller : ControllerConfig or BackwardController
-        Gains, limits and the controller's own chain model.
+    controller : ControllerConfig, BackwardController or NativeController
+        Gains, limits and the controller's own chain model (or a controller built from them,
+        possibly wrapped: slip governor, open-loop profile).
     sensors : SensorConfig or Sensors, optional
         Measurement errors; default perfect sensors.
     events : sequence of Push, Slide, SetBias
@@ -492,6 +496,12 @@ def simulate(
         Show a progress bar; None: only when stderr is a terminal and the run is long.
     out_dir : path-like, optional
         Save the results there (also when the run ends in an error status).
+    implementation : {"c", "python"}
+        How a ``ControllerConfig`` is computed: ``"c"`` the compiled control law
+        (:class:`~pushtrain.core.native_controller.NativeController`: reference sample, pull
+        leader and command in one C call per step), ``"python"`` the readable
+        :class:`~pushtrain.core.controller.BackwardController`. A controller passed in built is
+        used as it is.
 
     Raises
     ------
@@ -503,7 +513,7 @@ def simulate(
     t0, horizon = _timing(reference, initial, step, horizon, settle_time)
     n_steps = _steps(horizon, step)
     goal = _Goal.of(reference, check_goal, goal_tolerance)
-    ctrl, sens, plant = _parts(controller, sensors, plant)
+    ctrl, sens, plant = _parts(controller, sensors, plant, implementation)
     n = ctrl.n
     schedule = EventSchedule(events, n, t0 + horizon)
     if schedule.slides and plant.slip_mode == 1:
@@ -518,7 +528,7 @@ def simulate(
     if hasattr(ctrl, "reset"):
         # rate limits start from the robot's initial velocity one step before t0
         ctrl.reset(initial.v0, initial.w0, t0 - step)
-    loop = TrackingLoop(ctrl, reference)
+    loop = TrackingLoop(ctrl, reference, info=False)  # the row records no ControlInfo
 
     slave = TrailerTrainSlave(fmu, n_trailers=n)  # FMI 3.0: configured for n; FMI 2.0: fixed
     if slave.n != n:
@@ -576,11 +586,18 @@ def _timing(reference, initial, step: float, horizon, settle_time) -> tuple[floa
     return t0, _positive("horizon", horizon)
 
 
-def _parts(controller, sensors, plant):
+IMPLEMENTATIONS = {"c": NativeController, "python": BackwardController}
+"""The controller classes :func:`simulate` builds from a ``ControllerConfig``, by name."""
+
+
+def _parts(controller, sensors, plant, implementation="c"):
     """The controller, the sensors and the plant configuration of a run, checked against each
     other's number of trailers."""
+    if implementation not in IMPLEMENTATIONS:
+        raise CosimInputError(f"implementation = {implementation!r}: allowed are "
+                              f"{', '.join(map(repr, IMPLEMENTATIONS))}")
     if isinstance(controller, ControllerConfig):
-        ctrl = BackwardController(controller)
+        ctrl = IMPLEMENTATIONS[implementation](controller)
     elif hasattr(controller, "command") and hasattr(controller, "n"):
         ctrl = controller  # BackwardController or an open-loop command profile
     else:

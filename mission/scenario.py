@@ -138,6 +138,9 @@ class ControllerSection(_Section):
     # governor_fraction of friction (computed with the controller's own model of the train)
     governor: bool = False
     governor_fraction: Annotated[float, Field(gt=0, le=1)] = 0.8
+    # the control law in the co-simulation: "c" the compiled one (core/csrc, one call per step),
+    # "python" the readable BackwardController (both give the same commands)
+    implementation: Literal["c", "python"] = "c"
 
 
 class SensorSection(_Section):

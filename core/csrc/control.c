@@ -646,3 +646,23 @@ int pt_leader_sample(const PtLeader *g, double t, PtSample *out) {
     out->direction = PT_PULL;
     return PT_OK;
 }
+
+/* ------------------------------------------------------------------ one control instant */
+
+int pt_track(const PtController *c, PtControlState *state, const PtReference *ref,
+             const PtLeader *leader, double t, const PtMeasurement *m, PtSample *sample,
+             double cmd[2], PtControlInfo *info) {
+    PtSample robot;
+    int status = pt_reference_sample(ref, t, sample);
+    if (status != PT_OK) {
+        return status;
+    }
+    if (sample->direction == PT_PULL && leader != NULL) {
+        status = pt_leader_sample(leader, t, &robot);
+        if (status != PT_OK) {
+            return status;
+        }
+        return pt_command(c, state, t, m, sample, &robot, cmd, info);
+    }
+    return pt_command(c, state, t, m, sample, NULL, cmd, info);
+}

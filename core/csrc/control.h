@@ -240,6 +240,16 @@ PT_API int pt_pull_run(const PtChain *model, const PtReference *ref, double t_a,
 /* The robot's reference at t from a leader table (PullGuide.sample_at); direction PT_PULL. */
 PT_API int pt_leader_sample(const PtLeader *leader, double t, PtSample *out);
 
+/* ---- one control instant (core/tracking.py TrackingLoop.command) ---- */
+
+/* The last trailer's reference of ref at t into *sample, the robot's reference from leader while
+ * that sample pulls (leader may be NULL: a reference that never pulls), then pt_command: one call
+ * per control instant. Returns pt_reference_sample's or pt_leader_sample's status if those
+ * fail (*sample is then set as far as it got), else pt_command's. */
+PT_API int pt_track(const PtController *c, PtControlState *state, const PtReference *ref,
+                    const PtLeader *leader, double t, const PtMeasurement *m, PtSample *sample,
+                    double cmd[2], PtControlInfo *info);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,116 @@
+"""The master with the compiled control law (``implementation = "c"``) against the Python one.
+
+The C path samples the reference, the pull leader and computes the command in one call
+(``pt_track``); it must give the master's run of the Python path, and a bad ``implementation``
+must be refused by name.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pushtrain.cli.main import cli
+from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
+from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.core.native_controller import NativeController
+from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment
+from pushtrain.core.tracking import TrackingLoop
+from pushtrain.cosim.master import CosimError, SetBias, simulate
+from pushtrain.cosim.sensors import Measurement, SensorConfig
+
+
+def _push_pull():
+    """Push a line and an arc, cusp (dwell), pull a line and an arc, cusp, push again."""
+    return Reference.from_segments((0.0, 0.0, math.pi), [
+        Segment("line", 0.4), Segment("arc", 0.5, 0.8), Segment("line", 0.4, 0.0, PULL),
+        Segment("arc", 0.4, -0.7, PULL), Segment("line", 0.3)], speed=0.08, cusp_dwell=1.0)
+
+
+def _config(geometry=None):
+    geometry = geometry or ChainGeometry.uniform(3, 0.52)
+    return ControllerConfig(geometry=geometry, k_x=1.0, k_y=4.0, k_theta=4.0, v_max=0.1,
+                            w_max=0.1, acc_max=0.2, alpha_max=math.radians(10.0))
+
+
+def _same_runs(a, b):
+    assert a.status == b.status and a.message == b.message
+    assert a.data.dtype == b.data.dtype and len(a.data) == len(b.data)
+    for name in a.data.dtype.names:
+        assert np.array_equal(a.data[name], b.data[name], equal_nan=True), name
+
+
+def test_c_and_python_master_runs_are_bit_identical_on_a_push_pull_mission(fmu3):
+    ref = _push_pull()
+    runs = {impl: simulate(fmu3, ref, _config(), implementation=impl, check_goal=False,
+                           events=[SetBias(6.0, 2, math.radians(3.0))])
+            for impl in ("c", "python")}
+    d = runs["c"].data
+    # the mission has what it is meant to test: pushing, pulling, dwells, active rate limits
+    assert {PUSH, PULL, REST} <= set(d["direction"].astype(int).tolist())
+    assert np.abs(np.diff(d["w_cmd"])).max() == pytest.approx(math.radians(10.0) * 0.005,
+                                                              rel=1e-9)
+    _same_runs(runs["c"], runs["python"])
+
+
+def test_c_and_python_agree_with_noisy_sensors_a_pose_fix_and_the_governor(fmu3):
+    ref = _push_pull()
+    sensors = SensorConfig(n_joints=3, joint_noise_std=math.radians(0.2),
+                           pos_noise_std=0.002, heading_noise_std=math.radians(0.2),
+                           measure_last_pose=True, seed=7)
+    runs = {impl: simulate(fmu3, ref, _config(), sensors, implementation=impl, horizon=30.0,
+                           check_goal=False) for impl in ("c", "python")}
+    _same_runs(runs["c"], runs["python"])
+
+    def governed(cls):
+        gov = SlipGovernor(GovernorConfig(_config().geometry, np.full(3, 42.1), np.full(3, 3.5),
+                                          np.full(3, 0.09), fraction=0.8, tau=0.05, acc_max=1.0,
+                                          alpha_max=2.0))
+        return GovernedController(cls(_config()), gov, dt=0.005)
+
+    runs = {cls: simulate(fmu3, ref, governed(cls), horizon=30.0, check_goal=False)
+            for cls in (NativeController, BackwardController)}
+    _same_runs(runs[NativeController], runs[BackwardController])
+
+
+def test_the_c_path_takes_one_call_per_instant_and_equals_the_python_loop():
+    """pt_track (reference sample + leader + command) against TrackingLoop with the Python
+    controller, on measured states around the reference, pushing, resting and pulling."""
+    geom = ChainGeometry(np.array([0.5, 0.6, 0.45]), np.array([0.3, 0.52, 0.7]))
+    ref = _push_pull()
+    c_loop = TrackingLoop(NativeController(_config(geom)), ref)
+    py_loop = TrackingLoop(BackwardController(_config(geom)), ref)
+    assert type(c_loop.command.__self__).__name__ == "_Tracker"  # the one-call path is used
+    for loop in (c_loop, py_loop):
+        loop.controller.reset(0.0, 0.0, -0.05)
+    rng = np.random.default_rng(3)
+    seen = set()
+    for t in np.arange(0.0, ref.t_end + 2.0, 0.05):
+        r = ref.sample_at(t)
+        phi = rng.normal(0.0, 0.1, 3)
+        last = (r.x + rng.normal(0, 0.02), r.y + rng.normal(0, 0.02), r.theta + 0.05)
+        meas = Measurement(r.x + 1.5 + rng.normal(0, 0.05), r.y + rng.normal(0, 0.05),
+                           r.theta + rng.normal(0, 0.1), phi.tolist(),
+                           last if rng.random() < 0.3 else None)
+        got, want = c_loop.command(t, meas), py_loop.command(t, meas)
+        seen.add(want[3].direction)
+        assert got[3] == want[3]  # the reference sample, bit for bit
+        assert got[2].mode == want[2].mode
+        np.testing.assert_allclose(got[:2], want[:2], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got[2][1:], want[2][1:], rtol=0, atol=1e-12)
+    assert seen == {PUSH, PULL, REST}
+
+
+def test_a_bad_implementation_is_refused_by_name(fmu3, tmp_path):
+    with pytest.raises(CosimError, match=r"implementation = 'fortran'.*'c', 'python'"):
+        simulate(fmu3, _push_pull(), _config(), implementation="fortran")
+    path = tmp_path / "bad.toml"
+    path.write_text('[mission]\nkind = "scripted"\n[controller]\nimplementation = "fortran"\n'
+                    '[reference]\nsegments = [{kind = "line", length = 1.0}]\n'
+                    '[start]\nx = 0.0\ny = 0.0\n')
+    result = CliRunner().invoke(cli, ["plan-and-run", str(path), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2, result.output
+    assert "controller.implementation" in result.output and "fortran" in result.output
+    assert "Traceback" not in result.output
