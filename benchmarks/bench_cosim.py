@@ -212,7 +212,7 @@ def control_law(n: int, result, implementation: str = "c") -> tuple[float, bool]
     ctrl = {"c": NativeController, "python": BackwardController}[implementation](cfg)
     step = float(data["t"][1] - data["t"][0])
     ctrl.reset(0.0, 0.0, float(data["t"][0]) - step)
-    loop = TrackingLoop(ctrl, ref)
+    loop = TrackingLoop(ctrl, ref, info=False)  # as the master: no ControlInfo
     phi = np.column_stack([data[f"phi_meas{i}"] for i in range(1, n + 1)])
     measurements = [Measurement(x0, y0, th0, angles)
                     for x0, y0, th0, angles in zip(data["x0"].tolist(), data["y0"].tolist(),

@@ -48,6 +48,7 @@ __all__ = [
     "PtReference",
     "PtSample",
     "PtSegment",
+    "PtTrack",
     "STATUS",
     "cache_dir",
     "compiler_command",
@@ -134,8 +135,15 @@ class PtLeader(ctypes.Structure):
         (name, D_PTR) for name in ("t", "x", "y", "theta", "v", "w")]
 
 
+class PtTrack(ctypes.Structure):
+    _fields_ = [("controller", POINTER(PtController)), ("state", POINTER(PtControlState)),
+                ("reference", POINTER(PtReference)), ("leader", POINTER(PtLeader)),
+                ("t", c_double), ("m", PtMeasurement), ("sample", PtSample),
+                ("cmd", c_double * 2), ("info", PtControlInfo)]
+
+
 _STRUCTS = (PtChain, PtSample, PtController, PtControlState, PtMeasurement, PtControlInfo,
-            PtSegment, PtPhase, PtReference, PtLeader)  # in pt_sizeof's order
+            PtSegment, PtPhase, PtReference, PtLeader, PtTrack)  # in pt_sizeof's order
 
 P = ctypes.POINTER
 _PROTOTYPES = {
@@ -161,8 +169,7 @@ _PROTOTYPES = {
     "pt_pull_run": (c_int, [P(PtChain), P(PtReference), c_double, c_double, c_double, D_PTR,
                             D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR]),
     "pt_leader_sample": (c_int, [P(PtLeader), c_double, P(PtSample)]),
-    "pt_track": (c_int, [P(PtController), P(PtControlState), P(PtReference), P(PtLeader),
-                         c_double, P(PtMeasurement), P(PtSample), D_PTR, P(PtControlInfo)]),
+    "pt_track": (c_int, [P(PtTrack)]),
 }
 
 _lock = threading.Lock()

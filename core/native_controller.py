@@ -32,9 +32,12 @@ from .tracking import TrackingLoop
 __all__ = ["NativeController", "controller_struct"]
 
 _MODES = {0: MODE_REST, 1: MODE_PUSH, 2: MODE_PULL}
-_POSE = struct.Struct("@3d")  # PtMeasurement's x0, y0, theta0 (and x_n, y_n, theta_n)
-_SAMPLE = struct.Struct("@5di")  # PtSample
-_INFO = struct.Struct("@i11d")  # PtControlInfo
+_POSE = struct.Struct("@3d")  # PtMeasurement's x_n, y_n, theta_n
+_TIME_POSE = struct.Struct("@4d")  # PtTrack's t, m.x0, m.y0, m.theta0
+_SAMPLE_CMD = struct.Struct("@5di4x2d")  # PtTrack's sample and cmd
+_INFO = struct.Struct("@i4x11d")  # PtControlInfo
+_HAS_LAST = struct.Struct("@i")
+_new_tuple = tuple.__new__
 
 
 def controller_struct(config: ControllerConfig, lib=None):
@@ -224,45 +227,49 @@ class _Tracker:
         self.info = info
         n = controller.n
         self._phi = (ctypes.c_double * n)()
-        self._meas = native.PtMeasurement()
-        self._meas.phi = ctypes.cast(self._phi, native.D_PTR)
-        self._last_offset = native.PtMeasurement.x_n.offset
-        self._sample = native.PtSample()
-        self._cmd = (ctypes.c_double * 2)()
-        self._info = native.PtControlInfo()
-        ctrl, state = controller._args[:2]
-        args = (ctrl, state, ctypes.byref(reference.struct),
-                None if leader is None else ctypes.byref(leader.struct))
-        track = controller._lib.pt_track
-        self._call = partial(track, *args)
-        self._rest = (ctypes.byref(self._meas), ctypes.byref(self._sample), self._cmd,
-                      ctypes.byref(self._info))
+        ctrl, state = controller._ctrl, controller._state
+        k = self._track = native.PtTrack(
+            ctypes.pointer(ctrl), ctypes.pointer(state), ctypes.pointer(reference.struct),
+            None if leader is None else ctypes.pointer(leader.struct))
+        k.m.phi = ctypes.cast(self._phi, native.D_PTR)
+        self._offsets = (native.PtTrack.t.offset, native.PtTrack.sample.offset,
+                         native.PtTrack.m.offset + native.PtMeasurement.has_last.offset,
+                         native.PtTrack.m.offset + native.PtMeasurement.x_n.offset,
+                         native.PtTrack.info.offset)
+        self._call = partial(controller._lib.pt_track, ctypes.byref(k))
+        self._has_last = False
 
     def command(self, t: float, measurement):
-        """``(v0 [m/s], w0 [rad/s], ControlInfo, ReferenceSample)`` at ``t`` [s]."""
-        phi = measurement.phi
-        if len(phi) != len(self._phi):
-            self.controller._set_phi(phi)  # raises the controller's message
-        self._phi[:] = phi
-        meas = self._meas
-        _POSE.pack_into(meas, 0, measurement.x0, measurement.y0, measurement.theta0)
+        """``(v0 [m/s], w0 [rad/s], ControlInfo or None, ReferenceSample)`` at ``t`` [s]."""
+        try:
+            self._phi[:] = measurement.phi
+        except (ValueError, TypeError):
+            self.controller._set_phi(measurement.phi)  # the controller's message on a bad length
+            raise
+        k = self._track
+        at_t, at_sample, at_has_last, at_last, at_info = self._offsets
+        _TIME_POSE.pack_into(k, at_t, t, measurement.x0, measurement.y0, measurement.theta0)
         last = getattr(measurement, "last_pose", None)
-        if last is None:
-            meas.has_last = 0
-        else:
-            meas.has_last = 1
-            _POSE.pack_into(meas, self._last_offset, *last)
-        status = self._call(t, *self._rest)
-        ref = ReferenceSample._make(_SAMPLE.unpack_from(self._sample))
+        if last is not None:
+            _HAS_LAST.pack_into(k, at_has_last, 1)
+            _POSE.pack_into(k, at_last, *last)
+        elif self._has_last:
+            _HAS_LAST.pack_into(k, at_has_last, 0)
+        self._has_last = last is not None
+        status = self._call()
+        out = _SAMPLE_CMD.unpack_from(k, at_sample)
+        ref = _new_tuple(ReferenceSample, out[:6])
         if status:
             raise self._error(status, t, measurement, ref)
-        cmd = self._cmd
         if not self.info:
-            return cmd[0], cmd[1], None, ref
-        mode, *rest = _INFO.unpack_from(self._info)
-        return cmd[0], cmd[1], ControlInfo(_MODES[mode], *rest), ref
+            return out[6], out[7], None, ref
+        mode, *rest = _INFO.unpack_from(k, at_info)
+        return out[6], out[7], ControlInfo(_MODES[mode], *rest), ref
 
     def _error(self, status: int, t, measurement, ref):
+        if status == 2:  # the controller's message reads the raw command from its own info
+            ctypes.memmove(ctypes.byref(self.controller._info), ctypes.byref(self._track.info),
+                           ctypes.sizeof(native.PtControlInfo))
         if status == 8:
             return ReferencePathError(f"t = {t!r} s is not in a pulling run of the reference")
         if status == 9:

@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from pushtrain.cli.main import cli
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.native_controller import NativeController
@@ -114,3 +114,21 @@ def test_a_bad_implementation_is_refused_by_name(fmu3, tmp_path):
     assert result.exit_code == 2, result.output
     assert "controller.implementation" in result.output and "fortran" in result.output
     assert "Traceback" not in result.output
+
+
+def test_the_c_path_refuses_what_the_python_path_refuses():
+    ref = _push_pull()
+    loop = TrackingLoop(NativeController(_config()), ref)
+    with pytest.raises(ControllerError, match="3"):
+        loop.command(1.0, Measurement(2.0, 0.0, math.pi, [0.0, 0.0]))
+    with pytest.raises(ControllerError, match="non-finite measurement"):
+        loop.command(1.0, Measurement(math.nan, 0.0, math.pi, [0.0, 0.0, 0.0]))
+    # a pulling instant without a pull guide (a controller without guide_geometry)
+    t_pull = next(t for t in np.arange(0.0, ref.t_end, 0.05)
+                  if ref.sample_at(t).direction == PULL)
+    bare = NativeController(_config())
+    command = bare.tracker(ref, None)
+    with pytest.raises(ControllerError, match="leader"):
+        command(t_pull, Measurement(2.0, 0.0, math.pi, [0.0, 0.0, 0.0]))
+    v, w, info, sample = command(0.5, Measurement(2.0, 0.0, math.pi, [0.0, 0.0, 0.0]))
+    assert sample == ref.sample_at(0.5) and info.mode == "push"

@@ -56,6 +56,7 @@ size_t pt_sizeof(int which) {
     case 7: return sizeof(PtPhase);
     case 8: return sizeof(PtReference);
     case 9: return sizeof(PtLeader);
+    case 10: return sizeof(PtTrack);
     default: return 0;
     }
 }
@@ -649,20 +650,23 @@ int pt_leader_sample(const PtLeader *g, double t, PtSample *out) {
 
 /* ------------------------------------------------------------------ one control instant */
 
-int pt_track(const PtController *c, PtControlState *state, const PtReference *ref,
-             const PtLeader *leader, double t, const PtMeasurement *m, PtSample *sample,
-             double cmd[2], PtControlInfo *info) {
+int pt_track(PtTrack *k) {
     PtSample robot;
-    int status = pt_reference_sample(ref, t, sample);
+    int status;
+    if (k == NULL) {
+        return PT_ERR_ARGUMENT;
+    }
+    status = pt_reference_sample(k->reference, k->t, &k->sample);
     if (status != PT_OK) {
         return status;
     }
-    if (sample->direction == PT_PULL && leader != NULL) {
-        status = pt_leader_sample(leader, t, &robot);
+    if (k->sample.direction == PT_PULL && k->leader != NULL) {
+        status = pt_leader_sample(k->leader, k->t, &robot);
         if (status != PT_OK) {
             return status;
         }
-        return pt_command(c, state, t, m, sample, &robot, cmd, info);
+        return pt_command(k->controller, k->state, k->t, &k->m, &k->sample, &robot, k->cmd,
+                          &k->info);
     }
-    return pt_command(c, state, t, m, sample, NULL, cmd, info);
+    return pt_command(k->controller, k->state, k->t, &k->m, &k->sample, NULL, k->cmd, &k->info);
 }

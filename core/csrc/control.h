@@ -148,7 +148,7 @@ typedef struct {
 
 /* Size in bytes of the struct number `which` (0 PtChain, 1 PtSample, 2 PtController,
  * 3 PtControlState, 4 PtMeasurement, 5 PtControlInfo, 6 PtSegment, 7 PtPhase, 8 PtReference,
- * 9 PtLeader), 0 for another number: lets a binding check its layouts. */
+ * 9 PtLeader, 10 PtTrack), 0 for another number: lets a binding check its layouts. */
 PT_API size_t pt_sizeof(int which);
 
 /* ---- kinematics (core/kinematics.py) ---- */
@@ -242,13 +242,25 @@ PT_API int pt_leader_sample(const PtLeader *leader, double t, PtSample *out);
 
 /* ---- one control instant (core/tracking.py TrackingLoop.command) ---- */
 
-/* The last trailer's reference of ref at t into *sample, the robot's reference from leader while
- * that sample pulls (leader may be NULL: a reference that never pulls), then pt_command: one call
- * per control instant. Returns pt_reference_sample's or pt_leader_sample's status if those
- * fail (*sample is then set as far as it got), else pt_command's. */
-PT_API int pt_track(const PtController *c, PtControlState *state, const PtReference *ref,
-                    const PtLeader *leader, double t, const PtMeasurement *m, PtSample *sample,
-                    double cmd[2], PtControlInfo *info);
+/* Everything one control instant reads and writes, so that a binding makes one call with one
+ * argument per instant: set t and m (t, m.x0, m.y0, m.theta0 are four consecutive doubles),
+ * call pt_track, read sample and cmd (consecutive: a sample, then the two commands). */
+typedef struct {
+    const PtController *controller;
+    PtControlState *state;
+    const PtReference *reference; /* the last trailer's reference */
+    const PtLeader *leader;       /* the robot's reference while pulling; NULL: never pulls */
+    double t;                     /* [s] */
+    PtMeasurement m;
+    PtSample sample;              /* out: the reference of the last trailer at t */
+    double cmd[2];                /* out: (v0, w0) [m/s, rad/s] */
+    PtControlInfo info;           /* out: the command's diagnostics */
+} PtTrack;
+
+/* The last trailer's reference at k->t into k->sample, the robot's reference from k->leader
+ * while that sample pulls, then pt_command into k->cmd and k->info. Returns the status of
+ * pt_reference_sample or pt_leader_sample if one fails, else pt_command's. */
+PT_API int pt_track(PtTrack *k);
 
 #ifdef __cplusplus
 }
