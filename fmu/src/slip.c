@@ -70,10 +70,16 @@
  *   Gauss-Seidel finished by an exact solve on the sticking set and this solver both return it, up
  *   to round-off. It is found by block principal pivoting over the partitions, warm-started from
  *   the last substep's impulses: in steady sliding or sticking the first partition is already the
- *   solution (one O(n) solve), a change of several wheels at once takes a few more. So each
- *   fixed-point iteration costs O(n), and so does a substep.
+ *   solution (one O(n) solve; over 99 % of the LCPs in bench_slip.py), a change of several wheels
+ *   at once takes a few more (2 to 8 from cold starts on random chains up to n = 50; rarely
+ *   10-30 at n = 50 when the safeguard's single switches take over). So each fixed-point
+ *   iteration costs O(n), and so does a substep; the onset forces use the same solver with M and
+ *   J at the same headings.
+ * Every wheel sliding is the cheapest partition (no sticking row): one backward and one forward
+ * sweep with the factor of M. The end normals n*_k come from the start ones by the angle addition
+ * (dt wt_k is small), not from a sine and cosine per iteration.
  * The dense solver (O(n^3) per substep) stays in this file under PT_SLIP_DENSE_REFERENCE, as the
- * independent reference the tests compare against (tests/test_fmu_slip.py builds it).
+ * independent reference the tests compare against (tests/test_fmu_slip_reference.py builds it).
  */
 #include <math.h>
 #include <string.h>
@@ -559,10 +565,11 @@ static void chain_end_normals(Chain *ch, const double *th, const double *th_end)
     for (k = 0; k < ch->n; k++) {
         const double d = th_end[k] - th[k], d2 = d * d;
         if (fabs(d) < 1e-2) { /* Taylor series; the first omitted terms are below 1e-26 */
-            const double sin_d = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0
-                                                                                  + d2 / 362880.0)));
-            const double cos_d = 1.0 + d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0
-                                                                          + d2 / 40320.0)));
+            const double sin_d =
+                d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0
+                                                                    + d2 * (1.0 / 362880.0))));
+            const double cos_d =
+                1.0 + d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40320.0))));
             ch->sx[k] = ch->nx[k] * cos_d - ch->ny[k] * sin_d; /* -sin(th + d) */
             ch->sy[k] = ch->ny[k] * cos_d + ch->nx[k] * sin_d; /* cos(th + d) */
         } else {
@@ -613,9 +620,11 @@ static void chain_mass_solve(const Chain *ch, const double *f, double *z) {
     }
 }
 
-/* out = J z (lateral wheel speeds of the yaw rates z): a forward sweep. */
-static void chain_wheel_speeds(const Chain *ch, const double *z, double *out) {
-    double hx = 0.0, hy = 0.0;
+/* out = V_h.n*_k + J z (lateral wheel speeds with the yaw rates z and the robot's hitch moving
+   at vh; vh = 0 for J z alone): a forward sweep. */
+static void chain_wheel_speeds(const Chain *ch, const double *z, const double *vh,
+                               double *out) {
+    double hx = vh[0], hy = vh[1];
     int k;
     for (k = 0; k < ch->n; k++) {
         out[k] = ch->sx[k] * hx + ch->sy[k] * hy - ch->front[k] * z[k];
@@ -635,6 +644,35 @@ static void chain_wheel_forces(const Chain *ch, const double *lam, const signed 
         f[k] = -(ch->front[k] * l + ch->link[k] * (ch->sx[k] * tx + ch->sy[k] * ty));
         tx += l * ch->sx[k];
         ty += l * ch->sy[k];
+    }
+}
+
+/* The partition in which every wheel slides: z = M^-1 J^T lam and u = u_free + J z, with the
+   sweeps of chain_wheel_forces and chain_mass_solve fused into one backward sweep and those of
+   chain_mass_solve and chain_wheel_speeds into one forward sweep. */
+static void slide_solve(const Chain *ch, const double *lam, const double *u_free, double *z,
+                        double *u) {
+    double gamma[MAX_TRAILERS], tx = 0.0, ty = 0.0, px = 0.0, py = 0.0;
+    double hx = 0.0, hy = 0.0, sx = 0.0, sy = 0.0;
+    int k;
+    for (k = ch->n - 1; k >= 0; k--) {
+        const double l = lam[k];
+        const double g = -(ch->front[k] * l + ch->link[k] * (ch->sx[k] * tx + ch->sy[k] * ty))
+                         + px * ch->dnx[k] + py * ch->dny[k];
+        tx += l * ch->sx[k];
+        ty += l * ch->sy[k];
+        gamma[k] = g * ch->inv_alpha[k];
+        px -= ch->bx[k] * g;
+        py -= ch->by[k] * g;
+    }
+    for (k = 0; k < ch->n; k++) { /* h through the normals of M, (sx, sy) through those of J */
+        const double zk = ch->bx[k] * hx + ch->by[k] * hy + gamma[k], dz = ch->link[k] * zk;
+        z[k] = zk;
+        u[k] = u_free[k] + ch->sx[k] * sx + ch->sy[k] * sy - ch->front[k] * zk;
+        hx -= ch->dnx[k] * zk;
+        hy -= ch->dny[k] * zk;
+        sx -= dz * ch->sx[k];
+        sy -= dz * ch->sy[k];
     }
 }
 
@@ -658,13 +696,11 @@ static void partition_solve(const Chain *ch, const signed char *state, const dou
     for (k = 0; k < n; k++) {
         sticking += (state[k] == 0);
     }
-    chain_wheel_forces(ch, lam, state, f);
     if (sticking == 0) { /* every wheel slides: z = M^-1 J^T lam with the factor of M */
-        chain_mass_solve(ch, f, z);
-        chain_wheel_speeds(ch, z, u);
-        for (k = 0; k < n; k++) u[k] += u_free[k];
+        slide_solve(ch, lam, u_free, z, u);
         return;
     }
+    chain_wheel_forces(ch, lam, state, f);
     for (k = n - 1; k >= 0; k--) { /* backward: P_k, p_k from P_{k+1}, p_{k+1} */
         const double nx = ch->nx[k], ny = ch->ny[k], sx = ch->sx[k], sy = ch->sy[k];
         const double dk = ch->link[k], mk = ch->mass[k], mf = mk * ch->front[k];
@@ -762,8 +798,9 @@ static void partition_solve(const Chain *ch, const signed char *state, const dou
    warm start): every wheel whose partition is infeasible switches (a sticking impulse past its
    bound slides at that bound; a sliding wheel whose speed turned along its friction sticks);
    after PIVOT_BUDGET switches that did not lower the number of infeasible wheels, only the
-   lowest-numbered one switches (Murty's rule, as in Judice & Pires' safeguard). Returns lam, z =
-   M^-1 J^T lam and u; the return value is the number of partitions tried. */
+   lowest-numbered one switches (Murty's rule, as in Judice & Pires' safeguard). Sets lam,
+   z = M^-1 J^T lam and u; returns the number of partitions tried (PIVOT_ITERATIONS(n) + 1 if
+   none was feasible). */
 static int friction_impulses(const Chain *ch, const double *u_free, const double *lim,
                              double *lam, double *z, double *u) {
     const int n = ch->n;
@@ -814,6 +851,10 @@ static int friction_impulses(const Chain *ch, const double *u_free, const double
     }
     for (k = 0; k < n; k++) { /* within IMPULSE_TOLERANCE of the bound: on it */
         lam[k] = pt_clamp(lam[k], -lim[k], lim[k]);
+    }
+    if (it > PIVOT_ITERATIONS(n)) { /* no partition satisfied every wheel (never seen): the
+                                       velocities follow the impulses, which stay in friction */
+        slide_solve(ch, lam, u_free, z, u);
     }
     return it;
 }
@@ -891,8 +932,7 @@ static void dynamic_step(ModelData *m, double dt) {
     for (it = 0; it < CONFIG_ITERATIONS; it++) {
         double change = 0.0;
         chain_end_normals(&ch, th, th_end);
-        chain_wheel_speeds(&ch, w_free, u_free);
-        for (i = 0; i < n; i++) u_free[i] += vh[0] * ch.sx[i] + vh[1] * ch.sy[i];
+        chain_wheel_speeds(&ch, w_free, vh, u_free);
         friction_impulses(&ch, u_free, lim, lam, z, u);
         for (k = 0; k < n; k++) {
             double th_k;
@@ -986,12 +1026,13 @@ void slip_onset_outputs(ModelData *m) {
     const int n = m->n;
     Chain ch;
     double c[MAX_BODIES], s[MAX_BODIES], v[MAX_BODIES], wt[MAX_BODIES], alpha[MAX_BODIES];
-    double f[MAX_BODIES], g[MAX_TRAILERS], jg[MAX_TRAILERS], lam[MAX_TRAILERS], z[MAX_TRAILERS];
+    double f[MAX_BODIES], g[MAX_TRAILERS], lam[MAX_TRAILERS], z[MAX_TRAILERS];
     double u[MAX_TRAILERS], th[MAX_TRAILERS];
     /* index 1..n (0..n-1) used; zeroed because gcc cannot see that the loops fill them */
-    double ct[MAX_BODIES] = {0.0}, st[MAX_BODIES] = {0.0};
+    double ct[MAX_BODIES] = {0.0}, st[MAX_BODIES] = {0.0}, jg[MAX_TRAILERS] = {0.0};
     double r[MAX_TRAILERS] = {0.0}, lim[MAX_TRAILERS] = {0.0};
     double vh[2], ah[2], sum_x = 0.0, sum_y = 0.0, sum2_x = 0.0, sum2_y = 0.0;
+    const double no_motion[2] = {0.0, 0.0}; /* J g alone */
     const double *q = m->q;
     int i, k;
     chain_velocities(m, q, c, s, v, wt); /* rolling: the kinematic yaw rates, u = 0 */
@@ -1007,8 +1048,9 @@ void slip_onset_outputs(ModelData *m) {
     chain_factor(&ch);
     generalized_forces(m, &ch, ct, st, wt, ah, g);
     chain_mass_solve(&ch, g, g); /* g <- M^-1 g */
-    chain_wheel_speeds(&ch, g, jg);
-    /* r = J M^-1 g + c, c_i = a_h.n_i - wt_i V_h.e_i + n_i . sum_{k < i} D_k (wt_k - wt_i) wt_k e_k */
+    chain_wheel_speeds(&ch, g, no_motion, jg);
+    /* r = J M^-1 g + c,
+       c_i = a_h.n_i - wt_i V_h.e_i + n_i . sum_{k < i} D_k (wt_k - wt_i) wt_k e_k */
     for (i = 1; i <= n; i++) {
         const double nx = -st[i], ny = ct[i];
         r[i - 1] = ah[1] * ct[i] - ah[0] * st[i] - wt[i] * (vh[0] * ct[i] + vh[1] * st[i])
