@@ -10,7 +10,8 @@ fmi2DoStep, fmi2GetBoolean of the slipping flags), from rest:
 - mode 1 sliding: the robot whips its yaw rate +-2 rad/s at 1 Hz on mu = 0.0005: every wheel
   slides (the fraction of steps with every wheel sliding is printed).
 The cost is the thread's CPU time per step (on a shared machine other processes stretch the
-wall-clock time, not the CPU time).
+wall-clock time, not the CPU time), loop included; the loop alone (the same calls with the
+doStep left out and no values moved) is printed for n = 50.
 
 Targets (issue 14): slip_mode 1 with every wheel sliding <= 100 us per step at n = 50, and linear
 in n from 10 to 50: the script prints cost(50) / cost(10) against 5 (linear) and 125 (cubic).
@@ -30,6 +31,7 @@ import time
 from pathlib import Path
 
 import fmpy
+import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
@@ -64,9 +66,11 @@ def dense_reference(unzipdir: Path, target: Path) -> Path:
     return target
 
 
-def cost(unzipdir: Path, md, n: int, scenario: str, steps: int) -> tuple[float, float, float]:
+def cost(unzipdir: Path, md, n: int, scenario: str, steps: int,
+         bare: bool = False) -> tuple[float, float, float]:
     """(CPU us per step, fraction of wheel-steps sliding, fraction of steps with every wheel
-    sliding)."""
+    sliding). The loop makes only the three ctypes calls and a memmove of the flags; with
+    ``bare`` the three calls move no values and there is no step (the loop's own cost)."""
     mode, params, command = SCENARIOS[scenario]
     vr = {v.name: v.valueReference for v in md.modelVariables}
     s = FMU2Slave(guid=md.guid, unzipDirectory=str(unzipdir), modelIdentifier="TrailerTrain",
@@ -79,26 +83,34 @@ def cost(unzipdir: Path, md, n: int, scenario: str, steps: int) -> tuple[float, 
     if values:
         s.setReal([vr[name] for name in values], list(values.values()))
     s.exitInitializationMode()
-    dll, component = s.dll, s.component
+    component = s.component
+    set_real, do_step, get_boolean = s.dll.fmi2SetReal, s.dll.fmi2DoStep, s.dll.fmi2GetBoolean
+    get_real = s.dll.fmi2GetReal
     command_refs = (ctypes.c_uint * 2)(vr["v_cmd"], vr["w_cmd"])
-    command_values = (ctypes.c_double * 2)()
+    commands = [(ctypes.c_double * 2)(*command(k)) for k in range(steps)]
+    times = [ctypes.c_double(k * H) for k in range(steps)]
+    h = ctypes.c_double(H)
     flag_refs = (ctypes.c_uint * n)(*(vr[f"slipping[{i}]"] for i in range(1, n + 1)))
     flags = (ctypes.c_int * n)()
-    sliding = every = 0
+    record = np.zeros((steps, n), dtype=np.int32)
+    base, row = record.ctypes.data, 4 * n
+    nothing = (ctypes.c_double * 1)()
     start = time.thread_time()
     for k in range(steps):
-        command_values[0], command_values[1] = command(k)
-        dll.fmi2SetReal(component, command_refs, 2, command_values)
-        if dll.fmi2DoStep(component, ctypes.c_double(k * H), ctypes.c_double(H), 1) != 0:
-            raise RuntimeError(f"{scenario}, n = {n}: fmi2DoStep failed at step {k}")
-        dll.fmi2GetBoolean(component, flag_refs, n, flags)
-        count = sum(flags)
-        sliding += count
-        every += count == n
+        if bare:  # three calls that do nothing, then the same memmove
+            set_real(component, command_refs, 0, commands[k])
+            get_real(component, command_refs, 0, nothing)
+            get_boolean(component, flag_refs, 0, flags)
+        else:
+            set_real(component, command_refs, 2, commands[k])
+            if do_step(component, times[k], h, 1) != 0:
+                raise RuntimeError(f"{scenario}, n = {n}: fmi2DoStep failed at step {k}")
+            get_boolean(component, flag_refs, n, flags)
+        ctypes.memmove(base + k * row, flags, row)
     per_step = (time.thread_time() - start) / steps * 1e6
     s.terminate()
     s.freeInstance()
-    return per_step, sliding / (steps * n), every / steps
+    return per_step, float(record.mean()), float(np.mean(record.all(axis=1)))
 
 
 def main() -> None:
@@ -119,6 +131,7 @@ def main() -> None:
             md = read_model_description(str(fmu))
             unzipdir = Path(extract(str(fmu), unzipdir=str(work / f"n{n}")))
             row = {name: cost(unzipdir, md, n, name, args.steps) for name in SCENARIOS}
+            row["loop"] = cost(unzipdir, md, n, "sliding", args.steps, bare=True)
             results[n] = row
             m0 = row["mode 0"][0]
             print(f"{n:>3} {m0:>8.2f} {row['rolling'][0]:>8.2f} {row['mixed'][0]:>8.2f} "
@@ -139,12 +152,18 @@ def main() -> None:
         shutil.rmtree(work, ignore_errors=True)
     sliding = {n: results[n]["sliding"][0] for n in SIZES}
     mixed = {n: results[n]["mixed"][0] for n in SIZES}
-    print(f"\nevery wheel sliding at n = 50: {sliding[50]:.1f} us per step (target <= 100 us)")
+    loop = results[50]["loop"][0]
+    print(f"\nevery wheel sliding at n = 50: {sliding[50]:.1f} us per step (target <= 100 us), of "
+          f"which the Python loop and its three ctypes calls {loop:.1f} us")
     print(f"linearity, sliding: cost(50) / cost(10) = {sliding[50] / sliding[10]:.2f} "
           f"(linear 5, cubic 125); per trailer "
           + ", ".join(f"n = {n}: {sliding[n] / n:.2f} us" for n in SIZES))
     print(f"linearity, mixed:   cost(50) / cost(10) = {mixed[50] / mixed[10]:.2f} "
           f"(linear 5, cubic 125)")
+    for name, costs in (("sliding", sliding), ("mixed", mixed)):
+        low, high = (costs[30] - costs[10]) / 20, (costs[50] - costs[30]) / 20
+        print(f"added cost per trailer, {name}: n = 10..30 {low:.2f} us, n = 30..50 {high:.2f} us "
+              f"(equal if linear; the second 2x the first if quadratic)")
 
 
 if __name__ == "__main__":

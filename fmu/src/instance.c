@@ -263,7 +263,9 @@ DEFINE_GET(instance_get_uint64, uint64_t, model_get_uint64)
         if (nvr > 0 && (vr == NULL || values == NULL)) {                                        \
             return instance_fail(inst, function, "vr or values is NULL");                       \
         }                                                                                       \
-        inst->data.outputs_valid = false; /* every set may change the outputs */              \
+        if (nvr > 0) {                                                                          \
+            inst->data.outputs_valid = false; /* every set may change the outputs */            \
+        }                                                                                       \
         for (k = 0; k < nvr; k++) {                                                             \
             if (!MODEL_SET(&inst->data, vr[k], values, n_values, &index, phase, msg,            \
                            sizeof(msg))) {                                                      \
