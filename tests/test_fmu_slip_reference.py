@@ -23,13 +23,23 @@ KINEMATIC = ("x", "y", "theta", "phi", "v", "w", "slide_speed")
 FORCES = ("F_lat", "hitch_fx", "hitch_fy")
 
 
+def _uneven(n):
+    """Links, masses, inertias and payloads that differ from trailer to trailer (a solver that
+    confused F_k, R_k or F_k + R_k, or two trailers' masses, would show)."""
+    return {**{f"front[{i}]": 0.4 + 0.07 * (i % 4) for i in range(1, n + 1)},
+            **{f"rear[{i}]": 0.65 - 0.05 * (i % 3) for i in range(n)},
+            **{f"mass[{i}]": 30.0 + 7.0 * (i % 5) for i in range(1, n + 1)},
+            **{f"inertia[{i}]": 2.0 + 0.6 * (i % 4) for i in range(1, n + 1)},
+            **{f"payload[{i}]": 15.0 * (i % 2) for i in range(1, n + 1)}}
+
+
 def _scenario(name, n):
-    """(parameters, inputs(k) -> dict of the inputs at step k, steps) of a scenario."""
+    """(parameters, inputs(k) -> dict of the inputs at step k) of a scenario."""
     if name == "mixed":  # a gentle swing on low friction: part of the wheels slide, part stick
-        params = {f"mu[{i}]": 0.002 for i in range(1, n + 1)}
+        params = {**_uneven(n), **{f"mu[{i}]": 0.002 for i in range(1, n + 1)}}
         return params, lambda k: {"v_cmd": -0.05, "w_cmd": 0.3 if (k // 100) % 2 == 0 else -0.3}
     if name == "pushed":  # the tail is pushed sideways while the robot reverses and turns
-        params = {"mu[1]": 0.5, "v_start": -0.1, "w_start": 0.1,
+        params = {**_uneven(n), "mu[1]": 0.5, "v_start": -0.1, "w_start": 0.1,
                   **{f"mu[{i}]": 0.05 + 0.05 * (i % 3) for i in range(2, n + 1)}}
         return params, lambda k: {"v_cmd": -0.1, "w_cmd": 0.1,
                                   "push_y": 60.0 if 40 <= k < 160 else 0.0}
@@ -142,8 +152,11 @@ def test_linear_solver_follows_the_dense_solver(built_fmu_unzipped, reference_un
         assert np.any(sliding.any(axis=1) & ~sliding.all(axis=1))  # sticking and sliding at once
 
     np.testing.assert_array_equal(fast["slipping"], dense["slipping"])
-    for block in KINEMATIC:  # the state: round-off of the two solves (seen: 1e-14)
-        np.testing.assert_allclose(fast[block], dense[block], rtol=0, atol=1e-11, err_msg=block)
+    for block in KINEMATIC:  # the state: round-off of the two solves, which a wildly spinning
+        # tail (pushed, n = 30: 23 rad/s) amplifies over the run (seen: 2e-13 of the scale)
+        scale = max(1.0, np.max(np.abs(dense[block])))
+        np.testing.assert_allclose(fast[block], dense[block], rtol=0, atol=1e-11 * scale,
+                                   err_msg=block)
     # Forces are impulses / dt (x 2000 for 0.5 ms substeps), and the dense solver stops its
     # Gauss-Seidel iteration at a relative change of 1e-10 where its exact sticking-set solve is
     # not taken: 1e-8 of the block's largest force (seen: at most 3e-10).
