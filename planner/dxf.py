@@ -14,7 +14,7 @@ CAD programs):
   reference's layer, as CAD programs draw it.
 - Everything else (text, dimensions, hatches, points, images) is ignored.
 
-Curves are flattened to within 5 mm. **Units**: the drawing's ``$INSUNITS`` header is honoured
+Curves are flattened to within 2 mm (chords inside an arc). **Units**: the drawing's ``$INSUNITS`` header is honoured
 (inches, feet, millimetres, centimetres, metres, ...); a drawing without units (``$INSUNITS`` 0
 or missing) is read as metres unless ``units`` says otherwise. Coordinates are taken as they are
 (no ``$INSBASE`` shift), so the scenario's poses are in the drawing's own coordinates, in metres.
@@ -42,7 +42,7 @@ UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.304
 DEFAULT_LINE_THICKNESS = 0.05
 """Thickness [m] given to an open line or curve (a wall drawn as a line has no area)."""
 
-_FLATTEN = 0.005
+_FLATTEN = 0.002
 """Largest deviation [m] of a flattened curve from the drawn one."""
 
 _CLOSED_TYPES = {"SOLID", "TRACE", "3DFACE", "CIRCLE"}

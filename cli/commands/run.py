@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from ..common import BadInput, _scenario, out_dir_option, scenario_argument
+from ..common import BadInput, _scenario, check_map, out_dir_option, scenario_argument
 from ..rundir import run_folder
 from ..runs import run_and_report, write_path, write_scenario
 
@@ -42,6 +42,7 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif):
     and plots.
     """
     sc = _scenario(scenario)
+    check_map(sc)
     path = None
     if path_file:
         path = _load_path(path_file)
