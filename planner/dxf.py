@@ -14,10 +14,11 @@ CAD programs):
   reference's layer, as CAD programs draw it.
 - Everything else (text, dimensions, hatches, points, images) is ignored.
 
-Curves are flattened to within 2 mm (chords inside an arc). **Units**: the drawing's ``$INSUNITS`` header is honoured
-(inches, feet, millimetres, centimetres, metres, ...); a drawing without units (``$INSUNITS`` 0
-or missing) is read as metres unless ``units`` says otherwise. Coordinates are taken as they are
-(no ``$INSBASE`` shift), so the scenario's poses are in the drawing's own coordinates, in metres.
+Curves are flattened to within 2 mm (chords inside an arc). **Units**: the drawing's
+``$INSUNITS`` header is honoured (inches, feet, millimetres, centimetres, metres, ...); a drawing
+without units (``$INSUNITS`` 0 or missing) is read as metres unless ``units`` says otherwise.
+Coordinates are taken as they are (no ``$INSBASE`` shift), so the scenario's poses are in the
+drawing's own coordinates, in metres.
 """
 
 from __future__ import annotations

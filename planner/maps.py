@@ -157,16 +157,27 @@ class MapImage:
         out = np.where(known, 0.96 - 0.71 * np.clip(v, 0, 100) / 100.0, 0.72)
         return np.where(self.free, 0.96, np.where(known & (v <= 0), 0.72, out))
 
-    def plot(self, ax, zorder: float = 0.0):
-        """Draw the image on ``ax`` in world coordinates (origin, resolution and yaw applied)."""
+    def plot(self, ax, zorder: float = 0.0, max_pixels: int = 1600):
+        """Draw the image on ``ax`` in world coordinates (origin, resolution and yaw applied).
+
+        An image wider or taller than ``max_pixels`` is drawn reduced by a whole factor, each
+        drawn pixel the darkest of those it stands for (a wall one pixel thin stays visible,
+        and every frame of an animation does not resample millions of pixels)."""
         from matplotlib.transforms import Affine2D
 
         height, width = self.shape
         h = self.resolution
         ox, oy, yaw = self.origin
-        image = ax.imshow(self.shade(), cmap="gray", vmin=0.0, vmax=1.0, origin="upper",
-                          extent=(0.0, width * h, 0.0, height * h), interpolation="antialiased",
-                          zorder=zorder)
+        shade = self.shade()
+        k = max(1, math.ceil(max(height, width) / max_pixels))
+        if k > 1:
+            padded = np.pad(shade, ((0, -height % k), (0, -width % k)), mode="edge")
+            shade = padded.reshape(padded.shape[0] // k, k, padded.shape[1] // k, k).min(
+                axis=(1, 3))
+        rows, cols = shade.shape
+        image = ax.imshow(shade, cmap="gray", vmin=0.0, vmax=1.0, origin="upper",
+                          extent=(0.0, cols * k * h, (height - rows * k) * h, height * h),
+                          interpolation="antialiased", zorder=zorder)
         image.set_transform(Affine2D().rotate(yaw).translate(ox, oy) + ax.transData)
         return image
 
@@ -312,7 +323,6 @@ class OccupancyGrid:
             return self
         blocked = np.array(self.blocked)
         h = self.resolution
-        ny, nx = blocked.shape
         for poly in obstacles:
             grown = poly.buffer(0.5 * h)
             window = self._window(grown.bounds)

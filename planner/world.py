@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -175,23 +176,31 @@ class World:
         return float(self.free.area)
 
     def eroded(self, margin: float):
-        """Free space shrunk by ``margin`` [m] (prepared, cached per margin): a body inside it
-        keeps that clearance. With an occupancy grid: where its distance field is at least
-        ``margin``, traced (:func:`pushtrain.planner.raster.clear_region`; exact to the grid's
-        resolution, like the field), within the free space."""
-        key = ("eroded", float(margin))
-        geom = self._fields.get(key)
-        if geom is None:
-            if margin <= 0.0:
-                geom = self.free
-            elif self.occupancy is not None:
-                from .raster import clear_region
+        """Free space shrunk by ``margin`` [m] (prepared): a body inside it keeps that clearance.
+        With an occupancy grid: where its distance field is at least ``margin``, traced
+        (:func:`pushtrain.planner.raster.clear_region`; exact to the grid's resolution, like the
+        field), within the free space.
 
-                geom = clear_region(self.distance_field(), margin).intersection(self.free)
-            else:
-                geom = self.free.buffer(-float(margin), quad_segs=16)
+        Computed once per margin; each thread gets its own prepared copy (GEOS builds a prepared
+        geometry's index lazily, so one must not be shared between threads)."""
+        margin = float(margin)
+        if margin <= 0.0:
+            return self.free
+        own = ("eroded", margin, threading.get_ident())
+        geom = self._fields.get(own)
+        if geom is None:
+            shared = self._fields.get(("eroded", margin))
+            if shared is None:
+                if self.occupancy is not None:
+                    from .raster import clear_region
+
+                    shared = clear_region(self.distance_field(), margin).intersection(self.free)
+                else:
+                    shared = self.free.buffer(-margin, quad_segs=16)
+                self._fields[("eroded", margin)] = shared
+            geom = shapely.from_wkb(shapely.to_wkb(shared))
             shapely.prepare(geom)
-            self._fields[key] = geom
+            self._fields[own] = geom
         return geom
 
     def with_obstacles(self, extra: Sequence[Polygon]) -> "World":

@@ -94,7 +94,7 @@ def asymmetric_image():
 def test_origin_resolution_and_row_0_is_the_top(tmp_path):
     h, ox, oy = 0.5, 10.0, -2.0
     grid = load_map(write_map(tmp_path, asymmetric_image(), resolution=h, origin=[ox, oy, 0.0]))
-    # pixel (row r, column c) of a 4-row image has its centre at (ox + (c + .5) h, oy + (4 - r - .5) h)
+    # pixel (row r, column c) of a 4-row image: centre (ox + (c + .5) h, oy + (4 - r - .5) h)
     def centre(r, c):
         return ox + (c + 0.5) * h, oy + (4 - r - 0.5) * h
 
