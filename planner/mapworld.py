@@ -27,6 +27,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from shapely.geometry import Polygon, box
+from shapely.ops import unary_union
 
 from pushtrain.errors import MapError
 
@@ -39,15 +40,17 @@ def grid_world(grid: OccupancyGrid, obstacles=(), keep_in: Polygon | None = None
     """A :class:`~pushtrain.planner.world.World` of ``grid`` with ``obstacles`` (polygons [m])
     and, if given, ``keep_in`` (an outline [m]) burned in: ``occupancy`` is the burned grid, the
     outline the map's footprint (cut to ``keep_in``), the obstacles the traced blocked cells of
-    the map plus ``obstacles`` themselves."""
+    the map (one MultiPolygon) and ``obstacles`` themselves, exactly."""
     from .world import World
 
     obstacles = tuple(obstacles)
     traced = blocked_polygons(grid)
     burned = grid.burn(obstacles, keep_in)
     outline = burned.footprint()
-    parts = tuple(getattr(traced, "geoms", [traced]))
-    return World(outline, parts + obstacles, occupancy=burned)
+    free = outline.difference(traced)  # the traced pieces are disjoint: no union needed
+    if obstacles:
+        free = free.difference(unary_union(list(obstacles)))
+    return World(outline, (traced, *obstacles), occupancy=burned, free=free)
 
 
 def _prefixed(exc: MapError, field: str, own: tuple = ()) -> MapError:

@@ -81,14 +81,18 @@ class World:
     """Optional raster source of the map (an occupancy grid with ``blocked`` (ny, nx) bool,
     ``x0``, ``y0`` (centre of cell (0, 0), m) and ``resolution`` (m), axis-aligned): when set,
     :meth:`distance_field` comes from it instead of rasterizing the polygons."""
-    free: Any = field(init=False, repr=False)
+    free: Any = field(default=None, repr=False)
+    """The free space: ``outline`` minus ``obstacles``, computed unless given (a caller that has
+    it cheaper, e.g. a traced occupancy grid whose thousands of disjoint pieces need no union)."""
     _fields: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self):
-        free = self.outline
-        if self.obstacles:
-            free = free.difference(unary_union(list(self.obstacles)))
-        object.__setattr__(self, "free", free)
+        free = self.free
+        if free is None:
+            free = self.outline
+            if self.obstacles:
+                free = free.difference(unary_union(list(self.obstacles)))
+            object.__setattr__(self, "free", free)
         shapely.prepare(free)
 
     def distance_field(self, resolution: float | None = None) -> DistanceField:
@@ -208,8 +212,11 @@ class World:
         polygons in (:meth:`pushtrain.planner.maps.OccupancyGrid.burn`) gets them burned in;
         any other is dropped, and the copy's distance field comes from its polygons."""
         grid = self.occupancy
-        grid = grid.burn(tuple(extra)) if grid is not None and hasattr(grid, "burn") else None
-        return World(self.outline, tuple(self.obstacles) + tuple(extra), occupancy=grid)
+        if grid is None or not hasattr(grid, "burn"):
+            return World(self.outline, tuple(self.obstacles) + tuple(extra))
+        free = self.free.difference(unary_union(list(extra))) if extra else self.free
+        return World(self.outline, tuple(self.obstacles) + tuple(extra),
+                     occupancy=grid.burn(tuple(extra)), free=free)
 
     def contains_point(self, x: float, y: float) -> bool:
         """Whether (x, y) [m] lies in the free space."""
