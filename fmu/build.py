@@ -46,6 +46,7 @@ __all__ = [
     "MODEL_IDENTIFIER",
     "build_fmu",
     "cache_dir",
+    "package_fmu",
     "render_model_description",
     "render_model_description3",
     "render_variables_header",
@@ -144,25 +145,35 @@ def _compile(unzipdir: Path, build_dir: Path, strict: bool) -> None:
 
 
 def _build_into(fmi_version: int, n: int | None, target: Path, strict: bool, guid: str) -> None:
+    src = _source_dir()
+    files = {f"sources/{name}": (src / name).read_bytes()
+             for name in source_files(fmi_version) + HEADER_FILES}
+    files.update(_generated_files(fmi_version, n, guid))
+    package_fmu(files, MODEL_IDENTIFIER, fmi_version, target, strict)
+
+
+def package_fmu(files: dict[str, bytes], identifier: str, fmi_version: int, target: Path,
+                strict: bool = False) -> None:
+    """Compile an FMU from ``files`` (its archive paths: ``modelDescription.xml``, whose source
+    file list fmpy's CMake project reads, and ``sources/...``) and zip it, with the binary, into
+    ``target`` (written atomically). Any model: the plant and the controller FMU use it."""
     import fmpy
 
     with tempfile.TemporaryDirectory(prefix="pushtrain-fmu-") as tmp:
         unzipdir = Path(tmp) / "fmu"
-        sources = unzipdir / "sources"
-        sources.mkdir(parents=True)
-        src = _source_dir()
-        for name in source_files(fmi_version) + HEADER_FILES:
-            (sources / name).write_bytes((src / name).read_bytes())
-        for path, data in _generated_files(fmi_version, n, guid).items():
+        (unzipdir / "sources").mkdir(parents=True)
+        for path, data in files.items():
+            (unzipdir / path).parent.mkdir(parents=True, exist_ok=True)
             (unzipdir / path).write_bytes(data)
         build_dir = Path(tmp) / "build"
         build_dir.mkdir()
         _compile(unzipdir, build_dir, strict)
         platform = fmpy.platform if fmi_version == 2 else fmpy.platform_tuple
-        library = f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
+        library = f"{identifier}{fmpy.sharedLibraryExtension}"
         binary = unzipdir / "binaries" / platform / library
         if not binary.is_file():
             raise FmuBuildError(f"the build produced no {binary.relative_to(unzipdir)}")
+
         def write_zip(partial: Path) -> None:
             with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
                 for path in sorted(unzipdir.rglob("*")):
