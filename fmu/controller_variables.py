@@ -386,7 +386,8 @@ def render_controller_header(n_trailers: int, guid: str) -> str:
                   _c_string(row.unit or ""), _c_string(row.reason)]
         lines.append(f"    [{var.vr}] = {{{', '.join(fields)}}},")
     lines += ["};", ""]
-    lines += [f"static const double ctrl_real_start[CTRL_N_REALS] = {{{', '.join(starts['Real'])}}};",
+    lines += [f"static const double ctrl_real_start[CTRL_N_REALS] = "
+              f"{{{', '.join(starts['Real'])}}};",
               f"static const int ctrl_integer_start[CTRL_N_INTEGERS] = "
               f"{{{', '.join(starts['Integer'])}}};",
               f"static const int ctrl_boolean_start[CTRL_N_BOOLEANS] = "
