@@ -40,6 +40,10 @@ typedef struct {
     bool logging_on, log_debug, log_errors, log_warnings;
     bool stop_time_defined;
     double stop_time;
+    /* communication points: start + k h while every step has the same h (as a master computes
+       them, never by summing floats), else the last point plus its step */
+    double start_time, step_size;
+    long steps;
 } Ctrl;
 
 /* ---------------------------------------------------------------- logging and modes */
@@ -231,6 +235,8 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
         FAIL("stopTime = %g: must be >= startTime = %g", stopTime, startTime);
     }
     inst->model.time = startTime;
+    inst->start_time = startTime;
+    inst->steps = 0;
     inst->stop_time_defined = stopTimeDefined != fmi2False;
     inst->stop_time = stopTime;
     ctrl_model_start(&inst->model);
@@ -263,6 +269,8 @@ fmi2Status fmi2Terminate(fmi2Component c) {
 fmi2Status fmi2Reset(fmi2Component c) {
     BEGIN(ERROR_MODES);
     ctrl_model_set_defaults(&inst->model);
+    inst->start_time = 0.0;
+    inst->steps = 0;
     inst->stop_time_defined = false;
     inst->mode = mode_instantiated;
     END;
@@ -533,7 +541,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     char msg[CTRL_MSG_LEN];
     const double t = currentCommunicationPoint, h = communicationStepSize;
-    double tolerance;
+    double tolerance, t_next;
     BEGIN(mode_step);
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!(h > 0.0) || !isfinite(h)) {
@@ -548,7 +556,15 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         FAIL("the step from t = %.17g by %.17g s ends after stopTime = %.17g", t, h,
              inst->stop_time);
     }
-    if (!ctrl_model_step(&inst->model, t + h, msg, sizeof(msg))) {
+    if (inst->steps >= 0 && (inst->steps == 0 || h == inst->step_size)) {
+        inst->step_size = h;
+        inst->steps++;
+        t_next = inst->start_time + (double)inst->steps * h;
+    } else {
+        inst->steps = -1; /* variable steps from here on */
+        t_next = t + h;
+    }
+    if (!ctrl_model_step(&inst->model, t_next, msg, sizeof(msg))) {
         FAIL("%s", msg);
     }
     ctrl_log(inst, fmi2OK, "logDebug", "%s: t = %.9g, h = %.9g", __func__, t, h);
