@@ -220,23 +220,25 @@ def test_fmu_command_equals_the_python_controller(controller_sim, seed):
     assert modes >= laws, modes  # both laws were exercised, not only rest
 
 
-def test_outputs_follow_the_inputs_at_the_same_time(controller_sim):
-    """Outputs at t are recomputed when the inputs change at t (a Gauss-Seidel master), and the
-    step commits the command that was read last (the rate limits continue from it)."""
+def test_outputs_follow_the_inputs_and_the_step_commits_the_first_read(controller_sim):
+    """Outputs at t are recomputed when the inputs change at t (a Gauss-Seidel master reads
+    them after setting the inputs), and the step commits the first command read at t (what a
+    Jacobi master forwards): the rate limits continue from it."""
     sim = controller_sim(1, STRAIGHT)
-    sim.initialize({"acc_max": 0.2, "alpha_max": 0.2, "dt_start": 0.005})
-    far = {"x0": 1.04, "y0": 0.3, "theta0": math.pi, "phi[1]": 0.0}
-    sim.set(far)
+    sim.initialize({"acc_max": 0.2, "alpha_max": 0.2, "dt_start": 0.0})  # first: not limited
+    sim.set({"x0": 1.04, "y0": 0.3, "theta0": math.pi, "phi[1]": 0.0})
     first = sim.get(["v_cmd", "w_cmd", "e_lat"])
     sim.set({"y0": -0.3})
     second = sim.get(["v_cmd", "w_cmd", "e_lat"])
     assert second[2] == pytest.approx(-first[2]) and second[2] != first[2]
+    assert second[1] == pytest.approx(-first[1]) and abs(first[1]) > 0.003
     sim.fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=0.005)
-    sim.set({"y0": 0.0})
+    sim.set({"y0": -0.3})
     third = sim.get(["v_cmd", "w_cmd"])
-    # rate limited from the committed (second) command: at most 0.2 * 0.005 away
-    assert abs(third[0] - second[0]) <= 0.2 * 0.005 + 1e-15
-    assert abs(third[1] - second[1]) <= 0.2 * 0.005 + 1e-15
+    # the yaw rate wants to go on turning toward -first: rate limited from the committed first
+    # command, at most alpha_max * 0.005 away from it (and far from the second)
+    assert abs(third[1] - first[1]) <= 0.2 * 0.005 + 1e-15
+    assert abs(third[1] - second[1]) > 0.005
 
 
 # ------------------------------------------------------------------ guards

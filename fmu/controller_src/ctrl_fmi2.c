@@ -40,8 +40,9 @@ typedef struct {
     bool logging_on, log_debug, log_errors, log_warnings;
     bool stop_time_defined;
     double stop_time;
-    /* communication points: start + k h while every step has the same h (as a master computes
-       them, never by summing floats), else the last point plus its step */
+    /* communication points: start + k h while the master's points stay on the grid of its first
+       step h (as a master computes them, never by summing floats; a phase of the reference that
+       ends on a point is then sampled alike), else the last point plus its step */
     double start_time, step_size;
     long steps;
 } Ctrl;
@@ -556,10 +557,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         FAIL("the step from t = %.17g by %.17g s ends after stopTime = %.17g", t, h,
              inst->stop_time);
     }
-    if (inst->steps >= 0 && (inst->steps == 0 || h == inst->step_size)) {
+    if (inst->steps == 0) {
         inst->step_size = h;
-        inst->steps++;
-        t_next = inst->start_time + (double)inst->steps * h;
+    }
+    t_next = inst->start_time + (double)(inst->steps + 1) * inst->step_size;
+    if (inst->steps >= 0 && fabs(t + h - t_next) <= tolerance) {
+        inst->steps++; /* on the grid of the first step (masters jitter h by an ulp) */
     } else {
         inst->steps = -1; /* variable steps from here on */
         t_next = t + h;

@@ -222,9 +222,11 @@ int ctrl_model_evaluate(CtrlModel *m, char *msg, size_t len) {
     }
     next.done = next.done || at_goal(m, t, &info);
     set_outputs(m, &ref, &info, cmd, phi_meas, next.done);
-    m->next = next;
+    if (!m->have_next) { /* the first command read at this point is the one the step commits */
+        m->next = next;
+        m->have_next = true;
+    }
     m->evaluated = true;
-    m->have_next = true;
     return 1;
 }
 

@@ -6,9 +6,15 @@
  * previous point (the previous command for the rate limits, the backlash play, done). They are
  * evaluated lazily, at the first fmi2Get after the inputs or the time changed, so a master that
  * sets the plant's outputs at t and then reads the command gets exactly pushtrain's loop
- * (apply -> record -> step): the command at t from the measurement at t. fmi2DoStep commits
- * the memory of the last evaluation (the command the master read), or evaluates first if
- * nothing was read. No allocation after ctrl_model_init.
+ * (apply -> record -> step): the command at t from the measurement at t.
+ *
+ * fmi2DoStep commits the memory of the FIRST evaluation read at the current point (or evaluates
+ * then, if nothing was read): that is the command a master forwards to the plant. A Jacobi
+ * master (libcosim, ecos, fmpy's SSP) reads the outputs right after the step, before it hands
+ * the controller the plant's new outputs (ecos then reads them once more); a Gauss-Seidel
+ * master sets the inputs first and then reads. A master that reads the command before setting
+ * the inputs but forwards a later read would leave the rate limits one command off.
+ * No allocation after ctrl_model_init.
  */
 #ifndef PUSHTRAIN_CTRL_MODEL_H
 #define PUSHTRAIN_CTRL_MODEL_H
@@ -35,7 +41,7 @@ typedef struct {
     CtrlMemory memory;  /* committed at the previous communication point */
     CtrlMemory next;    /* after the evaluation at `time` */
     bool evaluated;     /* the outputs are those of the current inputs at `time` */
-    bool have_next;     /* `next` holds an evaluation at `time` (maybe of older inputs) */
+    bool have_next;     /* `next` holds the first evaluation read at `time` */
     /* the mission, built from the table once */
     const CtrlTable *table;
     PtPhase *phases;
