@@ -8,6 +8,9 @@ retypes the variable table), lets fmpy's build helper write the CMake cache for 
 self-contained ``.fmu`` with the binary (``binaries/linux64/`` for FMI 2.0,
 ``binaries/x86_64-linux/`` for FMI 3.0) and ``sources/`` so other tools can rebuild it. Builds
 are cached by a hash of the sources, the FMI version, n and the build options.
+
+:func:`package_fmu` (compile and zip any model's files) also builds the second model, the
+BackwardController FMU (:mod:`.controller`).
 """
 
 from __future__ import annotations
