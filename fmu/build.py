@@ -120,7 +120,8 @@ def _cmake_env() -> dict:
     return env
 
 
-def _compile(unzipdir: Path, build_dir: Path, strict: bool) -> None:
+def _compile(unzipdir: Path, build_dir: Path, strict: bool,
+             version_script: Path | None = None) -> None:
     import fmpy
     from fmpy.build import create_cmake_settings
 
@@ -131,6 +132,9 @@ def _compile(unzipdir: Path, build_dir: Path, strict: bool) -> None:
     }
     if strict:
         options["CMAKE_C_FLAGS:STRING"] = "-Werror"
+    if version_script is not None and fmpy.system == "linux":
+        # export the fmi2 functions only, whatever the sources mark visible
+        options["CMAKE_SHARED_LINKER_FLAGS:STRING"] = f"-Wl,--version-script={version_script}"
     create_cmake_settings(unzipdir, build_dir, all_warnings=True, cmake_options=options)
     source_dir = Path(fmpy.__file__).parent / "c-code"
     env = _cmake_env()
@@ -156,10 +160,12 @@ def _build_into(fmi_version: int, n: int | None, target: Path, strict: bool, gui
 
 
 def package_fmu(files: dict[str, bytes], identifier: str, fmi_version: int, target: Path,
-                strict: bool = False) -> None:
+                strict: bool = False, version_script: str | None = None) -> None:
     """Compile an FMU from ``files`` (its archive paths: ``modelDescription.xml``, whose source
     file list fmpy's CMake project reads, and ``sources/...``) and zip it, with the binary, into
-    ``target`` (written atomically). Any model: the plant and the controller FMU use it."""
+    ``target`` (written atomically). Any model: the plant and the controller FMU use it.
+    ``version_script`` names a linker version script among the files (GNU ld, Linux): the
+    symbols the library exports."""
     import fmpy
 
     with tempfile.TemporaryDirectory(prefix="pushtrain-fmu-") as tmp:
@@ -170,7 +176,8 @@ def package_fmu(files: dict[str, bytes], identifier: str, fmi_version: int, targ
             (unzipdir / path).write_bytes(data)
         build_dir = Path(tmp) / "build"
         build_dir.mkdir()
-        _compile(unzipdir, build_dir, strict)
+        script = None if version_script is None else unzipdir / version_script
+        _compile(unzipdir, build_dir, strict, script)
         platform = fmpy.platform if fmi_version == 2 else fmpy.platform_tuple
         library = f"{identifier}{fmpy.sharedLibraryExtension}"
         binary = unzipdir / "binaries" / platform / library

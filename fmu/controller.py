@@ -50,6 +50,10 @@ log = logging.getLogger(__name__)
 BUILD_FORMAT = "1"  # bump when the rendering or packaging of the controller changes
 TABLE_FORMAT = 1
 LAW_FILES = ("control.c", "control.h")  # the control law, from core/csrc
+EXPORTS_MAP = "ctrl_exports.map"
+EXPORTS = "{\n  global: fmi2*;\n  local: *;\n};\n"
+"""Linker version script: the FMU exports its fmi2 functions only (control.h marks the law's
+pt_* functions visible, for core/native.py's shared library)."""
 
 
 @dataclass(frozen=True)
@@ -153,6 +157,7 @@ def _files(n: int, guid: str, generated: str | None = None) -> dict[str, bytes]:
     for name in LAW_FILES:
         files[f"sources/{name}"] = (law / name).read_bytes()
     files["sources/ctrl_variables.h"] = render_controller_header(n, guid).encode()
+    files[f"sources/{EXPORTS_MAP}"] = EXPORTS.encode()
     files["modelDescription.xml"] = render_controller_description(n, guid, generated)
     return files
 
@@ -168,7 +173,8 @@ def _cached_build(n: int, strict: bool, force: bool) -> Path:
         cached.parent.mkdir(parents=True, exist_ok=True)
         guid = "{" + str(uuid.UUID(fingerprint[:32])) + "}"
         log.info("building %s (FMI 2.0, n = %d) into %s", CONTROLLER_IDENTIFIER, n, cached)
-        package_fmu(_files(n, guid), CONTROLLER_IDENTIFIER, 2, cached, strict)
+        package_fmu(_files(n, guid), CONTROLLER_IDENTIFIER, 2, cached, strict,
+                    version_script=f"sources/{EXPORTS_MAP}")
     else:
         log.debug("using cached %s", cached)
     return cached
