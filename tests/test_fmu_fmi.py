@@ -295,6 +295,31 @@ def test_outputs_read_before_initialization_ends_follow_every_set(built_fmu_sim,
                for status, _, message in sim.messages if status >= 3), sim.messages
 
 
+def test_get_real_of_many_values_equals_one_at_a_time(built_fmu_sim):
+    """fmi2GetReal looks an array's storage up once for a run of its elements: runs, jumps
+    between arrays, descending and repeated indices all read what single reads give, and a
+    reference just past an array's last element is unknown."""
+    import random
+
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.initialize({"slip_mode": 1, "theta_start[2]": 0.3, "front[2]": 0.6},
+                   {"v_cmd": -0.05, "w_cmd": 0.2, "push_y": 60.0})
+    for _ in range(10):
+        sim.step(0.005)
+    names = [v.name for v in sim.md.modelVariables if v.type == "Real"]
+    single = {name: sim.real(name) for name in names}
+    orders = [names, names[::-1], random.Random(1).sample(names, len(names)),
+              [name for name in names for _ in range(2)]]
+    for order in orders:
+        assert list(sim.fmu.getReal([sim.vr(name) for name in order])) == [single[name]
+                                                                           for name in order]
+    x = [sim.vr(f"x[{i}]") for i in range(N_DEFAULT + 1)]
+    with pytest.raises(FMICallException):
+        sim.fmu.getReal([*x, x[-1] + 1])
+    assert any(f"unknown value reference {x[-1] + 1}" in message
+               for status, _, message in sim.messages if status >= 3), sim.messages
+
+
 def test_get_boolean_reads_many_values_in_one_call(built_fmu_sim):
     """fmi2GetBoolean moves its values through a buffer a chunk at a time: a call of many
     values (several chunks) returns each one, and a wrong reference in a later chunk fails."""

@@ -249,7 +249,24 @@ static Status check_count(Instance *inst, const char *function, size_t nvr, size
         return check_count(inst, function, nvr, index, n_values);                               \
     }
 
-DEFINE_GET(instance_get_real, double, model_get_real)
+Status instance_get_real(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
+                         double values[], size_t n_values) {
+    char msg[MSG_LEN];
+    size_t k, index = 0;
+    if (nvr > 0 && (vr == NULL || values == NULL)) {
+        return instance_fail(inst, function, "vr or values is NULL");
+    }
+    for (k = 0; k < nvr && !model_needs_outputs(&inst->data, vr[k]); k++) {
+    } /* the outputs are made current once if the call reads one (a read of outputs: k = 0) */
+    if (k < nvr && ensure_outputs(inst, function) != status_ok) {
+        return status_error;
+    }
+    if (!model_get_reals(&inst->data, vr, nvr, values, n_values, &index, msg, sizeof(msg))) {
+        return instance_fail(inst, function, "%s", msg);
+    }
+    return check_count(inst, function, nvr, index, n_values);
+}
+
 DEFINE_GET(instance_get_integer, int, model_get_integer)
 DEFINE_GET(instance_get_boolean, bool, model_get_boolean)
 DEFINE_GET(instance_get_uint64, uint64_t, model_get_uint64)

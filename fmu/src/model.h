@@ -126,6 +126,11 @@ PT_INTERNAL const char *model_variable_name(const ModelData *m, unsigned vr, cha
 PT_INTERNAL bool model_needs_outputs(const ModelData *m, unsigned vr);
 PT_INTERNAL bool model_get_real(const ModelData *m, unsigned vr, double values[], size_t n_values,
                                 size_t *index, char *msg, size_t len);
+/* model_get_real for vr[0..nvr), looking up the storage of an FMI 2.0 array once for a run of its
+   elements (a read of all outputs costs a copy per value). */
+PT_INTERNAL bool model_get_reals(const ModelData *m, const unsigned vr[], size_t nvr,
+                                 double values[], size_t n_values, size_t *index, char *msg,
+                                 size_t len);
 PT_INTERNAL bool model_get_integer(const ModelData *m, unsigned vr, int values[], size_t n_values,
                                    size_t *index, char *msg, size_t len);
 PT_INTERNAL bool model_get_boolean(const ModelData *m, unsigned vr, bool values[],

@@ -206,6 +206,33 @@ bool model_get_real(const ModelData *m, unsigned vr, double values[], size_t n_v
     return true;
 }
 
+bool model_get_reals(const ModelData *m, const unsigned vr[], size_t nvr, double values[],
+                     size_t n_values, size_t *index, char *msg, size_t len) {
+    const double *base = NULL; /* element 0 of the FMI 2.0 Real array read last, if any */
+    unsigned block = 0;
+    int lo = 0, hi = -1; /* its valid element indices */
+    size_t k;
+    for (k = 0; k < nvr; k++) {
+        const unsigned i = vr[k] % VR_STRIDE;
+        if (base != NULL && vr[k] / VR_STRIDE == block && (int)i >= lo && (int)i <= hi
+            && *index < n_values) {
+            values[(*index)++] = base[i]; /* another element of the same array */
+            continue;
+        }
+        if (!model_get_real(m, vr[k], values, n_values, index, msg, len)) {
+            return false;
+        }
+        block = vr[k] / VR_STRIDE;
+        base = NULL;
+        if (FMI_VERSION == 2 && block != 0) { /* an element of a Real array (checked above) */
+            base = real_element((ModelData *)m, (enum Block)block, 0); /* only read */
+            lo = block_info[block].first;
+            hi = m->n + block_info[block].last_offset;
+        }
+    }
+    return true;
+}
+
 /* the Integer variable r (a scalar) */
 static bool integer_value(const ModelData *m, VarRef r, int *value) {
     switch ((enum ScalarVr)r.first) {
