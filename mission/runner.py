@@ -165,10 +165,11 @@ def scripted_reference(sc: Scenario) -> Reference:
 
 
 def world_of(sc: Scenario):
-    from pushtrain.planner.world import World
-
+    """The planner's World of ``sc``'s map, or None without a map (then OMPL is not imported)."""
     if sc.map is None:
         return None
+    from pushtrain.planner.world import World
+
     data = {k: v for k, v in sc.map.model_dump().items() if v not in (None, [])}
     return World.from_dict(data)
 
