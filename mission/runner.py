@@ -164,14 +164,38 @@ def scripted_reference(sc: Scenario) -> Reference:
                                    cusp_dwell=sc.reference.cusp_dwell)
 
 
-def world_of(sc: Scenario):
-    """The planner's World of ``sc``'s map, or None without a map (then OMPL is not imported)."""
-    if sc.map is None:
-        return None
-    from pushtrain.planner.world import World
+_WORLDS: dict = {}
+"""Worlds built by :func:`world_of`, by map section and file versions (a grid or floor plan is
+read and traced once per process, not once per use)."""
 
-    data = {k: v for k, v in sc.map.model_dump().items() if v not in (None, [])}
-    return World.from_dict(data)
+
+def world_of(sc: Scenario):
+    """The planner's :class:`~pushtrain.planner.world.World` of ``sc.map`` (None without one).
+
+    Raises ScenarioError naming the field (``map.grid (warehouse.yaml) resolution``, ...) when a
+    map file cannot be used, PlanningInputError for a malformed polygon."""
+    m = sc.map
+    if m is None:  # no map: the planner (OMPL) is not imported
+        return None
+    from pushtrain.errors import MapError
+    from pushtrain.planner.mapworld import map_world
+
+    files = [Path(f) for f in (m.grid, m.dxf) if f is not None]
+    stamps = tuple((str(f), f.stat().st_mtime_ns if f.is_file() else None) for f in files)
+    key = (m.model_dump_json(), stamps)
+    world = _WORLDS.get(key)
+    if world is None:
+        try:
+            world = map_world(free=m.free, bounds=m.bounds, obstacles=m.obstacles, walls=m.walls,
+                              grid=m.grid, dxf=m.dxf, layers=m.layers or (),
+                              line_thickness=m.line_thickness, dxf_units=m.dxf_units)
+        except MapError as exc:
+            raise ScenarioError(sc.name, [(f"map.{where}", value, allowed)
+                                          for where, value, allowed in exc.errors]) from None
+        if len(_WORLDS) >= 4:
+            _WORLDS.pop(next(iter(_WORLDS)))
+        _WORLDS[key] = world
+    return world
 
 
 def _start_headings(sc: Scenario) -> np.ndarray:
@@ -389,13 +413,23 @@ def check_run_clearance(sc: Scenario, data, resolution: float = 0.01) -> dict | 
 
 
 def check_start_in_map(sc: Scenario) -> None:
-    """Raise ScenarioError when the start or goal lies outside the free space of the map."""
+    """Raise ScenarioError when the map's files cannot be used, or the start or goal lies
+    outside the free space of the map (on a grid: outside the image or on a cell that is not
+    free)."""
     world = world_of(sc)
     if world is None:
         return
     problems = []
+    grid = world.occupancy
     for name, pose in (("start", sc.start), ("goal", sc.goal)):
-        if pose is not None and not world.contains_point(pose.x, pose.y):
+        if pose is None:
+            continue
+        if grid is not None:  # the cell under the pose, named by its image pixel
+            why = grid.why_blocked(pose.x, pose.y)
+            if why is not None:
+                problems.append((name, f"({pose.x}, {pose.y})",
+                                 f"must lie on a free cell of the map: {why}"))
+        elif not world.contains_point(pose.x, pose.y):
             problems.append((name, f"({pose.x}, {pose.y})", "must lie in the map's free space"))
     if problems:
         raise ScenarioError(sc.name, problems)

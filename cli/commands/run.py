@@ -6,7 +6,14 @@ import sys
 
 import click
 
-from ..common import BadInput, _scenario, csv_option, out_dir_option, scenario_argument
+from ..common import (
+    BadInput,
+    _scenario,
+    check_map,
+    csv_option,
+    out_dir_option,
+    scenario_argument,
+)
 from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import run_and_report, write_path, write_scenario
@@ -45,6 +52,7 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv):
     """
     phases = Phases()
     sc = _scenario(scenario)
+    check_map(sc)
     path = None
     if path_file:
         path = _load_path(path_file)

@@ -1,0 +1,83 @@
+"""The planner's signed distance field against shapely's exact distances (an independent
+computation) and against hand-made occupancy grids."""
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+
+from pushtrain.errors import PlanningInputError
+from pushtrain.planner import worlds
+from pushtrain.planner.distance_field import DistanceField
+from pushtrain.planner.world import World
+
+
+def _exact_signed(world: World, x, y):
+    pts = shapely.points(x, y)
+    d = shapely.distance(world.free.boundary, pts)
+    return np.where(shapely.contains_xy(world.free, x, y), d, -d)
+
+
+@pytest.mark.parametrize("make", [worlds.l_corridor, worlds.bay])
+def test_polygon_field_is_exact_near_walls(make):
+    world = World.from_dict(make()["world"])
+    field = world.distance_field(0.02)
+    rng = np.random.default_rng(3)
+    xmin, ymin, xmax, ymax = world.outline.bounds
+    x = rng.uniform(xmin, xmax, 4000)
+    y = rng.uniform(ymin, ymax, 4000)
+    exact = _exact_signed(world, x, y)
+    near = np.abs(exact) < 0.9
+    err = np.abs(field.at(x, y) - exact)[near]
+    # bilinear interpolation of exact node values of a 1-Lipschitz function: < h / sqrt(2)
+    assert err.max() < 0.02 / math.sqrt(2.0) + 1e-9
+    # and along straight walls, away from corners, it is exact
+    assert np.median(err) < 1e-9
+
+
+def test_polygon_nodes_are_exact_within_band():
+    world = World.from_dict(worlds.bay()["world"])
+    field = DistanceField.from_world(world, 0.05, band=0.5)
+    ny, nx = field.shape
+    xs = field.x0 + 0.05 * np.arange(nx)
+    ys = field.y0 + 0.05 * np.arange(ny)
+    gx, gy = np.meshgrid(xs, ys)
+    exact = _exact_signed(world, gx, gy)
+    near = np.abs(exact) < 0.5
+    assert np.allclose(field.values[near], exact[near], atol=1e-12)
+    # far from walls the distance transform stays within a cell of the truth
+    assert np.abs(field.values - exact)[~near].max() < 0.05
+
+
+def test_occupancy_field_distances_and_outside():
+    blocked = np.zeros((40, 60), dtype=bool)
+    blocked[:, :5] = True  # a wall in the first 5 columns: its face at x = 4.5 cells
+    field = DistanceField.from_occupancy(blocked, x0=1.0, y0=2.0, resolution=0.1)
+    # a free cell centre at column 20: 15.5 cells from the wall's face
+    assert field.at(1.0 + 2.0, 2.0 + 2.0) == pytest.approx(1.55)
+    assert field.at(1.0 + 0.2, 2.0 + 2.0) < 0.0  # inside the wall
+    assert field.at(-5.0, 2.0) == -np.inf  # outside the grid counts as blocked
+    # the grid's own edge bounds the world: half a cell beyond the last row's centre
+    assert field.at(1.0 + 3.0, 2.0 + 3.9) == pytest.approx(0.05)
+    assert field.clear(1.0 + 3.0, 2.0 + 2.0, 0.5)
+    assert not field.clear(1.0 + 0.6, 2.0 + 2.0, 0.5)
+
+
+def test_world_caches_its_field_and_prefers_occupancy():
+    world = World.from_dict(worlds.bay()["world"])
+    assert world.distance_field() is world.distance_field()
+
+    class Grid:
+        blocked = np.zeros((10, 10), dtype=bool)
+        x0, y0, resolution = 0.0, 0.0, 0.5
+
+    gridded = World(world.outline, world.obstacles, occupancy=Grid())
+    assert gridded.distance_field().resolution == 0.5
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.1, math.nan])
+def test_bad_resolution_is_refused(bad):
+    world = World.from_dict(worlds.bay()["world"])
+    with pytest.raises(PlanningInputError, match="resolution"):
+        DistanceField.from_world(world, bad)
