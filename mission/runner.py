@@ -175,12 +175,12 @@ def world_of(sc: Scenario):
 
     Raises ScenarioError naming the field (``map.grid (warehouse.yaml) resolution``, ...) when a
     map file cannot be used, PlanningInputError for a malformed polygon."""
+    m = sc.map
+    if m is None:  # no map: the planner (OMPL) is not imported
+        return None
     from pushtrain.errors import MapError
     from pushtrain.planner.mapworld import map_world
 
-    m = sc.map
-    if m is None:
-        return None
     files = [Path(f) for f in (m.grid, m.dxf) if f is not None]
     stamps = tuple((str(f), f.stat().st_mtime_ns if f.is_file() else None) for f in files)
     key = (m.model_dump_json(), stamps)
