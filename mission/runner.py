@@ -196,6 +196,7 @@ def plan_path(sc: Scenario):
         clearance=clearance, joint_margin=math.radians(p.joint_margin_deg),
         pull_phi=math.radians(p.pull_max_phi_deg), step_length=p.step_length,
         search_weight=p.search_weight, smooth=p.smooth,
+        goal_phi=None if p.goal_max_phi_deg is None else math.radians(p.goal_max_phi_deg),
         goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
     )
     goal = (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg))

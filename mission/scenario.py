@@ -108,6 +108,8 @@ class PlannerSection(_Section):
     step_length: PositiveFloat = 0.5  # m, one search primitive
     search_weight: Annotated[float, Field(ge=1, allow_inf_nan=False)] = 2.0
     smooth: bool = True
+    # the whole train straight (every joint within this) when the last trailer reaches the goal
+    goal_max_phi_deg: Annotated[float, Field(gt=0, lt=90, allow_inf_nan=False)] | None = None
     # the OMPL planners only
     anytime_time: PositiveFloat = 0.5  # per attempt, for restarts/rrtstar/bitstar/prmstar
     pull_start_tolerance: NonNegFloat | None = 0.4  # m; None: off (see PlannerConfig)
@@ -338,7 +340,8 @@ def _implausible(sc: "Scenario") -> list[tuple[str, object, str]]:
                                 sc.planner.pull_max_phi_deg, deg=True),
                  _bound_problem("planner.joint_margin_deg", "planner.joint_margin",
                                 sc.planner.joint_margin_deg, deg=True)]
-    if sc.planner.joint_margin_deg >= t.phi_max_deg:
+    if (sc.mission.kind == "plan" and sc.planner.planner == "lattice"
+            and sc.planner.joint_margin_deg >= t.phi_max_deg):
         problems.append(("planner.joint_margin_deg", sc.planner.joint_margin_deg,
                          f"less than train.phi_max_deg = {t.phi_max_deg:g} (the search keeps "
                          "every joint within phi_max minus this margin)"))

@@ -16,9 +16,11 @@
    :func:`~pushtrain.planner.train_check.check_train`: every body's exact rectangle (shapely)
    against the free space shrunk by its clearance, the joint limit, self-collision and the goal
    tolerance. A path that fails is dropped and the search goes on.
-4. **Smoothing.** :func:`~pushtrain.planner.smooth.smooth` merges equal pieces and replaces
+4. **Smoothing.** :mod:`~pushtrain.planner.smooth` merges equal pieces and replaces
    stretches by Reeds-Shepp shortcuts where the closed loop allows (fewer turns, shorter); the
    smoothed path is verified again.
+5. **Anytime** (``PlannerConfig.anytime``): the search goes on after the first path until its
+   budget is spent, and the cheapest verified path (length, turning, cusps) is kept.
 
 A search that ends without a plan raises :class:`~pushtrain.errors.PlanningError` whose message
 says what blocked the motions it tried (walls and which body, the joint limit, the pull rule,
@@ -44,6 +46,7 @@ from .heuristic import Heuristic
 from .lattice import Search, SearchSettings
 from .path import PlannedPath
 from .propagate import Cursor, Propagator
+from .smooth import merge, path_cost, shortcut
 from .train_check import TrackerConfig, Trajectory, check_train, reference_times
 from .world import Train, World
 
@@ -66,7 +69,8 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     field = world.distance_field()
     samples = body_samples(train, margins, spacing=config.sample_spacing)
     phi_limit = train.phi_max - config.joint_margin
-    prop = Propagator(train, controller, tracker, field, samples, phi_limit)
+    prop = Propagator(train, controller, tracker, field, samples, phi_limit,
+                      goal_phi=config.goal_phi)
     headings = (np.full(train.n + 1, float(start[2])) if start_headings is None
                 else np.asarray(start_headings, dtype=float))
     state0 = prop.initial_state(start, headings)
@@ -84,27 +88,50 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
             f"{goal[1]:.3f}): every passage between them is narrower than "
             f"{2 * (reach + margins[-1]):.3f} m", where=tuple(goal[:2]),
             details={"constraint": "map"})
+    # with a straight train asked for at the goal, the final straight approach is as long as
+    # the train (the followers line up behind the last trailer on it)
+    approach = 1.5 if config.goal_phi is None else max(1.5, _train_length(train) + 0.5)
     settings = SearchSettings(
         radius=radius, step_length=config.step_length, weight=config.search_weight,
-        pull_phi=config.pull_phi, budget_steps=config.budget_steps(), deadline=deadline)
+        pull_phi=config.pull_phi, budget_steps=config.budget_steps(), deadline=deadline,
+        approach=approach)
     search = Search(train, prop, heuristic, state0, cursor0, goal, settings)
-    rejected = 0
+    rejected, best, found = 0, None, 0
     while True:
         solution = search.next_solution()
         if solution is None:
             break
         checked = _verify(world, train, start, headings, solution.segments, prop, margins,
-                          tracker, goal)
-        if checked.ok:
-            segments, checked, smooth_info = _smoothed(world, train, start, headings,
-                                                       solution.segments, checked, prop,
-                                                       margins, tracker, goal, config, deadline)
-            return _planned(start, headings, segments, radius, config, tracker, checked,
-                            search, t_begin, rejected, smooth_info)
-        rejected += 1
-        log.info("verification dropped a path: %s", checked.failure)
-        search.stats.record({**checked.failure, "kind": "verification_" + checked.failure["kind"]})
-    raise _no_plan(search, train, goal, config, margins, phi_limit, t_begin)
+                          tracker, goal, deadline)
+        if not checked.ok and checked.failure.get("kind") in ("deadline", "budget"):
+            search.stats.cut = checked.failure["kind"]
+            break
+        if not checked.ok:
+            rejected += 1
+            log.info("verification dropped a path: %s", checked.failure)
+            search.stats.record({**checked.failure,
+                                 "kind": "verification_" + checked.failure["kind"]})
+            continue
+        found += 1
+        segments, checked, smooth_info = _smoothed(world, train, start, headings,
+                                                   solution.segments, checked, prop, margins,
+                                                   tracker, goal, config, deadline)
+        cost = path_cost(segments)
+        if best is None or cost < best[0] - 1e-9:
+            best = (cost, segments, checked, smooth_info)
+        if not config.anytime:
+            break
+    if best is None:
+        raise _no_plan(search, train, goal, config, margins, phi_limit, t_begin)
+    _, segments, checked, smooth_info = best
+    smooth_info["solutions"] = found
+    return _planned(start, headings, segments, radius, config, tracker, checked, search,
+                    t_begin, rejected, smooth_info)
+
+
+def _train_length(train: Train) -> float:
+    """Distance [m] from the last trailer's axle to the robot's centre, straight chain."""
+    return float(np.sum(train.geometry.front) + np.sum(train.geometry.rear))
 
 
 # --------------------------------------------------------------------------- the ends
@@ -173,16 +200,25 @@ def _gap_text(gap: float, margin: float) -> str:
 
 # --------------------------------------------------------------------------- verification
 def _verify(world: World, train: Train, start, headings, segments, prop: Propagator, margins,
-            tracker: TrackerConfig, goal):
+            tracker: TrackerConfig, goal, deadline: float | None = None):
     """The whole path simulated in one go from the start and checked exactly
-    (:func:`~pushtrain.planner.train_check.check_train` on the propagator's run)."""
+    (:func:`~pushtrain.planner.train_check.check_train` on the propagator's run); the
+    simulation stops at ``deadline`` (the path then fails with kind ``"deadline"``)."""
     state0 = prop.initial_state(start, headings)
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
-    run = prop.rollout(state0, cursor0, segments, goal=goal, record=True)
+    run = prop.rollout(state0, cursor0, segments, goal=goal, record=True, deadline=deadline)
     traj = Trajectory(run.extra["t"], run.z, run.extra["command"], run.reference,
                       run.extra["direction"], np.ones(run.z.shape[0], dtype=bool))
     result = check_train(world, train, start, segments, headings, margin=margins,
                          resolution=0.01, tracker=tracker, trajectory=traj, self_collision=True)
+    if result.ok and prop.goal_phi is not None:
+        phi = np.abs(result.headings[-1, :-1] - result.headings[-1, 1:])
+        if phi.max() > prop.goal_phi:
+            result.ok = False
+            result.failure = {"kind": "goal_missed", "body": int(np.argmax(phi)) + 1,
+                              "t": float(result.t[-1]), "s": math.nan, "direction": 0,
+                              "x": float(result.poses[-1, 0]), "y": float(result.poses[-1, 1]),
+                              "max_abs_phi": float(phi.max())}
     if result.ok and run.failure is not None:
         # the sampled distance-field test or the joint margin refused what the exact test
         # passes: keep the stricter verdict
@@ -195,7 +231,6 @@ def _verify(world: World, train: Train, start, headings, segments, prop: Propaga
 def _smoothed(world, train, start, headings, segments, checked, prop, margins, tracker, goal,
               config, deadline):
     """Merge equal consecutive pieces and try Reeds-Shepp shortcuts (:mod:`.smooth`)."""
-    from .smooth import merge, shortcut
 
     merged = merge(segments)
     info = {"pieces_found": len(segments), "pieces_merged": len(merged), "shortcuts": 0}
@@ -203,7 +238,8 @@ def _smoothed(world, train, start, headings, segments, checked, prop, margins, t
         return merged, checked, info
 
     def verify(candidate):
-        return _verify(world, train, start, headings, candidate, prop, margins, tracker, goal)
+        return _verify(world, train, start, headings, candidate, prop, margins, tracker, goal,
+                       deadline)
 
     best, best_check, n_short = shortcut(merged, checked, start, goal, config.radius_for(train),
                                          verify, deadline)
@@ -270,9 +306,11 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
         parts.append(f"{f['pull_rule']} pulls were not started because the chain was bent "
                      f"more than {math.degrees(config.pull_phi):.1f} deg (pull rule)")
     if f["goal_missed"]:
+        straight = ("" if config.goal_phi is None else
+                    f", every joint within {math.degrees(config.goal_phi):.1f} deg")
         parts.append(f"{f['goal_missed']} connections to the goal ended outside its tolerance "
                      f"({config.goal_tolerance[0]:.3f} m, "
-                     f"{math.degrees(config.goal_tolerance[1]):.1f} deg)")
+                     f"{math.degrees(config.goal_tolerance[1]):.1f} deg{straight})")
     verified = sum(v for k, v in f.items() if k.startswith("verification_"))
     if verified:
         parts.append(f"{verified} paths found failed the exact verification")

@@ -176,6 +176,13 @@ class PlannerConfig:
         the distance-field test (conservative by half of it).
     smooth : bool
         ``lattice``: try Reeds-Shepp shortcuts on the found path (fewer turns, shorter).
+    goal_phi : float or None
+        ``lattice``: the goal also needs every |phi_i| <= goal_phi [rad] when the last trailer
+        arrives (the whole train straight behind it, e.g. parked in a slot); None: any chain.
+    anytime : bool
+        ``lattice``: search on after the first path until ``time_budget`` is spent and keep
+        the cheapest (length, turning and cusps priced as the search prices them); False
+        (default): return the first path.
     time_cap : float or None
         Wall-clock safety cap [s] of one :func:`~pushtrain.planner.plan` call; None:
         10 x ``time_budget`` + 10 s. Only this stops a search by the clock; a plan it cut short
@@ -215,6 +222,8 @@ class PlannerConfig:
     search_weight: float = 2.0
     sample_spacing: float = 0.025
     smooth: bool = True
+    anytime: bool = False
+    goal_phi: float | None = None
 
     def __post_init__(self):
         name = str(self.planner).lower()
@@ -274,6 +283,9 @@ class PlannerConfig:
             value = getattr(self, key)
             if not (isinstance(value, (int, float)) and low <= value <= high):
                 raise PlanningInputError(f"{key} = {value!r}: allowed {low:g} to {high:g}")
+        if self.goal_phi is not None and not (
+                isinstance(self.goal_phi, (int, float)) and 0.0 < self.goal_phi < math.pi):
+            raise PlanningInputError(f"goal_phi = {self.goal_phi!r} rad: None or in (0, pi)")
         if self.seed is not None and int(self.seed) < 1:
             raise PlanningInputError(f"seed = {self.seed!r}: must be an integer >= 1 or None")
         if int(self.max_attempts) < 1:

@@ -68,11 +68,12 @@ class BodySamples:
     threshold : (P,) array
         Smallest signed distance [m] the field may have at the point.
     radius : (n+1,) array
-        Circumradius [m] of each rectangle about its axle midpoint (a body whose midpoint has
-        ``distance >= radius + max threshold excess`` needs no point test).
+        Radius [m] of the smallest circle about each body's axle midpoint that holds its
+        rectangle.
     slack : (n+1,) array
-        For the quick test: a body is clear if the field at its axle midpoint is at least
-        ``slack[i]`` (its circumradius plus its largest perimeter threshold).
+        The quick test: a body whose axle midpoint has a distance of at least ``slack[i]``
+        (that radius plus its perimeter threshold) keeps its clearance everywhere (d is
+        1-Lipschitz), and its points are not looked up.
     margins : (n+1,) array
         The clearance [m] each body keeps (what the thresholds were built from).
     """

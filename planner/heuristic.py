@@ -29,7 +29,15 @@ from scipy.sparse.csgraph import dijkstra
 from .curves import _space
 from .distance_field import DistanceField
 
-__all__ = ["Heuristic"]
+__all__ = ["Heuristic", "CarGrid", "MAX_NODES", "MAX_CAR_CELLS"]
+
+MAX_NODES = 400_000
+"""Most nodes of the 2-D distance grid (a 30 m x 30 m map at 5 cm); larger maps get coarser
+cells."""
+
+MAX_CAR_CELLS = 20_000
+"""Most cells of the :class:`CarGrid` (x 24 headings x 2 gears states; a 35 m x 35 m map at
+0.25 m); larger maps get coarser cells."""
 
 
 class Heuristic:
@@ -68,7 +76,8 @@ class Heuristic:
         self._b.setX(self.goal[0])
         self._b.setY(self.goal[1])
         self._b.setYaw(_yaw(self.goal[2]))
-        h = float(resolution)
+        # at most MAX_NODES grid nodes: a large map gets a coarser grid
+        h = max(float(resolution), math.sqrt((xmax - xmin) * (ymax - ymin) / MAX_NODES))
         self.resolution = h
         nx = int(math.floor((xmax - xmin) / h)) + 1
         ny = int(math.floor((ymax - ymin) / h)) + 1
@@ -84,14 +93,23 @@ class Heuristic:
         if build_car:
             self.build_car()
 
+    def car_states(self) -> int:
+        """About how many states the :class:`CarGrid` has (0 if none is configured)."""
+        field, clearance, hc, options = self._car_args
+        if hc is None:
+            return 0
+        xmin, ymin, xmax, ymax = field.bounds
+        cells = min((xmax - xmin) * (ymax - ymin) / float(hc) ** 2, MAX_CAR_CELLS)
+        return int(cells * float(np.mean(self.free)) * options.get("headings", 24) * 2)
+
     def build_car(self) -> None:
         """Build the :class:`CarGrid` estimate (once; a few tenths of a second on a large map),
         used by :meth:`__call__` from then on."""
         field, clearance, hc, options = self._car_args
         if self.car is not None or hc is None:
             return
-        hc = float(hc)
         xmin, ymin, xmax, ymax = field.bounds
+        hc = max(float(hc), math.sqrt((xmax - xmin) * (ymax - ymin) / MAX_CAR_CELLS))
         xc = xmin + hc * np.arange(int(math.floor((xmax - xmin) / hc)) + 1)
         yc = ymin + hc * np.arange(int(math.floor((ymax - ymin) / hc)) + 1)
         free_c = field.at(xc[None, :], yc[:, None]) >= clearance - hc * math.sqrt(0.5)

@@ -98,7 +98,7 @@ class SearchSettings:
     grid_bend: float = 0.3
     weight: float = 2.0
     turn_weight: float = 0.3
-    change_weight: float = 0.05
+    change_weight: float = 0.25
     cusp_cost: float = 2.0
     pull_factor: float = 1.2
     pull_phi: float = math.radians(15.0)
@@ -209,6 +209,7 @@ class Search:
         self._best: dict = {}
         self.nodes: list[Node] = []
         self._last_analytic = -10**9
+        self._pending: Node | None = None
         root = Node(start, start_cursor, 0.0, heuristic(start_cursor.pose))
         self.root = root
         self.closest = root
@@ -250,6 +251,10 @@ class Search:
     def next_solution(self, rejected=None) -> Solution | None:
         """Search on until the next path to the goal; None when the open list is empty or
         the budget is spent (``stats.cut`` says which)."""
+        if self._pending is not None:
+            # the node whose connection to the goal was the last solution: its own motions
+            node, self._pending = self._pending, None
+            self._expand_all(node)
         while self._open:
             cut = self._spent()
             if cut is not None:
@@ -264,17 +269,27 @@ class Search:
             self.stats.expansions += 1
             solution = self._analytic(node)
             if solution is not None:
+                self._pending = node
                 return solution
-            for seg in self._primitives(node):
-                if self._spent() is not None:
-                    break
-                child = self._expand(node, seg)
-                if child is not None:
-                    self._push(child)
+            self._expand_all(node)
+        if self._spent() is not None:
+            self.stats.cut = self._spent()
         return None
 
+    def _expand_all(self, node: Node) -> None:
+        """Queue every child of ``node`` that its motions reach."""
+        for seg in self._primitives(node):
+            if self._spent() is not None:
+                return
+            child = self._expand(node, seg)
+            if child is not None:
+                self._push(child)
+
     def _can_build_car(self) -> bool:
-        return self.heuristic._car_args[2] is not None
+        """Whether the car heuristic is configured and its build (about 2 us per state of
+        CPU, three times that allowed for a loaded machine) fits before the deadline."""
+        estimate = self.heuristic.car_states() * 6e-6
+        return estimate > 0.0 and time.perf_counter() + estimate < self.s.deadline
 
     def _rebuild_heuristic(self) -> None:
         """Switch to the heuristic with the :class:`~pushtrain.planner.heuristic.CarGrid`

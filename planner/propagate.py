@@ -142,6 +142,11 @@ class Rollout:
     extra: dict = field(default_factory=dict)
 
 
+def _max_abs_phi(z: Sequence[float]) -> float:
+    """The largest |phi_i| [rad] of a train state ``z`` (plain floats)."""
+    return max(abs(math.remainder(z[i] - z[i + 1], 2.0 * math.pi)) for i in range(2, len(z) - 1))
+
+
 def last_pose(z: Sequence[float], front, rear) -> tuple:
     """The last trailer's pose (x, y, theta) from a train state ``z`` (plain floats)."""
     x, y = z[0], z[1]
@@ -172,11 +177,14 @@ class Propagator:
         Largest |phi_i| [rad] allowed along a rollout.
     check_every : int
         Test every ``check_every``-th simulated state (and the last one).
+    goal_phi : float or None
+        The goal also needs every |phi_i| <= ``goal_phi`` [rad] (a straight train); None: any
+        chain.
     """
 
     def __init__(self, train: Train, controller: ControllerConfig, tracker: TrackerConfig,
                  field: DistanceField, samples: BodySamples, phi_limit: float,
-                 check_every: int = 1):
+                 check_every: int = 1, goal_phi: float | None = None):
         self.train = train
         self.controller = controller
         self.tracker = tracker
@@ -184,6 +192,7 @@ class Propagator:
         self.samples = samples
         self.phi_limit = float(phi_limit)
         self.check_every = max(1, int(check_every))
+        self.goal_phi = None if goal_phi is None else float(goal_phi)
         self.step = float(tracker.step)
         self._rates = towed_rates(train.geometry)
         self._front = [float(a) for a in train.geometry.front]
@@ -275,8 +284,7 @@ class Propagator:
         while True:
             if pull_starts and k == pull_starts[0]:
                 pull_starts.pop(0)
-                phi = [z[i] - z[i + 1] for i in range(2, len(z) - 1)]
-                worst = max(abs(math.remainder(a, 2.0 * math.pi)) for a in phi)
+                worst = _max_abs_phi(z)
                 if worst > pull_phi:
                     x, y, _ = last_pose(z, self._front, self._rear)
                     failure = {"kind": "pull_rule", "k": k - state.k, "body": self.train.n,
@@ -293,7 +301,8 @@ class Propagator:
                 dist = math.hypot(x - goal[0], y - goal[1])
                 head = abs(math.remainder(th - goal[2], 2.0 * math.pi))
                 goal_error = (dist, head)
-                if dist <= tol[0] and head <= tol[1]:
+                if dist <= tol[0] and head <= tol[1] and (
+                        self.goal_phi is None or _max_abs_phi(z) <= self.goal_phi):
                     reached = True
             if reached or k >= k_stop:
                 r = ref.sample_at(k * step)
@@ -333,7 +342,7 @@ class Propagator:
             x, y, th = last_pose(z, self._front, self._rear)
             failure = {"kind": "goal_missed", "k": k, "t": k * step, "body": self.train.n,
                        "x": x, "y": y, "distance": goal_error[0],
-                       "heading_error": goal_error[1]}
+                       "heading_error": goal_error[1], "max_abs_phi": _max_abs_phi(z)}
         final = TrainState(k, tuple(z), memory)
         extra = {}
         if record:
