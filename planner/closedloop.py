@@ -339,11 +339,18 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
         "tree": [n.trace.tolist() for n in search.nodes if n.trace is not None][:3000],
         "closest": {"segments": _segments_data(closest.path_segments()),
                     "pose": list(closest.cursor.pose), "remaining": closest.h,
-                    "headings": list(closest.state.z[2:])},
+                    **_train_at(closest.state, train)},
     }
     return PlanningError(reason, f"{head}. Of {tried} motions tried: {blocked}. The closest "
                          f"the last trailer came was {closest.h:.2f} m of path from the goal",
                          where=tuple(goal[:2]), details=details)
+
+
+def _train_at(state, train: Train) -> dict:
+    """Every body's axle midpoint and heading in ``state`` (plain lists, for the picture)."""
+    z = np.array([state.z])
+    x, y = body_positions(z, train.geometry)
+    return {"x": x[0].tolist(), "y": y[0].tolist(), "headings": z[0, 2:].tolist()}
 
 
 def _main_constraint(stats) -> str:

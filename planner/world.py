@@ -398,6 +398,10 @@ def save_diagnostic(path, world: World, start=None, goal=None, train: Train | No
     last = train.last if train is not None else BodyFootprint()
     if failure:
         _draw_failure(ax, world, failure, start)
+        closest = failure.get("closest") or {}
+        if train is not None and closest.get("x") is not None:
+            draw_poses(ax, train, closest["x"], closest["y"], closest["headings"],
+                       color="tab:blue", alpha=0.9, label="train at the best partial plan")
     for pose, color, name in ((start, "tab:green", "start"), (goal, "tab:red", "goal")):
         if pose is None:
             continue

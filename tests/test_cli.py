@@ -170,6 +170,19 @@ def test_unreachable_goal_exits_1_with_a_diagnostic_picture(runner, tmp_path):
     assert (out / "run.log").is_file()
 
 
+def test_a_goal_too_close_to_the_walls_exits_2_with_numbers_and_a_picture(runner, tmp_path):
+    """The docking bay leaves 0.15 m beside the trailer; asking 0.2 m is the scenario's fault."""
+    text = (EXAMPLES / "docking.toml").read_text().replace(
+        "[planner]\n", "[planner]\nclearance = 0.2\n")
+    path = _write(tmp_path, text, "tight.toml")
+    out = tmp_path / "out"
+    result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert "goal_in_collision" in result.output
+    assert "keeps only 0.150 m from the walls; planner.clearance asks 0.200 m" in result.output
+    assert (out / "planning_failure.png").stat().st_size > 10_000
+
+
 def test_plan_and_run_console_script_usage_and_bad_option():
     import subprocess
     import sys
