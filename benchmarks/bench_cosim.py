@@ -1,45 +1,274 @@
-"""Closed-loop co-simulation throughput for n = 3 (issue 3's benchmark).
+"""Closed-loop master against a raw-ctypes loop with the same FMI I/O (issue 14's benchmark).
 
-Compares steps per second of :func:`pushtrain.cosim.master.simulate` (FMU + sensors + controller +
-recorder) with bare fmpy ``doStep`` calls on the same FMU in the same run, and profiles the loop.
-Target: >= 20,000 closed-loop steps/s and no more than 3x the bare step cost.
+For n = 3 and n = 50, in one process, on the same FMI 2.0 FMU:
 
-Run: python benchmarks/bench_cosim.py [--profile]
+(a) master
+    :func:`pushtrain.cosim.master.simulate` tracking an arc backward (check_goal off, so every
+    run takes the same number of steps): events, sensors, reference, controller, recorder, FMU.
+(b) raw
+    a loop of bare ctypes calls on the FMU's own functions with preallocated value-reference and
+    value arrays, doing per step the FMI calls the master does: ``fmi2GetReal`` of the states
+    the controller measures (robot pose, last trailer pose, joint angles), ``fmi2SetReal`` of
+    v_cmd, w_cmd, push_x, push_y (replaying the master's recorded commands, so the FMU does the
+    same model work), ``fmi2GetReal`` of every output the master records, ``fmi2GetBoolean`` of
+    the slip and jackknife flags, ``fmi2DoStep``. Its last outputs must equal the master's last
+    row bit for bit (checked and printed).
+
+Each is timed ``--repeats`` times, alternating, in CPU time of this process (the machine is
+shared: wall time would count other processes' turns); the medians of microseconds per 5 ms step
+and their ratio master / raw (the number judged; target <= 1.5) are printed. The master's time
+is the whole :func:`simulate` call (set-up, loop, result table) over its steps; a warm-up run
+first reads and extracts the FMU in this process (as for a sweep's later runs). Also printed:
+the control law's share (the tracking loop replayed alone on the master's measurements; it must
+give the master's commands bit for bit), what the master costs without it, and the raw loop's
+getter share (the raw loop without its three gets). ``--profile`` adds a cProfile of one master
+run per n (top functions by own time).
+
+Run: python benchmarks/bench_cosim.py [--repeats 5] [--profile] [--n 3 50]
 """
 
+from __future__ import annotations
+
+import argparse
 import cProfile
+import ctypes
 import math
 import pstats
-import sys
+import shutil
+import statistics
+import tempfile
 import time
+from ctypes import c_double, c_int, c_size_t, c_uint, c_void_p
+from types import SimpleNamespace
 
-from bench_fmu import bench
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
 
-from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.reference import Reference, Segment
-from pushtrain.cosim.master import simulate
+from pushtrain.core.tracking import TrackingLoop
+from pushtrain.cosim.master import InitialState, PlantConfig, simulate
+from pushtrain.cosim.sensors import Measurement
 from pushtrain.fmu import build_fmu
 
+STEP = 0.005  # [s]
+HORIZON = {3: 60.0, 50: 20.0}  # [s] per run: 12,000 and 4,000 steps
 
-def closed_loop(profile: bool = False) -> float:
-    fmu = build_fmu(3)
+
+def mission(n: int):
+    """Reference (an 8 m arc of radius 2.5 m pushed backward at 0.08 m/s) and controller."""
     ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("arc", 8.0, 0.4)], speed=0.08)
-    cfg = ControllerConfig.uniform(3)
-    if profile:
-        prof = cProfile.Profile()
-        prof.enable()
-    start = time.perf_counter()
-    result = simulate(fmu, ref, cfg, horizon=100.0, check_goal=False, progress=False)
-    wall = time.perf_counter() - start
-    if profile:
-        prof.disable()
-        pstats.Stats(prof).sort_stats("tottime").print_stats(12)
-    return (len(result.data) - 1) / wall
+    return ref, ControllerConfig.uniform(n)
+
+
+def run_master(fmu, n: int, horizon: float):
+    """(microseconds per step, Result) of one :func:`simulate` run."""
+    ref, cfg = mission(n)
+    start = time.process_time()
+    result = simulate(fmu, ref, cfg, horizon=horizon, check_goal=False, progress=False)
+    wall = time.process_time() - start
+    if not result.ok:
+        raise SystemExit(f"master run n = {n} ended early: {result.status}: {result.message}")
+    return wall / (len(result.data) - 1) * 1e6, result
+
+
+def _names(n: int) -> tuple[list[str], list[str], list[str]]:
+    """Names the master moves per step: measured states, recorded outputs, flags."""
+    states = ["x[0]", "y[0]", "theta[0]", f"x[{n}]", f"y[{n}]", f"theta[{n}]"]
+    states += [f"phi[{i}]" for i in range(1, n + 1)]
+    outputs = [f"{b}[{i}]" for b in ("x", "y", "theta", "v", "w") for i in range(n + 1)]
+    outputs += [f"{b}[{i}]" for b in ("phi", "F_lat", "slide_speed") for i in range(1, n + 1)]
+    flags = [f"slipping[{i}]" for i in range(1, n + 1)] + ["jackknifed"]
+    return states, outputs, flags
+
+
+class RawLoop:
+    """The FMU loaded by fmpy, stepped through bare ctypes calls (no argument conversion)."""
+
+    def __init__(self, fmu, n: int):
+        self.n = n
+        md = read_model_description(str(fmu))
+        self.unzip = tempfile.mkdtemp(prefix="bench-raw-")
+        extract(str(fmu), self.unzip)
+        self.slave = FMU2Slave(guid=md.guid, unzipDirectory=self.unzip,
+                               modelIdentifier=md.coSimulation.modelIdentifier,
+                               instanceName="raw")
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.slave.instantiate()
+
+    def start(self, start_values: dict, t0: float) -> None:
+        s = self.slave
+        s.setupExperiment(startTime=t0)
+        for name, value in start_values.items():  # all Reals here (plant defaults, initial state)
+            s.setReal([self.vr[name]], [float(value)])
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+
+    def _fn(self, name: str):
+        address = ctypes.cast(getattr(self.slave.dll, name), c_void_p).value
+        return ctypes.CFUNCTYPE(c_int)(address)
+
+    def _prepare(self, inputs: np.ndarray) -> SimpleNamespace:
+        """Every ctypes argument of the loop, built before it runs."""
+        states, outputs, flags = _names(self.n)
+        vr = self.vr
+        rows = np.ascontiguousarray(inputs, dtype=float)
+        return SimpleNamespace(
+            comp=c_void_p(self.slave.component), rows=rows,
+            state_vr=(c_uint * len(states))(*[vr[k] for k in states]),
+            out_vr=(c_uint * len(outputs))(*[vr[k] for k in outputs]),
+            flag_vr=(c_uint * len(flags))(*[vr[k] for k in flags]),
+            in_vr=(c_uint * 4)(*[vr[k] for k in ("v_cmd", "w_cmd", "push_x", "push_y")]),
+            state_buf=(c_double * len(states))(), out_buf=(c_double * len(outputs))(),
+            flag_buf=(c_int * len(flags))(),
+            n_state=c_size_t(len(states)), n_out=c_size_t(len(outputs)),
+            n_flag=c_size_t(len(flags)), n_in=c_size_t(4),
+            in_rows=[(c_double * 4).from_buffer(rows, 32 * k) for k in range(len(rows))],
+            get_real=self._fn("fmi2GetReal"), set_real=self._fn("fmi2SetReal"),
+            get_bool=self._fn("fmi2GetBoolean"), do_step=self._fn("fmi2DoStep"),
+            h=c_double(STEP), true=c_int(1))
+
+    def run(self, inputs: np.ndarray, t0: float) -> tuple[float, np.ndarray]:
+        """Replay ``inputs`` (rows of v_cmd, w_cmd, push_x, push_y); (us per step, last outputs).
+
+        The loop body is written out with local names: the floor the master is compared with."""
+        a = self._prepare(inputs)
+        comp, in_rows, h, true = a.comp, a.in_rows, a.h, a.true
+        get_real, set_real, get_bool, do_step = a.get_real, a.set_real, a.get_bool, a.do_step
+        state_vr, n_state, state_buf = a.state_vr, a.n_state, a.state_buf
+        out_vr, n_out, out_buf = a.out_vr, a.n_out, a.out_buf
+        flag_vr, n_flag, flag_buf = a.flag_vr, a.n_flag, a.flag_buf
+        in_vr, n_in = a.in_vr, a.n_in
+        last = len(in_rows) - 1
+        start = time.process_time()
+        for k in range(last + 1):
+            status = get_real(comp, state_vr, n_state, state_buf)
+            status |= set_real(comp, in_vr, n_in, in_rows[k])
+            status |= get_real(comp, out_vr, n_out, out_buf)
+            status |= get_bool(comp, flag_vr, n_flag, flag_buf)
+            if k < last:
+                status |= do_step(comp, c_double(t0 + k * STEP), h, true)
+            if status > 1:
+                raise SystemExit(f"raw loop: an FMI call failed at step {k} (status {status})")
+        wall = time.process_time() - start
+        return wall / last * 1e6, np.array(out_buf)
+
+    def run_without_gets(self, inputs: np.ndarray, t0: float) -> float:
+        """The raw loop with its set and doStep calls only: us per step (the rest of the raw
+        loop's time is the three getters)."""
+        a = self._prepare(inputs)
+        comp, in_rows, h, true = a.comp, a.in_rows, a.h, a.true
+        set_real, do_step, in_vr, n_in = a.set_real, a.do_step, a.in_vr, a.n_in
+        last = len(in_rows) - 1
+        start = time.process_time()
+        for k in range(last + 1):
+            status = set_real(comp, in_vr, n_in, in_rows[k])
+            if k < last:
+                status |= do_step(comp, c_double(t0 + k * STEP), h, true)
+            if status > 1:
+                raise SystemExit(f"raw loop: an FMI call failed at step {k} (status {status})")
+        return (time.process_time() - start) / last * 1e6
+
+    def close(self) -> None:
+        self.slave.terminate()
+        self.slave.freeInstance()
+        shutil.rmtree(self.unzip, ignore_errors=True)
+
+
+def run_raw(fmu, n: int, result, without_gets: bool = False):
+    """(us per step, whether its last outputs equal the master's last row) of the raw loop;
+    with ``without_gets`` the us per step of its set and doStep calls alone instead."""
+    ref, cfg = mission(n)
+    plant = PlantConfig(n_trailers=n)
+    initial = InitialState.behind_reference(ref, plant.geometry())
+    data = result.data
+    raw = RawLoop(fmu, n)
+    try:
+        raw.start({**plant.start_values(), **initial.start_values()}, float(data["t"][0]))
+        inputs = np.column_stack([data[k] for k in ("v_cmd", "w_cmd", "push_x", "push_y")])
+        if without_gets:
+            return raw.run_without_gets(inputs, float(data["t"][0]))
+        us, last = raw.run(inputs, float(data["t"][0]))
+    finally:
+        raw.close()
+    _, outputs, _ = _names(n)
+    columns = [name.replace("slide_speed", "u").replace("[", "").replace("]", "")
+               for name in outputs]
+    expected = np.array([data[c][-1] for c in columns])
+    return us, bool(np.array_equal(last, expected))
+
+
+def control_law(n: int, result) -> tuple[float, bool]:
+    """(us per step, whether it gives the master's commands bit for bit) of the control law
+    alone: the tracking loop (reference sample + controller) replayed on the master's measured
+    states (perfect sensors), with the joint angles handed over as the master hands them."""
+    ref, cfg = mission(n)
+    data = result.data
+    ctrl = BackwardController(cfg)
+    step = float(data["t"][1] - data["t"][0])
+    ctrl.reset(0.0, 0.0, float(data["t"][0]) - step)
+    loop = TrackingLoop(ctrl, ref)
+    phi = np.column_stack([data[f"phi_meas{i}"] for i in range(1, n + 1)])
+    measurements = [Measurement(x0, y0, th0, angles)
+                    for x0, y0, th0, angles in zip(data["x0"].tolist(), data["y0"].tolist(),
+                                                   data["theta0"].tolist(), phi.tolist(),
+                                                   strict=True)]
+    times = data["t"].tolist()
+    commands = []
+    start = time.process_time()
+    for t, meas in zip(times, measurements, strict=True):
+        commands.append(loop.command(t, meas)[:2])
+    wall = time.process_time() - start
+    same = np.array_equal(np.array(commands), np.column_stack([data["v_cmd"], data["w_cmd"]]))
+    return wall / (len(times) - 1) * 1e6, same
+
+
+def profile(fmu, n: int, horizon: float) -> None:
+    prof = cProfile.Profile()
+    prof.enable()
+    run_master(fmu, n, horizon)
+    prof.disable()
+    print(f"\n--- cProfile of one master run, n = {n} (own time) ---")
+    pstats.Stats(prof).sort_stats("tottime").print_stats(14)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--n", type=int, nargs="+", default=[3, 50])
+    parser.add_argument("--profile", action="store_true")
+    args = parser.parse_args()
+    for n in args.n:
+        fmu = build_fmu(n)
+        horizon = HORIZON.get(n, 20.0)
+        run_master(fmu, n, horizon)  # warm-up: imports, caches
+        masters, raws, laws, same, same_law = [], [], [], True, True
+        for _ in range(args.repeats):
+            us, result = run_master(fmu, n, horizon)
+            masters.append(us)
+            us_raw, equal = run_raw(fmu, n, result)
+            raws.append(us_raw)
+            us_law, equal_law = control_law(n, result)
+            laws.append(us_law)
+            same, same_law = same and equal, same_law and equal_law
+        m, r, c = (statistics.median(x) for x in (masters, raws, laws))
+        print(f"n = {n:2d}, {len(result.data) - 1} steps, medians of {args.repeats}:\n"
+              f"  master {m:7.2f} us/step, raw ctypes {r:6.2f} us/step: "
+              f"RATIO master/raw = {m / r:.2f}x (target <= 1.5x; of the fastest runs "
+              f"{min(masters):.2f} / {min(raws):.2f} = {min(masters) / min(raws):.2f}x)\n"
+              f"  of the master's time, the Python control law (reference + controller, "
+              f"replayed alone) {c:.2f} us/step = {100 * c / m:.0f} %; the rest "
+              f"{m - c:.2f} us/step = {(m - c) / r:.2f}x raw\n"
+              f"  raw loop reproduces the master's outputs bit for bit: {same}; "
+              f"replayed control law its commands: {same_law}")
+        bare = statistics.median(run_raw(fmu, n, result, without_gets=True)
+                                 for _ in range(args.repeats))
+        print(f"  of the raw loop's time, the three FMU getters {r - bare:.2f} us/step, "
+              f"set + doStep {bare:.2f} us/step")
+        if args.profile:
+            profile(fmu, n, horizon)
 
 
 if __name__ == "__main__":
-    bare_us, _ = bench(3)
-    rate = closed_loop("--profile" in sys.argv)
-    print(f"bare fmpy doStep: {bare_us:.2f} us/step = {1e6 / bare_us:,.0f} steps/s")
-    print(f"closed loop:      {1e6 / rate:.2f} us/step = {rate:,.0f} steps/s "
-          f"({(1e6 / rate) / bare_us:.1f}x the bare step)")
+    main()

@@ -4,20 +4,25 @@ One wrapper, two thin backends: the FMI 2.0 FMU (one build per n) has a scalar p
 ``x[2]``; the FMI 3.0 FMU (one build for every n) has array variables, ``x`` holding x[0] .. x[n],
 and its n is set before initialization. Callers use the contract's element names (``x[2]``,
 ``slide[1]``) with either; the wrapper maps them onto value references looked up by name from
-the model description. Per-step calls use preallocated ctypes arrays viewed as numpy arrays, so
-stepping costs a few microseconds. FMU log messages go to :mod:`logging` and the last ones are
-kept for error messages.
+the model description. Per-step calls go straight to the FMU's C functions (bare ctypes, no fmpy
+wrapper, no argument conversion) with preallocated value-reference and value arrays, and can
+write into a caller's array (the recorder's row); fmpy loads, extracts and reads the model
+description, once per FMU file and process. FMU log messages go to :mod:`logging` and the last
+ones are kept for error messages.
 """
 
 from __future__ import annotations
 
+import atexit
 import ctypes
 import logging
 import re
 import shutil
 import tempfile
+import threading
 from collections import deque
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -30,6 +35,7 @@ __all__ = ["CosimError", "TrailerTrainSlave"]
 
 log = logging.getLogger(__name__)
 _STATUS = ["OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING"]
+_WARNING = 1  # a status above fmi2Warning / fmi3Warning is a failure (as fmpy treats it)
 _ELEMENT = re.compile(r"(\w+)\[(\d+)\]")
 _BLOCKS = {block.name: block for block in ARRAYS}  # first body index and length of each array
 
@@ -47,6 +53,56 @@ class _FmuLog:
         self.recent.append(f"[{label}] {text}")
         level = logging.ERROR if status >= 3 else logging.WARNING if status == 1 else logging.DEBUG
         log.log(level, "FMU %s: %s", self.name, text)
+
+
+class _Unpacked(NamedTuple):
+    """An FMU file read and extracted once per process: its model description, its variables
+    by name, the type of each value reference, the folder it is extracted to."""
+
+    md: object
+    variables: dict
+    types: dict
+    folder: str
+
+
+_UNPACKED: dict[tuple, _Unpacked] = {}
+_UNPACKED_LOCK = threading.Lock()
+
+
+def _unpacked(path: Path) -> _Unpacked:
+    """``path`` read (fmpy's model-description reader) and extracted (fmpy's ``extract``), or the
+    copy this process already has of the same file (same path, size and modification time).
+
+    Reading the XML costs about 0.1 s at n = 50 and extracting several ms, per run of a sweep;
+    several instances may load the one extracted library (the FMU keeps no global state).
+    The folders are removed when the process exits."""
+    stat = path.stat()
+    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns)
+    with _UNPACKED_LOCK:
+        found = _UNPACKED.get(key)
+        if found is not None and Path(found.folder).is_dir():
+            return found
+        md = read_model_description(str(path))
+        folder = tempfile.mkdtemp(prefix="pushtrain-fmu-")
+        if not _UNPACKED:
+            atexit.register(_remove_unpacked)
+        try:
+            extract(str(path), folder)
+        except Exception:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
+        variables = {v.name: v for v in md.modelVariables}
+        types = {v.valueReference: v.type for v in md.modelVariables}
+        _UNPACKED[key] = found = _Unpacked(md, variables, types, folder)
+        return found
+
+
+def _remove_unpacked() -> None:
+    """Remove the folders of :func:`_unpacked` (at exit)."""
+    with _UNPACKED_LOCK:
+        for unpacked in _UNPACKED.values():
+            shutil.rmtree(unpacked.folder, ignore_errors=True)
+        _UNPACKED.clear()
 
 
 class _Fmi2:
@@ -74,8 +130,10 @@ class _Fmi2:
         addLoggerProxy(ctypes.byref(self.callbacks))
         self.real_type, self.bool_type = ctypes.c_double, ctypes.c_int  # fmi2Real, fmi2Boolean
         self.vr_type = ctypes.c_uint
-        self.get_real, self.set_real = self.slave.fmi2GetReal, self.slave.fmi2SetReal
-        self.get_bool = self.slave.fmi2GetBoolean
+        self.get_real, self.set_real = "fmi2GetReal", "fmi2SetReal"
+        self.get_bool, self.do_step = "fmi2GetBoolean", "fmi2DoStep"
+        self.step_tail = (1,)  # noSetFMUStatePriorToCurrentPoint
+        self.step_types = (ctypes.c_int,)
 
     def instantiate(self, n: int) -> None:
         self.slave.instantiate(callbacks=self.callbacks, loggingOn=False)
@@ -88,17 +146,12 @@ class _Fmi2:
         {"Real": self.slave.setReal, "Integer": self.slave.setInteger,
          "Boolean": self.slave.setBoolean}[kind](refs, values)
 
-    def bind(self, function):
-        """``call(refs, nvr, buffer, count)`` of an fmi2 get/set function (no nValues)."""
-        component = self.slave.component
-        return lambda refs, nvr, buffer, count: function(component, refs, nvr, buffer)
+    def arguments(self, refs, nvr: int, buffer, count: int) -> tuple:
+        """The arguments of an fmi2 get/set call (no nValues)."""
+        return (ctypes.c_void_p(self.slave.component), refs, ctypes.c_size_t(nvr), buffer)
 
     def get_reals(self, refs: list[int], count: int) -> list[float]:
         return self.slave.getReal(refs)
-
-    def do_step_call(self):
-        step, component = self.slave.fmi2DoStep, self.slave.component
-        return lambda t, h: step(component, t, h, 1)
 
 
 class _Fmi3:
@@ -114,9 +167,14 @@ class _Fmi3:
         self.n_ref = next(v.valueReference for v in md.modelVariables if v.name == "n")
         self.real_type, self.bool_type = ctypes.c_double, ctypes.c_bool  # fmi3Float64, Boolean
         self.vr_type = ctypes.c_uint32
-        self.get_real, self.set_real = self.slave.fmi3GetFloat64, self.slave.fmi3SetFloat64
-        self.get_bool = self.slave.fmi3GetBoolean
+        self.get_real, self.set_real = "fmi3GetFloat64", "fmi3SetFloat64"
+        self.get_bool, self.do_step = "fmi3GetBoolean", "fmi3DoStep"
+        # noSetFMUStatePriorToCurrentPoint, then eventHandlingNeeded, terminateSimulation,
+        # earlyReturn and lastSuccessfulTime (outputs the TrailerTrain FMU sets but never needs)
         self._step_out = [ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()]
+        self.step_tail = (True, *(ctypes.byref(value) for value in self._step_out))
+        self.step_types = (ctypes.c_bool,
+                           *(ctypes.POINTER(type(value)) for value in self._step_out))
 
     def instantiate(self, n: int) -> None:
         self.slave.instantiate(loggingOn=False, logMessage=self.log_message)
@@ -131,18 +189,13 @@ class _Fmi3:
         {"Float64": self.slave.setFloat64, "Int32": self.slave.setInt32,
          "Boolean": self.slave.setBoolean, "UInt64": self.slave.setUInt64}[kind](refs, values)
 
-    def bind(self, function):
-        """``call(refs, nvr, buffer, count)`` of an fmi3 get/set function."""
-        component = self.slave.component
-        return lambda refs, nvr, buffer, count: function(component, refs, nvr, buffer, count)
+    def arguments(self, refs, nvr: int, buffer, count: int) -> tuple:
+        """The arguments of an fmi3 get/set call."""
+        return (ctypes.c_void_p(self.slave.component), refs, ctypes.c_size_t(nvr), buffer,
+                ctypes.c_size_t(count))
 
     def get_reals(self, refs: list[int], count: int) -> list[float]:
         return self.slave.getFloat64(refs, nValues=count)
-
-    def do_step_call(self):
-        step, component = self.slave.fmi3DoStep, self.slave.component
-        out = [ctypes.byref(value) for value in self._step_out]
-        return lambda t, h: step(component, t, h, True, *out)
 
 
 class _Plan:
@@ -185,10 +238,10 @@ class TrailerTrainSlave:
         self.fmu_path = Path(fmu_path)
         if not self.fmu_path.is_file():
             raise CosimInputError(f"FMU file {str(self.fmu_path)!r} does not exist")
-        self.md = read_model_description(str(self.fmu_path))
+        unpacked = _unpacked(self.fmu_path)
+        self.md, self._vars, self._types = unpacked.md, unpacked.variables, unpacked.types
         if self.md.coSimulation is None:
             raise CosimInputError(f"{self.fmu_path} has no Co-Simulation interface")
-        self._vars = {v.name: v for v in self.md.modelVariables}
         n_var = self._vars.get("n")
         if n_var is None:
             raise CosimInputError(f"{self.fmu_path} is not a TrailerTrain FMU (no variable 'n')")
@@ -201,8 +254,7 @@ class TrailerTrainSlave:
                                       f"to {MAX_TRAILERS}")
             self.n = n_trailers
         self.vr = {name: var.valueReference for name, var in self._vars.items()}
-        self._unzipdir = tempfile.mkdtemp(prefix="pushtrain-fmu-")
-        extract(str(self.fmu_path), self._unzipdir)
+        self._unzipdir = unpacked.folder
         self._log = _FmuLog(instance_name)
         backend = {2: _Fmi2, 3: _Fmi3}.get(self.fmi_version)
         if backend is None:
@@ -242,8 +294,7 @@ class TrailerTrainSlave:
 
     def _type(self, name: str) -> str:
         """The FMI type of the variable that holds ``name``."""
-        ref = self._locate(name)[0]
-        return next(v.type for v in self.md.modelVariables if v.valueReference == ref)
+        return self._types[self._locate(name)[0]]
 
     # -------------------------------------------------------------- set-up
     def start(self, start_values: dict, t0: float = 0.0) -> None:
@@ -252,7 +303,11 @@ class TrailerTrainSlave:
         try:
             self._fmu.instantiate(self.n)
             self._instantiated = True
-            self._step = self._fmu.do_step_call()
+            self._component = ctypes.c_void_p(self.slave.component)
+            name = self._fmu.do_step
+            address = ctypes.cast(getattr(self.slave.dll, name), ctypes.c_void_p).value
+            self._step = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double,
+                                          ctypes.c_double, *self._fmu.step_types)(address)
             self._set_values(start_values)
             self._fmu.enter_initialization(t0)
             self.slave.exitInitializationMode()
@@ -281,38 +336,72 @@ class TrailerTrainSlave:
         """The FMU's last log messages, one per line."""
         return "\n".join(self._log.recent)
 
+    def _why(self, status: int) -> str:
+        """The FMU's last messages, or the status of a failed call that logged none."""
+        label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+        return self.last_messages() or f"status {label}"
+
     # -------------------------------------------------------------- fast per-step access
+    def _function(self, name: str):
+        """The FMU's C function ``name`` as a bare ctypes function returning its status: called
+        with ready ctypes arguments, no conversion and no fmpy wrapper in between."""
+        address = ctypes.cast(getattr(self.slave.dll, name), ctypes.c_void_p).value
+        return ctypes.CFUNCTYPE(ctypes.c_int)(address)
+
     def _buffers(self, plan: _Plan, value_type):
         refs = (self._fmu.vr_type * len(plan.refs))(*plan.refs)
         buffer = (value_type * max(plan.count, 1))()
         return refs, buffer, np.ctypeslib.as_array(buffer)[: plan.count]
 
-    def real_reader(self, names):
-        """A function returning the current values of ``names`` as a (reused) numpy array."""
-        return self._reader(names, self._fmu.real_type, self._fmu.get_real)
+    def real_reader(self, names, out: np.ndarray | None = None):
+        """A function returning the current values of ``names`` as a (reused) numpy array.
 
-    def bool_reader(self, names):
+        With ``out`` (a float64 array of len(names)) the values land there and ``out`` is
+        returned; for FMI 2.0 and a C-contiguous ``out`` the FMU writes into it directly."""
+        return self._reader(names, self._fmu.real_type, self._function(self._fmu.get_real), out)
+
+    def bool_reader(self, names, out: np.ndarray | None = None):
         """A function returning the current values of the Booleans ``names`` as a (reused)
-        numpy array (0/1 for FMI 2.0's fmi2Boolean, bools for FMI 3.0)."""
-        return self._reader(names, self._fmu.bool_type, self._fmu.get_bool)
+        numpy array (0/1 for FMI 2.0's fmi2Boolean, bools for FMI 3.0), or copied into ``out``
+        (cast to its dtype) and ``out`` returned."""
+        return self._reader(names, self._fmu.bool_type, self._function(self._fmu.get_bool), out)
 
-    def _reader(self, names, ctype, get):
-        """One call of ``get`` (fmi2GetReal, fmi3GetFloat64, ...) per read into a preallocated
-        buffer; for FMI 3.0 arrays, then one gather of the named elements."""
+    def _reader(self, names, ctype, call, out=None):
+        """One ``call`` of the FMU's getter (fmi2GetReal, fmi3GetFloat64, ...) per read into a
+        preallocated buffer; for FMI 3.0 arrays, then one gather of the named elements."""
         plan = _Plan(self, names)
         refs, buffer, values = self._buffers(plan, ctype)
-        call, nvr, count = self._fmu.bind(get), len(plan.refs), plan.count
-        index, out = np.array(plan.index), np.empty(len(plan.index), dtype=values.dtype)
+        if out is not None and out.shape != (len(plan.index),):
+            raise CosimInputError(f"out has shape {out.shape}; {len(plan.index)} names to read")
+        direct = (out is not None and plan.identity and out.dtype == values.dtype
+                  and out.flags.c_contiguous and out.flags.writeable)
+        if direct:  # the FMU writes straight into ``out``
+            buffer = (ctype * len(out)).from_buffer(out)
+        args = self._fmu.arguments(refs, len(plan.refs), buffer, plan.count)
+        index = np.array(plan.index)
+        result = out
+        if out is None:
+            result = values if plan.identity else np.empty(len(index), dtype=values.dtype)
+        if direct or (out is None and plan.identity):
+            finish = None  # the values are where they are returned
+        elif plan.identity:
+            def finish():
+                result[...] = values
+        elif result.dtype == values.dtype:
+            def finish():
+                np.take(values, index, out=result)
+        else:
+            def finish():
+                np.copyto(result, values[index], casting="unsafe")
 
         def read() -> np.ndarray:
-            try:
-                call(refs, nvr, buffer, count)
-            except FMICallException as exc:
-                raise CosimError(
-                    f"reading {names[0]} .. {names[-1]} failed at t = {self.time:.6f} s: "
-                    f"{self.last_messages() or exc}"
-                ) from exc
-            return values if plan.identity else np.take(values, index, out=out)
+            status = call(*args)
+            if status > _WARNING:
+                raise CosimError(f"reading {names[0]} .. {names[-1]} failed at "
+                                 f"t = {self.time:.6f} s: {self._why(status)}")
+            if finish is not None:
+                finish()
+            return result
 
         return read
 
@@ -323,24 +412,23 @@ class TrailerTrainSlave:
         writer of this instance."""
         plan = _Plan(self, names)
         refs, buffer, values = self._buffers(plan, self._fmu.real_type)
-        set_, nvr, count = self._fmu.bind(self._fmu.set_real), len(plan.refs), plan.count
+        set_real = self._function(self._fmu.set_real)
+        args = self._fmu.arguments(refs, len(plan.refs), buffer, plan.count)
         index = np.array(plan.index)
         spans = [(self._last_set(ref, size), start, size) for ref, start, size in plan.spans]
 
         def write(new_values) -> None:
             if plan.identity:
-                values[:] = new_values
+                buffer[:] = new_values  # ctypes: no numpy call per step
             else:
                 for last, start, size in spans:
                     values[start:start + size] = last
                 values[index] = new_values
-            try:
-                set_(refs, nvr, buffer, count)
-            except FMICallException as exc:
+            status = set_real(*args)
+            if status > _WARNING:
                 raise CosimError(
                     f"setting {list(names)} = {list(new_values)} failed at t = {self.time:.6f} s: "
-                    f"{self.last_messages() or exc}"
-                ) from exc
+                    f"{self._why(status)}")
             if not plan.identity:
                 for last, start, size in spans:
                     last[:] = values[start:start + size]
@@ -359,18 +447,18 @@ class TrailerTrainSlave:
 
     def do_step(self, t: float, h: float) -> None:
         """One communication step from ``t`` to ``t + h`` [s]; raises CosimError on failure."""
-        try:
-            self._step(t, h)
-        except FMICallException as exc:
+        status = self._step(self._component, t, h, *self._fmu.step_tail)
+        if status > _WARNING:
             raise CosimError(
                 f"fmi{self.fmi_version}DoStep failed at t = {t:.6f} s (h = {h} s): "
-                f"{self.last_messages() or exc}"
-            ) from exc
+                f"{self._why(status)}"
+            )
         self.time = t + h
 
     # -------------------------------------------------------------- life cycle
     def close(self) -> None:
-        """Terminate, free the instance and remove the extracted files."""
+        """Terminate and free the instance (the extracted files stay for the next instance of
+        this FMU in the process; they are removed when it exits)."""
         if self._instantiated:
             try:
                 self.slave.terminate()
@@ -378,7 +466,6 @@ class TrailerTrainSlave:
                 pass
             self.slave.freeInstance()
             self._instantiated = False
-        shutil.rmtree(self._unzipdir, ignore_errors=True)
 
     def __enter__(self):
         return self

@@ -5,16 +5,22 @@ the loop reads as its three steps:
 
 apply inputs
     the events due (:class:`~pushtrain.cosim.events.EventSchedule`: joint-bias switches, the
-    push force on the last trailer, imposed slides), the FMU's outputs -> sensors (bias, noise,
-    quantization, backlash) -> :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample,
-    pull guide, Kanayama + inverse chain kinematics) -> the FMU's inputs;
+    push force on the last trailer, imposed slides), the FMU's states (robot pose, last
+    trailer's pose, joint angles) -> sensors (bias, noise, quantization, backlash) ->
+    :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, pull guide, Kanayama +
+    inverse chain kinematics) -> the FMU's inputs;
 record
-    the outputs again (the wheel forces depend directly on the inputs) with the inputs, the
-    reference and the tracking errors, one row by named blocks
-    (:class:`~pushtrain.cosim.recorder.Recorder`, a numpy structured array at the end);
+    every output (read after the inputs: the wheel forces depend directly on them) and the flags
+    straight into the recorder's row, with the inputs, the reference and the tracking errors;
+    one copy of the row per step (:class:`~pushtrain.cosim.recorder.Recorder`, a numpy
+    structured array at the end);
 do step
     ``fmi2DoStep`` from t_k to t_k + h, unless the last trailer reached the goal, a joint
     jackknifed or the horizon ended.
+
+Per step that is four FMI calls and one doStep, made through bare ctypes with preallocated
+arrays (:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), and scalar Python in between;
+``benchmarks/bench_cosim.py`` compares it with a raw-ctypes loop doing the same calls.
 
 Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save` CSV, NPZ and
 ``summary.json`` (each written atomically).
@@ -22,6 +28,7 @@ Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save`
 
 from __future__ import annotations
 
+import ctypes
 import json
 import logging
 import math
@@ -43,7 +50,7 @@ from pushtrain.files import atomic_write
 from .events import EventSchedule, Push, SetBias, Slide, _positive
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
 from .recorder import Recorder
-from .sensors import SensorConfig, Sensors
+from .sensors import Measurement, SensorConfig, Sensors
 
 __all__ = [
     "CosimError",
@@ -69,6 +76,8 @@ STATUS_JACKKNIFE = "jackknifed"
 STATUS_FMU_ERROR = "fmu_error"
 STATUS_TIME_LIMIT = "time_limit"
 STATUS_COMPLETED = "completed"  # fixed-horizon run without a goal check
+
+_new_tuple = tuple.__new__
 
 
 @dataclass
@@ -240,17 +249,18 @@ def _columns(n: int) -> list[str]:
 
 
 def _recorder(n: int, capacity: int) -> Recorder:
-    """The recorder of a run: the blocks the loop writes, the columns of :func:`_columns`."""
+    """The recorder of a run: the blocks the loop writes, the columns of :func:`_columns`.
+
+    The FMU's outputs and flags land in their blocks of the recorder's row straight from the FMU;
+    ``scalars`` holds the time, the inputs, the reference sample and the tracking errors."""
     joints = range(1, n + 1)
     blocks = [
-        ("t", ["t"]),
         ("outputs", [f"{col}{i}" for _, col, first in _OUTPUTS for i in range(first, n + 1)]),
-        ("phi_meas", [f"phi_meas{i}" for i in joints]),
-        ("F_lat_max", [f"F_lat_max{i}" for i in joints]),
         ("flags", [f"slipping{i}" for i in joints] + ["jackknifed"]),
-        ("inputs", ["v_cmd", "w_cmd", "push_x", "push_y", "slide"]),
-        ("reference", ["x_d", "y_d", "theta_d", "v_d", "w_d", "direction"]),
-        ("errors", ["e_lon", "e_lat", "e_theta"]),
+        ("F_lat_max", [f"F_lat_max{i}" for i in joints]),
+        ("phi_meas", [f"phi_meas{i}" for i in joints]),
+        ("scalars", ["t", "v_cmd", "w_cmd", "push_x", "push_y", "slide",
+                  "x_d", "y_d", "theta_d", "v_d", "w_d", "direction", "e_lon", "e_lat", "e_theta"]),
     ]
     return Recorder(blocks, _columns(n), capacity)
 
@@ -267,19 +277,28 @@ def _steps(horizon: float, step: float) -> int:
 
 
 class _PlantIO:
-    """The FMU's per-step reads and writes, by variable name (the outputs in ``_OUTPUTS`` order)."""
+    """The FMU's per-step reads and writes, by variable name.
 
-    def __init__(self, slave: TrailerTrainSlave, n: int):
+    ``read_state`` fills :attr:`pose` (robot pose, last trailer's pose) and :attr:`phi` (joint
+    angles): what the sensors measure, states that setting inputs does not change.
+    ``read_outputs`` (every output of ``_OUTPUTS``, in that order) and ``read_flags`` (slipping
+    1..n, jackknifed) write into the recorder's row; ``write_slide[i]`` sets ``slide[i]`` for
+    the trailers ``slid`` (1..n) that have Slide events."""
+
+    def __init__(self, slave: TrailerTrainSlave, n: int, recorder: Recorder, slid=()):
+        self.n = n
+        self.state = np.empty(n + 6)
+        self.pose, self.phi = self.state[:6], self.state[6:]
+        self.read_state = slave.real_reader(["x[0]", "y[0]", "theta[0]", f"x[{n}]", f"y[{n}]",
+                                             f"theta[{n}]"] + slave.names("phi", 1, n),
+                                            out=self.state)
         names = [f"{fmu}[{i}]" for fmu, _, first in _OUTPUTS for i in range(first, n + 1)]
-        at = {name: k for k, name in enumerate(names)}
-        self.read = slave.real_reader(names)
-        self.read_flags = slave.bool_reader(slave.names("slipping", 1, n) + ["jackknifed"])
+        self.read_outputs = slave.real_reader(names, out=recorder.view("outputs"))
+        self.read_flags = slave.bool_reader(slave.names("slipping", 1, n) + ["jackknifed"],
+                                            out=recorder.view("flags"))
         self.write_inputs = slave.real_writer(["v_cmd", "w_cmd", "push_x", "push_y"])
-        self.write_slide = {i: slave.real_writer([f"slide[{i}]"]) for i in range(1, n + 1)}
-        self.f_max = slave.get_reals(slave.names("F_lat_max", 1, n))
-        self.robot = (at["x[0]"], at["y[0]"], at["theta[0]"])
-        self.last = (at[f"x[{n}]"], at[f"y[{n}]"], at[f"theta[{n}]"])
-        self.phi = slice(at["phi[1]"], at[f"phi[{n}]"] + 1)
+        self.write_slide = {i: slave.real_writer([f"slide[{i}]"]) for i in slid}
+        recorder.view("F_lat_max")[:] = slave.get_reals(slave.names("F_lat_max", 1, n))
 
 
 @dataclass(frozen=True)
@@ -311,78 +330,102 @@ class _Run:
                  recorder: Recorder, goal: _Goal):
         self.slave, self.loop, self.sensors, self.events = slave, loop, sensors, events
         self.recorder, self.goal, self.n = recorder, goal, sensors.n
-        self.io = _PlantIO(slave, self.n)
-        self.measure_last = bool(getattr(sensors.config, "measure_last_pose", False))
+        slid = {self.n if ev.trailer is None else ev.trailer for ev in events.slides}
+        self.io = _PlantIO(slave, self.n, recorder, sorted(slid))
+        self.phi_meas, self.flags = recorder.view("phi_meas"), recorder.view("flags")
+        scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
+        self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
+        self.measure = self._measure_ideal if sensors.ideal else self._measure
 
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
         """Step from ``t0`` (communication points t0 + k step, k = 0..n_steps); the status and
-        message of a jackknife or the goal, or None if the horizon ended first."""
+        message of a jackknife or the goal, or None if the horizon ended first.
+
+        Per step: four FMI calls, one doStep, scalar Python and one copy of the row (the
+        per-step objects are bound to locals once)."""
+        events, io, n, goal = self.events, self.io, self.n, self.goal
+        read_state, write_inputs = io.read_state, io.write_inputs
+        read_outputs, read_flags = io.read_outputs, io.read_flags
+        pose, measure, command = io.pose, self.measure, self.loop.command
+        scalars, flags, commit = self.scalars, self.flags, self.recorder.commit
+        do_step = self.slave.do_step
         for k in range(n_steps + 1):
             t = t0 + k * step
-            inputs = self.apply_inputs(t)
-            stop = self.stop(t, *self.record(t, *inputs))
-            if stop is not None:
-                return stop
+            # apply inputs: events due, states -> sensors -> tracking loop -> FMU inputs
+            if events.biases:
+                for bias in events.biases_due(t):
+                    self.sensors.set_bias(bias.joint, bias.bias)
+            read_state()
+            x0, y0, th0, x_n, y_n, th_n = pose.tolist()
+            v_cmd, w_cmd, _, ref = command(t, measure(x0, y0, th0, x_n, y_n, th_n))
+            push_x, push_y = events.push_force(t, th_n) if events.pushes else (0.0, 0.0)
+            write_inputs((v_cmd, w_cmd, push_x, push_y))
+            slide = self._slide(t) if events.slides else 0.0
+            # record: every output and the flags, read after the inputs (the wheel forces depend
+            # directly on them), the time, inputs, reference and errors; one copy of the row
+            read_outputs()
+            read_flags()
+            dx, dy = x_n - ref.x, y_n - ref.y  # the last trailer's error in the reference frame
+            c, s = math.cos(ref.theta), math.sin(ref.theta)
+            scalars[:] = (t, v_cmd, w_cmd, push_x, push_y, slide) + ref + (
+                c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
+            commit()
+            if flags[n]:
+                return self._jackknife(t)
+            if goal.check and t >= goal.t_end - 1e-12:
+                reached = self._goal_reached(t, x_n, y_n, th_n)
+                if reached is not None:
+                    return reached
             if k == n_steps:
                 return None
-            self.slave.do_step(t, step)
+            # do step
+            do_step(t, step)
             if bar is not None and k % 200 == 0:
                 bar.update(200 if k else 0)
         return None
 
-    def apply_inputs(self, t: float):
-        """Events due, sensors -> tracking loop -> FMU inputs at ``t``; returns the measurement,
-        the inputs (v_cmd, w_cmd, push_x, push_y, slide of trailer n) and the reference sample."""
-        for bias in self.events.biases_due(t):
-            self.sensors.set_bias(bias.joint, bias.bias)
-        y = self.io.read()
-        (i_x, i_y, i_th), last = self.io.robot, self.io.last
-        if self.measure_last:
-            meas = self.sensors.measure(y[i_x], y[i_y], y[i_th], y[self.io.phi],
-                                        (y[last[0]], y[last[1]], y[last[2]]))
-        else:
-            meas = self.sensors.measure(y[i_x], y[i_y], y[i_th], y[self.io.phi])
-        v_cmd, w_cmd, _, ref = self.loop.command(t, meas)
-        push = self.events.push_force(t, y[last[2]])
-        self.io.write_inputs((v_cmd, w_cmd) + push)
+    def _measure_ideal(self, x0, y0, th0, x_n, y_n, th_n) -> Measurement:
+        """The measurement of sensors without noise, play or quantization: the true robot pose
+        and the joint angles plus their biases (into the row, and as floats for the controller),
+        equal to :meth:`Sensors.measure` bit for bit."""
+        reading = self.sensors.biased(self.io.phi)
+        self.phi_meas[...] = reading
+        return _new_tuple(Measurement, (x0, y0, th0, reading.tolist(), None))
+
+    def _measure(self, x0, y0, th0, x_n, y_n, th_n) -> Measurement:
+        """The measurement of :class:`Sensors` (noise drawn in its order: joints, robot pose,
+        last trailer's pose); the joint readings into the row, as floats for the controller."""
+        sensors = self.sensors
+        reading = sensors.measure_joints(self.io.phi)
+        robot = sensors.measure_pose(x0, y0, th0)
+        last = sensors.measure_pose(x_n, y_n, th_n) if sensors.config.measure_last_pose else None
+        self.phi_meas[...] = reading
+        return _new_tuple(Measurement, (*robot, reading.tolist(), last))
+
+    def _slide(self, t: float) -> float:
+        """Set the slide speeds [m/s] that change at ``t``; the last trailer's."""
         for i, speed in self.events.slide_changes(t):
             self.io.write_slide[i]((speed,))
-        return meas, (v_cmd, w_cmd) + push + (self.events.slide_speed(self.n),), ref
+        return self.events.slide_speed(self.n)
 
-    def record(self, t: float, meas, inputs: tuple, ref):
-        """One row at ``t``; the outputs are read again, since the forces depend directly on the
-        inputs just set. Returns the outputs and the Boolean flags."""
-        y = self.io.read()
-        flags = self.io.read_flags()
-        i_x, i_y, i_th = self.io.last
-        x_n, y_n, th_n = y[i_x], y[i_y], y[i_th]
-        # tracking error of the last trailer in the reference's (chain) frame
-        dx, dy = x_n - ref.x, y_n - ref.y
-        c, s = math.cos(ref.theta), math.sin(ref.theta)
-        errors = (c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
-        self.recorder.append(t=t, outputs=y, phi_meas=meas.phi, F_lat_max=self.io.f_max,
-                             flags=flags, inputs=inputs, reference=ref[:], errors=errors)
-        return y, flags
-
-    def stop(self, t: float, y, flags) -> tuple[str, str] | None:
-        """Status and message if the run ends at ``t``: a jackknife, or the goal reached."""
-        n, goal = self.n, self.goal
-        if flags[n]:
-            phi = y[self.io.phi]
-            worst = int(np.argmax(np.abs(phi))) + 1
-            return STATUS_JACKKNIFE, (
-                f"jackknife at t = {t:.3f} s: |phi[{worst}]| = "
-                f"{math.degrees(abs(phi[worst - 1])):.1f} deg exceeds phi_max"
+    def _goal_reached(self, t: float, x_n: float, y_n: float, th_n: float):
+        """Status and message if the last trailer's pose is within the goal's tolerance."""
+        goal = self.goal
+        dist = math.hypot(x_n - goal.pose[0], y_n - goal.pose[1])
+        if dist <= goal.position and abs(wrap_scalar(th_n - goal.pose[2])) <= goal.heading:
+            return STATUS_GOAL, (
+                f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
             )
-        if goal.check and t >= goal.t_end - 1e-12:
-            i_x, i_y, i_th = self.io.last
-            x_n, y_n, th_n = y[i_x], y[i_y], y[i_th]
-            dist = math.hypot(x_n - goal.pose[0], y_n - goal.pose[1])
-            if dist <= goal.position and abs(wrap_scalar(th_n - goal.pose[2])) <= goal.heading:
-                return STATUS_GOAL, (
-                    f"goal reached at t = {t:.3f} s ({dist * 100:.1f} cm from the goal)"
-                )
         return None
+
+    def _jackknife(self, t: float) -> tuple[str, str]:
+        """Status and message of a jackknife at ``t``, naming the worst joint."""
+        phi = np.array([self.recorder.last(f"phi{i}") for i in range(1, self.n + 1)])
+        worst = int(np.argmax(np.abs(phi))) + 1
+        return STATUS_JACKKNIFE, (
+            f"jackknife at t = {t:.3f} s: |phi[{worst}]| = "
+            f"{math.degrees(abs(phi[worst - 1])):.1f} deg exceeds phi_max"
+        )
 
 
 def _horizon_end(recorder: Recorder, goal: _Goal, horizon: float, n: int) -> tuple[str, str]:
@@ -484,7 +527,8 @@ def simulate(
             f"the FMU {Path(fmu).name} has n = {slave.n} trailers; "
             f"the controller's chain has {n}"
         )
-    recorder = _recorder(n, min(n_steps + 1, 4096))
+    # rows for the whole run up to 8 MiB (pages never written cost no memory), then doubling
+    recorder = _recorder(n, min(n_steps + 1, max(4096, (8 << 20) // (8 * len(_columns(n))))))
     show = progress if progress is not None else (sys.stderr.isatty() and n_steps > 200)
     wall_start = _time.perf_counter()
     try:

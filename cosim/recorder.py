@@ -1,9 +1,16 @@
 """The co-simulation's recorder: one row of named float columns per communication point.
 
 Columns are declared once, in blocks of columns written together (the FMU's outputs, the inputs,
-the reference sample, ...); callers :meth:`~Recorder.append` a row by block name, never by column
-offset. Storage grows by doubling and is trimmed at the end, so a horizon much longer than the run
-costs nothing (``horizon = 1e9`` s asked a preallocating recorder for 1.46 TiB).
+the reference sample, ...), so no caller computes offsets into a flat row. Two ways to record:
+
+* :meth:`~Recorder.append` a row by block name (blocks not given stay NaN);
+* fill the blocks of the preallocated :attr:`~Recorder.row` through :meth:`~Recorder.view` (an
+  FMU reader can write into its view directly) and :meth:`~Recorder.commit` it: one copy of one
+  row per step, the master's per-step path. Values not rewritten are kept from the row before.
+
+Storage is one float array (one row per point, the blocks side by side) that grows by doubling
+and is trimmed at the end, so a horizon much longer than the run costs nothing
+(``horizon = 1e9`` s asked a preallocating recorder for 1.46 TiB).
 """
 
 from __future__ import annotations
@@ -33,56 +40,83 @@ class Recorder:
 
     def __init__(self, blocks: Sequence[tuple[str, Sequence[str]]],
                  order: Sequence[str] | None = None, capacity: int = 1024):
-        self._where: dict[str, tuple[str, int]] = {}
+        self._where: dict[str, int] = {}  # column -> its index in a row
+        self._spans: dict[str, slice] = {}  # block -> its columns in a row
         for block, columns in blocks:
-            for j, column in enumerate(columns):
+            start = len(self._where)
+            for column in columns:
                 if column in self._where:
                     raise CosimInputError(f"column {column!r} is declared twice")
-                self._where[column] = (block, j)
+                self._where[column] = len(self._where)
+            self._spans[block] = slice(start, len(self._where))
         self.columns = list(self._where if order is None else order)
         if sorted(self.columns) != sorted(self._where):
             missing = set(self._where) - set(self.columns)
             unknown = [c for c in self.columns if c not in self._where]
             raise CosimInputError(f"order must list every column once: missing {sorted(missing)}, "
-                             f"unknown {unknown}, {len(self.columns)} given")
+                                  f"unknown {unknown}, {len(self.columns)} given")
+        self._runs = _runs([self._where[c] for c in self.columns])
+        self._dtype = np.dtype([(name, "f8") for name in self.columns])
         self._capacity = max(1, int(capacity))
-        self._store = {block: np.full((self._capacity, len(columns)), np.nan)
-                       for block, columns in blocks}
+        self._store = np.empty((self._capacity, len(self._where)))  # rows < self.rows are set
+        self.row = np.full(len(self._where), np.nan)
+        """The row the next :meth:`commit` records (its blocks through :meth:`view`)."""
         self.rows = 0
+
+    def view(self, block: str) -> np.ndarray:
+        """The columns of ``block`` in :attr:`row` (a writable, contiguous view)."""
+        return self.row[self._spans[block]]
+
+    def commit(self) -> None:
+        """Record :attr:`row` as the next row (one copy); the row keeps its values."""
+        k = self.rows
+        if k == self._capacity:
+            self._grow()
+        self._store[k] = self.row
+        self.rows = k + 1
 
     def append(self, **values) -> None:
         """Add a row: each keyword is a block with its values (as many as its columns, or one
         value for a one-column block); columns of blocks not given stay NaN."""
-        k = self.rows
-        if k == self._capacity:
-            self._grow()
-        store = self._store
+        row, spans = self.row, self._spans
+        row.fill(np.nan)
         for block, value in values.items():
-            store[block][k] = value
-        self.rows = k + 1
+            row[spans[block]] = value
+        self.commit()
 
     def _grow(self) -> None:
         self._capacity *= 2
-        for block, old in self._store.items():
-            new = np.full((self._capacity, old.shape[1]), np.nan)
-            new[: old.shape[0]] = old
-            self._store[block] = new
+        new = np.empty((self._capacity, self._store.shape[1]))
+        new[: self.rows] = self._store[: self.rows]
+        self._store = new
 
     def column(self, name: str) -> np.ndarray:
         """The recorded values of column ``name`` (a view, rows so far)."""
-        block, j = self._where[name]
-        return self._store[block][: self.rows, j]
+        return self._store[: self.rows, self._where[name]]
 
     def last(self, name: str) -> float:
         """Column ``name`` in the last row."""
         if not self.rows:
             raise IndexError("nothing recorded yet")
-        block, j = self._where[name]
-        return float(self._store[block][self.rows - 1, j])
+        return float(self._store[self.rows - 1, self._where[name]])
 
     def to_array(self) -> np.ndarray:
         """The rows so far as a structured array of float64 columns in :attr:`columns` order."""
-        data = np.empty(self.rows, dtype=[(name, "f8") for name in self.columns])
-        for name in self.columns:
-            data[name] = self.column(name)
-        return data
+        rows = self.rows
+        table = np.empty((rows, self._store.shape[1]))
+        for to, start, count in self._runs:  # a few block copies, not a gather per element
+            table[:, to:to + count] = self._store[:rows, start:start + count]
+        return table.view(self._dtype).reshape(rows)
+
+
+def _runs(where: list[int]) -> list[tuple[int, int, int]]:
+    """``(first result column, first row index, count)`` of each run of result columns that sit
+    side by side in a row too (``where[j]``: row index of result column j)."""
+    runs: list[tuple[int, int, int]] = []
+    for j, k in enumerate(where):
+        if runs and runs[-1][1] + runs[-1][2] == k:
+            to, start, count = runs[-1]
+            runs[-1] = (to, start, count + 1)
+        else:
+            runs.append((j, k, 1))
+    return runs

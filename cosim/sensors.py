@@ -39,7 +39,9 @@ logger = logging.getLogger(__name__)
 class Measurement(NamedTuple):
     """What the controller sees.
 
-    ``x0, y0, theta0``: robot pose [m, m, rad]; ``phi``: joint angles, shape (n,) [rad];
+    ``x0, y0, theta0``: robot pose [m, m, rad]; ``phi``: joint angles (n,) [rad], an array from
+    :meth:`Sensors.measure`, a list of floats from the co-simulation master (the controller
+    loops over it with plain floats);
     ``last_pose``: optional direct measurement ``(x_n, y_n, theta_n)`` of the last trailer
     [m, m, rad] (e.g. localization on the last trailer). When it is ``None`` the controller
     computes the last trailer's pose from the robot pose and the joint angles, so joint biases
@@ -49,7 +51,7 @@ class Measurement(NamedTuple):
     x0: float
     y0: float
     theta0: float
-    phi: np.ndarray
+    phi: np.ndarray | list[float]
     last_pose: tuple[float, float, float] | None = None
 
 
@@ -145,6 +147,14 @@ class Sensors:
             raise SensorError(f"config = {config!r}: must be a SensorConfig")
         self.config = config
         self.n = config.n_joints
+        self._shape = (self.n,)
+        self._half = 0.5 * config.joint_backlash
+        self._joint_noise, self._q = config.joint_noise_std, config.joint_quantization
+        self._pos_noise, self._heading_noise = config.pos_noise_std, config.heading_noise_std
+        self.ideal = not (self._half or self._joint_noise or self._q or self._pos_noise
+                          or self._heading_noise or config.measure_last_pose)
+        """No noise, play, quantization or last-pose measurement: a reading is the true value
+        (plus the joint biases), see :meth:`biased`."""
         self.reset()
 
     def reset(self) -> None:
@@ -167,32 +177,39 @@ class Sensors:
         self._bias[int(joint) - 1] = float(value)
         logger.debug("joint %d bias set to %g rad", joint, value)
 
+    def biased(self, phi: np.ndarray) -> np.ndarray:
+        """``phi`` (n,) [rad] plus the current joint biases (a new array): the joint readings of
+        :attr:`ideal` sensors, equal to :meth:`measure_joints` for them (no checks: per step)."""
+        return phi + self._bias
+
     def measure_joints(self, phi) -> np.ndarray:
-        """Measured joint angles, shape (n,) [rad], from the true ones (advances the backlash)."""
+        """Measured joint angles, shape (n,) [rad] (a new array), from the true ones (advances
+        the backlash)."""
         phi = np.asarray(phi, dtype=float)
-        if phi.shape != (self.n,):
+        if phi.shape != self._shape:
             raise SensorError(f"phi has shape {phi.shape}: need ({self.n},)")
-        cfg = self.config
-        half = 0.5 * cfg.joint_backlash
-        if self._play is None or half == 0.0:
-            self._play = phi.copy()
+        half = self._half
+        if half == 0.0:  # no play: the potentiometer follows the joint
+            reading = phi + self._bias
         else:
-            np.clip(self._play, phi - half, phi + half, out=self._play)
-        reading = self._play + self._bias
-        if cfg.joint_noise_std > 0.0:
-            reading += self._rng.normal(0.0, cfg.joint_noise_std, self.n)
-        if cfg.joint_quantization > 0.0:
-            reading = cfg.joint_quantization * np.round(reading / cfg.joint_quantization)
+            if self._play is None:
+                self._play = phi.copy()
+            else:
+                np.clip(self._play, phi - half, phi + half, out=self._play)
+            reading = self._play + self._bias
+        if self._joint_noise > 0.0:
+            reading += self._rng.normal(0.0, self._joint_noise, self.n)
+        if self._q > 0.0:
+            reading = self._q * np.round(reading / self._q)
         return reading
 
-    def _measure_pose(self, x: float, y: float, theta: float) -> tuple[float, float, float]:
-        """One noisy pose reading [m, m, rad]."""
-        cfg = self.config
-        if cfg.pos_noise_std > 0.0:
-            ex, ey = self._rng.normal(0.0, cfg.pos_noise_std, 2)
+    def measure_pose(self, x: float, y: float, theta: float) -> tuple[float, float, float]:
+        """One pose reading [m, m, rad] (noisy if the config says so) of a true pose."""
+        if self._pos_noise > 0.0:
+            ex, ey = self._rng.normal(0.0, self._pos_noise, 2)
             x, y = x + ex, y + ey
-        if cfg.heading_noise_std > 0.0:
-            theta = theta + self._rng.normal(0.0, cfg.heading_noise_std)
+        if self._heading_noise > 0.0:
+            theta = theta + self._rng.normal(0.0, self._heading_noise)
         return float(x), float(y), float(theta)
 
     def measure(self, x0: float, y0: float, theta0: float, phi, last_pose=None) -> Measurement:
@@ -202,7 +219,7 @@ class Sensors:
         ``config.measure_last_pose`` is set, ignored otherwise.
         """
         phi_meas = self.measure_joints(phi)
-        robot = self._measure_pose(x0, y0, theta0)
+        robot = self.measure_pose(x0, y0, theta0)
         last = None
         if self.config.measure_last_pose:
             if last_pose is None or len(last_pose) != 3:
@@ -210,5 +227,5 @@ class Sensors:
                     f"last_pose = {last_pose!r}: measure_last_pose is set, so the true"
                     " (x_n, y_n, theta_n) must be given"
                 )
-            last = self._measure_pose(*last_pose)
+            last = self.measure_pose(*last_pose)
         return Measurement(*robot, phi_meas, last)

@@ -150,3 +150,11 @@ class FmuBuildError(PushtrainError, RuntimeError):
 
 class FmuInputError(FmuBuildError, InputError):
     """An FMU build asked for with bad arguments (n out of range, bad options)."""
+
+
+class NativeBuildError(PushtrainError, RuntimeError):
+    """The compiled control law (``core/csrc``) cannot be built or loaded: no C compiler, a
+    compiler that fails, or a library that does not match its Python binding."""
+
+
+__all__ += ["NativeBuildError"]

@@ -208,3 +208,50 @@ def test_a_huge_horizon_costs_only_the_steps_run(fmu3):
         tracemalloc.stop()
     assert result.status == "goal_reached" and len(result.data) < 100
     assert peak < 20e6, f"peak {peak / 1e6:.1f} MB"
+
+
+@pytest.mark.parametrize("with_events", [False, True])
+def test_each_row_is_the_fmu_after_the_inputs_of_its_time(with_events, fmu3, built_fmu_sim):
+    """A plain fmpy instance fed the recorded inputs at the recorded times gives every recorded
+    output and flag bit for bit: the row holds the outputs read after the inputs were set
+    (the wheel forces depend directly on them) and nothing of another step."""
+    n = 3
+    ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("arc", 2.0, 0.4)], speed=0.08)
+    bias = [0.02, -0.01, 0.03]
+    events = [Push(1.0, 0.5, lateral=30.0, fx=5.0), Slide(2.0, 0.5, 0.05, trailer=2),
+              SetBias(1.5, 1, -0.02)] if with_events else []
+    result = simulate(fmu3, ref, ControllerConfig.uniform(n), horizon=4.0, check_goal=False,
+                      sensors=SensorConfig(n_joints=n, joint_bias=bias), events=events)
+    d = result.data
+    assert result.ok and len(d) == 801
+    sim = built_fmu_sim(n)
+    initial = InitialState.behind_reference(ref, PlantConfig(n_trailers=n).geometry())
+    sim.initialize(params=initial.start_values())
+    blocks = [("x", "x", 0), ("y", "y", 0), ("theta", "theta", 0), ("v", "v", 0),
+              ("w", "w", 0), ("phi", "phi", 1), ("F_lat", "F_lat", 1), ("slide_speed", "u", 1),
+              ("slipping", "slipping", 1)]
+    slides = np.zeros(n + 1)
+    for k in range(len(d)):
+        assert d["t"][k] == k * 0.005  # t0 + k h, never a sum
+        sim.set({"v_cmd": d["v_cmd"][k], "w_cmd": d["w_cmd"][k],
+                 "push_x": d["push_x"][k], "push_y": d["push_y"][k]})
+        if with_events and 2.0 - 1e-9 <= d["t"][k] < 2.5 - 1e-9:
+            slides[2] = 0.1  # 0.05 m over 0.5 s, trailer 2
+        else:
+            slides[2] = 0.0
+        sim.set({"slide[2]": slides[2]})
+        for fmu_name, column, first in blocks:
+            got = sim.array(fmu_name).astype(float)
+            want = np.array([d[f"{column}{i}"][k] for i in range(first, n + 1)])
+            assert np.array_equal(got, want), (k, fmu_name)
+        assert d["jackknifed"][k] == float(sim.get(["jackknifed"])[0])
+        assert np.array_equal([d[f"F_lat_max{i}"][k] for i in range(1, n + 1)],
+                              sim.array("F_lat_max"))
+        joint_bias = np.array(bias)
+        if with_events and d["t"][k] >= 1.5 - 1e-9:
+            joint_bias[0] = -0.02
+        assert np.array_equal([d[f"phi_meas{i}"][k] for i in range(1, n + 1)],
+                              sim.array("phi") + joint_bias)
+        if k < len(d) - 1:
+            sim.fmu.doStep(currentCommunicationPoint=float(d["t"][k]), communicationStepSize=0.005)
+    assert with_events == bool(np.any(d["push_x"] != 0.0) and np.any(d["u2"] != 0.0))

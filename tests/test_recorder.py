@@ -43,3 +43,26 @@ def test_declarations_must_name_every_column_once():
         Recorder(BLOCKS, order=["t", "x", "y", "theta", "slipping", "jackknifed", "z"])
     with pytest.raises(IndexError):
         Recorder(BLOCKS).last("t")
+
+
+def test_rows_filled_through_views_are_committed_in_one_copy():
+    rec = Recorder(BLOCKS, order=["jackknifed", "t", "x", "y", "theta", "slipping"], capacity=2)
+    pose, flags = rec.view("pose"), rec.view("flags")
+    assert np.shares_memory(pose, rec.row) and pose.flags.c_contiguous
+    flags[:] = (0, 1)  # set once: kept in every later row
+    for k in range(5):
+        rec.view("t")[0] = 0.5 * k
+        pose[:] = (k, 2 * k, 3 * k)
+        rec.commit()
+    pose[:] = -1.0  # after the last commit: not recorded
+    data = rec.to_array()
+    assert data.dtype.names == ("jackknifed", "t", "x", "y", "theta", "slipping")
+    assert np.array_equal(data["t"], 0.5 * np.arange(5))
+    assert np.array_equal(data["theta"], 3 * np.arange(5))
+    assert np.array_equal(data["slipping"], np.zeros(5)) and data["jackknifed"].all()
+    assert rec.last("y") == 8.0 and rec.rows == 5
+
+
+def test_an_empty_recorder_gives_an_empty_table():
+    data = Recorder(BLOCKS).to_array()
+    assert len(data) == 0 and data.dtype.names == ("t", "x", "y", "theta", "slipping", "jackknifed")

@@ -136,3 +136,20 @@ def test_bad_calls_raise():
         s.set_bias(1, np.inf)
     with pytest.raises(SensorError, match="shape"):
         s.measure(0, 0, 0, [0.1, 0.2])
+
+
+@pytest.mark.parametrize("field, value", [
+    (None, None), ("joint_noise_std", 0.01), ("joint_quantization", 0.001),
+    ("joint_backlash", 0.01), ("pos_noise_std", 0.01), ("heading_noise_std", 0.01),
+    ("measure_last_pose", True)])
+def test_ideal_sensors_read_the_true_values_plus_the_biases(field, value):
+    kwargs = {} if field is None else {field: value}
+    s = Sensors(SensorConfig(3, joint_bias=[0.01, -0.02, 0.03], **kwargs))
+    assert s.ideal == (field is None)
+    phi = np.array([0.2, -0.1, 0.05])
+    if s.ideal:
+        m = s.measure(0.5, -0.5, 1.0, phi)
+        s.set_bias(2, 0.07)
+        biased = s.biased(phi)
+        assert np.array_equal(m.phi, phi + [0.01, -0.02, 0.03])
+        assert np.array_equal(biased, phi + [0.01, 0.07, 0.03]) and biased is not phi

@@ -1,0 +1,314 @@
+"""Build and load the compiled control law (``core/csrc``) with ctypes.
+
+The C sources are compiled once per machine with the system C compiler into a shared library,
+``-std=c99 -O2 -fPIC -shared -ffp-contract=off -lm`` (no fused multiply-add, so the C arithmetic
+rounds like Python's), and cached under ``$PUSHTRAIN_CACHE/native`` (default
+``~/.cache/pushtrain/native``) by a hash of the sources, the compiler command, its version and
+the flags. The library is written under a temporary name and renamed into place, so concurrent
+processes may build at the same time: each gets a complete library.
+
+The compiler is ``$CC`` if set, else Python's own (``sysconfig``'s ``CC``), else ``cc``; without
+one :class:`~pushtrain.errors.NativeBuildError` says what to install or set.
+
+:func:`load` returns the :class:`ctypes.CDLL` with every prototype declared; the ``Pt*``
+structures below mirror the C structs of ``control.h`` (their sizes are checked against the
+library at load time).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import logging
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import threading
+import uuid
+from ctypes import POINTER, c_double, c_int, c_size_t
+from importlib import resources
+from pathlib import Path
+
+from pushtrain.errors import NativeBuildError
+
+__all__ = [
+    "CFLAGS",
+    "NativeBuildError",
+    "PtChain",
+    "PtControlInfo",
+    "PtControlState",
+    "PtController",
+    "PtLeader",
+    "PtMeasurement",
+    "PtPhase",
+    "PtReference",
+    "PtSample",
+    "PtSegment",
+    "STATUS",
+    "cache_dir",
+    "compiler_command",
+    "dptr",
+    "library_path",
+    "load",
+]
+
+log = logging.getLogger(__name__)
+
+SOURCES = ("control.c",)
+HEADERS = ("control.h",)
+CFLAGS = ("-std=c99", "-O2", "-fPIC", "-ffp-contract=off")
+LDFLAGS = ("-shared",)
+LIBS = ("-lm",)
+BUILD_FORMAT = "1"  # bump when the build recipe changes
+
+STATUS = {
+    0: "ok",
+    1: "non-finite measurement",
+    2: "non-finite command",
+    3: "pulling without the robot's reference (leader)",
+    4: "reference direction not +1, -1 or 0",
+    5: "bad argument",
+    6: "storage too small",
+    7: "bad segment",
+    8: "time outside every pulling run",
+    9: "reference without segments",
+}
+"""Meaning of the C status codes (``PT_OK``, ``PT_ERR_*`` in ``control.h``)."""
+
+D_PTR = POINTER(c_double)
+
+
+class PtChain(ctypes.Structure):
+    _fields_ = [("n", c_int), ("front", D_PTR), ("rear", D_PTR)]
+
+
+class PtSample(ctypes.Structure):
+    _fields_ = [("x", c_double), ("y", c_double), ("theta", c_double), ("v", c_double),
+                ("w", c_double), ("direction", c_int)]
+
+
+class PtController(ctypes.Structure):
+    _fields_ = [("model", PtChain), ("k_x", c_double), ("k_y", c_double), ("k_theta", c_double),
+                ("v_max", c_double), ("w_max", c_double), ("acc_max", c_double),
+                ("alpha_max", c_double), ("rest_speed", c_double)]
+
+
+class PtControlState(ctypes.Structure):
+    _fields_ = [("v_prev", c_double), ("w_prev", c_double), ("t_prev", c_double),
+                ("has_t_prev", c_int)]
+
+
+class PtMeasurement(ctypes.Structure):
+    _fields_ = [("x0", c_double), ("y0", c_double), ("theta0", c_double), ("phi", D_PTR),
+                ("has_last", c_int), ("x_n", c_double), ("y_n", c_double), ("theta_n", c_double)]
+
+
+class PtControlInfo(ctypes.Structure):
+    _fields_ = [("mode", c_int)] + [(name, c_double) for name in (
+        "x_e", "y_e", "theta_e", "x_n", "y_n", "theta_n", "v_ref", "w_ref", "v_raw", "w_raw",
+        "scale")]
+
+
+class PtSegment(ctypes.Structure):
+    _fields_ = [("length", c_double), ("curvature", c_double), ("speed", c_double),
+                ("direction", c_int), ("kind", c_int)]
+
+
+class PtPhase(ctypes.Structure):
+    _fields_ = [(name, c_double) for name in ("t", "x", "y", "theta", "sigma", "kappa", "speed")]
+
+
+class PtReference(ctypes.Structure):
+    _fields_ = [("phases", POINTER(PtPhase)), ("capacity", c_int), ("n_phases", c_int),
+                ("t0", c_double), ("speed", c_double), ("cusp_dwell", c_double),
+                ("t_end", c_double), ("x_end", c_double), ("y_end", c_double),
+                ("theta_end", c_double), ("last_direction", c_int)]
+
+
+class PtLeader(ctypes.Structure):
+    _fields_ = [("n_runs", c_int), ("offset", POINTER(c_int))] + [
+        (name, D_PTR) for name in ("t", "x", "y", "theta", "v", "w")]
+
+
+_STRUCTS = (PtChain, PtSample, PtController, PtControlState, PtMeasurement, PtControlInfo,
+            PtSegment, PtPhase, PtReference, PtLeader)  # in pt_sizeof's order
+
+P = ctypes.POINTER
+_PROTOTYPES = {
+    "pt_sizeof": (c_size_t, [c_int]),
+    "pt_wrap": (c_double, [c_double]),
+    "pt_last_trailer_pose": (None, [P(PtChain), c_double, c_double, c_double, D_PTR, D_PTR]),
+    "pt_robot_velocity_from_last": (None, [P(PtChain), D_PTR, c_double, c_double, D_PTR]),
+    "pt_rates_from_last": (None, [P(PtChain), D_PTR, c_double, c_double, D_PTR]),
+    "pt_towed_rates": (None, [P(PtChain), D_PTR, c_double, c_double, D_PTR]),
+    "pt_kanayama": (None, [P(PtController), c_double, c_double, c_double, c_double, c_double,
+                           D_PTR]),
+    "pt_control_reset": (None, [P(PtControlState), c_double, c_double, c_double, c_int]),
+    "pt_control_sent": (None, [P(PtControlState), c_double, c_double]),
+    "pt_command": (c_int, [P(PtController), P(PtControlState), c_double, P(PtMeasurement),
+                           P(PtSample), P(PtSample), D_PTR, P(PtControlInfo)]),
+    "pt_reference_init": (c_int, [P(PtReference), P(PtPhase), c_int, D_PTR, c_double, c_double,
+                                  c_double, c_int]),
+    "pt_reference_append": (c_int, [P(PtReference), P(PtSegment)]),
+    "pt_reference_sample": (c_int, [P(PtReference), c_double, P(PtSample)]),
+    "pt_reference_pull_intervals": (c_int, [P(PtReference), D_PTR, D_PTR, c_int]),
+    "pt_pull_run_rows": (c_int, [c_double, c_double, c_double]),
+    "pt_pull_run_work": (c_int, [c_int]),
+    "pt_pull_run": (c_int, [P(PtChain), P(PtReference), c_double, c_double, c_double, D_PTR,
+                            D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR]),
+    "pt_leader_sample": (c_int, [P(PtLeader), c_double, P(PtSample)]),
+}
+
+_lock = threading.Lock()
+_loaded: dict[Path, ctypes.CDLL] = {}
+
+
+def cache_dir() -> Path:
+    """Folder of the compiled libraries: ``$PUSHTRAIN_CACHE/native`` or
+    ``~/.cache/pushtrain/native``."""
+    root = os.environ.get("PUSHTRAIN_CACHE")
+    base = Path(root) if root else Path.home() / ".cache" / "pushtrain"
+    return base / "native"
+
+
+def compiler_command() -> list[str]:
+    """The C compiler as an argument list: ``$CC``, else Python's ``sysconfig`` CC, else ``cc``.
+
+    Raises
+    ------
+    NativeBuildError
+        If that program is not found.
+    """
+    env = os.environ.get("CC", "").strip()
+    if env:
+        argv, origin = shlex.split(env), f"CC = {env!r} (environment)"
+    else:
+        configured = (sysconfig.get_config_var("CC") or "").strip()
+        argv = shlex.split(configured) if configured else []
+        origin = f"Python's configured CC = {configured!r}"
+        if not argv or shutil.which(argv[0]) is None:
+            argv, origin = ["cc"], "the default 'cc'"
+    if shutil.which(argv[0]) is None:
+        raise NativeBuildError(
+            f"C compiler not found: {origin} names {argv[0]!r}, which is not an executable on "
+            "PATH; pushtrain compiles its control law (core/csrc) on first use: install a C "
+            "compiler (e.g. gcc or clang) or set CC to one")
+    return argv
+
+
+def _source_dir():
+    return resources.files("pushtrain.core") / "csrc"
+
+
+def _compiler_version(argv: list[str]) -> str:
+    try:
+        done = subprocess.run([*argv, "--version"], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.SubprocessError) as exc:
+        raise NativeBuildError(f"C compiler {argv[0]!r} cannot be run: {exc}") from exc
+    lines = (done.stdout or done.stderr).strip().splitlines()
+    return lines[0] if lines else ""
+
+
+def _fingerprint(argv: list[str]) -> str:
+    digest = hashlib.sha256()
+    digest.update(f"format={BUILD_FORMAT};platform={sys.platform};".encode())
+    digest.update(("\0".join([*argv, _compiler_version(argv), *CFLAGS, *LDFLAGS, *LIBS])).encode())
+    src = _source_dir()
+    for name in SOURCES + HEADERS:
+        digest.update(name.encode() + b"\0")
+        digest.update((src / name).read_bytes())
+    return digest.hexdigest()
+
+
+def _suffix() -> str:
+    return ".dll" if sys.platform == "win32" else ".dylib" if sys.platform == "darwin" else ".so"
+
+
+def _compile(argv: list[str], target: Path) -> None:
+    """Compile the sources into ``target`` through a temporary file renamed into place."""
+    partial = target.with_name(f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.part")
+    with tempfile.TemporaryDirectory(prefix="pushtrain-native-") as tmp:
+        src = _source_dir()
+        for name in SOURCES + HEADERS:
+            (Path(tmp) / name).write_bytes((src / name).read_bytes())
+        command = [*argv, *CFLAGS, *LDFLAGS, "-o", str(partial),
+                   *(str(Path(tmp) / name) for name in SOURCES), *LIBS]
+        try:
+            done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+        except (OSError, subprocess.SubprocessError) as exc:
+            partial.unlink(missing_ok=True)
+            raise NativeBuildError(f"C compiler {argv[0]!r} cannot be run: {exc}") from exc
+        if done.returncode != 0 or not partial.is_file():
+            partial.unlink(missing_ok=True)
+            tail = "\n".join((done.stdout + done.stderr).strip().splitlines()[-30:])
+            raise NativeBuildError(
+                f"compiling core/csrc failed (exit {done.returncode}): {shlex.join(command)}\n"
+                f"{tail}")
+        for line in done.stderr.splitlines():
+            if "warning:" in line:
+                log.warning("compiler: %s", line)
+    try:
+        os.replace(partial, target)
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def library_path(rebuild: bool = False) -> Path:
+    """The compiled library for the current sources and compiler, built if not cached.
+
+    Raises
+    ------
+    NativeBuildError
+        No compiler, a failing compiler, or a cache folder that cannot be written.
+    """
+    argv = compiler_command()
+    target = cache_dir() / f"libpushtrain_control-{_fingerprint(argv)[:16]}{_suffix()}"
+    if rebuild or not target.is_file():
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise NativeBuildError(f"cache folder {str(target.parent)!r} cannot be created: "
+                                   f"{exc.strerror or exc}; set PUSHTRAIN_CACHE to a writable "
+                                   "folder") from exc
+        log.info("compiling the control law (core/csrc) into %s", target)
+        _compile(argv, target)
+    return target
+
+
+def load(rebuild: bool = False) -> ctypes.CDLL:
+    """The control-law library (built and cached on first use), prototypes declared.
+
+    Raises
+    ------
+    NativeBuildError
+        As :func:`library_path`, or if the library's struct layouts differ from this binding.
+    """
+    with _lock:
+        path = library_path(rebuild)
+        lib = _loaded.get(path)
+        if lib is None:
+            try:
+                lib = ctypes.CDLL(str(path))
+            except OSError as exc:
+                raise NativeBuildError(f"cannot load {str(path)!r}: {exc}") from exc
+            for name, (restype, argtypes) in _PROTOTYPES.items():
+                function = getattr(lib, name)
+                function.restype, function.argtypes = restype, argtypes
+            for which, struct in enumerate(_STRUCTS):
+                size = lib.pt_sizeof(which)
+                if size != ctypes.sizeof(struct):
+                    raise NativeBuildError(
+                        f"{struct.__name__} is {size} bytes in {str(path)!r} but "
+                        f"{ctypes.sizeof(struct)} in core/native.py: the binding does not match "
+                        "control.h")
+            _loaded[path] = lib
+        return lib
+
+
+def dptr(array) -> D_PTR:
+    """A ``double*`` to a C-contiguous float64 numpy array (kept alive by the caller)."""
+    return array.ctypes.data_as(D_PTR)

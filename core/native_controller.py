@@ -1,0 +1,187 @@
+"""The backward-motion controller on the compiled control law (``core/csrc/control.c``).
+
+:class:`NativeController` has the interface of
+:class:`~pushtrain.core.controller.BackwardController` (``command``, ``command_from``,
+``reset``, ``sent``, ``n``, ``guide_geometry``) and computes the same command with the C
+implementation that the fast closed-loop integrator (:mod:`pushtrain.core.rollout`) and the
+controller FMU compile. ``tests/test_native_control.py`` holds both equal to 1e-12 on random
+states, references and limit sequences; the Python class stays the readable reference.
+
+One difference, on purpose: the C law refuses every non-finite measured value and every
+non-finite raw command with :class:`~pushtrain.errors.ControllerError`, where the Python class
+refuses a non-finite last-trailer pose or an infinite command only (and passes a NaN command
+on).
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+from pushtrain.errors import ControllerError
+
+from . import native
+from .controller import MODE_PULL, MODE_PUSH, MODE_REST, ControlInfo, ControllerConfig, Gains
+from .tracking import TrackingLoop
+
+__all__ = ["NativeController", "controller_struct"]
+
+_MODES = {0: MODE_REST, 1: MODE_PUSH, 2: MODE_PULL}
+
+
+def controller_struct(config: ControllerConfig, lib=None):
+    """The C ``PtController`` of ``config`` and the arrays it points to (keep both alive).
+
+    Returns ``(struct, (front, rear))``.
+    """
+    front = np.ascontiguousarray(config.geometry.front, dtype=float).copy()
+    rear = np.ascontiguousarray(config.geometry.rear, dtype=float).copy()
+    struct = native.PtController(
+        native.PtChain(config.geometry.n, native.dptr(front), native.dptr(rear)),
+        float(config.k_x), float(config.k_y), float(config.k_theta),
+        float(config.v_max), float(config.w_max),
+        0.0 if config.acc_max is None else float(config.acc_max),
+        0.0 if config.alpha_max is None else float(config.alpha_max),
+        float(config.rest_speed))
+    return struct, (front, rear)
+
+
+class NativeController:
+    """Backward-motion controller computed by the C control law.
+
+    Parameters
+    ----------
+    config : ControllerConfig
+
+    Raises
+    ------
+    ControllerError
+        A bad ``config``.
+    NativeBuildError
+        The C library cannot be built or loaded.
+    """
+
+    def __init__(self, config: ControllerConfig):
+        if not isinstance(config, ControllerConfig):
+            raise ControllerError(f"config = {config!r}: must be a ControllerConfig")
+        self.config = config
+        self.n = config.geometry.n
+        self.gains = Gains(float(config.k_x), float(config.k_y), float(config.k_theta))
+        self.guide_geometry = config.geometry
+        self._lib = native.load()
+        self._ctrl, self._arrays = controller_struct(config)
+        self._state = native.PtControlState()
+        self._phi = np.zeros(self.n)
+        self._meas = native.PtMeasurement()
+        self._meas.phi = native.dptr(self._phi)
+        self._ref = native.PtSample()
+        self._leader = native.PtSample()
+        self._cmd = np.zeros(2)
+        self._cmd_ptr = native.dptr(self._cmd)
+        self._pose = np.zeros(3)
+        self._info = native.PtControlInfo()
+        self._args = tuple(ctypes.byref(a) for a in (self._ctrl, self._state, self._meas,
+                                                     self._ref, self._leader, self._info))
+        self._loop: TrackingLoop | None = None
+        self.reset()
+
+    def reset(self, v0: float = 0.0, w0: float = 0.0, t: float | None = None) -> None:
+        """Forget the history: the previous command becomes ``(v0, w0)`` [m/s, rad/s] at ``t``
+        [s] (None: the next command is not rate limited)."""
+        self._lib.pt_control_reset(self._args[1], float(v0), float(w0),
+                                   0.0 if t is None else float(t), 0 if t is None else 1)
+
+    def sent(self, v0: float, w0: float) -> None:
+        """Record the command actually sent after an outer limiter (the rate limits continue
+        from it)."""
+        self._lib.pt_control_sent(self._args[1], float(v0), float(w0))
+
+    @property
+    def state(self) -> tuple:
+        """The rate limits' memory ``(v_prev [m/s], w_prev [rad/s], t_prev [s] or None)``."""
+        s = self._state
+        return s.v_prev, s.w_prev, (s.t_prev if s.has_t_prev else None)
+
+    def last_trailer_pose(self, x0: float, y0: float, theta0: float, phi) -> tuple:
+        """Pose (x_n, y_n, theta_n) [m, m, rad] of trailer n from the robot pose and joints."""
+        self._set_phi(phi)
+        self._lib.pt_last_trailer_pose(ctypes.byref(self._ctrl.model), float(x0), float(y0),
+                                       float(theta0), native.dptr(self._phi),
+                                       native.dptr(self._pose))
+        return tuple(float(a) for a in self._pose)
+
+    def robot_velocity(self, phi, v_n: float, w_n: float) -> tuple:
+        """Robot (v0 [m/s], w0 [rad/s]) making trailer n move with (v_n, w_n) (Eq. 5)."""
+        self._set_phi(phi)
+        self._lib.pt_robot_velocity_from_last(ctypes.byref(self._ctrl.model),
+                                              native.dptr(self._phi), float(v_n), float(w_n),
+                                              self._cmd_ptr)
+        return float(self._cmd[0]), float(self._cmd[1])
+
+    def _set_phi(self, phi) -> None:
+        if len(phi) != self.n:
+            raise ControllerError(
+                f"measurement.phi has {len(phi)} joint angles; the controller's chain has {self.n}"
+            )
+        self._phi[:] = phi
+
+    def command(self, t: float, measurement, ref, leader=None):
+        """Robot command ``(v0 [m/s], w0 [rad/s], ControlInfo)``: as
+        :meth:`BackwardController.command <pushtrain.core.controller.BackwardController.command>`.
+        """
+        self._set_phi(measurement.phi)
+        m = self._meas
+        m.x0, m.y0, m.theta0 = measurement.x0, measurement.y0, measurement.theta0
+        last = getattr(measurement, "last_pose", None)
+        if last is None:
+            m.has_last = 0
+        else:
+            m.has_last = 1
+            m.x_n, m.y_n, m.theta_n = last
+        r = self._ref
+        r.x, r.y, r.theta, r.v, r.w, r.direction = (ref.x, ref.y, ref.theta, ref.v, ref.w,
+                                                    int(ref.direction))
+        if leader is not None:
+            g = self._leader
+            g.x, g.y, g.theta, g.v, g.w, g.direction = (leader.x, leader.y, leader.theta,
+                                                        leader.v, leader.w, int(leader.direction))
+        ctrl, state, meas, ref_p, leader_p, info_p = self._args
+        status = self._lib.pt_command(ctrl, state, float(t), meas, ref_p,
+                                      leader_p if leader is not None else None, self._cmd_ptr,
+                                      info_p)
+        if status:
+            raise self._error(status, t, measurement, ref)
+        i = self._info
+        info = ControlInfo(_MODES[i.mode], i.x_e, i.y_e, i.theta_e, i.x_n, i.y_n, i.theta_n,
+                           i.v_ref, i.w_ref, i.v_raw, i.w_raw, i.scale)
+        return float(self._cmd[0]), float(self._cmd[1]), info
+
+    def _error(self, status: int, t, measurement, ref) -> ControllerError:
+        if status == 1:
+            return ControllerError(
+                f"non-finite measurement at t = {t!r} s: robot pose ({measurement.x0!r}, "
+                f"{measurement.y0!r}, {measurement.theta0!r}), phi = {list(measurement.phi)!r}, "
+                f"last_pose = {getattr(measurement, 'last_pose', None)!r}; all must be finite")
+        if status == 2:
+            i = self._info
+            return ControllerError(f"non-finite command ({i.v_raw!r}, {i.w_raw!r}) at "
+                                   f"t = {t!r} s")
+        if status == 3:
+            return ControllerError(
+                f"pulling at t = {t!r} s needs the robot's reference `leader` "
+                "(PullGuide(reference, controller.guide_geometry).sample_at(t));"
+                " use command_from(reference, t, measurement)")
+        if status == 4:
+            return ControllerError(
+                f"ref.direction = {ref.direction!r}: allowed are +1 (push), -1 (pull), 0 (rest)")
+        return ControllerError(f"control law failed at t = {t!r} s: "
+                               f"{native.STATUS.get(status, status)}")
+
+    def command_from(self, reference, t: float, measurement):
+        """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t`` (as
+        :meth:`BackwardController.command_from
+        <pushtrain.core.controller.BackwardController.command_from>`)."""
+        if self._loop is None or self._loop.reference is not reference:
+            self._loop = TrackingLoop(self, reference)
+        return self._loop.command(t, measurement)[:3]
