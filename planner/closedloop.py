@@ -33,6 +33,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import shapely
@@ -125,6 +126,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         raise _no_plan(search, train, goal, config, margins, phi_limit, t_begin)
     _, segments, checked, smooth_info = best
     smooth_info["solutions"] = found
+    checked = _measured(world, train, start, headings, segments, checked, margins, tracker)
     return _planned(start, headings, segments, radius, config, tracker, checked, search,
                     t_begin, rejected, smooth_info)
 
@@ -202,15 +204,20 @@ def _gap_text(gap: float, margin: float) -> str:
 def _verify(world: World, train: Train, start, headings, segments, prop: Propagator, margins,
             tracker: TrackerConfig, goal, deadline: float | None = None):
     """The whole path simulated in one go from the start and checked exactly
-    (:func:`~pushtrain.planner.train_check.check_train` on the propagator's run); the
-    simulation stops at ``deadline`` (the path then fails with kind ``"deadline"``)."""
+    (:func:`~pushtrain.planner.train_check.check_train` on the propagator's run, containment
+    only; :func:`_measured` adds the clearances); the simulation stops at its first failure
+    of the distance-field test or at ``deadline`` (the path then fails with kind
+    ``"deadline"``)."""
     state0 = prop.initial_state(start, headings)
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
     run = prop.rollout(state0, cursor0, segments, goal=goal, record=True, deadline=deadline)
     traj = Trajectory(run.extra["t"], run.z, run.extra["command"], run.reference,
                       run.extra["direction"], np.ones(run.z.shape[0], dtype=bool))
+    if not run.ok:  # no exact test of what the simulation already refused
+        return _Refused({**run.failure, "s": math.nan, "direction": 0})
     result = check_train(world, train, start, segments, headings, margin=margins,
-                         resolution=0.01, tracker=tracker, trajectory=traj, self_collision=True)
+                         resolution=0.01, tracker=tracker, trajectory=traj, self_collision=True,
+                         measure=False)
     if result.ok and prop.goal_phi is not None:
         phi = np.abs(result.headings[-1, :-1] - result.headings[-1, 1:])
         if phi.max() > prop.goal_phi:
@@ -219,12 +226,23 @@ def _verify(world: World, train: Train, start, headings, segments, prop: Propaga
                               "t": float(result.t[-1]), "s": math.nan, "direction": 0,
                               "x": float(result.poses[-1, 0]), "y": float(result.poses[-1, 1]),
                               "max_abs_phi": float(phi.max())}
-    if result.ok and run.failure is not None:
-        # the sampled distance-field test or the joint margin refused what the exact test
-        # passes: keep the stricter verdict
-        result.ok = False
-        result.failure = {**run.failure, "s": math.nan, "direction": 0}
     return result
+
+
+@dataclass
+class _Refused:
+    """A verification the simulation already failed (no exact test made)."""
+
+    failure: dict
+    ok: bool = False
+
+
+def _measured(world: World, train: Train, start, headings, segments, checked, margins,
+              tracker: TrackerConfig):
+    """The verified path's check again with its clearances measured (no new simulation)."""
+    return check_train(world, train, start, segments, headings, margin=margins,
+                       resolution=0.01, tracker=tracker, trajectory=checked.trajectory,
+                       self_collision=True, measure=True)
 
 
 # --------------------------------------------------------------------------- smoothing
@@ -257,6 +275,9 @@ def _planned(start, headings, segments, radius, config, tracker, checked, search
         "time_capped": stats.cut == "deadline", "expansions": stats.expansions,
         "rollouts": stats.rollouts, "rejected_by_verification": rejected,
         "failures": dict(stats.failures), "radius": radius,
+        "steps_by_use": {**stats.steps, "verification": search.prop.steps
+                         - sum(stats.steps.values())},
+        "car_heuristic_at": stats.car_built_at,
         "clearance": [float(m) for m in config.margins(search.train)],
         "smoothing": smooth_info,
         "train_check": {

@@ -85,7 +85,45 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class SearchSettings:
-    """Settings of :class:`Search` (SI units, radians; see the module docstring)."""
+    """Settings of :class:`Search` (SI units, radians; see the module docstring).
+
+    Attributes
+    ----------
+    radius : float
+        The turning radius [m]: primitives' curvatures are ``k / radius`` for k in
+        ``curvatures``; connections use multiples of it.
+    step_length, pull_length, long_straight : float
+        Length [m] of a pushing primitive, of a pulling one, and of the one long straight push.
+    approach : float
+        Length [m] of the straight push onto the goal that ends the approach connections.
+    grid_xy, grid_theta, grid_bend : float
+        Cells of the duplicate pruning: reference position [m], heading [rad], and the chain's
+        bend (robot heading minus last trailer heading) [rad].
+    weight : float
+        Heuristic weight (>= 1).
+    turn_weight, change_weight, cusp_cost, pull_factor : float
+        The cost: per radian turned, per change of curvature, per cusp, and the factor of a
+        pulled metre.
+    pull_phi : float
+        The pull rule: the largest |phi_i| [rad] a pulling run may start from.
+    max_pull_run : float
+        Longest pulling run [m] of primitives (each continuation rolls the run out again).
+    analytic_radii, corner_radii : tuple of float
+        Radii (in turning radii) of the Reeds-Shepp connections, and of the corner connections
+        (the first: the widest arc that fits, up to that many turning radii).
+    straighten : tuple of float
+        Lengths [m] of the straight pushes tried before a pulled corner connection when the
+        chain is too bent to pull.
+    analytic_every, analytic_per_node : int
+        Reeds-Shepp connections are tried every ``analytic_every`` expansions; at most
+        ``analytic_per_node`` closed-loop connection attempts per node otherwise.
+    car_after : int
+        Expansions without a path after which the car heuristic is built.
+    budget_steps : int
+        Simulated control steps the search may spend (all rollouts together).
+    deadline : float
+        ``time.perf_counter()`` value at which the search stops.
+    """
 
     radius: float
     curvatures: tuple = (0.0, 1.0, -1.0, 0.5, -0.5)
@@ -170,6 +208,7 @@ class Stats:
     points: list = field(default_factory=list)
     cut: str | None = None
     car_built_at: int | None = None
+    steps: Counter = field(default_factory=Counter)
 
     def record(self, failure: dict) -> None:
         kind = failure["kind"]
@@ -355,6 +394,7 @@ class Search:
                                         pull_phi=self.s.pull_phi, max_steps=remaining,
                                         deadline=self.s.deadline)
         self.stats.rollouts += 1
+        self.stats.steps["connections" if goal is not None else "motions"] += rollout.steps
         # the run (for a later continuation) is the tail of pulling segments
         tail = []
         for seg in reversed(run):
