@@ -1,30 +1,48 @@
-"""Sweep throughput on Dask (issue 7's benchmark): runs per second against the number of workers.
+"""Sweep throughput on Dask (issues 7 and 14): efficiency at 2 workers and runs per hour.
 
 Each run is a 60 s closed-loop co-simulation (3 trailers pushed 4.8 m along a line at 0.08 m/s
-with a 5 deg bias on joint 3: 12,000 steps). Measures
+with a 5 deg bias on joint 3: 12,000 steps). In one process, so that serial and parallel see
+the same machine, it measures
 
-* the serial in-process time of one task (``run_sweep(serial=True)``: the same task function,
-  metrics and chunk writing, no Dask),
-* runs per second on a LocalCluster with 1 and 2 worker processes (more where the machine has
-  more cores), after a warm-up batch that loads the modules and the FMU on every worker,
-* the scaling efficiency rate(w) / (w rate(1)) and the per-task overhead of Dask, i.e. the wall
-  time per run on 1 worker minus the serial time per run, against the serial time per run; and,
-  apart from CPU contention, the dispatch overhead (wall time per run minus the task's own time
-  measured inside the worker) and how busy the workers were.
+* the serial in-process time per run (``run_sweep(serial=True)``: the same task function,
+  metrics and chunk writing, no Dask), before and after the parallel runs (their mean is the
+  reference; the two differ when the machine's load changed),
+* on the LocalCluster ``pushtrain sweep`` starts (:func:`~pushtrain.studies.sweep.
+  local_client`) with 1 and 2 worker processes (more where the machine has more cores),
+  after a warm-up batch that loads the modules and the FMU on every worker: the wall time per
+  run and the CPU time the workers spent per run (``getrusage`` on each worker),
 
-Targets: efficiency >= 80 % at 2 workers; overhead below 5 % of a 60 s scenario's run time.
+and prints for each worker count
+
+* **efficiency = serial time per run / (workers x wall time per run)**: the speed-up over the
+  serial loop per worker (1.0: every worker as fast as the serial loop, nothing lost),
+* the scaling efficiency rate(w) / (w rate(1)) against 1 Dask worker,
+* the CPU time per run in the workers against the serial CPU time per run (above 1.0: the
+  sweep adds work; the wall-time efficiency can also drop because other processes take the
+  cores: compare the load averages printed),
+* runs per hour.
+
+Targets (issue 14): efficiency >= 90 % at 2 workers; >= 10,000 runs of this 60 s scenario per
+hour on 2 cores. The ratios to both are printed last.
 
 Run: python benchmarks/bench_sweep.py [--runs N]
 """
 
 import argparse
-import logging
 import os
+import resource
+import statistics
 import tempfile
 import time
 
 from pushtrain.mission.scenario import parse_scenario
-from pushtrain.studies.sweep import parse_sweep_spec, prepare_runs, run_sweep, run_task
+from pushtrain.studies.sweep import (
+    local_client,
+    parse_sweep_spec,
+    prepare_runs,
+    run_sweep,
+    run_task,
+)
 
 BASE = {
     "name": "bench_60s",
@@ -35,6 +53,8 @@ BASE = {
     "sensors": {"localize": "last_trailer", "joint_bias_deg": [0.0, 0.0, 5.0]},
     "sim": {"settle_time": 0.0, "goal_tolerance": 0.2},
 }
+TARGET_EFFICIENCY = 0.90
+TARGET_RUNS_PER_HOUR = 10_000
 
 
 def _runs(n_runs: int):
@@ -55,46 +75,67 @@ def _timed(runs, shared, spec, **kw) -> tuple[float, list[dict]]:
     return wall, outcome.rows
 
 
+def _cpu_self() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _serial(runs, shared, spec) -> tuple[float, float, list[dict]]:
+    """(wall, CPU) seconds per run of the serial loop, and its rows."""
+    cpu0 = _cpu_self()
+    wall, rows = _timed(runs, shared, spec, serial=True)
+    return wall / len(runs), (_cpu_self() - cpu0) / len(runs), rows
+
+
+def _load() -> str:
+    return f"load {os.getloadavg()[0]:.2f}"
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--runs", type=int, default=16, help="runs per measurement")
     args = parser.parse_args()
-    from distributed import Client, LocalCluster
-
     spec, runs, shared = _runs(args.runs)
+    print(f"{len(runs)} runs of a 60 s scenario per measurement; {os.cpu_count()} cores; other "
+          "processes share them: compare the load averages")
     _timed(runs[:2], shared, spec, serial=True)  # warm-up: imports, FMU extraction paths
-    serial_wall, rows = _timed(runs, shared, spec, serial=True)
-    per_task = serial_wall / len(runs)
-    print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores "
-          "(other processes share the cores: compare with the load)")
-    print(f"serial in-process: {len(runs)} runs in {serial_wall:.2f} s = {per_task * 1000:.1f} ms "
-          f"per 60 s run ({1 / per_task:.2f} runs/s; co-simulation loop alone "
-          f"{sum(r['wall_time_s'] for r in rows) / len(rows) * 1000:.1f} ms)")
-    rates = {}
+    print(f"[{_load()}] serial in-process ...")
+    before = _serial(runs, shared, spec)
+    print(f"  {before[0] * 1000:.1f} ms per run (CPU {before[1] * 1000:.1f} ms; co-simulation "
+          f"loop alone {statistics.mean(r['wall_time_s'] for r in before[2]) * 1000:.1f} ms)")
+    measured = {}
     counts = [1, 2] + [w for w in (4, 8) if w <= (os.cpu_count() or 1)]
     for workers in counts:
-        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                          dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
-                Client(cluster) as client:
+        with local_client(workers) as client:  # the cluster `pushtrain sweep` starts
             _timed(runs[:2 * workers], shared, spec, client=client)  # warm-up on every worker
-            wall, wrows = _timed(runs, shared, spec, client=client)
-        rates[workers] = len(runs) / wall
-        in_worker = sum(r["task_time_s"] for r in wrows) / len(wrows)
-        line = (f"{workers} worker(s): {len(runs)} runs in {wall:.2f} s = "
-                f"{rates[workers]:.2f} runs/s "
-                f"(task time inside a worker {in_worker * 1000:.1f} ms)")
-        busy = sum(r["task_time_s"] for r in wrows) / (workers * wall)
-        line += f"; workers busy {busy * 100:.0f} % of the wall time"
-        if workers == 1:
-            dispatch = wall / len(runs) - in_worker
-            line += (f"; Dask dispatch per task (wall per run - task time in the worker) "
-                     f"{dispatch * 1000:+.1f} ms = {dispatch / per_task * 100:+.1f} % of a run")
-            overhead = wall / len(runs) - per_task
-            line += (f"; overhead per task {overhead * 1000:+.1f} ms = "
-                     f"{overhead / per_task * 100:+.1f} % of a run")
-        else:
-            line += f"; scaling efficiency {rates[workers] / (workers * rates[1]) * 100:.0f} %"
-        print(line)
+            print(f"[{_load()}] {workers} worker(s) ...")
+            cpu0 = sum(client.run(_cpu_self).values())
+            wall, rows = _timed(runs, shared, spec, client=client)
+            cpu = sum(client.run(_cpu_self).values()) - cpu0
+        measured[workers] = (wall / len(runs), cpu / len(runs), rows)
+    print(f"[{_load()}] serial in-process again ...")
+    after = _serial(runs, shared, spec)
+    serial_wall = (before[0] + after[0]) / 2
+    serial_cpu = (before[1] + after[1]) / 2
+    print(f"serial: {before[0] * 1000:.1f} ms per run before, {after[0] * 1000:.1f} ms after: "
+          f"{serial_wall * 1000:.1f} ms ({3600 / serial_wall:,.0f} runs per hour on one core), "
+          f"CPU {serial_cpu * 1000:.1f} ms per run")
+    for workers, (per_run, cpu, rows) in measured.items():
+        in_worker = statistics.mean(r["task_time_s"] for r in rows)
+        print(f"{workers} worker(s): {per_run * 1000:.1f} ms wall per run = "
+              f"{3600 / per_run:,.0f} runs per hour; efficiency = serial / (workers x wall) = "
+              f"{serial_wall / (workers * per_run) * 100:.0f} %; scaling against 1 worker "
+              f"{measured[1][0] / (workers * per_run) * 100:.0f} %; worker CPU per run "
+              f"{cpu * 1000:.1f} ms = {cpu / serial_cpu:.2f} x serial; task time in a worker "
+              f"{in_worker * 1000:.1f} ms; workers busy "
+              f"{in_worker / (workers * per_run) * 100:.0f} % of the wall time")
+    best = min(2, max(measured))
+    per_run = measured[best][0]
+    efficiency = serial_wall / (best * per_run)
+    print(f"at {best} workers: efficiency {efficiency * 100:.0f} % = "
+          f"{efficiency / TARGET_EFFICIENCY:.2f} x the {TARGET_EFFICIENCY * 100:.0f} % target; "
+          f"{3600 / per_run:,.0f} runs per hour = "
+          f"{3600 / per_run / TARGET_RUNS_PER_HOUR:.2f} x the {TARGET_RUNS_PER_HOUR:,} target")
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ from pushtrain.mission.scenario import Scenario, ScenarioError, load_scenario, p
 
 __all__ = ["EXIT_OK", "EXIT_NOT_REACHED", "EXIT_BAD_INPUT", "MAX_TRAILERS", "BadInput",
            "_scenario", "check_map", "click_error", "click_errors", "scenario_argument",
-           "out_dir_option", "trailers_option"]
+           "out_dir_option", "trailers_option", "csv_option"]
 
 EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
 # planning failures that are the scenario's fault (exit 2); the others mean no plan was found
@@ -91,3 +91,5 @@ out_dir_option = click.option(
          "runs/<name>-<timestamp>/.")
 trailers_option = click.option("--trailers", type=click.IntRange(1, MAX_TRAILERS), metavar="N",
                                help="Override train.n.")
+csv_option = click.option("--csv", "csv", is_flag=True,
+                          help="Also write results.csv (the results.npz table as text).")

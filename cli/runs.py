@@ -3,6 +3,7 @@ failure, running a scenario into its folder, and the text they print."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -14,6 +15,7 @@ from pushtrain.files import atomic_write_text
 from pushtrain.mission.scenario import Scenario
 
 from .common import EXIT_NOT_REACHED, EXIT_OK
+from .progress import Phases
 
 __all__ = ["plan_or_fail", "write_path", "write_scenario", "describe_path", "summary_text",
            "run_and_report"]
@@ -21,15 +23,16 @@ __all__ = ["plan_or_fail", "write_path", "write_scenario", "describe_path", "sum
 log = logging.getLogger(__name__)
 
 
-def plan_or_fail(sc: Scenario, out_dir: Path | None):
-    """Plan ``sc``'s path; on a PlanningError save ``planning_failure.png`` in ``out_dir`` (if
-    given) and re-raise it."""
+def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = None):
+    """Plan ``sc``'s path (as phase ``plan`` of ``phases``, if given); on a PlanningError save
+    ``planning_failure.png`` in ``out_dir`` (if given) and re-raise it."""
     from pushtrain.errors import PlanningError
     from pushtrain.mission.runner import plan_path
 
     t0 = time.perf_counter()
     try:
-        path = plan_path(sc)
+        with _phase(phases, "plan", f"planning the path ({sc.planner.planner})"):
+            path = plan_path(sc)
     except PlanningError as exc:
         if out_dir is not None:
             _save_diagnostic(sc, out_dir / "planning_failure.png", exc)
@@ -51,8 +54,8 @@ def _save_diagnostic(sc: Scenario, png: Path, exc=None) -> None:
                         (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg)), train_of(sc),
                         title=None if exc is None else _wrapped(str(exc)), marks=marks,
                         failure=getattr(exc, "details", None))
-    except Exception as exc:  # the diagnosis must not hide the planning error
-        log.warning("could not save the diagnostic picture: %s", exc)
+    except Exception as err:  # the diagnosis must not hide the planning error
+        log.warning("could not save the diagnostic picture: %s", err)
 
 
 def write_path(path, target: Path) -> None:
@@ -101,31 +104,55 @@ def summary_text(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def _plot(result, sc: Scenario, out_dir: Path, path, gif: bool) -> None:
-    from pushtrain.mission.runner import geometry_of, world_of
-    from pushtrain.report import plots as plotting
+def _phase(phases: Phases | None, name: str, what: str):
+    return phases.phase(name, what) if phases is not None else contextlib.nullcontext()
 
-    footprints = {"robot": (sc.train.robot_size.length, sc.train.robot_size.width),
-                  "trailer": (sc.train.trailer_size.length, sc.train.trailer_size.width)}
-    path_xy = None if path is None else path.poses[:, :2]
+
+PLOT_FILES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
+GIF_FILE = "train.gif"
+
+
+def _plot(result, sc: Scenario, out_dir: Path, path, gif: bool, phases: Phases | None) -> None:
+    """Write the plots (phase ``plots``) and the animation (phase ``gif``) into ``out_dir``; a
+    failure is a warning (the results are already written)."""
+    from pushtrain.mission.runner import geometry_of, world_of
+
     try:
-        written = plotting.plot_all(result, sc.train.n, out_dir, world=world_of(sc),
-                                    path_xy=path_xy, footprints=footprints, gif=gif,
-                                    geometry=geometry_of(sc))
+        with _phase(phases, "plots", f"plotting {', '.join(PLOT_FILES)}"):
+            from pushtrain.report import plots as plotting
+
+            options = {"world": world_of(sc), "geometry": geometry_of(sc),
+                       "path_xy": None if path is None else path.poses[:, :2],
+                       "footprints": {
+                           "robot": (sc.train.robot_size.length, sc.train.robot_size.width),
+                           "trailer": (sc.train.trailer_size.length,
+                                       sc.train.trailer_size.width)}}
+            written = plotting.plot_all(result, sc.train.n, out_dir, gif=False, **options)
+        if gif:
+            with _phase(phases, "gif", f"rendering {GIF_FILE}"):
+                written.append(plotting.animate(result.data, sc.train.n, out_dir / GIF_FILE,
+                                                **options))
         log.info("plots: %s", ", ".join(p.name for p in written))
     except Exception as exc:  # plots must never lose the results already written
         log.exception("plotting failed")
         click.echo(f"warning: plotting failed ({exc}); results are in {out_dir}", err=True)
 
 
-def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gif: bool) -> int:
-    """Co-simulate ``sc`` into ``out_dir``, plot, print the summary; the exit code (0 if the
-    goal was reached or the fixed-horizon run completed, else 1)."""
-    from pushtrain.mission.runner import run_scenario
+def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gif: bool, *,
+                   csv: bool = False, phases: Phases | None = None) -> int:
+    """Co-simulate ``sc``, save the results into ``out_dir`` (``results.csv`` too with
+    ``csv``), plot, print the summary; the exit code (0 if the goal was reached or the
+    fixed-horizon run completed, else 1). Each step is a phase of ``phases``, if given."""
+    from pushtrain.mission.runner import run_scenario, save_results
 
-    result = run_scenario(sc, out_dir, reference=reference)
+    with _phase(phases, "co-simulate", "co-simulating"):
+        result = run_scenario(sc, None, reference=reference)
+    with _phase(phases, "save", "saving the results"):
+        save_results(result, out_dir, csv=csv)
     if plots:
-        _plot(result, sc, out_dir, path, gif)
+        _plot(result, sc, out_dir, path, gif, phases)
+    if phases is not None:
+        phases.done()
     click.echo(summary_text(result.summary))
     click.echo(f"results: {out_dir}")
     return EXIT_OK if result.ok else EXIT_NOT_REACHED

@@ -1,11 +1,12 @@
 """Build and load the compiled control law (``core/csrc``) with ctypes.
 
-The C sources are compiled once per machine with the system C compiler into a shared library,
-``-std=c99 -O2 -fPIC -shared -ffp-contract=off -lm`` (no fused multiply-add, so the C arithmetic
-rounds like Python's), and cached under ``$PUSHTRAIN_CACHE/native`` (default
-``~/.cache/pushtrain/native``) by a hash of the sources, the compiler command, its version and
-the flags. The library is written under a temporary name and renamed into place, so concurrent
-processes may build at the same time: each gets a complete library.
+The C sources (``control.c``, the law, and ``rollout.c``, the closed loop) are compiled once per
+machine with the system C compiler into a shared library, ``-std=c99 -O2 -fPIC -shared
+-ffp-contract=off -lm`` (no fused multiply-add, so the C arithmetic rounds like Python's), and
+cached under ``$PUSHTRAIN_CACHE/native`` (default ``~/.cache/pushtrain/native``) by a hash of the
+sources, the compiler command, its version and the flags. The library is written under a
+temporary name and renamed into place, so concurrent processes may build at the same time: each
+gets a complete library.
 
 The compiler is ``$CC`` if set, else Python's own (``sysconfig``'s ``CC``), else ``cc``; without
 one :class:`~pushtrain.errors.NativeBuildError` says what to install or set.
@@ -18,6 +19,7 @@ library at load time).
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import logging
 import os
@@ -39,15 +41,19 @@ __all__ = [
     "CFLAGS",
     "NativeBuildError",
     "PtChain",
+    "PtChecks",
     "PtControlInfo",
     "PtControlState",
     "PtController",
     "PtLeader",
     "PtMeasurement",
     "PtPhase",
+    "PtRecord",
     "PtReference",
+    "PtRollout",
     "PtSample",
     "PtSegment",
+    "PtViolation",
     "STATUS",
     "cache_dir",
     "compiler_command",
@@ -58,8 +64,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-SOURCES = ("control.c",)
-HEADERS = ("control.h",)
+SOURCES = ("control.c", "rollout.c")
+HEADERS = ("control.h", "rollout.h")
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-ffp-contract=off")
 LDFLAGS = ("-shared",)
 LIBS = ("-lm",)
@@ -134,8 +140,31 @@ class PtLeader(ctypes.Structure):
         (name, D_PTR) for name in ("t", "x", "y", "theta", "v", "w")]
 
 
+class PtChecks(ctypes.Structure):
+    _fields_ = [("nx", c_int), ("ny", c_int), ("sdf", D_PTR), ("x0", c_double), ("y0", c_double),
+                ("h", c_double), ("point_offset", POINTER(c_int)), ("px", D_PTR), ("py", D_PTR),
+                ("margin", D_PTR), ("phi_max", c_double), ("rect", D_PTR)]
+
+
+class PtRollout(ctypes.Structure):
+    _fields_ = [("plant", POINTER(PtChain)), ("controller", POINTER(PtController)),
+                ("reference", POINTER(PtReference)), ("leader", POINTER(PtLeader)),
+                ("t_start", c_double), ("step", c_double), ("checks", POINTER(PtChecks))]
+
+
+class PtViolation(ctypes.Structure):
+    _fields_ = [("step", ctypes.c_long), ("body", c_int), ("other", c_int), ("reason", c_int),
+                ("x", c_double), ("y", c_double), ("value", c_double)]
+
+
+class PtRecord(ctypes.Structure):
+    _fields_ = [("states", D_PTR), ("commands", D_PTR), ("references", D_PTR),
+                ("directions", POINTER(c_int))]
+
+
 _STRUCTS = (PtChain, PtSample, PtController, PtControlState, PtMeasurement, PtControlInfo,
             PtSegment, PtPhase, PtReference, PtLeader)  # in pt_sizeof's order
+_ROLLOUT_STRUCTS = (PtChecks, PtRollout, PtViolation, PtRecord)  # in pt_rollout_sizeof's
 
 P = ctypes.POINTER
 _PROTOTYPES = {
@@ -161,10 +190,19 @@ _PROTOTYPES = {
     "pt_pull_run": (c_int, [P(PtChain), P(PtReference), c_double, c_double, c_double, D_PTR,
                             D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR]),
     "pt_leader_sample": (c_int, [P(PtLeader), c_double, P(PtSample)]),
+    "pt_rollout_sizeof": (c_size_t, [c_int]),
+    "pt_rollout_work": (c_int, [c_int]),
+    "pt_rollout": (c_int, [P(PtRollout), P(ctypes.c_long), D_PTR, P(PtControlState),
+                           ctypes.c_long, D_PTR, P(PtRecord), P(PtViolation)]),
+    "pt_check_state": (c_int, [P(PtChain), P(PtChecks), D_PTR, ctypes.c_long, D_PTR,
+                               P(PtViolation)]),
+    "pt_sdf_at": (c_double, [P(PtChecks), c_double, c_double]),
+    "pt_rects_overlap": (c_int, [D_PTR, D_PTR, D_PTR]),
 }
 
 _lock = threading.Lock()
 _loaded: dict[Path, ctypes.CDLL] = {}
+_by_setting: dict[tuple, ctypes.CDLL] = {}  # (CC, PUSHTRAIN_CACHE) -> the library loaded for it
 
 
 def cache_dir() -> Path:
@@ -204,7 +242,8 @@ def _source_dir():
     return resources.files("pushtrain.core") / "csrc"
 
 
-def _compiler_version(argv: list[str]) -> str:
+@functools.lru_cache(maxsize=8)
+def _compiler_version(argv: tuple[str, ...]) -> str:
     try:
         done = subprocess.run([*argv, "--version"], capture_output=True, text=True, timeout=60)
     except (OSError, subprocess.SubprocessError) as exc:
@@ -216,7 +255,8 @@ def _compiler_version(argv: list[str]) -> str:
 def _fingerprint(argv: list[str]) -> str:
     digest = hashlib.sha256()
     digest.update(f"format={BUILD_FORMAT};platform={sys.platform};".encode())
-    digest.update(("\0".join([*argv, _compiler_version(argv), *CFLAGS, *LDFLAGS, *LIBS])).encode())
+    recipe = [*argv, _compiler_version(tuple(argv)), *CFLAGS, *LDFLAGS, *LIBS]
+    digest.update("\0".join(recipe).encode())
     src = _source_dir()
     for name in SOURCES + HEADERS:
         digest.update(name.encode() + b"\0")
@@ -282,11 +322,17 @@ def library_path(rebuild: bool = False) -> Path:
 def load(rebuild: bool = False) -> ctypes.CDLL:
     """The control-law library (built and cached on first use), prototypes declared.
 
+    Loaded once per process for each setting of ``CC`` and ``PUSHTRAIN_CACHE``; ``rebuild``
+    compiles again.
+
     Raises
     ------
     NativeBuildError
         As :func:`library_path`, or if the library's struct layouts differ from this binding.
     """
+    key = (os.environ.get("CC"), os.environ.get("PUSHTRAIN_CACHE"))
+    if not rebuild and key in _by_setting:
+        return _by_setting[key]
     with _lock:
         path = library_path(rebuild)
         lib = _loaded.get(path)
@@ -298,14 +344,17 @@ def load(rebuild: bool = False) -> ctypes.CDLL:
             for name, (restype, argtypes) in _PROTOTYPES.items():
                 function = getattr(lib, name)
                 function.restype, function.argtypes = restype, argtypes
-            for which, struct in enumerate(_STRUCTS):
-                size = lib.pt_sizeof(which)
+            sizes = [(lib.pt_sizeof, w, st) for w, st in enumerate(_STRUCTS)]
+            sizes += [(lib.pt_rollout_sizeof, w, st) for w, st in enumerate(_ROLLOUT_STRUCTS)]
+            for sizeof, which, struct in sizes:
+                size = sizeof(which)
                 if size != ctypes.sizeof(struct):
                     raise NativeBuildError(
                         f"{struct.__name__} is {size} bytes in {str(path)!r} but "
                         f"{ctypes.sizeof(struct)} in core/native.py: the binding does not match "
                         "control.h")
             _loaded[path] = lib
+        _by_setting[key] = lib
         return lib
 
 

@@ -8,6 +8,9 @@ retypes the variable table), lets fmpy's build helper write the CMake cache for 
 self-contained ``.fmu`` with the binary (``binaries/linux64/`` for FMI 2.0,
 ``binaries/x86_64-linux/`` for FMI 3.0) and ``sources/`` so other tools can rebuild it. Builds
 are cached by a hash of the sources, the FMI version, n and the build options.
+
+:func:`package_fmu` (compile and zip any model's files) also builds the second model, the
+BackwardController FMU (:mod:`.controller`).
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ __all__ = [
     "MODEL_IDENTIFIER",
     "build_fmu",
     "cache_dir",
+    "package_fmu",
     "render_model_description",
     "render_model_description3",
     "render_variables_header",
@@ -116,7 +120,8 @@ def _cmake_env() -> dict:
     return env
 
 
-def _compile(unzipdir: Path, build_dir: Path, strict: bool) -> None:
+def _compile(unzipdir: Path, build_dir: Path, strict: bool,
+             version_script: Path | None = None) -> None:
     import fmpy
     from fmpy.build import create_cmake_settings
 
@@ -127,6 +132,9 @@ def _compile(unzipdir: Path, build_dir: Path, strict: bool) -> None:
     }
     if strict:
         options["CMAKE_C_FLAGS:STRING"] = "-Werror"
+    if version_script is not None and fmpy.system == "linux":
+        # export the fmi2 functions only, whatever the sources mark visible
+        options["CMAKE_SHARED_LINKER_FLAGS:STRING"] = f"-Wl,--version-script={version_script}"
     create_cmake_settings(unzipdir, build_dir, all_warnings=True, cmake_options=options)
     source_dir = Path(fmpy.__file__).parent / "c-code"
     env = _cmake_env()
@@ -144,25 +152,38 @@ def _compile(unzipdir: Path, build_dir: Path, strict: bool) -> None:
 
 
 def _build_into(fmi_version: int, n: int | None, target: Path, strict: bool, guid: str) -> None:
+    src = _source_dir()
+    files = {f"sources/{name}": (src / name).read_bytes()
+             for name in source_files(fmi_version) + HEADER_FILES}
+    files.update(_generated_files(fmi_version, n, guid))
+    package_fmu(files, MODEL_IDENTIFIER, fmi_version, target, strict)
+
+
+def package_fmu(files: dict[str, bytes], identifier: str, fmi_version: int, target: Path,
+                strict: bool = False, version_script: str | None = None) -> None:
+    """Compile an FMU from ``files`` (its archive paths: ``modelDescription.xml``, whose source
+    file list fmpy's CMake project reads, and ``sources/...``) and zip it, with the binary, into
+    ``target`` (written atomically). Any model: the plant and the controller FMU use it.
+    ``version_script`` names a linker version script among the files (GNU ld, Linux): the
+    symbols the library exports."""
     import fmpy
 
     with tempfile.TemporaryDirectory(prefix="pushtrain-fmu-") as tmp:
         unzipdir = Path(tmp) / "fmu"
-        sources = unzipdir / "sources"
-        sources.mkdir(parents=True)
-        src = _source_dir()
-        for name in source_files(fmi_version) + HEADER_FILES:
-            (sources / name).write_bytes((src / name).read_bytes())
-        for path, data in _generated_files(fmi_version, n, guid).items():
+        (unzipdir / "sources").mkdir(parents=True)
+        for path, data in files.items():
+            (unzipdir / path).parent.mkdir(parents=True, exist_ok=True)
             (unzipdir / path).write_bytes(data)
         build_dir = Path(tmp) / "build"
         build_dir.mkdir()
-        _compile(unzipdir, build_dir, strict)
+        script = None if version_script is None else unzipdir / version_script
+        _compile(unzipdir, build_dir, strict, script)
         platform = fmpy.platform if fmi_version == 2 else fmpy.platform_tuple
-        library = f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
+        library = f"{identifier}{fmpy.sharedLibraryExtension}"
         binary = unzipdir / "binaries" / platform / library
         if not binary.is_file():
             raise FmuBuildError(f"the build produced no {binary.relative_to(unzipdir)}")
+
         def write_zip(partial: Path) -> None:
             with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
                 for path in sorted(unzipdir.rglob("*")):

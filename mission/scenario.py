@@ -86,10 +86,35 @@ class StartSection(Pose):
 
 
 class MapSection(_Section):
+    """The map: polygons (``free`` outline or ``bounds``, ``obstacles``/``walls``), an occupancy
+    grid (``grid``: a ROS map_server YAML file) and a CAD floor plan (``dxf`` with its
+    ``layers``), in any combination; polygons are drawn on top of a grid or a floor plan. File
+    paths are relative to the scenario file."""
+
     free: list[Point] | None = None
     bounds: Annotated[list[FiniteFloat], Field(min_length=4, max_length=4)] | None = None
     obstacles: list[list[Point]] = []
     walls: list[list[Point]] = []
+    grid: Annotated[str, Field(min_length=1)] | None = None
+    dxf: Annotated[str, Field(min_length=1)] | None = None
+    layers: Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)] | None = None
+    line_thickness: PositiveFloat | None = None  # m; open lines of the DXF (default 0.05)
+    dxf_units: Literal["m", "dm", "cm", "mm", "in", "ft"] | None = None  # default: $INSUNITS
+
+    @model_validator(mode="after")
+    def _files(self):
+        problems = []
+        if self.dxf is not None and self.layers is None:
+            problems.append(("map.layers", None, "required with map.dxf: the DXF layers that "
+                                                 "hold walls and obstacles, e.g. [\"WALLS\"]"))
+        if self.dxf is None:
+            for name in ("layers", "line_thickness", "dxf_units"):
+                if getattr(self, name) is not None:
+                    problems.append((f"map.{name}", getattr(self, name),
+                                     "only with map.dxf (a DXF floor plan)"))
+        if problems:
+            raise FieldErrors("", problems)
+        return self
 
 
 class PlannerSection(_Section):
@@ -270,8 +295,11 @@ class Scenario(_Section):
             for name in ("map", "start", "goal"):
                 if getattr(self, name) is None:
                     problems.append((name, None, "required when mission.kind = 'plan'"))
-            if self.map is not None and self.map.free is None and self.map.bounds is None:
-                problems.append(("map", "no free/bounds", "give 'free' (outline) or 'bounds'"))
+            m = self.map
+            if m is not None and all(v is None for v in (m.free, m.bounds, m.grid, m.dxf)):
+                problems.append(("map", "no free/bounds/grid/dxf",
+                                 "give 'free' (outline), 'bounds', 'grid' (a map_server YAML "
+                                 "file) or 'dxf' (a floor plan)"))
         elif kind == "scripted":
             if self.reference is None:
                 problems.append(("reference", None, "required when mission.kind = 'scripted'"))
@@ -393,5 +421,17 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
 
 
 def load_scenario(path) -> Scenario:
-    """Read and validate a scenario TOML file."""
-    return parse_scenario(read_toml(path, ScenarioError), str(path))
+    """Read and validate a scenario TOML file; the map's file paths (``map.grid``, ``map.dxf``)
+    are made absolute against the scenario file's folder."""
+    from pathlib import Path
+
+    data = read_toml(path, ScenarioError)
+    section = data.get("map")
+    if isinstance(section, dict):
+        for key in ("grid", "dxf"):
+            value = section.get(key)
+            if isinstance(value, str) and value:
+                file = Path(value).expanduser()
+                section[key] = str(file if file.is_absolute()
+                                   else Path(path).resolve().parent / file)
+    return parse_scenario(data, str(path))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -26,6 +27,7 @@ from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.errors import PlanningInputError
 
 from .distance_field import DEFAULT_RESOLUTION, DistanceField
+from .raster import polygon_path
 
 __all__ = ["World", "BodyFootprint", "Train", "save_diagnostic", "draw_poses"]
 
@@ -79,14 +81,18 @@ class World:
     """Optional raster source of the map (an occupancy grid with ``blocked`` (ny, nx) bool,
     ``x0``, ``y0`` (centre of cell (0, 0), m) and ``resolution`` (m), axis-aligned): when set,
     :meth:`distance_field` comes from it instead of rasterizing the polygons."""
-    free: Any = field(init=False, repr=False)
+    free: Any = field(default=None, repr=False)
+    """The free space: ``outline`` minus ``obstacles``, computed unless given (a caller that has
+    it cheaper, e.g. a traced occupancy grid whose thousands of disjoint pieces need no union)."""
     _fields: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self):
-        free = self.outline
-        if self.obstacles:
-            free = free.difference(unary_union(list(self.obstacles)))
-        object.__setattr__(self, "free", free)
+        free = self.free
+        if free is None:
+            free = self.outline
+            if self.obstacles:
+                free = free.difference(unary_union(list(self.obstacles)))
+            object.__setattr__(self, "free", free)
         shapely.prepare(free)
 
     def distance_field(self, resolution: float | None = None) -> DistanceField:
@@ -174,15 +180,43 @@ class World:
         return float(self.free.area)
 
     def eroded(self, margin: float):
-        """Free space shrunk by ``margin`` [m] (prepared): a body inside it keeps that clearance."""
-        geom = self.free if margin <= 0.0 else self.free.buffer(-float(margin), quad_segs=16)
-        shapely.prepare(geom)
+        """Free space shrunk by ``margin`` [m] (prepared): a body inside it keeps that clearance.
+        With an occupancy grid: where its distance field is at least ``margin``, traced
+        (:func:`pushtrain.planner.raster.clear_region`; exact to the grid's resolution, like the
+        field), within the free space.
+
+        Computed once per margin; each thread gets its own prepared copy (GEOS builds a prepared
+        geometry's index lazily, so one must not be shared between threads)."""
+        margin = float(margin)
+        if margin <= 0.0:
+            return self.free
+        own = ("eroded", margin, threading.get_ident())
+        geom = self._fields.get(own)
+        if geom is None:
+            shared = self._fields.get(("eroded", margin))
+            if shared is None:
+                if self.occupancy is not None:
+                    from .raster import clear_region
+
+                    shared = clear_region(self.distance_field(), margin).intersection(self.free)
+                else:
+                    shared = self.free.buffer(-margin, quad_segs=16)
+                self._fields[("eroded", margin)] = shared
+            geom = shapely.from_wkb(shapely.to_wkb(shared))
+            shapely.prepare(geom)
+            self._fields[own] = geom
         return geom
 
     def with_obstacles(self, extra: Sequence[Polygon]) -> "World":
-        """A copy with ``extra`` obstacle polygons added (an occupancy grid is dropped: the copy's
-        distance field comes from its polygons)."""
-        return World(self.outline, tuple(self.obstacles) + tuple(extra))
+        """A copy with ``extra`` obstacle polygons added. An occupancy grid that can burn
+        polygons in (:meth:`pushtrain.planner.maps.OccupancyGrid.burn`) gets them burned in;
+        any other is dropped, and the copy's distance field comes from its polygons."""
+        grid = self.occupancy
+        if grid is None or not hasattr(grid, "burn"):
+            return World(self.outline, tuple(self.obstacles) + tuple(extra))
+        free = self.free.difference(unary_union(list(extra))) if extra else self.free
+        return World(self.outline, tuple(self.obstacles) + tuple(extra),
+                     occupancy=grid.burn(tuple(extra)), free=free)
 
     def contains_point(self, x: float, y: float) -> bool:
         """Whether (x, y) [m] lies in the free space."""
@@ -190,10 +224,13 @@ class World:
 
     # ------------------------------------------------------------------ drawing
     def plot(self, ax, free_color: str = "#f4f4f4", obstacle_color: str = "#606060"):
-        """Draw the free space (light) and everything else inside the bounds (dark) on ``ax``."""
+        """Draw the map on ``ax``: the occupancy grid's own picture (its image, rotated as it
+        lies, and the polygons drawn on top) if it has one, else the free space (light) and
+        everything else inside the bounds (dark)."""
         from matplotlib.patches import PathPatch
-        from matplotlib.path import Path as MplPath
 
+        if self.occupancy is not None and hasattr(self.occupancy, "plot"):
+            return self.occupancy.plot(ax, obstacle_color=obstacle_color)
         xmin, ymin, xmax, ymax = self.outline.bounds
         pad = 0.05 * max(xmax - xmin, ymax - ymin, 1e-9)
         frame = box(xmin - pad, ymin - pad, xmax + pad, ymax + pad)
@@ -202,14 +239,7 @@ class World:
             for poly in getattr(geom, "geoms", [geom]):
                 if not isinstance(poly, Polygon) or poly.is_empty:
                     continue
-                verts, codes = [], []
-                for ring in [poly.exterior, *poly.interiors]:
-                    xy = np.asarray(ring.coords)
-                    verts += xy.tolist()
-                    codes += (
-                        [MplPath.MOVETO] + [MplPath.LINETO] * (len(xy) - 2) + [MplPath.CLOSEPOLY]
-                    )
-                ax.add_patch(PathPatch(MplPath(verts, codes), facecolor=color, edgecolor="none"))
+                ax.add_patch(PathPatch(polygon_path(poly), facecolor=color, edgecolor="none"))
         ax.set_xlim(xmin - pad, xmax + pad)
         ax.set_ylim(ymin - pad, ymax + pad)
         ax.set_aspect("equal")

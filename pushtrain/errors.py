@@ -12,7 +12,8 @@ the CLI turns them into exit code 1.
     ├── InputError (ValueError)
     │   ├── FieldErrors                every problem of one file, each (where, value, allowed)
     │   │   ├── ScenarioError
-    │   │   └── SweepError
+    │   │   ├── SweepError
+    │   │   └── MapError               a map file (occupancy grid YAML/image, DXF floor plan)
     │   ├── ReferencePathError         a line/arc reference that cannot be tracked
     │   ├── ControllerError, SensorError, AnalysisError, PlotError
     │   ├── PlanningInputError         (also a PlanningError)
@@ -26,7 +27,7 @@ the CLI turns them into exit code 1.
 from __future__ import annotations
 
 __all__ = [
-    "PushtrainError", "InputError", "FieldErrors", "ScenarioError", "SweepError",
+    "PushtrainError", "InputError", "FieldErrors", "ScenarioError", "SweepError", "MapError",
     "ReferencePathError", "ControllerError", "SensorError", "AnalysisError", "PlotError",
     "PLANNING_REASONS", "PlanningError", "PlanningInputError", "CosimError", "CosimInputError",
     "FmuBuildError", "FmuInputError",
@@ -68,6 +69,11 @@ class ScenarioError(FieldErrors):
 
 class SweepError(FieldErrors):
     """A sweep that cannot be run; ``errors`` lists (where, value, what is allowed)."""
+
+
+class MapError(FieldErrors):
+    """A map file that cannot be used (a map_server YAML or its image, a DXF floor plan);
+    ``source`` is the file, ``errors`` lists (field, value, what is allowed)."""
 
 
 class ReferencePathError(InputError):

@@ -1,22 +1,24 @@
 """Animated GIF of the train moving along its reference (top view).
 
-The walls, path and reference are rendered once; each frame redraws only the moving artists on
-that background (blitting) and maps onto one shared 256-colour palette.
+The walls, path, reference and legend are rendered once; each frame redraws only the moving
+artists on that background (blitting). Frames go straight to the file as they are drawn
+(:class:`_GifStream`): each is mapped onto one shared 256-colour palette and stored as the
+rectangle in which it differs from the frame before, so memory holds two frames, not all of them.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import struct
 import time as _time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from matplotlib.animation import PillowWriter
 from matplotlib.colors import to_rgb
 from matplotlib.patches import Polygon as PolygonPatch
-from PIL import Image
+from PIL import GifImagePlugin, Image, ImageDraw, ImageFont
 
 from pushtrain.errors import PlotError
 from pushtrain.report.common import (
@@ -54,59 +56,177 @@ _PALETTE_COLORS = (C_SLIP, C_ROBOT, C_LAST, _ROBOT_FACE, _TRAILER_FACE, _ROBOT_E
 """Colours guaranteed a place in the GIF's shared palette."""
 
 
-class _BlitGifWriter(PillowWriter):
-    """A PillowWriter that renders the static background once and then draws only the moving
-    ``artists`` on it (blitting), and maps every frame onto one shared 256-colour palette
-    (built from the first and last frames and ``colors``) instead of quantizing each frame."""
+class _Blitter:
+    """Frames of ``fig`` drawn on a kept background (blitting).
 
-    def __init__(self, artists: Sequence, fps: float, colors: Sequence = ()):
-        super().__init__(fps=fps)
-        self._artists = list(artists)
-        self._colors = list(colors)
-        self._background = None
+    The figure is rendered once without the ``artists`` that move; each frame :meth:`restore` s
+    that background and draws the moving artists on it. Artists drawn before :meth:`keep` become
+    part of the background (the traces, which only grow, are drawn one new piece at a time).
+    """
 
-    def setup(self, fig, outfile, dpi=None):
-        super().setup(fig, outfile, dpi=dpi)
-        self._background = None
+    def __init__(self, fig, artists: Sequence):
+        self.fig, self.canvas = fig, fig.canvas
+        shown = [a.get_visible() for a in artists]
+        for a in artists:
+            a.set_visible(False)
+        self.canvas.draw()
+        self.keep()
+        for a, vis in zip(artists, shown, strict=True):
+            a.set_visible(vis)
 
-    def grab_frame(self, **savefig_kwargs):
-        canvas = self.fig.canvas
-        if self._background is None:
-            shown = [a.get_visible() for a in self._artists]
-            for a in self._artists:
-                a.set_visible(False)
-            canvas.draw()
-            self._background = canvas.copy_from_bbox(self.fig.bbox)
-            for a, vis in zip(self._artists, shown, strict=True):
-                a.set_visible(vis)
-        canvas.restore_region(self._background)
-        for a in self._artists:
+    def restore(self) -> None:
+        self.canvas.restore_region(self.background)
+
+    def keep(self) -> None:
+        """Make what the canvas shows now the background."""
+        self.background = self.canvas.copy_from_bbox(self.fig.bbox)
+
+    @staticmethod
+    def draw(artists: Sequence) -> None:
+        for a in artists:
             a.axes.draw_artist(a)
-        width, height = canvas.get_width_height()
-        frame = Image.frombuffer("RGBA", (width, height), bytes(canvas.buffer_rgba()), "raw",
-                                 "RGBA", 0, 1)
-        self._frames.append(frame.convert("RGB"))
 
-    def finish(self):
-        if not self._frames:
+    def pixels(self) -> np.ndarray:
+        """The canvas: (height, width, 4) RGBA uint8, a view that the next frame overwrites."""
+        return np.asarray(self.canvas.buffer_rgba())
+
+
+_TRANSPARENT = 255
+"""Palette index of the GIF's transparent colour: a frame's pixels that did not change."""
+
+
+def _rgb(rgba: np.ndarray) -> Image.Image:
+    """An RGB image of a (height, width, 4) uint8 array (alpha dropped)."""
+    return Image.fromarray(np.ascontiguousarray(rgba)).convert("RGB")
+
+
+def _palette(first: np.ndarray, last: np.ndarray, colors: Sequence) -> Image.Image:
+    """A palette ("P" image) of 255 colours from the first and last frames (RGBA arrays) and a
+    swatch of ``colors``; index 255 is left for :data:`_TRANSPARENT`."""
+    height, width = first.shape[:2]
+    swatch = 16
+    sheet = Image.new("RGB", (width, 2 * height + swatch), "white")
+    sheet.paste(_rgb(first), (0, 0))
+    sheet.paste(_rgb(last), (0, height))
+    for k, color in enumerate(colors):
+        rgb = tuple(round(255 * c) for c in to_rgb(color))
+        sheet.paste(rgb, (k * swatch, 2 * height, (k + 1) * swatch, 2 * height + swatch))
+    return sheet.quantize(colors=_TRANSPARENT, method=Image.Quantize.MEDIANCUT)
+
+
+class _GifStream:
+    """An animated GIF (GIF89a, looping) written to ``fp`` one frame at a time.
+
+    Every frame is mapped onto ``palette`` (nearest colour, no dithering) and stored as the
+    smallest rectangle holding its changes from the previous frame, drawn over it (disposal
+    "do not dispose"), with the unchanged pixels in it transparent; a frame equal to the
+    previous one lengthens that one's display time. A frame is written when the next one
+    arrives (or on :meth:`close`), so at most two are held. Each frame shows for ``duration``
+    [ms], rounded to the GIF's unit of 10 ms.
+    """
+
+    def __init__(self, fp, palette: Image.Image, duration: float):
+        self.fp, self.palette = fp, palette
+        self.duration = max(round(duration / 10.0), 1) * 10
+        self.previous: np.ndarray | None = None  # the frame so far, (height, width) uint32 RGBA
+        self.pending: list | None = None  # [P image, (x, y), duration ms, transparency]
+        self.frames = 0
+
+    def _header(self, width: int, height: int) -> None:
+        table = bytes(self.palette.getpalette("RGB")[: 3 * 256]).ljust(768, b"\0")
+        self.fp.write(b"GIF89a" + struct.pack("<HHBBB", width, height, 0xF7, 0, 0) + table)
+        self.fp.write(b"!\xff\x0bNETSCAPE2.0\x03\x01" + struct.pack("<H", 0) + b"\0")
+
+    def add(self, rgba: np.ndarray) -> None:
+        """Append the frame ``rgba``, a (height, width, 4) uint8 array (read, not kept)."""
+        if rgba.ndim != 3 or rgba.shape[2] != 4 or rgba.dtype != np.uint8:
+            raise PlotError(f"a frame must be (height, width, 4) uint8, not {rgba.shape} "
+                            f"{rgba.dtype}")
+        pixels = np.ascontiguousarray(rgba).view(np.uint32)[:, :, 0]
+        height, width = pixels.shape
+        if self.previous is None:
+            self._header(width, height)
+            self.previous = pixels.copy()
+            part = _rgb(rgba).quantize(palette=self.palette, dither=Image.Dither.NONE)
+            self._flush()
+            self.pending = [part, (0, 0), self.duration, None]
+            return
+        if pixels.shape != self.previous.shape:
+            raise PlotError(f"a frame of {width} x {height} pixels after frames of "
+                            f"{self.previous.shape[1]} x {self.previous.shape[0]}")
+        changed = pixels != self.previous
+        rows = np.flatnonzero(changed.any(axis=1))
+        if rows.size == 0:
+            self.pending[2] += self.duration
+            return
+        y0, y1 = int(rows[0]), int(rows[-1]) + 1
+        cols = np.flatnonzero(changed[y0:y1].any(axis=0))
+        x0, x1 = int(cols[0]), int(cols[-1]) + 1
+        index = np.asarray(_rgb(rgba[y0:y1, x0:x1]).quantize(palette=self.palette,
+                                                             dither=Image.Dither.NONE))
+        index = np.where(changed[y0:y1, x0:x1], index, np.uint8(_TRANSPARENT))
+        self.previous[y0:y1, x0:x1] = pixels[y0:y1, x0:x1]
+        part = Image.fromarray(index, "P")
+        part.putpalette(self.palette.getpalette("RGB"))
+        self._flush()
+        self.pending = [part, (x0, y0), self.duration, _TRANSPARENT]
+
+    def _flush(self) -> None:
+        if self.pending is not None:
+            part, offset, duration, transparency = self.pending
+            info = {"duration": duration, "disposal": 1}
+            if transparency is not None:
+                info["transparency"] = transparency
+            for chunk in GifImagePlugin.getdata(part, offset, **info):
+                self.fp.write(chunk)
+            self.frames += 1
+            self.pending = None
+
+    def close(self) -> int:
+        """Write the last frame and the trailer; the number of frames written."""
+        if self.previous is None:
             raise PlotError("the animation has no frames")
-        palette = self._palette()
-        frames = [f.quantize(palette=palette, dither=Image.Dither.NONE) for f in self._frames]
-        frames[0].save(self.outfile, save_all=True, append_images=frames[1:],
-                       duration=max(round(1000.0 / self.fps), 10), loop=0)
+        self._flush()
+        self.fp.write(b";")
+        return self.frames
 
-    def _palette(self) -> Image.Image:
-        """A 256-colour palette of the first and last frames and a swatch of ``colors``."""
-        first, last = self._frames[0], self._frames[-1]
-        width, height = first.size
-        swatch = 16
-        sheet = Image.new("RGB", (width, 2 * height + swatch), "white")
-        sheet.paste(first, (0, 0))
-        sheet.paste(last, (0, height))
-        for k, color in enumerate(self._colors):
-            rgb = tuple(round(255 * c) for c in to_rgb(color))
-            sheet.paste(rgb, (k * swatch, 2 * height, (k + 1) * swatch, 2 * height + swatch))
-        return sheet.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+
+class _Stamp:
+    """The time stamp in the top-left corner of the axes, drawn with Pillow onto each frame:
+    black monospace text (matplotlib's) on a white box of 80 % opacity. (A matplotlib Text is
+    laid out and rasterized anew for every frame, which took about half the GIF's time.)"""
+
+    def __init__(self, ax, fontsize: float = 9.0, anchor=(0.01, 0.99)):
+        from matplotlib import font_manager
+
+        dpi = ax.figure.dpi
+        path = font_manager.findfont(font_manager.FontProperties(family="monospace"))
+        self.font = ImageFont.truetype(path, size=max(round(fontsize * dpi / 72.0), 1))
+        self.pad = max(round(0.3 * fontsize * dpi / 72.0), 1)  # matplotlib's bbox padding
+        self.ax, self.anchor = ax, anchor
+        self.text = ""
+
+    def draw(self, frame: np.ndarray) -> None:
+        """Draw the text on ``frame``, the (height, width, 4) RGBA canvas array."""
+        if not self.text:
+            return
+        height, width = frame.shape[:2]
+        box = self.ax.get_window_extent()  # pixels, origin at the bottom left
+        x = round(box.x0 + self.anchor[0] * box.width)
+        y = round(height - (box.y0 + self.anchor[1] * box.height))  # top of the text
+        ascent, descent = self.font.getmetrics()
+        text_w = math.ceil(self.font.getlength(self.text))
+        x0, y0 = max(x - self.pad, 0), max(y - self.pad, 0)
+        x1 = min(x + text_w + self.pad, width)
+        y1 = min(y + ascent + descent + self.pad, height)
+        if x1 <= x0 or y1 <= y0:
+            return
+        ink = Image.new("L", (x1 - x0, y1 - y0), 0)
+        ImageDraw.Draw(ink).text((x - x0, y - y0), self.text, font=self.font, fill=255)
+        cover = np.asarray(ink, dtype=np.float32)[:, :, None] / 255.0
+        region = frame[y0:y1, x0:x1, :3].astype(np.float32)
+        region = (0.2 * region + 0.8 * 255.0) * (1.0 - cover)
+        frame[y0:y1, x0:x1, :3] = np.rint(region).astype(np.uint8)
 
 
 class _TrainScene:
@@ -151,8 +271,10 @@ class _TrainScene:
         ax.plot([run.xd[-1]], [run.yd[-1]], "*", color="tab:green", mec="black", ms=12, zorder=7)
 
     def _add_moving(self, ax) -> None:
-        self.robot_trace, = ax.plot([], [], "-", color=C_ROBOT, lw=1.2, label="robot")
-        self.last_trace, = ax.plot([], [], "-", color=C_LAST, lw=1.2,
+        # butt ends: the pieces a trace is drawn in meet without overlapping
+        self.robot_trace, = ax.plot([], [], "-", color=C_ROBOT, lw=1.2, label="robot",
+                                    solid_capstyle="butt")
+        self.last_trace, = ax.plot([], [], "-", color=C_LAST, lw=1.2, solid_capstyle="butt",
                                    label=f"last trailer ({self.run.n})")
         self.target, = ax.plot([], [], "x", color=C_REF, ms=7, mew=1.5, zorder=9,
                                label="reference point")
@@ -165,22 +287,23 @@ class _TrainScene:
             ax.add_patch(patch)
             self.patches.append(patch)
         self.train, = ax.plot([], [], "-o", color=_TRAIN_LINE, lw=1.3, ms=2.5, zorder=6)
-        self.stamp = ax.text(0.01, 0.99, "", transform=ax.transAxes, va="top", ha="left",
-                             fontsize=9, family="monospace",
-                             bbox={"facecolor": "white", "alpha": 0.8, "lw": 0})
+        self.stamp = _Stamp(ax)
+
+    @property
+    def trails(self) -> list:
+        """The traces: drawn below the bodies, they only grow."""
+        return [self.robot_trace, self.last_trace]
 
     @property
     def moving(self) -> list:
-        """The artists that change from frame to frame."""
-        return [self.robot_trace, self.last_trace, *self.patches, self.train, self.target,
-                self.stamp]
+        """The artists that change from frame to frame, the traces first."""
+        return [*self.trails, *self.patches, self.train, self.target]
 
     def draw(self, frame: int, r: int) -> None:
         """Set the moving artists to frame number ``frame``, which shows data row ``r``."""
-        run, n = self.run, self.run.n
+        run = self.run
         x, y, th = run.x, run.y, run.th
-        self.robot_trace.set_data(x[: r + 1, 0], y[: r + 1, 0])
-        self.last_trace.set_data(x[: r + 1, n], y[: r + 1, n])
+        self.row = r
         self.target.set_data([run.xd[r]], [run.yd[r]])
         for i, patch in enumerate(self.patches):
             patch.set_xy(self.corners[i][frame])
@@ -192,7 +315,27 @@ class _TrainScene:
         text = f"t = {run.t[r]:.{self.digits}f} s   max|phi| = {np.max(np.abs(phis)):5.1f} deg"
         if self.jack[r]:
             text += "   JACKKNIFED"
-        self.stamp.set_text(text)
+        self.stamp.text = text
+
+    def grab(self, blit: _Blitter, since: int | None = None) -> np.ndarray:
+        """The frame as set by :meth:`draw` (a view of the canvas).
+
+        The traces run from row 0, or, with ``since``, from row ``since``, the row whose frame
+        was grabbed last: that part is drawn on the background and kept in it. The bodies,
+        the reference point and the stamp go on top.
+        """
+        run, n, r = self.run, self.run.n, self.row
+        first = 0 if since is None else since
+        blit.restore()
+        self.robot_trace.set_data(run.x[first: r + 1, 0], run.y[first: r + 1, 0])
+        self.last_trace.set_data(run.x[first: r + 1, n], run.y[first: r + 1, n])
+        blit.draw(self.trails)
+        if since is not None:
+            blit.keep()
+        blit.draw(self.moving[len(self.trails):])
+        frame = blit.pixels()
+        self.stamp.draw(frame)
+        return frame
 
 
 def animate(data, n: int, out_path, *, world=None, footprints=None, fps: float = 10,
@@ -229,13 +372,22 @@ def animate(data, n: int, out_path, *, world=None, footprints=None, fps: float =
     scene.fig.canvas.draw()  # lay the figure out once, then keep that layout for every frame
     scene.fig.set_layout_engine("none")
     start = _time.perf_counter()
-    writer = _BlitGifWriter(scene.moving, fps=fps, colors=_PALETTE_COLORS)
+    blit = _Blitter(scene.fig, scene.moving)
+    scene.draw(len(frames) - 1, int(frames[-1]))
+    last = scene.grab(blit).copy()
+    scene.draw(0, int(frames[0]))
+    palette = _palette(scene.grab(blit), last, _PALETTE_COLORS)
+    del last
 
     def write(partial: Path) -> None:
-        with writer.saving(scene.fig, str(partial), dpi=GIF_DPI):
+        with open(partial, "wb") as f:
+            gif = _GifStream(f, palette, 1000.0 / fps)
+            since = int(frames[0])
             for frame, r in enumerate(frames):
                 scene.draw(frame, int(r))
-                writer.grab_frame()
+                gif.add(scene.grab(blit, since))
+                since = int(r)
+            gif.close()
 
     atomic(gif_path, write)
     log.debug("wrote %s: %d frames in %.2f s", gif_path, len(frames), _time.perf_counter() - start)

@@ -148,9 +148,18 @@ def atomic(path: Path, write) -> Path:
 
 
 def save(fig: Figure, out_path, dpi: float = DPI) -> Path:
-    """Save ``fig`` atomically in the format named by the suffix of ``out_path``."""
+    """Save ``fig`` atomically in the format named by the suffix of ``out_path``.
+
+    The layout is computed once, then fixed (the engine removed): ``savefig`` on a figure with
+    a layout engine draws it twice (once without pixels) and lays it out before each draw, for
+    the same picture.
+    """
     path = output_path(out_path)
     fmt = path.suffix.lower().lstrip(".")
+    engine = fig.get_layout_engine()
+    if engine is not None and dpi == fig.dpi:
+        engine.execute(fig)
+        fig.set_layout_engine(None)
     atomic(path, lambda partial: fig.savefig(partial, format=fmt, dpi=dpi))
     return path
 

@@ -101,6 +101,7 @@ __all__ = [
     "prepare_runs",
     "run_task",
     "run_sweep",
+    "local_client",
     "sweep",
     "read_results",
     "write_rows_csv",
@@ -273,13 +274,28 @@ def _quiet_worker_plugin():
     return QuietWorker()
 
 
+LOCAL_WORKER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+}
+"""Dask settings of the workers of our own LocalCluster. A worker runs the co-simulation in a
+thread; Dask's statistical profiler samples that thread's stack every 10 ms from another thread,
+and the event loop wakes every 20 ms to time itself and every 0.5 s to poll system counters,
+each time taking the interpreter lock from the co-simulation. With the profiler off a worker
+spent 1.10 instead of 1.42 times the serial CPU time per run, with the slower ticks 1.05
+(benchmarks/bench_sweep.py prints this ratio)."""
+
+
 @contextlib.contextmanager
-def _local_client(n_workers: int):
-    """A client of a LocalCluster whose workers ignore SIGINT (see :func:`_quiet_worker`).
+def local_client(n_workers: int):
+    """A client of a LocalCluster of ``n_workers`` single-threaded worker processes with
+    :data:`LOCAL_WORKER_CONFIG`, whose workers ignore SIGINT (see :func:`_quiet_worker`).
 
     The workers are started with SIGINT ignored in this process, which they inherit; a Ctrl-C
     during those seconds of start-up is therefore lost. The plugin covers restarted workers.
     """
+    import dask
     from distributed import Client, LocalCluster
 
     main = threading.current_thread() is threading.main_thread()
@@ -287,8 +303,9 @@ def _local_client(n_workers: int):
     if main:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR)
+        with dask.config.set(LOCAL_WORKER_CONFIG):  # the nannies pass it on to their workers
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
     finally:
         if main:
             signal.signal(signal.SIGINT, signal.default_int_handler if previous is None
@@ -307,7 +324,7 @@ def _run_on_dask(runs, out_dir, kwargs, *, client, scheduler, workers) -> SweepO
     if scheduler is not None:
         with Client(scheduler) as own:
             return run_sweep(runs, run_task, out_dir, client=own, **kwargs)
-    with _local_client(workers or os.cpu_count() or 1) as own:
+    with local_client(workers or os.cpu_count() or 1) as own:
         return run_sweep(runs, run_task, out_dir, client=own, **kwargs)
 
 

@@ -267,3 +267,103 @@ def test_every_command_module_is_registered():
 
     modules = {m.name.replace("_", "-") for m in pkgutil.iter_modules(commands.__path__)}
     assert modules == set(cli.commands) - {"sweep"}
+
+
+# ------------------------------------------------------------------------------ result files
+def test_results_npz_is_the_table_and_csv_comes_only_with_the_option(tmp_path):
+    import numpy as np
+
+    from pushtrain.cosim.master import _columns
+    from pushtrain.mission.runner import load_results
+
+    plain, with_csv = tmp_path / "plain", tmp_path / "with_csv"
+    scenario = _short(tmp_path, horizon=0.2)
+    assert _invoke(["run", scenario, "--no-plots", "--out", str(plain)]).exit_code == 1
+    result = _invoke(["run", scenario, "--no-plots", "--csv", "--out", str(with_csv)])
+    assert result.exit_code == 1, result.output
+    assert not (plain / "results.csv").exists() and (with_csv / "results.csv").is_file()
+    with np.load(plain / "results.npz") as z:
+        assert list(z.files) == _columns(3)
+        assert len(z["t"]) == 41 and z["t"][-1] == pytest.approx(0.2)
+    table = load_results(plain)
+    assert table.dtype.names == tuple(_columns(3))
+    again = load_results(with_csv)
+    for name in table.dtype.names:  # the same run twice (no noise): the same numbers
+        assert np.array_equal(table[name], again[name], equal_nan=True), name
+    text = np.genfromtxt(with_csv / "results.csv", delimiter=",", names=True)
+    assert text.dtype.names == table.dtype.names
+    for name in table.dtype.names:  # the CSV holds 10 significant digits
+        assert np.allclose(text[name], table[name], rtol=1e-9, atol=1e-12, equal_nan=True), name
+
+
+def test_progress_goes_to_a_pipe_one_line_per_phase(tmp_path):
+    """Piped (not a terminal), each phase is announced as it starts and the last line says
+    how long each took."""
+    script = Path(sys.executable).with_name("plan-and-run")
+    out = tmp_path / "out"
+    done = subprocess.run([str(script), _short(tmp_path, horizon=0.2), "--no-gif", "--out",
+                           str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 1, done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.startswith("[")]
+    assert [line.split("] ", 1)[1] for line in lines[:-1]] == [
+        "co-simulating ...", "saving the results ...",
+        "plotting map.png, inputs_joints.png, tracking_error.png, lateral_forces.png ..."]
+    stamps = [float(line[1:].split("s]")[0]) for line in lines]
+    assert stamps == sorted(stamps)
+    phases = lines[-1].split("] done: ", 1)[1].split(", ")
+    assert [p.rsplit(" ", 2)[0] for p in phases] == ["co-simulate", "save", "plots"]
+    assert all(float(p.rsplit(" ", 2)[1]) >= 0 for p in phases)
+    assert "status:" in done.stdout and "status:" not in done.stderr
+    assert (out / "map.png").is_file() and not (out / "train.gif").exists()
+    assert "phase times: co-simulate" in (out / "run.log").read_text()
+
+
+def test_load_results_reads_a_folder_with_only_a_csv(tmp_path):
+    import numpy as np
+
+    from pushtrain.mission.runner import load_results
+
+    (tmp_path / "results.csv").write_text("t,x0,e_lat\n0,1.5,nan\n0.005,1.25,-0.001\n")
+    table = load_results(tmp_path)
+    assert table.dtype.names == ("t", "x0", "e_lat")
+    assert np.array_equal(table["x0"], [1.5, 1.25])
+    assert np.isnan(table["e_lat"][0])
+    np.savez(tmp_path / "results.npz", t=np.array([7.0]), x0=np.array([8.0]))
+    assert load_results(tmp_path).dtype.names == ("t", "x0")  # the NPZ comes first
+    with pytest.raises(FileNotFoundError, match="results.npz"):
+        load_results(tmp_path / "empty")
+
+
+def test_save_results_keeps_every_bit_and_writes_atomically(tmp_path, monkeypatch):
+    import types
+
+    import numpy as np
+
+    from pushtrain.mission import runner
+
+    rng = np.random.default_rng(3)
+    names = ["t", "x0", "phi1", "slipping1"]
+    data = np.empty(1000, dtype=[(k, "f8") for k in names])
+    for k in names:
+        data[k] = rng.normal(size=1000) * 10.0 ** rng.integers(-300, 300, size=1000)
+    data["phi1"][:3] = [-0.0, np.nan, np.inf]
+    result = types.SimpleNamespace(data=data, summary={"status": "completed", "steps": 999})
+    files = runner.save_results(result, tmp_path / "run")
+    assert sorted(files) == ["npz", "summary"] and result.files == files
+    with np.load(files["npz"]) as z:
+        assert list(z.files) == names
+        for k in names:
+            assert z[k].tobytes() == data[k].tobytes(), k  # bit for bit, -0.0 and NaN included
+    assert json.loads(Path(files["summary"]).read_text()) == result.summary
+
+    def full_disk(partial, table):
+        Path(partial).write_bytes(b"PK partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(runner, "_write_npz", full_disk)
+    with pytest.raises(OSError, match="disk full"):
+        runner.save_results(result, tmp_path / "run", csv=True)
+    with np.load(files["npz"]) as z:  # the previous file is intact, no partial file is left
+        assert z["t"].tobytes() == data["t"].tobytes()
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["results.npz",
+                                                                    "summary.json"]

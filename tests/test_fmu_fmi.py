@@ -257,6 +257,62 @@ def test_every_variable_reads_with_its_type_and_is_named_by_the_c_side(built_fmu
                for status, _, message in sim.messages if status >= 3), sim.messages
 
 
+def _tail_x(front, rear, theta):
+    """x of the last axle for a robot at x = 0: x_i = x_{i-1} - R_{i-1} cos th_{i-1} - F_i cos th_i
+    (independent of the FMU)."""
+    x = 0.0
+    for i in range(1, len(theta)):
+        x -= rear[i - 1] * np.cos(theta[i - 1]) + front[i - 1] * np.cos(theta[i])
+    return x
+
+
+@pytest.mark.parametrize("mode", ["instantiated", "initialization"])
+def test_outputs_read_before_initialization_ends_follow_every_set(built_fmu_sim, mode):
+    """The outputs are kept between reads (a read of current outputs does no model work): every
+    set of a start value or parameter must make the next read recompute them."""
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    if mode == "initialization":
+        sim.fmu.setupExperiment(startTime=0.0)
+        sim.fmu.enterInitializationMode()
+    front, rear, theta = [0.52] * 3, [0.52] * 3, [0.0] * 4
+    assert sim.real("x[3]") == pytest.approx(_tail_x(front, rear, theta), abs=1e-15)
+    sim.set({"theta_start[2]": 0.5})
+    theta[2] = 0.5
+    assert sim.real("x[3]") == pytest.approx(_tail_x(front, rear, theta), abs=1e-15)
+    assert sim.real("phi[3]") == pytest.approx(0.5, abs=1e-15)
+    sim.set({"front[3]": 1.0})
+    front[2] = 1.0
+    assert sim.real("x[3]") == pytest.approx(_tail_x(front, rear, theta), abs=1e-15)
+    sim.set({"mu[2]": 0.3})
+    assert sim.real("F_lat_max[2]") == pytest.approx(0.3 * 42.1 * 9.81, rel=1e-15)
+    sim.set({"payload[2]": 10.0})
+    assert sim.real("F_lat_max[2]") == pytest.approx(0.3 * 52.1 * 9.81, rel=1e-15)
+    # a parameter made invalid after a read: the next read checks it and fails, naming it
+    sim.set({"front[1]": -1.0})
+    with pytest.raises(FMICallException):
+        sim.real("x[1]")
+    assert any("outputs cannot be computed: front[1] = -1" in message
+               for status, _, message in sim.messages if status >= 3), sim.messages
+
+
+def test_get_boolean_reads_many_values_in_one_call(built_fmu_sim):
+    """fmi2GetBoolean moves its values through a buffer a chunk at a time: a call of many
+    values (several chunks) returns each one, and a wrong reference in a later chunk fails."""
+    sim = built_fmu_sim(N_DEFAULT, logging_on=True)
+    sim.initialize({"slip_mode": 1}, {"v_cmd": -0.05, "push_y": 60.0})  # 60 N > 37.2 N
+    for _ in range(20):
+        sim.step(0.005)
+    names = ["slipping[1]", "slipping[2]", "slipping[3]", "jackknifed"]
+    one_by_one = [bool(sim.fmu.getBoolean([sim.vr(name)])[0]) for name in names]
+    assert one_by_one == [False, False, True, False]  # only the pushed trailer slides
+    refs = [sim.vr(name) for name in names] * 50
+    assert [bool(value) for value in sim.fmu.getBoolean(refs)] == one_by_one * 50
+    with pytest.raises(FMICallException):
+        sim.fmu.getBoolean(refs[:150] + [sim.vr("x[1]")] + refs[150:])
+    assert any("x[1]" in message and "not a Boolean" in message
+               for status, _, message in sim.messages if status >= 3), sim.messages
+
+
 def test_outputs_are_finite_after_exit_initialization(built_fmu_sim):
     sim = built_fmu_sim(N_DEFAULT)
     sim.initialize({"theta_start[1]": 0.3, "v_start": -0.05, "w_start": 0.02},

@@ -35,7 +35,7 @@ ALLOWED = {
     "cli": {"core", "fmu", "planner", "cosim", "report", "mission", "studies"},
 }
 OWNERS = {"ompl": {"planner"}, "fmpy": {"cosim", "fmu"}, "dask": {"studies.sweep"},
-          "distributed": {"studies.sweep"}}
+          "distributed": {"studies.sweep"}, "ezdxf": {"planner.dxf"}}
 DEPRECATED = set(MOVED_MODULES) | {"pushtrain.planner.errors"}
 
 

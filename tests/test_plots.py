@@ -360,6 +360,97 @@ def test_animate_writes_a_gif_with_one_frame_per_sample(run3, tmp_path):
     assert leftovers(tmp_path) == []
 
 
+def _palette_image(colors):
+    palette = Image.new("P", (1, 1))
+    palette.putpalette([c for rgb in colors for c in rgb] + [0] * 3 * (256 - len(colors)))
+    return palette
+
+
+def _decoded(data: bytes) -> tuple[list[np.ndarray], list[int]]:
+    """The frames of a GIF as RGB arrays, composed as a viewer shows them, and their
+    durations [ms]."""
+    import io
+
+    frames, durations = [], []
+    with Image.open(io.BytesIO(data)) as im:
+        for k in range(im.n_frames):
+            im.seek(k)
+            frames.append(np.asarray(im.convert("RGB")).copy())
+            durations.append(im.info["duration"])
+    return frames, durations
+
+
+def test_gif_stream_stores_changed_rectangles_and_composes_back():
+    import io
+
+    from pushtrain.report.animation import _GifStream
+
+    colors = [(255, 255, 255), (200, 30, 30), (20, 60, 200), (0, 0, 0)]
+    rgba = [np.append(np.array(c, np.uint8), 255) for c in colors]
+    frame = np.empty((40, 60, 4), np.uint8)
+    frame[:] = rgba[0]
+    expected = []
+    out = io.BytesIO()
+    gif = _GifStream(out, _palette_image(colors), duration=131.0)  # 130 ms in GIF units
+
+    def add(changed_frame):
+        gif.add(changed_frame)
+        expected.append(changed_frame[:, :, :3].copy())
+
+    add(frame.copy())
+    written = []
+    for k, (y, x, c) in enumerate([(5, 5, 1), (30, 50, 2), (10, 20, 3), (10, 20, 0)]):
+        frame[y:y + 4, x:x + 6] = rgba[c]  # a block appears (or is erased again)
+        frame[0, k] = rgba[3]  # and a pixel far from it
+        add(frame.copy())
+        written.append(len(out.getvalue()))
+    gif.add(frame.copy())  # unchanged: the last frame shows twice as long
+    assert gif.close() == 5
+    assert written == sorted(written) and written[0] > 800  # frames go out as they come
+    frames, durations = _decoded(out.getvalue())
+    assert len(frames) == 5
+    for got, want in zip(frames, expected, strict=True):
+        assert np.array_equal(got, want)
+    assert durations == [130, 130, 130, 130, 260]
+
+
+def test_gif_stream_maps_colours_to_the_nearest_palette_entry():
+    import io
+
+    from pushtrain.report.animation import _GifStream
+
+    colors = [(255, 255, 255), (0, 0, 0), (250, 0, 0)]
+    frame = np.full((8, 8, 4), 255, np.uint8)
+    frame[2:4, 2:4, :3] = (240, 10, 5)  # nearest: red
+    frame[5:7, 5:7, :3] = (30, 20, 25)  # nearest: black
+    out = io.BytesIO()
+    gif = _GifStream(out, _palette_image(colors), duration=100.0)
+    gif.add(frame)
+    gif.close()
+    (got,), _ = _decoded(out.getvalue())
+    assert tuple(got[2, 2]) == (250, 0, 0) and tuple(got[6, 6]) == (0, 0, 0)
+    assert tuple(got[0, 0]) == (255, 255, 255)
+    with pytest.raises(plots.PlotError, match="no frames"):
+        _GifStream(io.BytesIO(), _palette_image(colors), 100.0).close()
+
+
+def test_animate_frames_show_the_train_where_the_data_put_it(run3, tmp_path):
+    """The last frame's robot body is drawn in its face colour around the robot's last pose,
+    and the time stamp (drawn over the axes' top-left corner) differs between frames."""
+    from matplotlib.colors import to_rgb
+
+    from pushtrain.report.animation import _ROBOT_FACE
+
+    out = plots.animate(run3.data, 3, tmp_path / "train.gif", max_frames=6)
+    frames, durations = _decoded(out.read_bytes())
+    assert len(frames) == 6 and set(durations) == {100}
+    face = np.array([round(255 * c) for c in to_rgb(_ROBOT_FACE)])
+    near_face = np.all(np.abs(frames[-1].astype(int) - face) <= 24, axis=2)
+    assert near_face.sum() > 30  # the robot body is drawn
+    top_left = (slice(0, 60), slice(0, 250))
+    assert not np.array_equal(frames[0][top_left], frames[-1][top_left])  # the stamp changed
+
+
 def test_animate_writes_150_frames(run3, tmp_path):
     # how long it takes is measured by benchmarks/, not asserted here (timed tests fail under load)
     out = plots.animate(run3.data, 3, tmp_path / "train.gif")
@@ -403,15 +494,23 @@ def test_failed_save_leaves_nothing_behind(run3, tmp_path, monkeypatch):
 
 
 def test_failed_gif_leaves_nothing_behind(run3, tmp_path, monkeypatch):
-    def broken_save(self, fp, *args, **kwargs):
-        with open(fp, "wb") as f:
-            f.write(b"GIF89a partial")
-        raise OSError("disk full")
+    from PIL import GifImagePlugin
 
-    monkeypatch.setattr(Image.Image, "save", broken_save)
+    calls = []
+
+    def broken_frame(image, offset, **info):  # the header is written, then frame 3 fails
+        calls.append(offset)
+        if len(calls) == 3:
+            raise OSError("disk full")
+        return [b"frame"]
+
+    monkeypatch.setattr(GifImagePlugin, "getdata", broken_frame)
+    target = tmp_path / "train.gif"
+    target.write_bytes(b"old")
     with pytest.raises(OSError, match="disk full"):
-        plots.animate(run3.data, 3, tmp_path / "train.gif", max_frames=5)
-    assert list(tmp_path.iterdir()) == []
+        plots.animate(run3.data, 3, target, max_frames=5)
+    assert target.read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["train.gif"]
 
 
 def test_bad_arguments_raise_plot_errors(run3, tmp_path):

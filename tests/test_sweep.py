@@ -426,7 +426,7 @@ def test_cli_workers_0_runs_serially_and_max_runs_stops_then_resumes(tmp_path, m
     from pushtrain.cli.main import cli
 
     monkeypatch.setattr(library, "run_task", _fake_task)  # seen only by runs in this process
-    monkeypatch.setattr(library, "_local_client", _no_cluster)
+    monkeypatch.setattr(library, "local_client", _no_cluster)
     (tmp_path / "base.toml").write_text(BASE_TOML)
     (tmp_path / "spec.toml").write_text(SPEC8_TOML)
     out = tmp_path / "out"

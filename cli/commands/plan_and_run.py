@@ -6,7 +6,15 @@ import sys
 
 import click
 
-from ..common import _scenario, check_map, out_dir_option, scenario_argument, trailers_option
+from ..common import (
+    _scenario,
+    check_map,
+    csv_option,
+    out_dir_option,
+    scenario_argument,
+    trailers_option,
+)
+from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import describe_path, plan_or_fail, run_and_report, write_path, write_scenario
 
@@ -18,23 +26,27 @@ from ..runs import describe_path, plan_or_fail, run_and_report, write_path, writ
 @click.option("--seed", type=click.IntRange(min=1), metavar="S", help="Override the scenario seed.")
 @click.option("--no-plots", is_flag=True, help="Skip the PNG plots and the GIF.")
 @click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
-def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif):
+@csv_option
+def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv):
     """Plan the last trailer's path, co-simulate the FMU with the controller, plot the run.
 
     \b
     Example:
       pushtrain plan-and-run examples/l_corridor.toml --out runs/l
-    Writes scenario.json, path.json, results.csv/.npz, summary.json, run.log and plots.
+    Writes scenario.json, path.json, results.npz (results.csv with --csv), summary.json,
+    run.log and plots. Progress goes to stderr, one line per phase.
     """
+    phases = Phases()
     sc = _scenario(scenario, trailers, seed)
     check_map(sc)
     with run_folder(out, sc.name, sc) as out_dir:
         write_scenario(sc, out_dir)
         reference = path = None
         if sc.mission.kind == "plan":
-            path = plan_or_fail(sc, out_dir)
+            path = plan_or_fail(sc, out_dir, phases)
             write_path(path, out_dir / "path.json")
             click.echo(describe_path(path))
             reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
-        code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif)
+        code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif, csv=csv,
+                              phases=phases)
     sys.exit(code)

@@ -6,7 +6,15 @@ import sys
 
 import click
 
-from ..common import BadInput, _scenario, out_dir_option, scenario_argument
+from ..common import (
+    BadInput,
+    _scenario,
+    check_map,
+    csv_option,
+    out_dir_option,
+    scenario_argument,
+)
+from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import run_and_report, write_path, write_scenario
 
@@ -31,17 +39,20 @@ def _load_path(path_file: str):
 @out_dir_option
 @click.option("--no-plots", is_flag=True, help="Skip the PNG plots and the GIF.")
 @click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
-def run_cmd(scenario, path_file, out, no_plots, no_gif):
+@csv_option
+def run_cmd(scenario, path_file, out, no_plots, no_gif, csv):
     """Co-simulate a saved path or the scenario's scripted line/arc reference.
 
     \b
     Examples:
       pushtrain run examples/circle.toml
       pushtrain run examples/bay.toml --path bay_path.json
-    Writes scenario.json, path.json (with --path), results.csv/.npz, summary.json, run.log
-    and plots.
+    Writes scenario.json, path.json (with --path), results.npz (results.csv with --csv),
+    summary.json, run.log and plots. Progress goes to stderr, one line per phase.
     """
+    phases = Phases()
     sc = _scenario(scenario)
+    check_map(sc)
     path = None
     if path_file:
         path = _load_path(path_file)
@@ -54,5 +65,6 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif):
         if path is not None:
             write_path(path, out_dir / "path.json")
             reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
-        code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif)
+        code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif, csv=csv,
+                              phases=phases)
     sys.exit(code)

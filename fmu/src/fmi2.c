@@ -164,17 +164,23 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           fmi2Boolean value[]) {
-    size_t k;
+    enum { chunk = 64 };
+    bool buffer[chunk];
+    size_t done, k;
     BEGIN(ERROR_MODES);
     if (nvr > 0 && (vr == NULL || value == NULL)) {
         FAIL("vr or value is NULL");
     }
-    for (k = 0; k < nvr; k++) { /* fmi2Boolean is an int: one value at a time */
-        bool v;
-        if (instance_get_boolean(inst, __func__, &vr[k], 1, &v, 1) != status_ok) {
+    /* fmi2Boolean is an int: read through a bool buffer, one value per scalar variable, a chunk
+       at a time (the outputs are made current at most once per chunk: O(values) in all) */
+    for (done = 0; done < nvr; done += chunk) {
+        const size_t count = (nvr - done < chunk) ? nvr - done : chunk;
+        if (instance_get_boolean(inst, __func__, &vr[done], count, buffer, count) != status_ok) {
             return fmi2Error;
         }
-        value[k] = v ? fmi2True : fmi2False;
+        for (k = 0; k < count; k++) {
+            value[done + k] = buffer[k] ? fmi2True : fmi2False;
+        }
     }
     END;
 }

@@ -182,11 +182,18 @@ static SetPhase set_phase(const Instance *inst) {
     return phase_running;
 }
 
-/* Makes the outputs current: O(n), so the getters call it at most once per call. Before
-   initialization ends the outputs follow the (possibly changed) start parameters, which must then
-   be valid; after an error with a non-finite state there are none. */
+/* Makes the outputs current. They are a cache: computed after each step, after the end of
+   initialization and at the first read after a set, and kept while outputs_valid, which every set
+   clears (setting an input changes F_lat; before initialization ends, setting a parameter or a
+   start value changes every output). outputs_valid implies a finite state and finite outputs, so
+   a read of current outputs costs O(1) here and O(values) in all; a read after a set costs O(n)
+   once. Before initialization ends the outputs follow the (possibly changed) start parameters,
+   which must then be valid; after an error with a non-finite state there are none. */
 static Status ensure_outputs(Instance *inst, const char *function) {
     char msg[MSG_LEN];
+    if (inst->data.outputs_valid) {
+        return status_ok;
+    }
     if (setup_mode(inst)) {
         if (!model_check_parameters(&inst->data, msg, sizeof(msg))) {
             return instance_fail(inst, function, "outputs cannot be computed: %s", msg);
@@ -196,15 +203,13 @@ static Status ensure_outputs(Instance *inst, const char *function) {
     if (!model_state_is_finite(&inst->data)) {
         return instance_fail(inst, function, "the state is non-finite after an error: no outputs");
     }
-    if (!inst->data.outputs_valid) {
-        model_compute_outputs(&inst->data);
-        if (!model_outputs_are_finite(&inst->data)) {
-            inst->data.outputs_valid = false;
-            return instance_fail(inst, function, "outputs became non-finite at t = %.9g "
-                                 "(overflow of the forces: velocities %g m/s, %g rad/s of the "
-                                 "robot)", inst->data.time, inst->data.q[IX_V0],
-                                 inst->data.q[IX_W0]);
-        }
+    model_compute_outputs(&inst->data);
+    if (!model_outputs_are_finite(&inst->data)) {
+        inst->data.outputs_valid = false;
+        return instance_fail(inst, function, "outputs became non-finite at t = %.9g "
+                             "(overflow of the forces: velocities %g m/s, %g rad/s of the "
+                             "robot)", inst->data.time, inst->data.q[IX_V0],
+                             inst->data.q[IX_W0]);
     }
     return status_ok;
 }
@@ -258,6 +263,9 @@ DEFINE_GET(instance_get_uint64, uint64_t, model_get_uint64)
         if (nvr > 0 && (vr == NULL || values == NULL)) {                                        \
             return instance_fail(inst, function, "vr or values is NULL");                       \
         }                                                                                       \
+        if (nvr > 0) {                                                                          \
+            inst->data.outputs_valid = false; /* every set may change the outputs */            \
+        }                                                                                       \
         for (k = 0; k < nvr; k++) {                                                             \
             if (!MODEL_SET(&inst->data, vr[k], values, n_values, &index, phase, msg,            \
                            sizeof(msg))) {                                                      \
@@ -294,6 +302,7 @@ Status instance_exit_initialization(Instance *inst, const char *function) {
     model_state_from_start(m);
     model_compute_outputs(m);
     if (!model_outputs_are_finite(m)) {
+        m->outputs_valid = false;
         return instance_fail(inst, function, "the start values give non-finite outputs "
                              "(v_start = %g, w_start = %g, v_cmd = %g, w_cmd = %g)", m->v_start,
                              m->w_start, m->v_cmd, m->w_cmd);
@@ -333,6 +342,7 @@ Status instance_do_step(Instance *inst, const char *function, double t, double h
         model_compute_outputs(m); /* outputs of the new point, checked once here */
     }
     if (!model_state_is_finite(m) || !model_outputs_are_finite(m)) {
+        m->outputs_valid = false; /* a later read fails instead of returning them */
         return instance_fail(inst, function, "the state or outputs became non-finite in the step "
                              "from t = %.9g to %.9g (inputs v_cmd = %g, w_cmd = %g)", t, t + h,
                              m->v_cmd, m->w_cmd);

@@ -24,7 +24,7 @@ typedef struct {
     int count; /* number of values */
 } VarRef;
 
-static bool decode(const ModelData *m, unsigned vr, VarRef *out) {
+static inline bool decode(const ModelData *m, unsigned vr, VarRef *out) {
     const unsigned block = vr / VR_STRIDE, index = vr % VR_STRIDE;
     const VarInfo *info;
     if (block >= BLOCK_END) {
@@ -65,7 +65,7 @@ static const char *element_name(VarRef r, int k, char *buffer, size_t len) {
 }
 
 const char *model_variable_name(const ModelData *m, unsigned vr, char *buffer, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     if (!decode(m, vr, &r)) {
         snprintf(buffer, len, "(unknown value reference %u)", vr);
         return buffer;
@@ -74,7 +74,7 @@ const char *model_variable_name(const ModelData *m, unsigned vr, char *buffer, s
 }
 
 bool model_needs_outputs(const ModelData *m, unsigned vr) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     return decode(m, vr, &r)
            && (r.info->causality == var_output || r.info->causality == var_calculated_parameter);
 }
@@ -141,54 +141,67 @@ static double *real_value(ModelData *m, VarRef r, int k) {
 
 static const char *const type_names[] = {"Real", "Integer", "Boolean", "UInt64"};
 
-/* r is a known variable of type `type`; else writes why not into msg. */
-static bool check_type(const ModelData *m, unsigned vr, VarType type, VarRef *r, char *msg,
-                       size_t len) {
+/* Why vr is not a known variable of type `type` (the slow path of check_type). */
+static bool type_error(const ModelData *m, unsigned vr, VarType type, char *msg, size_t len) {
     char name[64];
-    if (!decode(m, vr, r)) {
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
+    if (!decode(m, vr, &r)) {
         snprintf(msg, len, "unknown value reference %u", vr);
-        return false;
-    }
-    if (r->info->type != type) {
+    } else {
         snprintf(msg, len, "%s (value reference %u) is a%s %s, not a%s %s",
                  model_variable_name(m, vr, name, sizeof(name)), vr,
-                 r->info->type == var_integer ? "n" : "", type_names[r->info->type],
+                 r.info->type == var_integer ? "n" : "", type_names[r.info->type],
                  type == var_integer ? "n" : "", type_names[type]);
-        return false;
     }
-    return true;
+    return false;
 }
 
-/* values[*index ..] has room for r's values; else writes why not into msg. */
-static bool check_room(const ModelData *m, VarRef r, size_t n_values, size_t index, char *msg,
-                       size_t len) {
-    char name[64];
-    if (index <= n_values && (size_t)r.count <= n_values - index) {
+/* r is a known variable of type `type`; else writes why not into msg. */
+static inline bool check_type(const ModelData *m, unsigned vr, VarType type, VarRef *r,
+                              char *msg, size_t len) {
+    if (decode(m, vr, r) && r->info->type == type) {
         return true;
     }
+    return type_error(m, vr, type, msg, len);
+}
+
+/* Why values[index ..] has no room for r's values (the slow path of check_room). */
+static bool room_error(const ModelData *m, VarRef r, size_t n_values, size_t index, char *msg,
+                       size_t len) {
+    char name[64];
     snprintf(msg, len, "%s has %d value%s (n = %d) but nValues = %u leaves room for %u",
              element_name(r, -1, name, sizeof(name)), r.count, r.count == 1 ? "" : "s", m->n,
              (unsigned)n_values, (unsigned)(index <= n_values ? n_values - index : 0));
     return false;
 }
 
+/* values[*index ..] has room for r's values; else writes why not into msg. */
+static inline bool check_room(const ModelData *m, VarRef r, size_t n_values, size_t index,
+                              char *msg, size_t len) {
+    if (index <= n_values && (size_t)r.count <= n_values - index) {
+        return true;
+    }
+    return room_error(m, r, n_values, index, msg, len);
+}
+
 /* ---------------------------------------------------------------- get */
 
 bool model_get_real(const ModelData *m, unsigned vr, double values[], size_t n_values,
                     size_t *index, char *msg, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
+    const double *p;
     int k;
     if (!check_type(m, vr, var_real, &r, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
     }
+    p = real_value((ModelData *)m, r, 0); /* only read; an array's values follow its first */
+    if (p == NULL) { /* a Real in variables.py that has no place in ModelData */
+        snprintf(msg, len, "%s has no storage in this build", r.info->name);
+        return false;
+    }
     for (k = 0; k < r.count; k++) {
-        const double *p = real_value((ModelData *)m, r, k); /* only read */
-        if (p == NULL) { /* a Real in variables.py that has no place in ModelData */
-            snprintf(msg, len, "%s has no storage in this build", r.info->name);
-            return false;
-        }
-        values[(*index)++] = *p;
+        values[(*index)++] = p[k];
     }
     return true;
 }
@@ -204,7 +217,7 @@ static bool integer_value(const ModelData *m, VarRef r, int *value) {
 
 bool model_get_integer(const ModelData *m, unsigned vr, int values[], size_t n_values,
                        size_t *index, char *msg, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     if (!check_type(m, vr, var_integer, &r, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
@@ -219,7 +232,7 @@ bool model_get_integer(const ModelData *m, unsigned vr, int values[], size_t n_v
 
 bool model_get_uint64(const ModelData *m, unsigned vr, uint64_t values[], size_t n_values,
                       size_t *index, char *msg, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     if (!check_type(m, vr, var_uint64, &r, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
@@ -239,7 +252,7 @@ bool model_get_uint64(const ModelData *m, unsigned vr, uint64_t values[], size_t
 
 bool model_get_boolean(const ModelData *m, unsigned vr, bool values[], size_t n_values,
                        size_t *index, char *msg, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     int k;
     if (!check_type(m, vr, var_boolean, &r, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
@@ -328,7 +341,7 @@ static bool check_input(const ModelData *m, VarRef r, int k, double value, SetPh
 
 bool model_set_real(ModelData *m, unsigned vr, const double values[], size_t n_values,
                     size_t *index, SetPhase phase, char *msg, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     int k;
     if (!check_type(m, vr, var_real, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
@@ -355,7 +368,7 @@ bool model_set_real(ModelData *m, unsigned vr, const double values[], size_t n_v
 
 bool model_set_integer(ModelData *m, unsigned vr, const int values[], size_t n_values,
                        size_t *index, SetPhase phase, char *msg, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     if (!check_type(m, vr, var_integer, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
@@ -380,7 +393,7 @@ static bool check_structural(VarRef r, uint64_t value, char *msg, size_t len) {
 
 bool model_set_uint64(ModelData *m, unsigned vr, const uint64_t values[], size_t n_values,
                       size_t *index, SetPhase phase, char *msg, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     uint64_t value;
     if (!check_type(m, vr, var_uint64, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
@@ -408,7 +421,7 @@ bool model_set_uint64(ModelData *m, unsigned vr, const uint64_t values[], size_t
 
 bool model_set_boolean(ModelData *m, unsigned vr, const bool values[], size_t n_values,
                        size_t *index, SetPhase phase, char *msg, size_t len) {
-    VarRef r;
+    VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     (void)m;
     (void)values;
     if (!check_type(m, vr, var_boolean, &r, msg, len) || !settable(m, vr, r, phase, msg, len)

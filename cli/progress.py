@@ -1,0 +1,60 @@
+"""Progress of a command's phases (plan, co-simulate, save, plots, gif) on stderr.
+
+Each phase prints one line when it starts, stamped with the seconds since the command began,
+so a piped or logged run shows what it is doing; the last line gives each phase's duration:
+
+    [  0.0 s] planning the path ...
+    [  0.6 s] co-simulating ...
+    [  2.6 s] saving the results ...
+    [  2.7 s] plotting map.png, inputs_joints.png, tracking_error.png, lateral_forces.png ...
+    [  3.6 s] rendering train.gif ...
+    [  4.4 s] done: plan 0.58 s, co-simulate 2.02 s, save 0.09 s, plots 0.90 s, gif 0.80 s
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from contextlib import contextmanager
+
+import click
+
+__all__ = ["Phases"]
+
+log = logging.getLogger(__name__)
+
+
+class Phases:
+    """The phases of one command: :meth:`phase` times one and announces it, :meth:`done`
+    prints the durations. ``stream`` defaults to stderr; ``clock`` returns seconds."""
+
+    def __init__(self, stream=None, clock=time.perf_counter):
+        self.stream, self.clock = stream, clock
+        self.start = clock()
+        self.times: dict[str, float] = {}
+
+    def _line(self, text: str) -> None:
+        click.echo(f"[{self.clock() - self.start:5.1f} s] {text}",
+                   file=self.stream or sys.stderr)
+
+    @contextmanager
+    def phase(self, name: str, what: str):
+        """Announce ``what`` (e.g. "co-simulating") and time the block as phase ``name``."""
+        self._line(f"{what} ...")
+        log.info("%s ...", what)
+        t0 = self.clock()
+        try:
+            yield
+        finally:
+            self.times[name] = self.times.get(name, 0.0) + self.clock() - t0
+
+    def summary(self) -> str:
+        """``plan 0.58 s, co-simulate 2.02 s, ...`` (the phases timed so far, in order)."""
+        return ", ".join(f"{name} {seconds:.2f} s" for name, seconds in self.times.items())
+
+    def done(self) -> None:
+        """Print the duration of every phase."""
+        if self.times:
+            self._line(f"done: {self.summary()}")
+            log.info("phase times: %s", self.summary())
