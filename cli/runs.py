@@ -33,25 +33,29 @@ def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = Non
     try:
         with _phase(phases, "plan", f"planning the path ({sc.planner.planner})"):
             path = plan_path(sc)
-    except PlanningError:
+    except PlanningError as exc:
         if out_dir is not None:
-            _save_diagnostic(sc, out_dir / "planning_failure.png")
+            _save_diagnostic(sc, out_dir / "planning_failure.png", exc)
         raise
     log.info("planned %d segments, %.2f m, %d cusps in %.2f s", len(path.segments), path.length,
              path.n_cusps, time.perf_counter() - t0)
     return path
 
 
-def _save_diagnostic(sc: Scenario, png: Path) -> None:
+def _save_diagnostic(sc: Scenario, png: Path, exc=None) -> None:
     from pushtrain.mission.runner import train_of, world_of
     from pushtrain.planner.world import save_diagnostic
 
+    where = getattr(exc, "where", None)
+    marks = [(where[0], where[1], getattr(exc, "reason", ""))] if where else None
     try:
         save_diagnostic(png, world_of(sc),
                         (sc.start.x, sc.start.y, math.radians(sc.start.theta_deg)),
-                        (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg)), train_of(sc))
-    except Exception as exc:  # the diagnosis must not hide the planning error
-        log.warning("could not save the diagnostic picture: %s", exc)
+                        (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg)), train_of(sc),
+                        title=None if exc is None else _wrapped(str(exc)), marks=marks,
+                        failure=getattr(exc, "details", None))
+    except Exception as err:  # the diagnosis must not hide the planning error
+        log.warning("could not save the diagnostic picture: %s", err)
 
 
 def write_path(path, target: Path) -> None:
@@ -152,3 +156,11 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
     click.echo(summary_text(result.summary))
     click.echo(f"results: {out_dir}")
     return EXIT_OK if result.ok else EXIT_NOT_REACHED
+
+
+def _wrapped(text: str, width: int = 110, lines: int = 6) -> str:
+    """``text`` in lines of at most ``width`` characters (at most ``lines`` of them)."""
+    import textwrap
+
+    out = textwrap.wrap(text, width)
+    return "\n".join(out[:lines] + (["..."] if len(out) > lines else []))

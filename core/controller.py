@@ -234,6 +234,12 @@ class BackwardController:
         self._loop: TrackingLoop | None = None  # command_from's loop of its last reference
         self.reset()
 
+    @property
+    def state(self) -> tuple:
+        """The rate limits' memory ``(v_prev [m/s], w_prev [rad/s], t_prev [s] or None)``: what
+        :meth:`reset` takes to resume a run from here."""
+        return self._v_prev, self._w_prev, self._t_prev
+
     def sent(self, v0: float, w0: float) -> None:
         """Record the command actually sent after an outer limiter (e.g. the slip governor), so
         the rate limits continue from it."""

@@ -8,8 +8,9 @@ Angles in files are in degrees (``*_deg``); everything inside is SI and radians.
 Three kinds of mission (``mission.kind``):
 
 ``plan``
-    plan a path for the last trailer from ``start`` to ``goal`` through ``map`` (OMPL
-    Reeds-Shepp), then co-simulate the controller tracking it.
+    plan a path for the last trailer from ``start`` to ``goal`` through ``map`` (by default a
+    search over the whole train under its controller), then co-simulate the controller
+    tracking it.
 ``scripted``
     track a scripted line/arc reference (``reference.segments``) from ``start``.
 ``rotation``
@@ -117,15 +118,27 @@ class MapSection(_Section):
 
 
 class PlannerSection(_Section):
-    planner: Literal["rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"] = "rrtconnect"
+    # "lattice": the whole-train closed-loop search; the others: OMPL on the last trailer
+    planner: Literal["lattice", "rrtconnect", "restarts", "rrtstar", "bitstar",
+                     "prmstar"] = "lattice"
     time_budget: PositiveFloat = 1.0
-    anytime_time: PositiveFloat = 0.5  # per attempt, for restarts/rrtstar/bitstar/prmstar
-    pull_start_tolerance: NonNegFloat | None = 0.4  # m; None: off (see PlannerConfig)
     turning_radius: PositiveFloat | None = None  # None: from train.phi_max_deg and the margin
     transient_margin: NonNegFloat = 0.6
-    inflation: NonNegFloat = 0.05
     speed: PositiveFloat = 0.08  # below the robot's 0.1 m/s so along-track lag can be made up
     cusp_dwell: NonNegFloat = 1.0
+    # lattice: per-body clearance from the walls (one value, or n + 1: robot, trailers 1..n)
+    clearance: NonNegFloat | list[NonNegFloat] = 0.05
+    joint_margin_deg: NonNegFloat = 5.0  # kept below train.phi_max_deg while planning
+    pull_max_phi_deg: PositiveFloat = 15.0  # a pull starts only with every |phi| below this
+    step_length: PositiveFloat = 0.5  # m, one search primitive
+    search_weight: Annotated[float, Field(ge=1, allow_inf_nan=False)] = 2.0
+    smooth: bool = True
+    # the whole train straight (every joint within this) when the last trailer reaches the goal
+    goal_max_phi_deg: Annotated[float, Field(gt=0, lt=90, allow_inf_nan=False)] | None = None
+    # the OMPL planners only
+    anytime_time: PositiveFloat = 0.5  # per attempt, for restarts/rrtstar/bitstar/prmstar
+    pull_start_tolerance: NonNegFloat | None = 0.4  # m; None: off (see PlannerConfig)
+    inflation: NonNegFloat = 0.05
 
 
 class SegmentSpec(_Section):
@@ -262,6 +275,10 @@ class Scenario(_Section):
             values = getattr(self.train, name)
             if isinstance(values, list) and len(values) != n:
                 problems.append((f"train.{name}", values, f"one value or a list of n = {n}"))
+        clearance = self.planner.clearance
+        if isinstance(clearance, list) and len(clearance) != n + 1:
+            problems.append(("planner.clearance", clearance,
+                             f"one value or a list of n + 1 = {n + 1} (robot, trailers 1..{n})"))
         bias = self.sensors.joint_bias_deg
         if isinstance(bias, list) and len(bias) != n:
             problems.append(("sensors.joint_bias_deg", bias, f"one value or a list of n = {n}"))
@@ -346,6 +363,19 @@ def _implausible(sc: "Scenario") -> list[tuple[str, object, str]]:
         _bound_problem("train.phi_max_deg", "phi_max", t.phi_max_deg, deg=True),
     ]
     problems += [_bound_problem(w, "map.coordinate", v) for w, v in _coordinates(sc)]
+    problems += [_bound_problem(w, "planner.clearance", v)
+                 for w, v in _per_trailer_values("planner.clearance", sc.planner.clearance)]
+    problems += [_bound_problem("planner.step_length", "planner.step_length",
+                                sc.planner.step_length),
+                 _bound_problem("planner.pull_max_phi_deg", "planner.pull_max_phi",
+                                sc.planner.pull_max_phi_deg, deg=True),
+                 _bound_problem("planner.joint_margin_deg", "planner.joint_margin",
+                                sc.planner.joint_margin_deg, deg=True)]
+    if (sc.mission.kind == "plan" and sc.planner.planner == "lattice"
+            and sc.planner.joint_margin_deg >= t.phi_max_deg):
+        problems.append(("planner.joint_margin_deg", sc.planner.joint_margin_deg,
+                         f"less than train.phi_max_deg = {t.phi_max_deg:g} (the search keeps "
+                         "every joint within phi_max minus this margin)"))
     return [p for p in problems if p is not None]
 
 

@@ -1,4 +1,6 @@
-"""Planner: Reeds-Shepp paths of the last trailer (OMPL), whole-train check, reference export.
+"""Planner: the whole train's motion under its controller (default ``planner = "lattice"``,
+:mod:`~pushtrain.planner.lattice`), the OMPL Reeds-Shepp planners of the last trailer, the
+whole-train check and the reference export.
 
 Public API::
 

@@ -23,7 +23,8 @@ import math
 import time
 from dataclasses import dataclass
 
-__all__ = ["CHECKS_PER_SECOND", "STEPS_PER_CHECK", "Work", "checks_for"]
+__all__ = ["CHECKS_PER_SECOND", "STEPS_PER_CHECK", "STEPS_PER_SECOND", "Work", "checks_for",
+           "steps_for"]
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +41,17 @@ instead (see :func:`pushtrain.planner.search._termination`)."""
 STEPS_PER_CHECK = 10
 """Simulated control steps (0.025 s each) of the whole-train check counted as one motion check
 (measured 8 600-15 000 steps per CPU second)."""
+
+
+STEPS_PER_SECOND = 8000
+"""The whole-train search (``lattice``): simulated control steps per second of ``time_budget``,
+about what the closed-loop propagator (:mod:`~pushtrain.planner.propagate`, its checks
+included) simulates per second on one core of a current laptop for three trailers."""
+
+
+def steps_for(seconds: float) -> int:
+    """Simulated control steps [-] of a ``lattice`` budget of ``seconds`` [s] (at least 1)."""
+    return max(1, int(round(seconds * STEPS_PER_SECOND)))
 
 
 def checks_for(seconds: float, planner: str = "rrtconnect") -> int:

@@ -16,17 +16,23 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.errors import PlanningInputError
 
-from .budget import checks_for
+from .budget import checks_for, steps_for
 from .train_check import TrackerConfig
 from .world import Train
 
 __all__ = ["PLANNERS", "PlannerConfig", "turning_radius_from_joint_limit"]
 
-PLANNERS = ("rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar")
-"""Planner names: ``rrtconnect`` stops at its first solution; the others are anytime optimal."""
+PLANNERS = ("lattice", "rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar")
+"""Planner names: ``lattice`` (the default) searches closed-loop states of the whole train
+(:mod:`~pushtrain.planner.lattice`); the others plan the last trailer with OMPL and check the
+train afterwards: ``rrtconnect`` stops at its first solution, the rest are anytime optimal."""
+
+_OMPL = {"rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"}
 
 _ANYTIME = {"restarts", "rrtstar", "bitstar", "prmstar"}
 _OPTIMIZING = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
@@ -61,7 +67,11 @@ class PlannerConfig:
     transient_margin : float
         Margin of the radius rule (0.6: steady joint angle = phi_max / 1.6).
     planner : str
-        One of :data:`PLANNERS`; ``rrtconnect`` (default) returns its first solution fast,
+        One of :data:`PLANNERS`. ``lattice`` (default): the whole-train closed-loop search
+        (:func:`~pushtrain.planner.closedloop.plan_lattice`); its settings are ``clearance``,
+        ``goal_tolerance``, ``joint_margin``, ``pull_phi``, ``step_length``,
+        ``search_weight``, ``sample_spacing``, ``smooth`` and ``time_budget``. The OMPL
+        planners of the last trailer: ``rrtconnect`` returns its first solution fast,
         the others improve the path for ``anytime_time``: ``restarts`` repeats
         RRTConnect, simplification and a local search on the path's states with new seeds and
         keeps the shortest; ``rrtstar``,
@@ -144,6 +154,35 @@ class PlannerConfig:
         passed the most first plans on the bay when it was chosen (seeds 1-20: 0.15 m 70 %,
         0.4 m 90 %, 0.7 m 70 %, rule off 65 %).
         None switches the rule off.
+    clearance : float or sequence of float
+        ``lattice``: the distance [m] every body keeps from the walls, one value or one per
+        body (robot first, then trailers 1..n), >= 0. 0.05 m lets a 0.6 m wide trailer into a
+        0.9 m bay with 0.1 m left for tracking.
+    goal_tolerance : (float, float)
+        ``lattice``: position [m] and heading [rad] tolerance of the simulated last trailer at
+        the goal (the co-simulation's goal test; the scenario's ``sim.goal_tolerance``).
+    joint_margin : float
+        ``lattice``: the search keeps every |phi_i| <= phi_max - joint_margin [rad] (the
+        co-simulation's joints differ from the kinematic prediction by a few degrees).
+    pull_phi : float
+        ``lattice``: a pull may start only when every |phi_i| <= pull_phi [rad] (the chain
+        nearly straight, as a driver would pull).
+    step_length : float
+        ``lattice``: length [m] of one search primitive.
+    search_weight : float
+        ``lattice``: weight (>= 1) of the heuristic; larger searches faster, less optimally.
+    sample_spacing : float
+        ``lattice``: largest distance [m] between the sampled points of a body's outline in
+        the distance-field test (conservative by half of it).
+    smooth : bool
+        ``lattice``: try Reeds-Shepp shortcuts on the found path (fewer turns, shorter).
+    goal_phi : float or None
+        ``lattice``: the goal also needs every |phi_i| <= goal_phi [rad] when the last trailer
+        arrives (the whole train straight behind it, e.g. parked in a slot); None: any chain.
+    anytime : bool
+        ``lattice``: search on after the first path until ``time_budget`` is spent and keep
+        the cheapest (length, turning and cusps priced as the search prices them); False
+        (default): return the first path.
     time_cap : float or None
         Wall-clock safety cap [s] of one :func:`~pushtrain.planner.plan` call; None:
         10 x ``time_budget`` + 10 s. Only this stops a search by the clock; a plan it cut short
@@ -153,7 +192,7 @@ class PlannerConfig:
 
     turning_radius: float | None = None
     transient_margin: float = 0.6
-    planner: str = "rrtconnect"
+    planner: str = "lattice"
     time_budget: float = 2.0
     anytime_time: float = 0.5
     seed: int | None = 1
@@ -175,6 +214,16 @@ class PlannerConfig:
     pull_start_tolerance: float | None = 0.4
     rrt_range: float | None = None
     time_cap: float | None = None
+    clearance: float | tuple = 0.05
+    goal_tolerance: tuple = (0.05, math.radians(5.0))
+    joint_margin: float = math.radians(5.0)
+    pull_phi: float = math.radians(15.0)
+    step_length: float = 0.5
+    search_weight: float = 2.0
+    sample_spacing: float = 0.025
+    smooth: bool = True
+    anytime: bool = False
+    goal_phi: float | None = None
 
     def __post_init__(self):
         name = str(self.planner).lower()
@@ -216,6 +265,27 @@ class PlannerConfig:
             raise PlanningInputError(
                 f"check_resolution = {self.check_resolution!r} m: must be <= 0.01"
             )
+        clearance = np.atleast_1d(np.asarray(self.clearance, dtype=float))
+        if clearance.ndim != 1 or not np.all(np.isfinite(clearance)) or np.any(clearance < 0):
+            raise PlanningInputError(
+                f"clearance = {self.clearance!r} m: one value or one per body, finite and >= 0")
+        object.__setattr__(self, "clearance", float(clearance[0]) if clearance.size == 1
+                           else tuple(float(a) for a in clearance))
+        tol = tuple(self.goal_tolerance)
+        if len(tol) != 2 or not all(math.isfinite(a) and a > 0.0 for a in tol):
+            raise PlanningInputError(
+                f"goal_tolerance = {self.goal_tolerance!r}: need (position [m], heading [rad]),"
+                " both finite and > 0")
+        object.__setattr__(self, "goal_tolerance", (float(tol[0]), float(tol[1])))
+        for key, low, high in (("joint_margin", 0.0, math.pi), ("pull_phi", 0.0, math.pi),
+                               ("step_length", 1e-3, 100.0), ("search_weight", 1.0, 100.0),
+                               ("sample_spacing", 1e-3, 1.0)):
+            value = getattr(self, key)
+            if not (isinstance(value, (int, float)) and low <= value <= high):
+                raise PlanningInputError(f"{key} = {value!r}: allowed {low:g} to {high:g}")
+        if self.goal_phi is not None and not (
+                isinstance(self.goal_phi, (int, float)) and 0.0 < self.goal_phi < math.pi):
+            raise PlanningInputError(f"goal_phi = {self.goal_phi!r} rad: None or in (0, pi)")
         if self.seed is not None and int(self.seed) < 1:
             raise PlanningInputError(f"seed = {self.seed!r}: must be an integer >= 1 or None")
         if int(self.max_attempts) < 1:
@@ -223,13 +293,29 @@ class PlannerConfig:
         self.tracker()  # validates controller, speed and cusp_dwell
 
     def tracker(self) -> TrackerConfig:
-        """What the whole-train check simulates: controller, reference speed and cusp dwell."""
+        """What the whole-train check simulates: controller, reference speed, cusp dwell and
+        the goal tolerance."""
         return TrackerConfig(controller=self.controller, speed=self.speed,
-                             cusp_dwell=self.cusp_dwell)
+                             cusp_dwell=self.cusp_dwell, goal_tolerance=self.goal_tolerance)
+
+    def margins(self, train: Train) -> np.ndarray:
+        """The clearance [m] of every body of ``train`` (n+1,), robot first."""
+        values = np.atleast_1d(np.asarray(self.clearance, dtype=float))
+        if values.size not in (1, train.n + 1):
+            raise PlanningInputError(
+                f"clearance has {values.size} values: need one, or n + 1 = {train.n + 1} (robot "
+                "and every trailer)")
+        return np.broadcast_to(values, (train.n + 1,)).copy()
+
+    def budget_steps(self) -> int:
+        """``lattice``: simulated control steps of ``time_budget`` (see
+        :mod:`~pushtrain.planner.budget`)."""
+        return steps_for(self.time_budget)
 
     def budget_checks(self) -> int:
         """Motion checks of ``time_budget`` (see :mod:`~pushtrain.planner.budget`)."""
-        return checks_for(self.time_budget, self.planner)
+        return checks_for(self.time_budget, "rrtconnect" if self.planner == "lattice"
+                          else self.planner)
 
     def anytime_checks(self) -> int:
         """Motion checks of ``anytime_time``."""

@@ -32,6 +32,7 @@ from pushtrain.core.reference import PULL, Segment
 from pushtrain.errors import PlanningError, PlanningInputError
 
 from .budget import STEPS_PER_CHECK, Work
+from .closedloop import plan_lattice
 from .config import _ANYTIME, PLANNERS, PlannerConfig, turning_radius_from_joint_limit
 from .curves import (
     ReedsSheppCurve,
@@ -182,6 +183,8 @@ def plan(
     config = config or PlannerConfig()
     t_begin = time.perf_counter()
     start, goal, start_headings = _checked_poses(start, goal, train, start_headings)
+    if config.planner == "lattice":
+        return plan_lattice(world, train, start, goal, start_headings, config)
     _check_endpoints(world, train, start, goal, start_headings, config.inflation)
 
     tracker = config.tracker()

@@ -392,8 +392,9 @@ class TrainCheckResult:
     max_abs_phi : (n,) array
         Largest |phi_i| over all simulated samples [rad].
     min_clearance : float
-        Smallest distance [m] of any body to the blocked space at the checked samples; 0 if a
-        body crosses the free space's boundary, minus its distance if it lies wholly outside.
+        Smallest distance [m] of any body beyond its margin (to the free space shrunk by the
+        margin) at the checked samples; 0 if a body crosses that boundary, minus its distance
+        if it lies wholly outside.
     max_tracking_error : float
         Largest distance [m] of the last trailer from its reference sample at the same time.
     max_lateral_error, max_heading_error : float
@@ -412,6 +413,9 @@ class TrainCheckResult:
         ``distance`` [m] and ``heading_error`` [rad] for a missed goal.
     collisions : list of (int, int)
         (checked sample index, body) of every sample outside the free space.
+    wall_clearance : float
+        Smallest distance [m] of any body to the walls (the free space's boundary) at the
+        checked samples, margins not counted.
     """
 
     ok: bool
@@ -431,6 +435,7 @@ class TrainCheckResult:
     trajectory: Trajectory
     failure: dict | None = None
     collisions: list = field(default_factory=list)
+    wall_clearance: float = math.nan
 
     def headings_at(self, t) -> np.ndarray:
         """Simulated headings [rad] at times ``t`` [s] (linear interpolation), (len(t), n+1)."""
@@ -446,9 +451,12 @@ def check_train(
     start: Sequence[float],
     segments: Sequence[Segment],
     start_headings: Sequence[float] | None = None,
-    margin: float = 0.0,
+    margin: float | Sequence[float] = 0.0,
     resolution: float = 0.01,
     tracker: TrackerConfig | None = None,
+    trajectory: Trajectory | None = None,
+    self_collision: bool = False,
+    measure: bool = True,
 ) -> TrainCheckResult:
     """Simulate the co-simulation's closed loop along the path and test footprints, joints, goal.
 
@@ -460,12 +468,22 @@ def check_train(
     segments : sequence of Segment
     start_headings : (n+1,) or None
         Start headings [rad]; None is a straight chain (all equal to ``start[2]``).
-    margin : float
-        Clearance [m] every body must keep from the blocked space.
+    margin : float or (n+1,) sequence
+        Clearance [m] every body (or each body, robot first) must keep from the blocked space.
     resolution : float
         Largest corner travel [m] of any body between checked samples.
     tracker : TrackerConfig or None
         Controller, reference speed, cusp dwell and simulation settings; None: the defaults.
+    trajectory : Trajectory or None
+        The closed loop along this reference already simulated (e.g. by the planner's
+        :class:`~pushtrain.planner.propagate.Propagator`, which runs the same loop): checked
+        instead of a new :func:`simulate_tracking` run.
+    self_collision : bool
+        Also test bodies that are not neighbours in the chain (i, j >= i + 2) against
+        overlapping each other (failure kind ``"self_collision"``).
+    measure : bool
+        Measure the clearances (``min_clearance``, ``wall_clearance``; NaN without): the
+        containment test alone is several times faster.
     """
     tracker = tracker or TrackerConfig()
     n = train.n
@@ -479,10 +497,13 @@ def check_train(
     if not (math.isfinite(resolution) and resolution > 0.0):
         raise PlanningInputError(f"resolution = {resolution!r} m: must be finite and > 0")
     controller = tracker.controller_for(train.geometry)
-    region = world.eroded(margin)
+    margins = np.broadcast_to(np.asarray(margin, dtype=float), (n + 1,))
+    regions = {m: world.eroded(m) for m in sorted(set(margins.tolist()))}
     reference = Reference.from_segments(start, segments, tracker.speed, tracker.cusp_dwell)
-    traj = simulate_tracking(train.geometry, reference, theta0, controller, tracker.step,
-                             tracker.settle_time)
+    traj = trajectory
+    if traj is None:
+        traj = simulate_tracking(train.geometry, reference, theta0, controller, tracker.step,
+                                 tracker.settle_time)
     traj, x_all, y_all, corners = _refine(traj, train.geometry, train, resolution)
     move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
     keep = _thin(move, resolution)
@@ -513,9 +534,17 @@ def check_train(
 
     # footprints at the checked samples, joints at every sample
     polys = shapely.polygons(corners[keep])  # (N, n+1)
-    inside = shapely.contains(region, polys)
-    clear = shapely.distance(region.boundary, polys)
+    inside = np.empty(polys.shape, dtype=bool)
+    clear = np.empty(polys.shape)
+    for m, region in regions.items():
+        cols = np.flatnonzero(margins == m)
+        inside[:, cols] = shapely.contains(region, polys[:, cols])
+        # the clearance beyond the body's margin
+        clear[:, cols] = (shapely.distance(region.boundary, polys[:, cols]) if measure
+                          else math.nan)
     clear = np.where(inside, clear, -clear)
+    walls = (float(np.min(shapely.distance(world.free.boundary, polys)))
+             if measure and polys.size else math.nan)
     phi = joint_angles(headings_all)
     abs_phi = np.abs(phi)
     moving_dir = _last_moving_direction(traj.direction, segments)
@@ -526,15 +555,25 @@ def check_train(
     k_joint = np.flatnonzero((abs_phi > train.phi_max).any(axis=1))
     t_coll = traj.t[keep[k_coll[0]]] if k_coll.size else math.inf
     t_joint = traj.t[k_joint[0]] if k_joint.size else math.inf
+    folded = None
+    if self_collision:
+        from .footprint import _self_overlap
+
+        folded = _self_overlap(train, x_all[keep], y_all[keep], headings_all[keep])
+    t_fold = traj.t[keep[folded[0]]] if folded is not None else math.inf
 
     def where(k):
         return {"t": float(traj.t[k]), "s": float(s_all[k]), "direction": int(moving_dir[k])}
 
-    if k_coll.size and t_coll <= t_joint:
+    if folded is not None and t_fold < min(t_coll, t_joint):
+        kf, i, j, px, py = folded
+        k = int(keep[kf])
+        failure = {"kind": "self_collision", "body": i, "other": j, **where(k), "x": px, "y": py}
+    elif k_coll.size and t_coll <= t_joint:
         kc = int(k_coll[0])
         i = int(np.flatnonzero(~inside[kc])[0])
         k = int(keep[kc])
-        outside = polys[kc, i].difference(region)
+        outside = polys[kc, i].difference(regions[float(margins[i])])
         point = outside.representative_point() if not outside.is_empty else polys[kc, i].centroid
         failure = {"kind": "collision", "body": i, **where(k), "x": float(point.x),
                    "y": float(point.y), "body_x": float(x_all[k, i]), "body_y": float(y_all[k, i]),
@@ -560,7 +599,7 @@ def check_train(
         max_tracking_error=float(np.hypot(dx, dy).max()),
         max_lateral_error=float(np.abs(lateral).max()),
         max_heading_error=float(np.abs(heading_err).max()), goal_error=(goal_dist, goal_head),
-        trajectory=traj, failure=failure, collisions=collisions,
+        trajectory=traj, failure=failure, collisions=collisions, wall_clearance=walls,
     )
 
 

@@ -403,19 +403,35 @@ def draw_poses(ax, train: Train, x, y, theta, color="tab:blue", alpha=0.6, label
                 label=label if i == 0 else None)
 
 
+_FAILURE_STYLE = {"collision": ("x", "red"), "self_collision": ("s", "darkorange"),
+                  "joint_limit": ("^", "purple"), "pull_rule": ("v", "teal"),
+                  "goal_missed": ("o", "brown")}
+
+
 def save_diagnostic(path, world: World, start=None, goal=None, train: Train | None = None,
-                    poses=None, title: str | None = None, marks=None) -> None:
+                    poses=None, title: str | None = None, marks=None,
+                    failure: dict | None = None) -> None:
     """Save a PNG of the map with the last trailer at ``start`` and ``goal`` (x, y, theta).
 
     ``poses`` (N, 3) draws a path of the last trailer; ``marks`` is a list of (x, y, text)
-    points to flag (collisions, ...). No pyplot: safe in headless processes.
+    points to flag (collisions, ...). ``failure`` is the ``details`` of a PlanningError of the
+    whole-train planner: its explored tree (``tree``: the last trailer's traces), the best
+    partial plan (``closest``), the points where motions failed (``failure_points``, marked by
+    kind and body) and the keep-out band of every clearance (``margins``: the free space shrunk
+    by each margin, dashed). No pyplot: safe in headless processes.
     """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7, 7))
+    fig = Figure(figsize=(8, 8))
     ax = fig.add_subplot()
     world.plot(ax)
     last = train.last if train is not None else BodyFootprint()
+    if failure:
+        _draw_failure(ax, world, failure, start)
+        closest = failure.get("closest") or {}
+        if train is not None and closest.get("x") is not None:
+            draw_poses(ax, train, closest["x"], closest["y"], closest["headings"],
+                       color="tab:blue", alpha=0.9, label="train at the best partial plan")
     for pose, color, name in ((start, "tab:green", "start"), (goal, "tab:red", "goal")):
         if pose is None:
             continue
@@ -433,3 +449,51 @@ def save_diagnostic(path, world: World, start=None, goal=None, train: Train | No
     if title:
         ax.set_title(title, fontsize=9)
     fig.savefig(path, dpi=110)
+
+
+def _draw_failure(ax, world: World, details: dict, start) -> None:
+    """The search's tree, failure points, best partial plan and keep-out margins on ``ax``."""
+    for k, trace in enumerate(details.get("tree") or []):
+        xy = np.asarray(trace, dtype=float)
+        if xy.ndim == 2 and xy.shape[0] > 1:
+            ax.plot(xy[:, 0], xy[:, 1], "-", color="0.6", lw=0.5,
+                    label="explored (last trailer)" if k == 0 else None)
+    for m in sorted(set(details.get("margins") or [])):
+        if m <= 0.0:
+            continue
+        band = world.eroded(m)
+        for k, poly in enumerate(getattr(band, "geoms", [band])):
+            for ring in [poly.exterior, *poly.interiors]:
+                xy = np.asarray(ring.coords)
+                ax.plot(xy[:, 0], xy[:, 1], "--", color="tab:orange", lw=0.7,
+                        label=f"keep-out {m:.3f} m" if k == 0 and ring is poly.exterior
+                        else None)
+    seen = set()
+    for p in details.get("failure_points") or []:
+        kind = p.get("kind", "collision").replace("verification_", "")
+        marker, color = _FAILURE_STYLE.get(kind, ("x", "red"))
+        label = kind.replace("_", " ") if kind not in seen else None
+        seen.add(kind)
+        ax.plot([p["x"]], [p["y"]], marker, color=color, ms=5, mfc="none", label=label)
+    closest = details.get("closest")
+    if closest and closest.get("segments") and start is not None:
+        from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+
+        segs = [Segment(g["kind"], g["length"], g["curvature"],
+                        PULL if g["direction"] == "pull" else PUSH)
+                for g in closest["segments"]]
+        ref = Reference.from_segments(tuple(start[:3]), segs, speed=1.0, cusp_dwell=0.0)
+        s = np.linspace(0.0, ref.t_end, max(2, int(ref.t_end / 0.02)))
+        x, y, _, _, _ = ref.sample(s)
+        ax.plot(x, y, "-", color="tab:blue", lw=2, label="best partial plan")
+    if details.get("failure_points"):
+        worst = {}
+        for p in details["failure_points"]:
+            if "body" in p:
+                worst[p["body"]] = worst.get(p["body"], 0) + 1
+        if worst:
+            body = max(worst, key=worst.get)
+            last = [p for p in details["failure_points"] if p.get("body") == body][-1]
+            name = "robot" if body == 0 else f"trailer {body}"
+            ax.annotate(f"{name} ({worst[body]} failures)", (last["x"], last["y"]),
+                        color="red", fontsize=8)

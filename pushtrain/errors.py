@@ -105,6 +105,7 @@ PLANNING_REASONS = (
     "train_check_failed",
     "pull_end_blocked",
     "pull_start_mismatch",
+    "budget_exhausted",
     "invalid_input",
 )
 """Allowed values of :attr:`PlanningError.reason`."""

@@ -102,6 +102,16 @@ SCENARIO_BOUNDS: dict[str, Bound] = {
               "beyond the robot's 5 ms loop, under 1e-3 do nothing"),
         Bound("map.coordinate", -1e5, 1e5, "m",
               "a facility is smaller than 100 km across"),
+        Bound("planner.clearance", 0.0, 1.0, "m",
+              "a clearance over 1 m from every wall leaves no corridor a train drives in"),
+        Bound("planner.step_length", 0.05, 5.0, "m",
+              "search motions shorter than 5 cm cost thousands of rollouts per metre; longer "
+              "than 5 m they step over every corner"),
+        Bound("planner.pull_max_phi", math.radians(0.5), math.radians(90.0), "rad",
+              "a pull needs a chain straight within some angle: under 0.5 deg no real chain "
+              "is that straight, over 90 deg the robot cannot lead it"),
+        Bound("planner.joint_margin", 0.0, math.radians(45.0), "rad",
+              "more than 45 deg below the jackknife limit forbids the turns a train makes"),
     )
 }
 """Scenario settings that are not FMU parameters; the scenario model checks them with

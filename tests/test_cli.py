@@ -1,6 +1,7 @@
 """The click CLI: every command, --help, exit codes and error messages for bad input."""
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -169,6 +170,19 @@ def test_unreachable_goal_exits_1_with_a_diagnostic_picture(runner, tmp_path):
     assert (out / "run.log").is_file()
 
 
+def test_a_goal_too_close_to_the_walls_exits_2_with_numbers_and_a_picture(runner, tmp_path):
+    """The docking bay leaves 0.15 m beside the trailer; asking 0.2 m is the scenario's fault."""
+    text = (EXAMPLES / "docking.toml").read_text().replace(
+        "[planner]\n", "[planner]\nclearance = 0.2\n")
+    path = _write(tmp_path, text, "tight.toml")
+    out = tmp_path / "out"
+    result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert "goal_in_collision" in result.output
+    assert "keeps only 0.150 m from the walls; planner.clearance asks 0.200 m" in result.output
+    assert (out / "planning_failure.png").stat().st_size > 10_000
+
+
 def test_plan_and_run_console_script_usage_and_bad_option():
     import subprocess
     import sys
@@ -191,7 +205,10 @@ def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
     from pushtrain.mission.scenario import load_scenario
 
     text = (EXAMPLES / "l_corridor.toml").read_text().replace(
-        'time_budget = 3.0', 'time_budget = 3.0\nanytime_time = 0.25\npull_start_tolerance = 0.2')
+        'time_budget = 60.0', 'time_budget = 60.0\nplanner = "restarts"\nanytime_time = 0.25\n'
+        'pull_start_tolerance = 0.2\nclearance = [0.1, 0.05, 0.05, 0.06]\n'
+        'pull_max_phi_deg = 20.0\njoint_margin_deg = 3.0\nstep_length = 0.4\n'
+        'search_weight = 1.5\nsmooth = false')
     sc = load_scenario(_write(tmp_path, text, "settings.toml"))
     seen = {}
 
@@ -203,3 +220,10 @@ def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
     assert plan_path(sc) == "planned"
     cfg = seen["config"]
     assert (cfg.planner, cfg.anytime_time, cfg.pull_start_tolerance) == ("restarts", 0.25, 0.2)
+    assert cfg.clearance == (0.1, 0.05, 0.05, 0.06) and cfg.smooth is False
+    assert cfg.pull_phi == pytest.approx(math.radians(20.0))
+    assert cfg.joint_margin == pytest.approx(math.radians(3.0))
+    assert (cfg.step_length, cfg.search_weight) == (0.4, 1.5)
+    # the co-simulation's goal test is the planner's
+    assert cfg.goal_tolerance == pytest.approx((sc.sim.goal_tolerance,
+                                                math.radians(sc.sim.goal_heading_tolerance_deg)))

@@ -90,7 +90,8 @@ def test_a_failed_plan_after_a_successful_run_leaves_only_the_failed_run(tmp_pat
     assert first.exit_code == 0, first.output
     assert (out / "results.npz").is_file()
     blocked = _scenario(tmp_path, "l_corridor", "second_run",
-                        replace=[(L_FREE, BLOCKED_MAP), ("time_budget = 3.0", "time_budget = 0.3")])
+                        replace=[(L_FREE, BLOCKED_MAP),
+                                 ("time_budget = 60.0", "time_budget = 0.3")])
     second = _invoke(["plan-and-run", blocked, "--no-plots", "--out", str(out)])
     assert second.exit_code == 1, second.output
     assert "planning failed" in second.output
@@ -144,7 +145,6 @@ def test_late_bad_input_replaces_the_previous_run_and_says_invalid(tmp_path, mon
 def test_a_planned_run_that_misses_the_goal_exits_1(tmp_path):
     """Planning succeeds, the co-simulation stops at a 5 s horizon far from the goal."""
     path = _scenario(tmp_path, "l_corridor", "short_l",
-                     replace=[("time_budget = 3.0", "time_budget = 1.0")],
                      append="\n[sim]\nhorizon = 5.0\n")
     out = tmp_path / "out"
     result = _invoke(["plan-and-run", path, "--no-plots", "--out", str(out)])

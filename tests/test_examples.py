@@ -13,7 +13,14 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 PLOTS = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
 
 
-@pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*.toml")), ids=lambda p: p.stem)
+SLOW = {"docking", "three_point_turn", "narrow_l_5", "parallel_parking", "corner_10"}
+"""The facility manoeuvres: long plans and co-simulations (docking: 84 s simulated, the n = 10
+corner: 230 s)."""
+
+
+@pytest.mark.parametrize(
+    "path", [pytest.param(p, marks=pytest.mark.slow) if p.stem in SLOW else p
+             for p in sorted(EXAMPLES.glob("*.toml"))], ids=lambda p: p.stem)
 def test_example_runs_end_to_end(path, tmp_path):
     out = tmp_path / path.stem
     args = ["plan-and-run", str(path), "--out", str(out)]
@@ -28,6 +35,7 @@ def test_example_runs_end_to_end(path, tmp_path):
     else:
         assert result.exit_code == 0, result.output
         assert summary["status"] == "goal_reached", summary["message"]
+        _ends_at_the_goal(path, out)
     for name in PLOTS:
         assert (out / name).stat().st_size > 10_000, name
     if path.stem == "straight_push":
@@ -36,3 +44,24 @@ def test_example_runs_end_to_end(path, tmp_path):
     assert (out / RUN_MARKER).is_file()
     assert (out / "path.json").is_file() == (summary["mission"] == "plan")
     assert not list(out.glob(".*.part"))
+
+
+def _ends_at_the_goal(path, out):
+    """The co-simulated last trailer ends within the scenario's goal tolerance of its goal
+    (docking: 2 cm and 1 deg), read from the recorded results."""
+    import math
+
+    import numpy as np
+
+    from pushtrain.mission.scenario import load_scenario
+
+    sc = load_scenario(path)
+    if sc.mission.kind != "plan":
+        return
+    data = np.load(out / "results.npz")
+    n = sc.train.n
+    x, y, th = (float(data[f"{c}{n}"][-1]) for c in ("x", "y", "theta"))
+    dist = math.hypot(x - sc.goal.x, y - sc.goal.y)
+    head = abs(math.remainder(th - math.radians(sc.goal.theta_deg), 2 * math.pi))
+    assert dist <= sc.sim.goal_tolerance + 1e-9, dist
+    assert head <= math.radians(sc.sim.goal_heading_tolerance_deg) + 1e-9, math.degrees(head)

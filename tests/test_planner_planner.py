@@ -1,4 +1,5 @@
-"""Planning in the reference worlds, whole-train validity, errors, reproducibility, export."""
+"""The OMPL planners of the last trailer (``planner = "rrtconnect"`` etc.): planning in the
+reference worlds, whole-train validity, errors, reproducibility, export."""
 
 import math
 import subprocess
@@ -30,6 +31,16 @@ from pushtrain.planner import (
 )
 
 TRAIN = Train.uniform(3, link=0.52)
+
+
+def ompl(**settings) -> PlannerConfig:
+    """The OMPL RRTConnect planner of the last trailer with ``settings``."""
+    return PlannerConfig(planner="rrtconnect", **settings)
+
+
+OMPL = ompl()
+"""This module tests the OMPL planners of the last trailer; the default whole-train planner is
+tested in test_planner_lattice.py."""
 
 
 def _corners(fp, x, y, th):
@@ -72,7 +83,7 @@ def _independent_push_check(world, path, train):
 def test_corridors_whole_train_valid(name):
     case = worlds.CASES[name]()
     world = World.from_dict(case["world"])
-    path = plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=2))
+    path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     assert np.allclose(path.goal[:2], case["goal"][:2], atol=1e-6)
     assert abs(math.remainder(path.goal[2] - case["goal"][2], 2 * math.pi)) < 1e-6
     assert np.all(np.diff(path.s) <= 0.01 + 1e-12)
@@ -95,7 +106,7 @@ def test_corridors_whole_train_valid(name):
 def test_bay_one_direction_change_whole_train_valid():
     case = worlds.bay()
     world = World.from_dict(case["world"])
-    path = plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=2))
+    path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     assert path.n_cusps == 1
     assert {g.direction for g in path.segments} == {PUSH, PULL}
     assert np.allclose(path.goal[:2], case["goal"][:2], atol=1e-6)
@@ -140,7 +151,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
     straight start chain (robot offset measured with core.kinematics)."""
     case = worlds.bay()
     world = World.from_dict(case["world"])
-    cfg = PlannerConfig(seed=seed, check_train=False, max_attempts=4)
+    cfg = ompl(seed=seed, check_train=False, max_attempts=4)
     path = plan(world, case["start"], case["goal"], TRAIN, cfg)
     region = world.eroded(cfg.inflation)
     geom = TRAIN.geometry
@@ -180,7 +191,7 @@ def test_replanning_changes_what_the_failure_calls_for():
     from pushtrain.planner.planner import _next_attempt
     from pushtrain.planner.search import _Attempt
 
-    cfg = PlannerConfig()
+    cfg = ompl()
     base = _Attempt(radius=1.0, inflation=0.05)
     hit = {"kind": "collision", "x": 1.0, "y": 2.0}
     # the robot (or a leading trailer) hits while pulling: only a larger radius helps
@@ -208,32 +219,32 @@ def test_planner_checks_with_the_given_tracker():
     slow = ControllerConfig.uniform(3, v_max=0.05)  # cannot follow 0.08 m/s: misses the goal
     with pytest.raises(PlanningError) as info:
         plan(world, case["start"], case["goal"], TRAIN,
-             PlannerConfig(seed=2, controller=slow, max_attempts=2))
+             ompl(seed=2, controller=slow, max_attempts=2))
     failure = info.value.details["failure"]
     assert failure["kind"] == "goal_missed"
     assert failure["distance"] == pytest.approx(5.0 - 0.05 * 5.0 / 0.08, abs=0.01)
     path = plan(world, case["start"], case["goal"], TRAIN,
-                PlannerConfig(seed=2, controller=slow, speed=0.04, cusp_dwell=0.5))
+                ompl(seed=2, controller=slow, speed=0.04, cusp_dwell=0.5))
     assert path.info["train_check"]["speed"] == 0.04
     assert path.info["train_check"]["goal_error"][0] < 0.05
     with pytest.raises(PlanningInputError, match="n = 2"):
         plan(world, case["start"], case["goal"], TRAIN,
-             PlannerConfig(controller=ControllerConfig.uniform(2)))
+             ompl(controller=ControllerConfig.uniform(2)))
     with pytest.raises(PlanningInputError, match="speed"):
-        PlannerConfig(speed=-1.0)
+        ompl(speed=-1.0)
 
 
 def test_same_seed_same_plan_and_different_seed_differs():
     case = worlds.l_corridor(2.0)
     world = World.from_dict(case["world"])
-    cfg = PlannerConfig(seed=7, check_train=False)
+    cfg = ompl(seed=7, check_train=False)
     a = plan(world, case["start"], case["goal"], TRAIN, cfg)
     b = plan(world, case["start"], case["goal"], TRAIN, cfg)
     assert a.to_dict()["segments"] == b.to_dict()["segments"]
     others = {
         tuple(round(g.length, 9) for g in
               plan(world, case["start"], case["goal"], TRAIN,
-                   PlannerConfig(seed=s, check_train=False)).segments)
+                   ompl(seed=s, check_train=False)).segments)
         for s in (8, 9, 10)
     }
     assert len(others | {tuple(round(g.length, 9) for g in a.segments)}) > 1
@@ -242,7 +253,7 @@ def test_same_seed_same_plan_and_different_seed_differs():
 def test_json_roundtrip_and_reference():
     case = worlds.bay()
     world = World.from_dict(case["world"])
-    path = plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=2))
+    path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     again = PlannedPath.from_json(path.to_json())
     assert again.to_dict() == path.to_dict()
     assert np.allclose(again.poses, path.poses)
@@ -265,7 +276,7 @@ def test_radius_rule_and_transient_margin():
     d, phi_max = 0.52, math.pi / 2
     r = turning_radius_from_joint_limit(phi_max, d, 0.6)
     assert 2 * math.atan(d / r) == pytest.approx(phi_max / 1.6)
-    assert PlannerConfig().radius_for(TRAIN) == pytest.approx(r)
+    assert ompl().radius_for(TRAIN) == pytest.approx(r)
     # kinematic worst case: steady left arc, then a right arc (3 trailers, pushing)
     from pushtrain.core.reference import Segment
 
@@ -300,7 +311,7 @@ def test_errors_are_named(case, reason):
     c = case()
     world = World.from_dict(c["world"])
     with pytest.raises(PlanningError) as info:
-        plan(world, c["start"], c["goal"], TRAIN, PlannerConfig(time_budget=5.0))
+        plan(world, c["start"], c["goal"], TRAIN, ompl(time_budget=5.0))
     assert info.value.reason == reason
     assert str(info.value).startswith(f"[{reason}]")
 
@@ -310,11 +321,11 @@ def test_colliding_start_and_goal():
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         # the straight chain behind the last trailer sticks out of the corridor's left end
-        plan(world, (2.0, 1.0, math.pi), case["goal"], TRAIN)
+        plan(world, (2.0, 1.0, math.pi), case["goal"], TRAIN, OMPL)
     assert info.value.reason == "start_in_collision"
     assert info.value.details["body"] == 0 and info.value.where[0] < 0.0
     with pytest.raises(PlanningError) as info:
-        plan(world, case["start"], (4.0, 0.1, math.pi), TRAIN)
+        plan(world, case["start"], (4.0, 0.1, math.pi), TRAIN, OMPL)
     assert info.value.reason == "goal_in_collision" and info.value.where[:2] == (4.0, 0.1)
 
 
@@ -322,7 +333,7 @@ def test_approximate_only_is_an_error():
     # with r = 6 m the 2 m corridor needs many cusps: not found within 0.05 s
     case = worlds.l_corridor(2.0)
     world = World.from_dict(case["world"])
-    cfg = PlannerConfig(turning_radius=6.0, time_budget=0.05, check_train=False)
+    cfg = ompl(turning_radius=6.0, time_budget=0.05, check_train=False)
     with pytest.raises(PlanningError) as info:
         plan(world, case["start"], case["goal"], TRAIN, cfg)
     assert info.value.reason in ("approximate_only", "unreachable")
@@ -333,13 +344,13 @@ def test_config_validation():
     with pytest.raises(PlanningInputError, match="planner"):
         PlannerConfig(planner="astar")
     with pytest.raises(PlanningInputError, match="check_resolution"):
-        PlannerConfig(check_resolution=0.02)
+        ompl(check_resolution=0.02)
     with pytest.raises(PlanningInputError, match="seed"):
-        PlannerConfig(seed=0)
+        ompl(seed=0)
     with pytest.raises(PlanningInputError, match="rrt_range"):
-        PlannerConfig(rrt_range=0.0)
+        ompl(rrt_range=0.0)
     with pytest.raises(PlanningInputError, match="pull_start_tolerance"):
-        PlannerConfig(pull_start_tolerance=-0.1)
+        ompl(pull_start_tolerance=-0.1)
 
 
 @pytest.mark.parametrize("name", ["rrtstar", "bitstar"])
@@ -360,7 +371,7 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
     case = worlds.CASES[name]()
     world = World.from_dict(case["world"])
     first = plan(world, case["start"], case["goal"], TRAIN,
-                 PlannerConfig(seed=3, check_train=False))
+                 ompl(seed=3, check_train=False))
     best = plan(world, case["start"], case["goal"], TRAIN,
                 PlannerConfig(planner="restarts", seed=3, anytime_time=0.5, check_train=False))
     assert best.info["planner"] == "restarts"
@@ -383,7 +394,7 @@ def test_local_search_keeps_the_path_valid_and_never_longer():
 
     case = worlds.bay()
     world = World.from_dict(case["world"])
-    cfg = PlannerConfig(check_train=False)
+    cfg = ompl(check_train=False)
     attempt = _Attempt(cfg.radius_for(TRAIN), cfg.inflation)
     pairs = []
     for seed in range(5, 15):  # seeds whose plain solve passes the planner's pull rules
@@ -431,13 +442,13 @@ def test_ompl_log_level_is_the_callers(capfd):
         case = worlds.l_corridor(2.0)
         world = World.from_dict(case["world"])
         capfd.readouterr()
-        plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, check_train=False))
+        plan(world, case["start"], case["goal"], TRAIN, ompl(seed=1, check_train=False))
         assert ou.getLogLevel() == ou.LOG_INFO
         assert capfd.readouterr() == ("", "")
         ou.setLogLevel(ou.LOG_WARN)
         with pytest.raises(PlanningError):
             plan(world, case["start"], case["goal"], TRAIN,
-                 PlannerConfig(turning_radius=6.0, time_budget=0.05, check_train=False))
+                 ompl(turning_radius=6.0, time_budget=0.05, check_train=False))
         assert ou.getLogLevel() == ou.LOG_WARN
     finally:
         ou.setLogLevel(before)
@@ -476,7 +487,7 @@ def test_wall_clock_cap_only_stops_a_search_and_says_so(caplog):
     case = worlds.l_corridor(2.0)
     world = World.from_dict(case["world"])
     plain = plan(
-        world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, check_train=False)
+        world, case["start"], case["goal"], TRAIN, ompl(seed=1, check_train=False)
     )
     assert plain.info["time_capped"] is False
     assert 0 < plain.info["checks"] <= plain.info["budget_checks"] == 2000
@@ -489,10 +500,10 @@ def test_wall_clock_cap_only_stops_a_search_and_says_so(caplog):
     assert capped.info["checks"] < cfg.anytime_checks()
     assert "safety cap" in caplog.text
     with pytest.raises(PlanningError) as info:
-        plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(seed=1, time_cap=1e-9))
+        plan(world, case["start"], case["goal"], TRAIN, ompl(seed=1, time_cap=1e-9))
     assert info.value.details["time_capped"] is True and "safety cap" in str(info.value)
     with pytest.raises(PlanningInputError, match="time_cap"):
-        PlannerConfig(time_cap=0.0)
+        ompl(time_cap=0.0)
 
 
 def test_prmstar_returns():

@@ -60,7 +60,8 @@ def test_validity_uses_last_trailer_in_chain_orientation():
     cfg_ok = dict(inflation=0.0, offtrack_allowance=0.0)
     from pushtrain.planner import PlannerConfig
 
-    cfg = PlannerConfig(**cfg_ok, time_budget=0.2, check_train=False, straight_pull_ends=False)
+    cfg = PlannerConfig(planner="rrtconnect", **cfg_ok, time_budget=0.2, check_train=False,
+                        straight_pull_ends=False)
     att = _Attempt(1.0, 0.0)
     # start pose with theta = 0: rectangle spans x in [0.5 + 0.55 - 0.6, 0.5 + 0.55 + 0.6]
     states, _ = _solve_once(

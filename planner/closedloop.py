@@ -1,0 +1,396 @@
+"""The whole-train planner (``planner = "lattice"``, the default): checks, search, verification.
+
+:func:`plan_lattice` is what :func:`~pushtrain.planner.plan` runs by default:
+
+1. **Ends.** The map must have room for the last trailer; the train at the start and the last
+   trailer at the goal must keep their clearances (``PlannerConfig.clearance``, per body),
+   tested with the distance field and, where that fails, measured exactly (shapely) for the
+   message: a goal that leaves the last trailer 3 cm from a wall when the scenario asks 5 cm
+   says so with those numbers.
+2. **Search.** :class:`~pushtrain.planner.lattice.Search` over closed-loop train states,
+   within ``budget_steps`` simulated control steps (``time_budget`` at
+   :data:`~pushtrain.planner.budget.STEPS_PER_SECOND`) and the wall clock ``time_budget``.
+3. **Verification.** A path the search found is simulated again in one go from the start with
+   exactly the co-simulation's reference (one :class:`~pushtrain.core.reference.Reference`,
+   cusp dwells, pull guides over whole pulling runs) and checked with
+   :func:`~pushtrain.planner.train_check.check_train`: every body's exact rectangle (shapely)
+   against the free space shrunk by its clearance, the joint limit, self-collision and the goal
+   tolerance. A path that fails is dropped and the search goes on.
+4. **Smoothing.** :mod:`~pushtrain.planner.smooth` merges equal pieces and replaces
+   stretches by Reeds-Shepp shortcuts where the closed loop allows (fewer turns, shorter); the
+   smoothed path is verified again.
+5. **Anytime** (``PlannerConfig.anytime``): the search goes on after the first path until its
+   budget is spent, and the cheapest verified path (length, turning, cusps) is kept.
+
+A search that ends without a plan raises :class:`~pushtrain.errors.PlanningError` whose message
+says what blocked the motions it tried (walls and which body, the joint limit, the pull rule,
+self-collision, the budget) with numbers, and whose ``details`` carry the explored tree, the
+best partial plan and the collision points for ``planning_failure.png``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from shapely.geometry import Point
+
+from pushtrain.core.reference import PULL
+from pushtrain.errors import PlanningError
+
+from .footprint import body_name, body_positions, body_samples
+from .heuristic import Heuristic
+from .lattice import Search, SearchSettings
+from .path import PlannedPath
+from .propagate import Cursor, Propagator
+from .smooth import merge, path_cost, shortcut
+from .train_check import TrackerConfig, Trajectory, check_train, reference_times
+from .world import Train, World
+
+__all__ = ["plan_lattice"]
+
+log = logging.getLogger(__name__)
+
+
+def plan_lattice(world: World, train: Train, start, goal, start_headings, config) -> PlannedPath:
+    """Plan with the closed-loop lattice search (see the module docstring).
+
+    ``start``, ``goal`` (3,) and ``start_headings`` (n+1,) are checked arrays (chain
+    convention); ``config`` a :class:`~pushtrain.planner.config.PlannerConfig`.
+    """
+    t_begin = time.perf_counter()
+    deadline = t_begin + config.time_budget
+    margins = config.margins(train)
+    tracker = config.tracker()
+    controller = tracker.controller_for(train.geometry)
+    field = world.distance_field()
+    samples = body_samples(train, margins, spacing=config.sample_spacing)
+    phi_limit = train.phi_max - config.joint_margin
+    prop = Propagator(train, controller, tracker, field, samples, phi_limit,
+                      goal_phi=config.goal_phi)
+    headings = (np.full(train.n + 1, float(start[2])) if start_headings is None
+                else np.asarray(start_headings, dtype=float))
+    state0 = prop.initial_state(start, headings)
+    _check_ends(world, train, start, goal, state0, prop, margins)
+    radius = config.radius_for(train)
+    last = train.last
+    reach = min(0.5 * last.width, 0.5 * last.length - abs(last.offset))
+    heuristic = Heuristic(field, goal, radius, reach + margins[-1], build_car=False)
+    cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
+    if heuristic(cursor0.pose) == math.inf:
+        raise PlanningError(
+            "unreachable",
+            f"no way of the last trailer ({last.width} m wide, clearance {margins[-1]} m) "
+            f"leads from the start ({start[0]:.3f}, {start[1]:.3f}) to the goal ({goal[0]:.3f}, "
+            f"{goal[1]:.3f}): every passage between them is narrower than "
+            f"{2 * (reach + margins[-1]):.3f} m", where=tuple(goal[:2]),
+            details={"constraint": "map"})
+    # with a straight train asked for at the goal, the final straight approach is as long as
+    # the train (the followers line up behind the last trailer on it)
+    approach = 1.5 if config.goal_phi is None else max(1.5, _train_length(train) + 0.5)
+    settings = SearchSettings(
+        radius=radius, step_length=config.step_length, weight=config.search_weight,
+        pull_phi=config.pull_phi, budget_steps=config.budget_steps(), deadline=deadline,
+        approach=approach)
+    search = Search(train, prop, heuristic, state0, cursor0, goal, settings)
+    rejected, best, found = 0, None, 0
+    while True:
+        solution = search.next_solution()
+        if solution is None:
+            break
+        checked = _verify(world, train, start, headings, solution.segments, prop, margins,
+                          tracker, goal, deadline)
+        if not checked.ok and checked.failure.get("kind") in ("deadline", "budget"):
+            search.stats.cut = checked.failure["kind"]
+            break
+        if not checked.ok:
+            rejected += 1
+            log.info("verification dropped a path: %s", checked.failure)
+            search.stats.record({**checked.failure,
+                                 "kind": "verification_" + checked.failure["kind"]})
+            continue
+        found += 1
+        segments, checked, smooth_info = _smoothed(world, train, start, headings,
+                                                   solution.segments, checked, prop, margins,
+                                                   tracker, goal, config, deadline)
+        cost = path_cost(segments)
+        if best is None or cost < best[0] - 1e-9:
+            best = (cost, segments, checked, smooth_info)
+        if not config.anytime:
+            break
+    if best is None:
+        raise _no_plan(search, train, goal, config, margins, phi_limit, t_begin)
+    _, segments, checked, smooth_info = best
+    smooth_info["solutions"] = found
+    checked = _measured(world, train, start, headings, segments, checked, margins, tracker)
+    return _planned(start, headings, segments, radius, config, tracker, checked, search,
+                    t_begin, rejected, smooth_info)
+
+
+def _train_length(train: Train) -> float:
+    """Distance [m] from the last trailer's axle to the robot's centre, straight chain."""
+    return float(np.sum(train.geometry.front) + np.sum(train.geometry.rear))
+
+
+# --------------------------------------------------------------------------- the ends
+def _check_ends(world: World, train: Train, start, goal, state0, prop: Propagator, margins):
+    """Raise PlanningError if the map is empty, the train at the start or the last trailer at
+    the goal misses its clearance (numbers measured exactly where the map has polygons)."""
+    if world.free.is_empty or world.free_area <= 1e-12:
+        raise PlanningError(
+            "no_free_space",
+            f"the map has no free space (free area {world.free_area:.3g} m² inside outline bounds "
+            f"{tuple(round(b, 3) for b in world.outline.bounds)})", details={"constraint": "map"})
+    z = np.array([state0.z])
+    failure, _ = prop.check(z)
+    if failure is not None and failure["kind"] != "collision":
+        what = ("a joint angle beyond the limit" if failure["kind"] == "joint_limit"
+                else "bodies folded onto each other")
+        raise PlanningError("start_in_collision", f"the start has {what}: {failure}",
+                            where=(failure["x"], failure["y"]),
+                            details={"body": failure["body"], "constraint": failure["kind"]})
+    x, y = body_positions(z, train.geometry)
+    th = z[0, 2:]
+    for i, body in enumerate(train.bodies):
+        gap = _exact_gap(world, body.polygons(x[0, i], y[0, i], th[i]))
+        if failure is not None and failure["body"] == i or gap < margins[i] - 1e-9:
+            if gap >= margins[i] - 1e-9:
+                continue  # the sampled test is conservative; the exact one passes
+            raise PlanningError(
+                "start_in_collision",
+                f"at the start the {body_name(i)} (body {i}) at ({x[0, i]:.3f}, {y[0, i]:.3f}), "
+                f"heading {math.degrees(th[i]):.1f} deg, {_gap_text(gap, margins[i])}",
+                where=(x[0, i], y[0, i], th[i]),
+                details={"body": i, "gap": gap, "margin": float(margins[i]),
+                         "constraint": "start footprint vs clearance"})
+    n = train.n
+    gap = _exact_gap(world, train.last.polygons(*goal))
+    if gap < margins[n] - 1e-9:
+        raise PlanningError(
+            "goal_in_collision",
+            f"at the goal the last trailer at ({goal[0]:.3f}, {goal[1]:.3f}), heading "
+            f"{math.degrees(goal[2]):.1f} deg, {_gap_text(gap, margins[n])}",
+            where=tuple(goal), details={"body": n, "gap": gap, "margin": float(margins[n]),
+                                        "constraint": "goal footprint vs clearance"})
+
+
+def _exact_gap(world: World, poly) -> float:
+    """Distance [m] from ``poly`` to the walls: positive inside the free space, minus the
+    depth of the overlap's farthest point if it leaves it (approximate), -inf if wholly out."""
+    poly = shapely.geometry.Polygon(poly) if not hasattr(poly, "geom_type") else poly
+    if world.free.covers(poly):
+        return float(world.free.boundary.distance(poly))
+    outside = poly.difference(world.free)
+    if outside.is_empty:
+        return 0.0
+    depth = max(world.free.distance(Point(p)) for p in np.asarray(
+        shapely.get_coordinates(outside)))
+    return -float(depth)
+
+
+def _gap_text(gap: float, margin: float) -> str:
+    if gap >= 0.0:
+        return (f"keeps only {gap:.3f} m from the walls; planner.clearance asks {margin:.3f} m "
+                "for it")
+    return (f"reaches {-gap:.3f} m into a wall (planner.clearance asks {margin:.3f} m of "
+            "clearance)")
+
+
+# --------------------------------------------------------------------------- verification
+def _verify(world: World, train: Train, start, headings, segments, prop: Propagator, margins,
+            tracker: TrackerConfig, goal, deadline: float | None = None):
+    """The whole path simulated in one go from the start and checked exactly
+    (:func:`~pushtrain.planner.train_check.check_train` on the propagator's run, containment
+    only; :func:`_measured` adds the clearances); the simulation stops at its first failure
+    of the distance-field test or at ``deadline`` (the path then fails with kind
+    ``"deadline"``)."""
+    state0 = prop.initial_state(start, headings)
+    cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
+    run = prop.rollout(state0, cursor0, segments, goal=goal, record=True, deadline=deadline)
+    traj = Trajectory(run.extra["t"], run.z, run.extra["command"], run.reference,
+                      run.extra["direction"], np.ones(run.z.shape[0], dtype=bool))
+    if not run.ok:  # no exact test of what the simulation already refused
+        return _Refused({**run.failure, "s": math.nan, "direction": 0})
+    result = check_train(world, train, start, segments, headings, margin=margins,
+                         resolution=0.01, tracker=tracker, trajectory=traj, self_collision=True,
+                         measure=False)
+    if result.ok and prop.goal_phi is not None:
+        phi = np.abs(result.headings[-1, :-1] - result.headings[-1, 1:])
+        if phi.max() > prop.goal_phi:
+            result.ok = False
+            result.failure = {"kind": "goal_missed", "body": int(np.argmax(phi)) + 1,
+                              "t": float(result.t[-1]), "s": math.nan, "direction": 0,
+                              "x": float(result.poses[-1, 0]), "y": float(result.poses[-1, 1]),
+                              "max_abs_phi": float(phi.max())}
+    return result
+
+
+@dataclass
+class _Refused:
+    """A verification the simulation already failed (no exact test made)."""
+
+    failure: dict
+    ok: bool = False
+
+
+def _measured(world: World, train: Train, start, headings, segments, checked, margins,
+              tracker: TrackerConfig):
+    """The verified path's check again with its clearances measured (no new simulation)."""
+    return check_train(world, train, start, segments, headings, margin=margins,
+                       resolution=0.01, tracker=tracker, trajectory=checked.trajectory,
+                       self_collision=True, measure=True)
+
+
+# --------------------------------------------------------------------------- smoothing
+def _smoothed(world, train, start, headings, segments, checked, prop, margins, tracker, goal,
+              config, deadline):
+    """Merge equal consecutive pieces and try Reeds-Shepp shortcuts (:mod:`.smooth`)."""
+
+    merged = merge(segments)
+    info = {"pieces_found": len(segments), "pieces_merged": len(merged), "shortcuts": 0}
+    if not config.smooth:
+        return merged, checked, info
+
+    def verify(candidate):
+        return _verify(world, train, start, headings, candidate, prop, margins, tracker, goal,
+                       deadline)
+
+    best, best_check, n_short = shortcut(merged, checked, start, goal, config.radius_for(train),
+                                         verify, deadline)
+    info["shortcuts"] = n_short
+    return best, best_check, info
+
+
+# --------------------------------------------------------------------------- results
+def _planned(start, headings, segments, radius, config, tracker, checked, search: Search,
+             t_begin, rejected, smooth_info) -> PlannedPath:
+    stats = search.stats
+    info = {
+        "planner": "lattice", "seed": config.seed, "time": time.perf_counter() - t_begin,
+        "steps": search.prop.steps, "budget_steps": config.budget_steps(),
+        "time_capped": stats.cut == "deadline", "expansions": stats.expansions,
+        "rollouts": stats.rollouts, "rejected_by_verification": rejected,
+        "failures": dict(stats.failures), "radius": radius,
+        "steps_by_use": {**stats.steps, "verification": search.prop.steps
+                         - sum(stats.steps.values())},
+        "car_heuristic_at": stats.car_built_at,
+        "clearance": [float(m) for m in config.margins(search.train)],
+        "smoothing": smooth_info,
+        "train_check": {
+            "max_abs_phi": checked.max_abs_phi.tolist(),
+            "min_clearance": checked.min_clearance,
+            "wall_clearance": checked.wall_clearance,
+            "max_tracking_error": checked.max_tracking_error,
+            "max_lateral_error": checked.max_lateral_error,
+            "max_heading_error": checked.max_heading_error,
+            "goal_error": list(checked.goal_error),
+            "speed": tracker.speed, "cusp_dwell": tracker.cusp_dwell,
+        },
+    }
+    path = PlannedPath(start, tuple(segments), radius, headings, 0.01, info)
+    t, _ = reference_times(path.segments, tracker.speed, tracker.cusp_dwell, path.s)
+    path.headings = checked.headings_at(t)
+    log.info("planned %.2f m, %d segments, %d cusps in %.3f s (%d expansions, %d steps)",
+             path.length, len(segments), path.n_cusps, info["time"], stats.expansions,
+             search.prop.steps)
+    return path
+
+
+def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
+             t_begin) -> PlanningError:
+    """The PlanningError of a search that found nothing: what blocked it, with numbers."""
+    stats = search.stats
+    f = stats.failures
+    tried = stats.rollouts
+    parts = []
+    if f["collision"]:
+        body, count = stats.bodies.most_common(1)[0]
+        where = [p for p in stats.points if p["kind"] == "collision" and p["body"] == body]
+        near = f" near ({where[-1]['x']:.2f}, {where[-1]['y']:.2f})" if where else ""
+        parts.append(f"{f['collision']} hit a wall within their clearance (most often the "
+                     f"{body_name(body)}, {count} times{near}; clearance "
+                     f"{_margins_text(margins)})")
+    if f["reference"]:
+        parts.append(f"{f['reference']} were refused before simulating: the last trailer's "
+                     "own footprint on the reference misses its clearance")
+    if f["joint_limit"]:
+        parts.append(f"{f['joint_limit']} bent a joint beyond {math.degrees(phi_limit):.1f} deg "
+                     f"(phi_max {math.degrees(train.phi_max):.1f} deg minus the joint margin "
+                     f"{math.degrees(config.joint_margin):.1f} deg)")
+    if f["self_collision"]:
+        parts.append(f"{f['self_collision']} folded the train onto itself")
+    if f["pull_rule"]:
+        parts.append(f"{f['pull_rule']} pulls were not started because the chain was bent "
+                     f"more than {math.degrees(config.pull_phi):.1f} deg (pull rule)")
+    if f["goal_missed"]:
+        straight = ("" if config.goal_phi is None else
+                    f", every joint within {math.degrees(config.goal_phi):.1f} deg")
+        parts.append(f"{f['goal_missed']} connections to the goal ended outside its tolerance "
+                     f"({config.goal_tolerance[0]:.3f} m, "
+                     f"{math.degrees(config.goal_tolerance[1]):.1f} deg{straight})")
+    verified = sum(v for k, v in f.items() if k.startswith("verification_"))
+    if verified:
+        parts.append(f"{verified} paths found failed the exact verification")
+    blocked = "; ".join(parts) if parts else "nothing was tried"
+    elapsed = time.perf_counter() - t_begin
+    if stats.cut == "budget":
+        reason, head = "budget_exhausted", (
+            f"no plan within the budget of {config.budget_steps()} simulated control steps "
+            f"(time_budget {config.time_budget:g} s; {stats.expansions} expansions)")
+    elif stats.cut == "deadline":
+        reason, head = "budget_exhausted", (
+            f"no plan before the time budget of {config.time_budget:g} s ran out on the clock "
+            f"({search.prop.steps} of {config.budget_steps()} steps done, {stats.expansions} "
+            "expansions; a faster or less loaded machine does more)")
+    else:
+        reason, head = "unreachable", (
+            f"no plan: the search ran out of states after {stats.expansions} expansions "
+            f"({elapsed:.2f} s)")
+    closest = search.closest
+    details = {
+        "constraint": _main_constraint(stats),
+        "time_capped": stats.cut == "deadline",
+        "expansions": stats.expansions, "steps": search.prop.steps,
+        "failures": dict(f), "failure_points": stats.points,
+        "margins": [float(m) for m in margins],
+        "tree": [n.trace.tolist() for n in search.nodes if n.trace is not None][:3000],
+        "closest": {"segments": _segments_data(closest.path_segments()),
+                    "pose": list(closest.cursor.pose), "remaining": closest.h,
+                    **_train_at(closest.state, train)},
+    }
+    return PlanningError(reason, f"{head}. Of {tried} motions tried: {blocked}. The closest "
+                         f"the last trailer came was {closest.h:.2f} m of path from the goal",
+                         where=tuple(goal[:2]), details=details)
+
+
+def _train_at(state, train: Train) -> dict:
+    """Every body's axle midpoint and heading in ``state`` (plain lists, for the picture)."""
+    z = np.array([state.z])
+    x, y = body_positions(z, train.geometry)
+    return {"x": x[0].tolist(), "y": y[0].tolist(), "headings": z[0, 2:].tolist()}
+
+
+def _main_constraint(stats) -> str:
+    kinds = {k: v for k, v in stats.failures.items() if k != "reference"}
+    if stats.cut is not None:
+        return "budget"
+    if not kinds:
+        return "map"
+    return max(sorted(kinds), key=lambda k: kinds[k])
+
+
+def _margins_text(margins) -> str:
+    values = sorted(set(float(m) for m in margins))
+    if len(values) == 1:
+        return f"{values[0]:.3f} m"
+    return ", ".join(f"{body_name(i)} {m:.3f} m" for i, m in enumerate(margins))
+
+
+def _segments_data(segments) -> list:
+    return [{"kind": s.kind, "length": s.length, "curvature": s.curvature,
+             "direction": "pull" if s.direction == PULL else "push"} for s in segments]
+

@@ -1,0 +1,588 @@
+"""Closed-loop lattice search: hybrid A* whose nodes are the train under its controller.
+
+Why this design (and not the last trailer alone, nor closed-loop RRT)
+    Planning the last trailer and checking the train afterwards fails where the followers
+    decide (a 0.9 m bay, a 1.3 m L with five trailers) and where the pull must wait for a
+    straight chain (a three-point turn). Here every node *is* a state the train can be in,
+    reached by the co-simulation's own controller, so what the search keeps the train can do.
+    Two published approaches search such states: closed-loop RRT (Evestedt et al., IROS 2016:
+    random references tracked in closed loop) and lattice planners (Ljungqvist et al., JFR
+    2019: a fixed set of short motions, searched with A*). A lattice search is deterministic
+    (a seed never changes the plan, budgets count expansions, not seconds), finds the
+    manoeuvres with few cusps that its cost asks for (turning and cusps are priced, so straight
+    aisles stay straight), and reuses expensive rollouts through duplicate pruning; RRT's
+    random references give the S-bends that drivers do not make. The search is hybrid A*
+    (continuous poses, pruning on a grid) rather than a strict lattice because the reference
+    after a closed-loop rollout is exactly where it was put, while the train is where the
+    controller brought it: a continuous state.
+
+Node
+    The reference's end (:class:`~pushtrain.planner.propagate.Cursor`: the last trailer's
+    reference pose, its time and the direction of the last motion) and the train's state there
+    (:class:`~pushtrain.planner.propagate.TrainState`: robot pose, every heading, the
+    controller's rate-limit memory, the control instant).
+Edges
+    A primitive of the last trailer's reference (a line or an arc of curvature ``k * kappa``
+    for k in ``curvatures``, ``step_length`` metres, pushing or pulling) appended to the
+    reference and tracked in closed loop by the co-simulation's controller
+    (:class:`~pushtrain.planner.propagate.Propagator`), every body checked against the distance
+    field with its clearance, every joint against the limit, non-neighbouring bodies against
+    each other. A pull that continues a pull is rolled out again from where the pulling run
+    began: the robot's pulling reference is computed backward from the run's end
+    (:class:`~pushtrain.core.pulling.PullGuide`), so a longer run changes its beginning too.
+    Pushes are exactly resumable.
+Pulls a driver would make
+    A pulling run may start only where every |phi_i| <= ``pull_phi`` (the chain nearly
+    straight, so the robot can lead it), checked at the run's first control instant. The search
+    therefore pushes on until the chain is straight and chooses the cusp there.
+Cost
+    Travelled length (pulls weighted by ``pull_factor``), plus ``turn_weight`` times the
+    heading turned (the integral of |curvature|), ``change_weight`` per change of curvature and
+    ``cusp_cost`` per direction change: straight stays straight, and turns are few.
+Heuristic
+    The larger of the Reeds-Shepp length to the goal and the obstacle-aware distance of the map
+    (:class:`~pushtrain.planner.heuristic.Heuristic`), times ``weight`` (>= 1: a faster, less
+    optimal search).
+Goal
+    Reached only by an analytic expansion: a Reeds-Shepp path from a node's reference pose to
+    the goal pose (radius ``turning radius * f`` for f in ``analytic_radii``), first checked
+    cheaply (the last trailer's own footprint along it), then tracked in closed loop until the
+    simulated last trailer rests within the goal tolerance (the co-simulation's goal test).
+Duplicates
+    Nodes fall into cells of the reference pose (``grid_xy``, ``grid_theta``), the direction of
+    the last motion and the chain's bend (robot heading minus last trailer heading, in bins of
+    ``grid_bend``); a cell keeps its cheapest node.
+
+The search counts its work in simulated control steps; it stops when ``budget_steps`` are spent
+(the result depends only on that count) or at the wall-clock ``deadline`` (the result then says
+it was cut short).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import logging
+import math
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pushtrain.core.reference import PULL, PUSH, Segment
+
+from .curves import ReedsSheppCurve, primitives_to_segments
+from .footprint import body_positions
+from .heuristic import Heuristic
+from .propagate import Cursor, Propagator, Rollout, TrainState
+from .world import Train
+
+__all__ = ["SearchSettings", "Node", "Search", "Solution"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    """Settings of :class:`Search` (SI units, radians; see the module docstring).
+
+    Attributes
+    ----------
+    radius : float
+        The turning radius [m]: primitives' curvatures are ``k / radius`` for k in
+        ``curvatures``; connections use multiples of it.
+    step_length, pull_length, long_straight : float
+        Length [m] of a pushing primitive, of a pulling one, and of the one long straight push.
+    approach : float
+        Length [m] of the straight push onto the goal that ends the approach connections.
+    grid_xy, grid_theta, grid_bend : float
+        Cells of the duplicate pruning: reference position [m], heading [rad], and the chain's
+        bend (robot heading minus last trailer heading) [rad].
+    weight : float
+        Heuristic weight (>= 1).
+    turn_weight, change_weight, cusp_cost, pull_factor : float
+        The cost: per radian turned, per change of curvature, per cusp, and the factor of a
+        pulled metre.
+    pull_phi : float
+        The pull rule: the largest |phi_i| [rad] a pulling run may start from.
+    max_pull_run : float
+        Longest pulling run [m] of primitives (each continuation rolls the run out again).
+    analytic_radii, corner_radii : tuple of float
+        Radii (in turning radii) of the Reeds-Shepp connections, and of the corner connections
+        (the first: the widest arc that fits, up to that many turning radii).
+    straighten : tuple of float
+        Lengths [m] of the straight pushes tried before a pulled corner connection when the
+        chain is too bent to pull.
+    analytic_every, analytic_per_node : int
+        Reeds-Shepp connections are tried every ``analytic_every`` expansions; at most
+        ``analytic_per_node`` closed-loop connection attempts per node otherwise.
+    car_after : int
+        Expansions without a path after which the car heuristic is built.
+    budget_steps : int
+        Simulated control steps the search may spend (all rollouts together).
+    deadline : float
+        ``time.perf_counter()`` value at which the search stops.
+    """
+
+    radius: float
+    curvatures: tuple = (0.0, 1.0, -1.0, 0.5, -0.5)
+    step_length: float = 0.5
+    pull_length: float = 1.0
+    long_straight: float = 1.5
+    approach: float = 1.5
+    grid_xy: float = 0.15
+    grid_theta: float = math.radians(7.5)
+    grid_bend: float = 0.3
+    weight: float = 2.0
+    turn_weight: float = 0.3
+    change_weight: float = 0.25
+    cusp_cost: float = 2.0
+    pull_factor: float = 1.2
+    pull_phi: float = math.radians(15.0)
+    max_pull_run: float = 8.0
+    analytic_radii: tuple = (1.6, 1.0)
+    corner_radii: tuple = (3.0, 1.6, 1.0)
+    straighten: tuple = (1.5, 3.0)
+    analytic_every: int = 4
+    analytic_per_node: int = 2
+    car_after: int = 20
+    budget_steps: int = 10**9
+    deadline: float = math.inf
+
+
+@dataclass(eq=False)
+class Node:
+    """One state of the search (see the module docstring)."""
+
+    state: TrainState
+    cursor: Cursor
+    g: float
+    h: float
+    parent: Node | None = None
+    segments: tuple = ()
+    run_root: Node | None = None
+    run_segments: tuple = ()
+    trace: np.ndarray | None = None
+    depth: int = 0
+
+    @property
+    def run_length(self) -> float:
+        return float(sum(s.length for s in self.run_segments))
+
+    def path_segments(self) -> list[Segment]:
+        """The reference's segments from the start to this node."""
+        out, node = [], self
+        while node is not None:
+            out[:0] = node.segments
+            node = node.parent
+        return out
+
+    def curvature(self) -> float | None:
+        return self.segments[-1].curvature if self.segments else None
+
+
+@dataclass
+class Solution:
+    """A path to the goal found by the search: the reference's segments from the start, its
+    cost, the node it leaves from and the closed loop of its last piece."""
+
+    segments: list
+    cost: float
+    node: Node
+    rollout: Rollout
+    expansions: int
+    steps: int
+
+
+@dataclass
+class Stats:
+    """What the search did and what stopped its motions (for the diagnostics)."""
+
+    expansions: int = 0
+    rollouts: int = 0
+    analytic_tries: int = 0
+    analytic_closed_loop: int = 0
+    failures: Counter = field(default_factory=Counter)
+    bodies: Counter = field(default_factory=Counter)
+    points: list = field(default_factory=list)
+    cut: str | None = None
+    car_built_at: int | None = None
+    steps: Counter = field(default_factory=Counter)
+
+    def record(self, failure: dict) -> None:
+        kind = failure["kind"]
+        self.failures[kind] += 1
+        if kind in ("collision", "self_collision"):
+            self.bodies[failure["body"]] += 1
+        if len(self.points) < 400:
+            self.points.append({k: failure[k] for k in ("kind", "x", "y", "body")
+                                if k in failure})
+
+
+class Search:
+    """Hybrid A* over closed-loop train states (see the module docstring).
+
+    Parameters
+    ----------
+    train : Train
+    propagator : Propagator
+    heuristic : Heuristic
+    start : TrainState
+    start_cursor : Cursor
+    goal : (x, y, theta)
+    settings : SearchSettings
+    """
+
+    def __init__(self, train: Train, propagator: Propagator, heuristic: Heuristic,
+                 start: TrainState, start_cursor: Cursor, goal, settings: SearchSettings):
+        self.train = train
+        self.prop = propagator
+        self.heuristic = heuristic
+        self.goal = tuple(float(a) for a in goal)
+        self.s = settings
+        self.kappa = 1.0 / settings.radius
+        self.stats = Stats()
+        self._counter = itertools.count()
+        self._open: list = []
+        self._best: dict = {}
+        self.nodes: list[Node] = []
+        self._last_analytic = -10**9
+        self._pending: Node | None = None
+        root = Node(start, start_cursor, 0.0, heuristic(start_cursor.pose))
+        self.root = root
+        self.closest = root
+        self._push(root)
+
+    # ------------------------------------------------------------------ bookkeeping
+    def _key(self, node: Node) -> tuple:
+        c = node.cursor
+        s = self.s
+        bend = math.remainder(node.state.z[2] - node.state.z[-1], 2.0 * math.pi)
+        return (round(c.x / s.grid_xy), round(c.y / s.grid_xy),
+                round(math.remainder(c.theta, 2.0 * math.pi) / s.grid_theta)
+                % round(2.0 * math.pi / s.grid_theta),
+                c.direction, round(bend / s.grid_bend))
+
+    def _push(self, node: Node) -> bool:
+        if node.h == math.inf:
+            return False
+        key = self._key(node)
+        old = self._best.get(key)
+        if old is not None and old <= node.g + 1e-9:
+            return False
+        self._best[key] = node.g
+        f = node.g + self.s.weight * node.h
+        heapq.heappush(self._open, (f, next(self._counter), node))
+        self.nodes.append(node)
+        if node.h < self.closest.h:
+            self.closest = node
+        return True
+
+    def _spent(self) -> str | None:
+        if self.prop.steps >= self.s.budget_steps:
+            return "budget"
+        if time.perf_counter() >= self.s.deadline:
+            return "deadline"
+        return None
+
+    # ------------------------------------------------------------------ the loop
+    def next_solution(self, rejected=None) -> Solution | None:
+        """Search on until the next path to the goal; None when the open list is empty or
+        the budget is spent (``stats.cut`` says which)."""
+        if self._pending is not None:
+            # the node whose connection to the goal was the last solution: its own motions
+            node, self._pending = self._pending, None
+            self._expand_all(node)
+        while self._open:
+            cut = self._spent()
+            if cut is not None:
+                self.stats.cut = cut
+                return None
+            if (self.heuristic.car is None and self.stats.expansions >= self.s.car_after
+                    and self._can_build_car()):
+                self._rebuild_heuristic()
+            _, _, node = heapq.heappop(self._open)
+            if self._best.get(self._key(node), math.inf) < node.g - 1e-9:
+                continue  # a cheaper node took its cell after it was queued
+            self.stats.expansions += 1
+            solution = self._analytic(node)
+            if solution is not None:
+                self._pending = node
+                return solution
+            self._expand_all(node)
+        if self._spent() is not None:
+            self.stats.cut = self._spent()
+        return None
+
+    def _expand_all(self, node: Node) -> None:
+        """Queue every child of ``node`` that its motions reach."""
+        for seg in self._primitives(node):
+            if self._spent() is not None:
+                return
+            child = self._expand(node, seg)
+            if child is not None:
+                self._push(child)
+
+    def _can_build_car(self) -> bool:
+        """Whether the car heuristic is configured and its build (about 2 us per state of
+        CPU, three times that allowed for a loaded machine) fits before the deadline."""
+        estimate = self.heuristic.car_states() * 6e-6
+        return estimate > 0.0 and time.perf_counter() + estimate < self.s.deadline
+
+    def _rebuild_heuristic(self) -> None:
+        """Switch to the heuristic with the :class:`~pushtrain.planner.heuristic.CarGrid`
+        (the search found no path in ``car_after`` expansions: it may need to turn around or
+        to go the long way) and re-queue the open nodes with it."""
+        self.heuristic.build_car()
+        self.stats.car_built_at = self.stats.expansions
+        queued = [item[2] for item in self._open]
+        self._open = []
+        for node in queued:
+            node.h = self.heuristic(node.cursor.pose, node.cursor.direction)
+            if node.h < math.inf:
+                heapq.heappush(self._open, (node.g + self.s.weight * node.h,
+                                            next(self._counter), node))
+        log.debug("car heuristic built after %d expansions", self.stats.expansions)
+
+    # ------------------------------------------------------------------ edges
+    def _primitives(self, node: Node):
+        s = self.s
+        for direction in (PUSH, PULL):
+            if direction == PULL:
+                if node.cursor.direction == PULL:
+                    if node.run_length + s.pull_length > s.max_pull_run + 1e-9:
+                        continue
+                elif np.abs(node.state.phi()).max() > s.pull_phi:
+                    self.stats.failures["pull_rule"] += 1
+                    continue
+            length = s.pull_length if direction == PULL else s.step_length
+            for k in s.curvatures:
+                kappa = k * self.kappa
+                kind = "line" if kappa == 0.0 else "arc"
+                yield Segment(kind, length, kappa, direction)
+            if direction == PUSH and s.long_straight > length:
+                yield Segment("line", s.long_straight, 0.0, PUSH)
+
+    def _cost(self, node: Node, segments) -> float:
+        s = self.s
+        cost = 0.0
+        direction = node.cursor.direction
+        kappa = node.curvature()
+        for seg in segments:
+            factor = s.pull_factor if seg.direction == PULL else 1.0
+            cost += seg.length * factor + s.turn_weight * abs(seg.curvature) * seg.length
+            if direction in (PUSH, PULL) and seg.direction != direction:
+                cost += s.cusp_cost
+            if kappa is not None and seg.curvature != kappa:
+                cost += s.change_weight
+            direction, kappa = seg.direction, seg.curvature
+        return cost
+
+    def _roll(self, node: Node, segments, goal=None) -> tuple[Rollout, Node | None, tuple]:
+        """Roll ``segments`` out after ``node`` (from the start of its pulling run if they
+        continue it). Returns (rollout, run root, run segments)."""
+        remaining = max(1, self.s.budget_steps - self.prop.steps)
+        if segments[0].direction == PULL and node.cursor.direction == PULL:
+            root, run = node.run_root, node.run_segments + tuple(segments)
+            rollout = self.prop.rollout(root.state, root.cursor, run, goal=goal,
+                                        pull_phi=self.s.pull_phi, max_steps=remaining,
+                                        deadline=self.s.deadline)
+        else:
+            root, run = node, tuple(segments)
+            rollout = self.prop.rollout(node.state, node.cursor, segments, goal=goal,
+                                        pull_phi=self.s.pull_phi, max_steps=remaining,
+                                        deadline=self.s.deadline)
+        self.stats.rollouts += 1
+        self.stats.steps["connections" if goal is not None else "motions"] += rollout.steps
+        # the run (for a later continuation) is the tail of pulling segments
+        tail = []
+        for seg in reversed(run):
+            if seg.direction != PULL:
+                break
+            tail.insert(0, seg)
+        if tail and len(tail) < len(run):
+            root = None  # a pull run that starts inside these segments: never continued
+        return rollout, root, tuple(tail)
+
+    def _expand(self, node: Node, seg: Segment) -> Node | None:
+        if not self._reference_clear(node.cursor, [seg]):
+            self.stats.failures["reference"] += 1
+            return None
+        rollout, root, run = self._roll(node, [seg])
+        if not rollout.ok:
+            if rollout.failure["kind"] not in ("budget", "deadline"):
+                self.stats.record(rollout.failure)
+            return None
+        h = self.heuristic(rollout.cursor.pose, rollout.cursor.direction)
+        child = Node(rollout.state, rollout.cursor, node.g + self._cost(node, [seg]), h, node,
+                     (seg,), root if seg.direction == PULL else None,
+                     run if seg.direction == PULL else (), _trace(rollout, self.train.geometry),
+                     node.depth + 1)
+        return child
+
+    def _reference_clear(self, cursor: Cursor, segments, spacing: float = 0.05) -> bool:
+        """The last trailer's own footprint, placed exactly on the reference, keeps its
+        clearance along ``segments`` (a cheap necessary condition before a rollout)."""
+        poses = _sample_reference(cursor.pose, segments, spacing)
+        prop = self.prop
+        n = self.train.n
+        smp = prop.samples
+        sel = smp.body == n
+        c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+        px = poses[:, :1] + smp.u[sel][None, :] * c - smp.v[sel][None, :] * s
+        py = poses[:, 1:2] + smp.u[sel][None, :] * s + smp.v[sel][None, :] * c
+        return bool((prop.field.at(px, py) >= smp.threshold[sel][None, :]).all())
+
+    # ------------------------------------------------------------------ goal
+    def _analytic(self, node: Node) -> Solution | None:
+        s = self.s
+        self.stats.analytic_tries += 1
+        due = (self.stats.expansions - self._last_analytic >= s.analytic_every
+               or node is self.root)
+        attempts = 0
+        for kind, segments in self._connections(node):
+            if kind[0] in ("approach", "direct") and not due:
+                break
+            if attempts >= s.analytic_per_node and not due:
+                break
+            if not segments or not self._reference_clear(node.cursor, segments):
+                continue
+            attempts += 1
+            if kind[0] in ("approach", "direct"):
+                self._last_analytic = self.stats.expansions
+            self.stats.analytic_closed_loop += 1
+            rollout, _, _ = self._roll(node, segments, goal=self.goal)
+            if rollout.ok:
+                full = node.path_segments() + list(segments)
+                return Solution(full, node.g + self._cost(node, segments), node, rollout,
+                                self.stats.expansions, self.prop.steps)
+            if rollout.failure["kind"] not in ("budget", "deadline"):
+                self.stats.record(rollout.failure)
+        return None
+
+
+    def _connections(self, node: Node):
+        """Candidate ways to the goal from ``node``, the driver's first: straight, one arc,
+        straight (:func:`corner_segments`, pushing or pulling, the widest arc up to
+        ``corner_radii[0]`` turning radii, then the tighter ones), also after a straight push
+        of ``straighten`` metres where the chain is too bent to pull; then Reeds-Shepp paths
+        (radius ``turning radius * f`` for f in ``analytic_radii``) to a pose ``approach``
+        metres before the goal followed by a straight push onto it (the followers line up
+        behind the last trailer before it arrives), and straight to the goal."""
+        s = self.s
+        pose = node.cursor.pose
+        bent = np.abs(node.state.phi()).max() > s.pull_phi
+        for direction in (PUSH, PULL):
+            if direction == PULL and bent:
+                continue
+            for k, factor in enumerate(s.corner_radii):
+                radius = None if k == 0 else s.radius * factor
+                path = corner_segments(pose, self.goal, direction, radius,
+                                       max_radius=s.radius * s.corner_radii[0])
+                if path:
+                    yield ("corner", direction, factor), path
+        if bent:
+            for d in s.straighten:
+                push = Segment("line", d, 0.0, PUSH)
+                ahead = _sample_reference(pose, [push], d)[-1]
+                for k, factor in enumerate(s.corner_radii):
+                    radius = None if k == 0 else s.radius * factor
+                    path = corner_segments(ahead, self.goal, PULL, radius,
+                                           max_radius=s.radius * s.corner_radii[0])
+                    if path:
+                        yield ("straighten", d, factor), [push] + path
+        gx, gy, gth = self.goal
+        pre = (gx + s.approach * math.cos(gth), gy + s.approach * math.sin(gth), gth)
+        for factor in s.analytic_radii:
+            radius = s.radius * factor
+            if s.approach > 0.0:
+                head = rs_segments(pose, pre, radius)
+                if head:
+                    yield ("approach", factor), head + [Segment("line", s.approach, 0.0, PUSH)]
+            yield ("direct", factor), rs_segments(pose, self.goal, radius)
+
+
+def corner_segments(pose, goal, direction: int, radius: float | None = None,
+                    max_radius: float = math.inf) -> list[Segment] | None:
+    """Straight, arc, straight from ``pose`` to ``goal`` (chain convention) in one
+    ``direction`` (PUSH or PULL): the path a driver takes round a corner.
+
+    The two poses' lines of travel must meet ahead of ``pose`` and behind ``goal``; the arc of
+    ``radius`` [m] (None: the largest that fits, at most ``max_radius``) is tangent to both.
+    Collinear poses give one straight line. Returns None where no such path exists (the lines
+    do not meet ahead, or the radius does not fit between the corner and the poses).
+    """
+    sigma = -1.0 if direction == PUSH else 1.0
+    ax, ay = sigma * math.cos(pose[2]), sigma * math.sin(pose[2])
+    bx, by = sigma * math.cos(goal[2]), sigma * math.sin(goal[2])
+    dx, dy = goal[0] - pose[0], goal[1] - pose[1]
+    cross = ax * by - ay * bx
+    alpha = math.atan2(cross, ax * bx + ay * by)  # turn of the direction of travel
+    if abs(alpha) < 1e-9:
+        lateral = ax * dy - ay * dx
+        ahead = float(ax * dx + ay * dy)
+        if abs(lateral) > 1e-6 or ahead <= 1e-6:
+            return None
+        return [Segment("line", ahead, 0.0, direction)]
+    # pose + s a = goal - t b
+    s = float((dx * by - dy * bx) / cross)
+    t = float((dy * ax - dx * ay) / cross)
+    if s <= 0.0 or t <= 0.0:
+        return None
+    half = math.tan(0.5 * abs(alpha))
+    fits = min(s, t) / half
+    r = min(fits, max_radius) if radius is None else radius
+    if r > fits + 1e-9 or r <= 0.0:
+        return None
+    tangent = r * half
+    out = []
+    if s - tangent > 1e-6:
+        out.append(Segment("line", s - tangent, 0.0, direction))
+    out.append(Segment("arc", r * abs(alpha), math.copysign(1.0 / r, alpha), direction))
+    if t - tangent > 1e-6:
+        out.append(Segment("line", t - tangent, 0.0, direction))
+    return out
+
+
+def rs_segments(pose, goal, radius: float) -> list[Segment]:
+    """The shortest Reeds-Shepp path of ``radius`` [m] from ``pose`` to ``goal`` (chain
+    convention) as reference segments (forward = pushing)."""
+    a = (pose[0], pose[1], pose[2] + math.pi)
+    b = (goal[0], goal[1], goal[2] + math.pi)
+    curve = ReedsSheppCurve(radius, a, b)
+    if curve.length < 1e-6:
+        return []
+    segments = primitives_to_segments(curve.primitives(), radius)
+    return [g for g in segments if g.length > 1e-6]
+
+
+def _sample_reference(pose, segments, spacing: float) -> np.ndarray:
+    """Poses (x, y, theta) along line/arc ``segments`` from ``pose`` every <= ``spacing`` m."""
+    out = [tuple(pose)]
+    x, y, th = (float(a) for a in pose)
+    for seg in segments:
+        sigma = -float(seg.direction)
+        m = max(1, int(math.ceil(seg.length / spacing)))
+        ds = seg.length / m
+        k = seg.curvature
+        for _ in range(m):
+            if abs(k) < 1e-12:
+                x += sigma * ds * math.cos(th)
+                y += sigma * ds * math.sin(th)
+            else:
+                th1 = th + k * ds
+                x += sigma * (math.sin(th1) - math.sin(th)) / k
+                y -= sigma * (math.cos(th1) - math.cos(th)) / k
+                th = th1
+            out.append((x, y, th))
+    return np.array(out)
+
+
+def _trace(rollout: Rollout, geometry, every: int = 25) -> np.ndarray:
+    """The last trailer's positions along a rollout, thinned (for drawing the explored tree)."""
+    z = rollout.z[::every]
+    if (rollout.z.shape[0] - 1) % every:
+        z = np.vstack([z, rollout.z[-1:]])
+    x, y = body_positions(z, geometry)
+    return np.column_stack([x[:, -1], y[:, -1]])

@@ -1,0 +1,365 @@
+"""The closed-loop propagator: the train under its controller along a piece of reference.
+
+The whole-train planner (:mod:`~pushtrain.planner.lattice`) grows its search by appending line,
+arc and Reeds-Shepp pieces to the last trailer's reference and asking what the *train* does
+when the co-simulation's controller tracks them. This module answers that, resumably:
+
+State (:class:`TrainState`)
+    The control instant ``k`` (time ``k * step``), the kinematic chain
+    ``z = (x0, y0, theta_0..theta_n)`` and the controller's memory (the previous command and
+    its time, for the rate limits). The state is taken at an instant *before* its command.
+Reference cursor (:class:`Cursor`)
+    Where the reference stands: the last trailer's reference pose at time ``t`` and the
+    direction of its last motion (0 before any).
+Rollout (:meth:`Propagator.rollout`)
+    ``Reference.from_segments(cursor pose, segments, speed, cusp_dwell, t0)`` with
+    ``t0 = cursor.t`` plus one cusp dwell if the first segment turns the cursor's direction
+    (the reference then rests at the cursor before ``t0``, as a longer reference would during
+    its dwell), tracked by :class:`~pushtrain.core.controller.BackwardController` through
+    :class:`~pushtrain.core.tracking.TrackingLoop` exactly as
+    :func:`~pushtrain.planner.train_check.simulate_tracking` does (RK4 of the towed chain under
+    the held command, step ``tracker.step``), from the state's instant up to the first instant
+    at or after the reference's end. The commands up to there depend only on these segments,
+    so appending pushes is exact: a rollout continued piece by piece gives the run of the whole
+    reference. Pulls are not: the robot's pulling reference
+    (:class:`~pushtrain.core.pulling.PullGuide`) is computed backward from the end of the whole
+    pulling run, so the search rolls a growing pull out again from where the run began (see
+    :mod:`~pushtrain.planner.lattice`).
+Checks
+    Every ``check_every``-th state (and the last) is tested with
+    :func:`~pushtrain.planner.footprint.first_failure`: every body's clearance against the
+    distance field, the joint limit and self-collision; a rollout stops at its first failure.
+Goal
+    With ``goal`` given, the run goes on past the reference's end at rest until the last
+    trailer is within ``tracker.goal_tolerance`` of it (the co-simulation's goal test: the first
+    control instant at or after the end within the tolerance) or ``tracker.settle_time`` has
+    passed.
+
+This is the readable implementation (the same Python controller the co-simulation calls);
+its cost is that of :func:`~pushtrain.planner.train_check.simulate_tracking`, about 60 us per
+simulated step for three trailers. Units: SI, radians.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.tracking import TrackingLoop
+
+from .distance_field import DistanceField
+from .footprint import BodySamples, first_failure
+from .train_check import TrackerConfig, _Measurement, _rk4_step, towed_rates
+from .world import Train
+
+__all__ = ["TrainState", "Cursor", "Rollout", "Propagator", "last_pose"]
+
+
+@dataclass(frozen=True)
+class TrainState:
+    """The closed loop at one control instant, before its command.
+
+    Attributes
+    ----------
+    k : int
+        Control instant (time ``k * step`` [s]).
+    z : tuple of float
+        ``(x0, y0, theta_0..theta_n)``: robot position [m] and every heading [rad].
+    memory : tuple
+        The controller's ``(v_prev [m/s], w_prev [rad/s], t_prev [s] or None)``.
+    """
+
+    k: int
+    z: tuple
+    memory: tuple = (0.0, 0.0, None)
+
+    def phi(self) -> np.ndarray:
+        """Joint angles phi_i = theta_{i-1} - theta_i [rad], wrapped, (n,)."""
+        th = np.asarray(self.z[2:])
+        return (th[:-1] - th[1:] + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class Cursor:
+    """The reference's end so far: the last trailer's pose (x, y, theta) [m, m, rad] at time
+    ``t`` [s] and the direction of its last motion (PUSH, PULL or 0 before any)."""
+
+    x: float
+    y: float
+    theta: float
+    t: float
+    direction: int = 0
+
+    @property
+    def pose(self) -> tuple:
+        return (self.x, self.y, self.theta)
+
+
+@dataclass
+class Rollout:
+    """What :meth:`Propagator.rollout` simulated.
+
+    Attributes
+    ----------
+    ok : bool
+        No failure (and, with a goal, the goal reached).
+    failure : dict or None
+        :func:`~pushtrain.planner.footprint.first_failure`'s dict with ``t`` [s] added, or
+        ``{"kind": "goal_missed", "distance", "heading_error", ...}``.
+    state : TrainState
+        At the first instant at or after the reference's end (with a goal: where it was
+        reached, or the end of the settling); at a failure the last state simulated.
+    cursor : Cursor
+        The reference's end.
+    z : (K, 3 + n) array
+        Every simulated state, the first one the start state's.
+    reference : (K, 3) array
+        The last trailer's reference pose at each state's time.
+    reserve : float
+        Smallest clearance excess [m] over the checked states (see
+        :func:`~pushtrain.planner.footprint.first_failure`).
+    steps : int
+        Control steps simulated (the unit of the planner's work budget).
+    goal_error : (float, float) or None
+        Distance [m] and |heading error| [rad] of the last trailer to the goal at the end.
+    """
+
+    ok: bool
+    failure: dict | None
+    state: TrainState
+    cursor: Cursor
+    z: np.ndarray
+    reference: np.ndarray
+    reserve: float
+    steps: int
+    goal_error: tuple | None = None
+    extra: dict = field(default_factory=dict)
+
+
+def _max_abs_phi(z: Sequence[float]) -> float:
+    """The largest |phi_i| [rad] of a train state ``z`` (plain floats)."""
+    return max(abs(math.remainder(z[i] - z[i + 1], 2.0 * math.pi)) for i in range(2, len(z) - 1))
+
+
+def last_pose(z: Sequence[float], front, rear) -> tuple:
+    """The last trailer's pose (x, y, theta) from a train state ``z`` (plain floats)."""
+    x, y = z[0], z[1]
+    th = z[2:]
+    for i in range(len(front)):
+        x -= rear[i] * math.cos(th[i]) + front[i] * math.cos(th[i + 1])
+        y -= rear[i] * math.sin(th[i]) + front[i] * math.sin(th[i + 1])
+    return x, y, th[-1]
+
+
+class Propagator:
+    """Closed-loop rollouts of the train along reference pieces (see the module docstring).
+
+    Parameters
+    ----------
+    train : Train
+        The plant (geometry, footprints, joint limit).
+    controller : ControllerConfig
+        The co-simulation's controller.
+    tracker : TrackerConfig
+        Reference speed, cusp dwell, control step, settle time and goal tolerance.
+    field : DistanceField
+        The map's signed distance field.
+    samples : BodySamples
+        Every body's sample points and thresholds
+        (:func:`~pushtrain.planner.footprint.body_samples`).
+    phi_limit : float
+        Largest |phi_i| [rad] allowed along a rollout.
+    check_every : int
+        Test every ``check_every``-th simulated state (and the last one).
+    goal_phi : float or None
+        The goal also needs every |phi_i| <= ``goal_phi`` [rad] (a straight train); None: any
+        chain.
+    """
+
+    def __init__(self, train: Train, controller: ControllerConfig, tracker: TrackerConfig,
+                 field: DistanceField, samples: BodySamples, phi_limit: float,
+                 check_every: int = 1, goal_phi: float | None = None):
+        self.train = train
+        self.controller = controller
+        self.tracker = tracker
+        self.field = field
+        self.samples = samples
+        self.phi_limit = float(phi_limit)
+        self.check_every = max(1, int(check_every))
+        self.goal_phi = None if goal_phi is None else float(goal_phi)
+        self.step = float(tracker.step)
+        self._rates = towed_rates(train.geometry)
+        self._front = [float(a) for a in train.geometry.front]
+        self._rear = [float(a) for a in train.geometry.rear]
+        self.steps = 0
+        """Control steps simulated by this propagator so far (all rollouts)."""
+
+    # ------------------------------------------------------------------ states
+    def initial_state(self, start: Sequence[float], headings: Sequence[float]) -> TrainState:
+        """The state at t = 0: the last trailer at ``start`` with ``headings`` (n+1,) [rad], at
+        rest, the rate limits starting from rest one step before (as the co-simulation)."""
+        th = [float(a) for a in headings]
+        x, y = float(start[0]), float(start[1])
+        for i in range(len(self._front) - 1, -1, -1):
+            x += self._front[i] * math.cos(th[i + 1]) + self._rear[i] * math.cos(th[i])
+            y += self._front[i] * math.sin(th[i + 1]) + self._rear[i] * math.sin(th[i])
+        return TrainState(0, (x, y, *th), (0.0, 0.0, -self.step))
+
+    def last_pose(self, state: TrainState) -> tuple:
+        """The last trailer's pose (x, y, theta) [m, m, rad] in ``state``."""
+        return last_pose(state.z, self._front, self._rear)
+
+    def check(self, z: np.ndarray):
+        """:func:`~pushtrain.planner.footprint.first_failure` of states ``z`` (K, 3 + n)."""
+        return first_failure(self.train, self.field, self.samples, z, self.phi_limit)
+
+    # ------------------------------------------------------------------ rollout
+    def reference(self, cursor: Cursor, segments: Sequence[Segment]) -> Reference:
+        """The reference of ``segments`` continued from ``cursor`` (a dwell first if they turn
+        the cursor's direction)."""
+        dwell = float(self.tracker.cusp_dwell)
+        turn = cursor.direction in (PUSH, PULL) and segments[0].direction != cursor.direction
+        t0 = cursor.t + dwell if turn and dwell > 0.0 else cursor.t
+        return Reference.from_segments(cursor.pose, list(segments), self.tracker.speed, dwell, t0)
+
+    def rollout(self, state: TrainState, cursor: Cursor, segments: Sequence[Segment],
+                goal: Sequence[float] | None = None, pull_phi: float | None = None,
+                max_steps: int | None = None, deadline: float | None = None,
+                record: bool = False, chunk: int = 40) -> Rollout:
+        """Track ``segments`` from ``state`` with the reference continued from ``cursor``.
+
+        Parameters
+        ----------
+        state, cursor : TrainState, Cursor
+        segments : sequence of Segment
+        goal : (x, y, theta) or None
+            Go on at rest until the last trailer is within the goal tolerance of it.
+        pull_phi : float or None
+            The pull rule: every pulling run of the reference must start (at the first instant
+            at or after its start) with every |phi_i| <= ``pull_phi`` [rad]; else the rollout
+            fails with kind ``"pull_rule"``.
+        max_steps : int or None
+            Stop (failure kind ``"budget"``) after this many steps.
+        deadline : float or None
+            ``time.perf_counter()`` value at which to stop (failure kind ``"deadline"``).
+        record : bool
+            Keep the commands and reference directions (``extra["command"]``,
+            ``extra["direction"]``) for :func:`~pushtrain.planner.train_check.check_train`.
+        chunk : int
+            States simulated between two checks.
+        """
+        ref = self.reference(cursor, segments)
+        step = self.step
+        t_end = ref.t_end
+        end = ref.sample_at(t_end)
+        new_cursor = Cursor(end.x, end.y, end.theta, t_end, segments[-1].direction)
+        k_end = max(state.k, int(math.ceil(t_end / step - 1e-9)))
+        k_stop = k_end
+        if goal is not None:
+            k_stop = max(k_end, int(math.ceil((t_end + self.tracker.settle_time) / step - 1e-9)))
+            tol = self.tracker.goal_tolerance or (math.inf, math.inf)
+        ctrl = BackwardController(self.controller)
+        ctrl.reset(*state.memory)
+        loop = TrackingLoop(ctrl, ref)
+        rates = self._rates
+        z = list(state.z)
+        rows, refs = [z], []
+        k = state.k
+        checked = 0  # rows[:checked] passed the checks
+        reserve = math.inf
+        failure = None
+        reached, goal_error = False, None
+        memory = state.memory
+        pull_starts = ([k_a for k_a in (int(math.ceil(a / step - 1e-9))
+                                        for a, _ in ref.pull_intervals()) if k_a >= state.k]
+                       if pull_phi is not None else [])
+        commands, directions = [], []
+        limit = math.inf if max_steps is None else state.k + int(max_steps)
+        while True:
+            if pull_starts and k == pull_starts[0]:
+                pull_starts.pop(0)
+                worst = _max_abs_phi(z)
+                if worst > pull_phi:
+                    x, y, _ = last_pose(z, self._front, self._rear)
+                    failure = {"kind": "pull_rule", "k": k - state.k, "body": self.train.n,
+                               "x": x, "y": y, "phi": worst}
+                    break
+            if k >= limit or (deadline is not None and (k - state.k) % chunk == 0
+                              and time.perf_counter() >= deadline):
+                x, y, _ = last_pose(z, self._front, self._rear)
+                failure = {"kind": "budget" if k >= limit else "deadline", "k": k - state.k,
+                           "body": self.train.n, "x": x, "y": y}
+                break
+            if goal is not None and k >= k_end:
+                x, y, th = last_pose(z, self._front, self._rear)
+                dist = math.hypot(x - goal[0], y - goal[1])
+                head = abs(math.remainder(th - goal[2], 2.0 * math.pi))
+                goal_error = (dist, head)
+                if dist <= tol[0] and head <= tol[1] and (
+                        self.goal_phi is None or _max_abs_phi(z) <= self.goal_phi):
+                    reached = True
+            if reached or k >= k_stop:
+                r = ref.sample_at(k * step)
+                refs.append((r.x, r.y, r.theta))
+                break
+            t = k * step
+            v0, w0, _, r = loop.command(t, _Measurement(z))
+            refs.append((r.x, r.y, r.theta))
+            if record:
+                commands.append((v0, w0))
+                directions.append(r.direction)
+            z = _rk4_step(rates, z, v0, w0, step)
+            memory = ctrl.state
+            rows.append(z)
+            k += 1
+            if len(rows) - checked >= chunk:
+                failure, res = self._check_rows(rows, checked)
+                reserve = min(reserve, res)
+                checked = len(rows)
+                if failure is not None:
+                    break
+        self.steps += k - state.k
+        if checked < len(rows):
+            late, res = self._check_rows(rows, checked)
+            reserve = min(reserve, res)
+            if late is not None and (failure is None or late["k"] <= failure["k"]):
+                failure = late
+        z_all = np.array(rows)
+        while len(refs) < len(rows):
+            r = ref.sample_at((state.k + len(refs)) * step)
+            refs.append((r.x, r.y, r.theta))
+        reference = np.array(refs[:len(rows)])
+        if failure is not None:
+            failure["t"] = (state.k + failure["k"]) * step
+            failure["k"] += state.k
+        elif goal is not None and not reached:
+            x, y, th = last_pose(z, self._front, self._rear)
+            failure = {"kind": "goal_missed", "k": k, "t": k * step, "body": self.train.n,
+                       "x": x, "y": y, "distance": goal_error[0],
+                       "heading_error": goal_error[1], "max_abs_phi": _max_abs_phi(z)}
+        final = TrainState(k, tuple(z), memory)
+        extra = {}
+        if record:
+            extra = {"command": np.array(commands + [(0.0, 0.0)] * (len(rows) - len(commands))),
+                     "direction": np.array(directions + [0] * (len(rows) - len(directions)),
+                                           dtype=int),
+                     "t": step * np.arange(state.k, state.k + len(rows))}
+        return Rollout(failure is None, failure, final, new_cursor, z_all, reference, reserve,
+                       k - state.k, goal_error, extra)
+
+    def _check_rows(self, rows: list, start: int):
+        """Check rows[start:] (each check includes the stride's last row)."""
+        z = np.array(rows[start:])
+        idx = np.arange(0, z.shape[0], self.check_every)
+        if idx[-1] != z.shape[0] - 1:
+            idx = np.append(idx, z.shape[0] - 1)
+        failure, reserve = self.check(z[idx])
+        if failure is not None:
+            failure["k"] = int(start + idx[failure["k"]])
+        return failure, reserve

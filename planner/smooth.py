@@ -1,0 +1,122 @@
+"""Smoothing of a found path toward the fewest turns: merged pieces and Reeds-Shepp shortcuts.
+
+A search result is a chain of short primitives (and a final Reeds-Shepp connection). Two steps
+make it the path a driver would drive:
+
+:func:`merge`
+    Consecutive pieces of equal kind, curvature, direction and speed become one segment. The
+    reference (and hence the closed loop) is exactly the same; the path just reads as what it
+    is ("push 4.5 m straight", not nine half-metre lines).
+:func:`shortcut`
+    Greedy shortcuts: from each junction of the path (a pose where one piece meets the next),
+    the farthest later junction is tried first; the stretch between them is replaced by a
+    corner path (straight, one arc, straight) or the Reeds-Shepp path of the planning radius if
+    that lowers the path's cost (length, turning, changes of curvature, cusps, as the search
+    prices them) and the whole new path passes the closed-loop verification. Hybrid A*'s
+    detours (an S-bend of a few centimetres to land on a grid cell)
+    disappear this way. Each try costs one closed-loop run of the whole path, so the tries are
+    bounded by ``max_tries`` and the deadline.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+
+from pushtrain.core.reference import PULL, Segment
+
+from .lattice import _sample_reference, corner_segments, rs_segments
+
+__all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]
+
+
+def merge(segments: Sequence[Segment]) -> list[Segment]:
+    """Consecutive segments of equal kind, curvature, direction and speed joined into one."""
+    out: list[Segment] = []
+    for g in segments:
+        if out and (out[-1].kind, out[-1].curvature, out[-1].direction, out[-1].speed) == (
+                g.kind, g.curvature, g.direction, g.speed):
+            out[-1] = Segment(g.kind, out[-1].length + g.length, g.curvature, g.direction,
+                              g.speed)
+        else:
+            out.append(g)
+    return out
+
+
+def total_turning(segments: Sequence[Segment]) -> float:
+    """The integral of |curvature| over the path [rad]: the heading turned in total."""
+    return float(sum(abs(g.curvature) * g.length for g in segments))
+
+
+def path_cost(segments: Sequence[Segment], turn_weight: float = 0.3, cusp_cost: float = 2.0,
+              pull_factor: float = 1.2, change_weight: float = 0.25) -> float:
+    """Length (pulls weighted), turning, changes of curvature and cusps, priced as the search
+    prices them (:class:`~pushtrain.planner.lattice.SearchSettings`)."""
+    cost = 0.0
+    previous = None
+    for g in segments:
+        cost += g.length * (pull_factor if g.direction == PULL else 1.0)
+        cost += turn_weight * abs(g.curvature) * g.length
+        if previous is not None:
+            if g.direction != previous.direction:
+                cost += cusp_cost
+            if g.curvature != previous.curvature:
+                cost += change_weight
+        previous = g
+    return cost
+
+
+def junction_poses(start, segments: Sequence[Segment]) -> list[tuple]:
+    """The reference pose at the start of every segment and at the end, (len + 1) poses."""
+    poses = [tuple(float(a) for a in start)]
+    for g in segments:
+        poses.append(tuple(_sample_reference(poses[-1], [g], g.length + 1.0)[-1]))
+    return poses
+
+
+def _bridges(a, b, direction: int, radius: float):
+    """Ways from pose ``a`` to pose ``b``: the corner path (straight, arc, straight) in
+    ``direction`` with the widest arc that fits (up to three turning radii) and with the turning
+    radius, then the shortest Reeds-Shepp path."""
+    for r in (None, radius):
+        path = corner_segments(a, b, direction, r, max_radius=3.0 * radius)
+        if path:
+            yield path
+    path = rs_segments(a, b, radius)
+    if path:
+        yield path
+
+
+def shortcut(segments: list[Segment], checked, start, goal, radius: float,
+             verify: Callable, deadline: float = math.inf, max_tries: int = 12):
+    """Greedy Reeds-Shepp shortcuts (see the module docstring).
+
+    ``verify(segments)`` returns a check result with ``ok``; ``checked`` is the verified check
+    of ``segments``. Returns (segments, their check, number of shortcuts taken).
+    """
+    best, best_check = list(segments), checked
+    taken, tries = 0, 0
+    i = 0
+    while i < len(best) - 1 and tries < max_tries:
+        poses = junction_poses(start, best)
+        improved = False
+        for j in range(len(best), i + 1, -1):
+            if tries >= max_tries or time.perf_counter() >= deadline:
+                return best, best_check, taken
+            for bridge in _bridges(poses[i], poses[j], best[i].direction, radius):
+                candidate = merge(best[:i] + bridge + best[j:])
+                if path_cost(candidate) >= path_cost(best) - 1e-3:
+                    continue
+                tries += 1
+                result = verify(candidate)
+                if result.ok:
+                    best, best_check = candidate, result
+                    taken += 1
+                    improved = True
+                    break
+            if improved:
+                break
+        if not improved:
+            i += 1
+    return best, best_check, taken

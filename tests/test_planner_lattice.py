@@ -1,0 +1,179 @@
+"""The whole-train planner (``planner = "lattice"``): corner paths, plans of the facility
+manoeuvres, determinism under load, budgets and failure diagnostics."""
+
+import json
+import math
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from pushtrain.core.reference import PULL, PUSH, Reference
+from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
+from pushtrain.planner.lattice import corner_segments
+from pushtrain.planner.smooth import merge, total_turning
+
+TRAIN = Train.uniform(3)
+
+
+def _end(pose, segments):
+    ref = Reference.from_segments(pose, segments, speed=1.0, cusp_dwell=0.0)
+    x, y, th, _, _ = ref.sample([ref.t_end])
+    return x[0], y[0], th[0]
+
+
+@pytest.mark.parametrize("direction", [PUSH, PULL])
+@pytest.mark.parametrize("turn_deg", [30.0, 90.0, -90.0, 135.0])
+def test_a_corner_path_lands_on_its_goal(direction, turn_deg):
+    pose = (0.0, 0.0, math.pi if direction == PUSH else 0.0)  # both travel toward +x
+    turn = math.radians(turn_deg)
+    # the goal: 3 m ahead, then 2.5 m along the turned direction
+    gx, gy = 3.0 + 2.5 * math.cos(turn), 2.5 * math.sin(turn)
+    goal = (gx, gy, pose[2] + turn)
+    for radius in (None, 1.0):
+        path = corner_segments(pose, goal, direction, radius, max_radius=2.0)
+        kinds = [g.kind for g in path]
+        assert kinds.count("arc") == 1 and kinds in (["line", "arc", "line"], ["line", "arc"])
+        assert all(g.direction == direction for g in path)
+        x, y, th = _end(pose, path)
+        assert (x, y) == pytest.approx((gx, gy), abs=1e-9)
+        assert math.remainder(th - goal[2], 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+        arc = path[kinds.index("arc")]
+        assert abs(arc.curvature) * arc.length == pytest.approx(abs(turn))
+        if radius is None:  # the widest arc that fits, up to max_radius
+            expected = min(2.0, 2.5 / math.tan(0.5 * abs(turn)))
+            assert 1.0 / abs(arc.curvature) == pytest.approx(expected)
+
+
+def test_corner_paths_that_do_not_exist():
+    # the goal's line of travel meets the pose's behind it
+    assert corner_segments((0.0, 0.0, math.pi), (-3.0, 2.0, math.pi / 2), PUSH) is None
+    # an arc too wide for the corner
+    assert corner_segments((0.0, 0.0, math.pi), (1.0, 1.0, -math.pi / 2), PUSH, 2.0) is None
+    # collinear: one line, or nothing if the goal lies behind
+    line = corner_segments((0.0, 0.0, math.pi), (2.0, 0.0, math.pi), PUSH)
+    assert [(g.kind, g.length) for g in line] == [("line", pytest.approx(2.0))]
+    assert corner_segments((0.0, 0.0, math.pi), (-2.0, 0.0, math.pi), PUSH) is None
+
+
+def test_merge_keeps_the_reference_and_joins_equal_pieces():
+    case = worlds.docking_bay()
+    path = corner_segments(case["start"], case["goal"], PUSH, 1.0)
+    pieces = []
+    for g in path:
+        pieces += [type(g)(g.kind, g.length / 4, g.curvature, g.direction)] * 4
+    merged = merge(pieces)
+    assert len(merged) == len(path)
+    assert _end(case["start"], merged) == pytest.approx(_end(case["start"], pieces), abs=1e-9)
+    assert total_turning(merged) == pytest.approx(math.pi / 2)
+
+
+def _plan(name, **settings):
+    case = worlds.CASES[name]()
+    n = {"narrow_l": 5, "corner_10": 10}.get(name, 3)
+    train = Train.uniform(n)
+    world = World.from_dict(case["world"])
+    config = PlannerConfig(time_budget=600.0, **settings)
+    return case, world, train, plan(world, case["start"], case["goal"], train, config)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["docking", "narrow_l", "parallel", "t_junction", "bay",
+                                  "l_2.0"])
+def test_the_manoeuvres_plan_and_the_whole_train_keeps_its_clearance(name):
+    case, world, train, path = _plan(name)
+    check = path.info["train_check"]
+    # the closed loop reaches the goal within the tolerance (5 cm, 5 deg by default)
+    assert check["goal_error"][0] <= 0.05 and check["goal_error"][1] <= math.radians(5.0)
+    # every body keeps its clearance (measured exactly, shapely) and no joint passes the limit
+    assert check["wall_clearance"] >= 0.05 - 1e-9
+    assert max(check["max_abs_phi"]) <= train.phi_max - math.radians(5.0) + 1e-9
+    assert np.allclose(path.goal[:2], case["goal"][:2], atol=1e-6)
+    if name == "t_junction":
+        # a three-point turn: pushed into the branch, pulled out the other way
+        assert path.n_cusps >= 1 and {g.direction for g in path.segments} == {PUSH, PULL}
+        # every pull starts where the simulated chain is straight within the pull rule
+        phi = path.joint_angles()
+        for k in path.cusps:
+            if path.segments[path.interval_segment[k]].direction == PULL:
+                assert np.abs(phi[k]).max() <= math.radians(15.0) + 0.02
+    if name == "docking":
+        assert path.n_cusps == 0
+
+
+def test_a_goal_closer_to_the_wall_than_the_clearance_is_refused_with_numbers():
+    case = worlds.docking_bay()
+    world = World.from_dict(case["world"])
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(clearance=0.2))
+    err = info.value
+    assert err.reason == "goal_in_collision"
+    assert "keeps only 0.150 m" in str(err) and "asks 0.200 m" in str(err)
+    assert err.details["gap"] == pytest.approx(0.15, abs=1e-6)
+    assert err.details["constraint"] == "goal footprint vs clearance"
+
+
+def test_the_start_in_a_wall_names_the_body():
+    case = worlds.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    with pytest.raises(PlanningError) as info:
+        plan(world, (2.0, 1.0, math.pi), case["goal"], TRAIN)
+    assert info.value.reason == "start_in_collision"
+    assert info.value.details["body"] == 0 and "robot" in str(info.value)
+
+
+def test_separated_rooms_are_unreachable_at_once():
+    case = worlds.two_rooms(0.5)
+    world = World.from_dict(case["world"])
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], TRAIN)
+    assert info.value.reason == "unreachable"
+    assert "narrower than 0.700 m" in str(info.value)
+
+
+def test_a_joint_limit_that_forbids_the_corner_says_so(monkeypatch):
+    """With phi_max = 25 deg the train cannot turn round the L's corner: the search runs out of
+    states or budget, and the message counts the motions the joint limit stopped."""
+    import pushtrain.planner.budget as budget
+
+    monkeypatch.setattr(budget, "STEPS_PER_SECOND", 20_000)
+    case = worlds.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    train = Train.uniform(3, phi_max=math.radians(25.0))
+    config = PlannerConfig(time_budget=3.0, joint_margin=math.radians(2.0))
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], train, config)
+    err = info.value
+    assert err.reason in ("budget_exhausted", "unreachable")
+    assert err.details["failures"].get("joint_limit", 0) > 0
+    assert "bent a joint beyond 23.0 deg" in str(err)
+    # the budget is counted in simulated steps and never exceeded
+    assert err.details["steps"] <= config.budget_steps()
+    # what the picture needs
+    assert err.details["tree"] and err.details["closest"]["segments"] is not None
+    assert err.details["margins"] == [0.05] * 4
+
+
+def _plan_in_subprocess(name: str) -> subprocess.Popen:
+    code = textwrap.dedent(f"""
+        import json
+        from pushtrain.planner import PlannerConfig, Train, World, plan, worlds
+        case = worlds.CASES[{name!r}]()
+        path = plan(World.from_dict(case["world"]), case["start"], case["goal"],
+                    Train.uniform(3), PlannerConfig(time_budget=300.0))
+        print(json.dumps({{"segments": path.to_dict()["segments"],
+                           "capped": path.info["time_capped"], "steps": path.info["steps"]}}))
+    """)
+    return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+
+
+def test_the_same_plan_under_load():
+    """Two plans at once (each slowing the other down) give the same path and the same work:
+    the search's work decides, never the clock."""
+    procs = [_plan_in_subprocess("parallel") for _ in range(2)]
+    outs = [json.loads(p.communicate(timeout=900)[0]) for p in procs]
+    assert all(p.returncode == 0 for p in procs)
+    assert not outs[0]["capped"] and not outs[1]["capped"]
+    assert outs[0] == outs[1]

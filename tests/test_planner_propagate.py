@@ -1,0 +1,114 @@
+"""The closed-loop propagator: resumable rollouts equal one run of the whole reference."""
+
+import math
+
+import numpy as np
+import pytest
+
+from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.planner import Train, World
+from pushtrain.planner.footprint import body_samples
+from pushtrain.planner.propagate import Cursor, Propagator
+from pushtrain.planner.train_check import TrackerConfig, default_controller, simulate_tracking
+
+TRAIN = Train.uniform(3)
+OPEN = World.from_dict({"bounds": [-6, -6, 6, 6]})
+CONTROLLER = default_controller(TRAIN.geometry)
+
+
+def _propagator(tracker=None, world=OPEN, margin=0.0):
+    tracker = tracker or TrackerConfig(controller=CONTROLLER)
+    return Propagator(TRAIN, CONTROLLER, tracker, world.distance_field(),
+                      body_samples(TRAIN, margin), TRAIN.phi_max)
+
+
+SEGMENTS = [Segment("line", 0.5), Segment("arc", 0.7, 1 / 1.2), Segment("arc", 0.6, -1 / 1.5),
+            Segment("arc", 0.8, 1 / 1.5, PULL), Segment("line", 0.6, 0.0, PULL),
+            Segment("line", 0.5, 0.0, PUSH)]
+START = (0.0, 0.0, math.pi)
+HEADINGS = math.pi + np.array([0.4, 0.25, 0.1, 0.0])
+
+
+def test_pieces_rolled_out_one_after_another_equal_the_whole_run():
+    """Pushes continue exactly; a pulling run rolled out from where it began equals its part
+    of the whole run (bit for bit: the same controller, reference and integrator)."""
+    whole = simulate_tracking(TRAIN.geometry, Reference.from_segments(START, SEGMENTS, 0.08, 1.0),
+                              HEADINGS, CONTROLLER, 0.025, 0.0)
+    prop = _propagator()
+    state = prop.initial_state(START, HEADINGS)
+    assert np.array_equal(np.array(state.z), whole.state[0])
+    cursor = Cursor(*START, 0.0, 0)
+    for piece in ([SEGMENTS[0]], [SEGMENTS[1]], [SEGMENTS[2]], SEGMENTS[3:5], [SEGMENTS[5]]):
+        run = prop.rollout(state, cursor, piece)
+        assert run.ok, run.failure
+        k0 = state.k
+        assert np.array_equal(run.z, whole.state[k0:run.state.k + 1])
+        state, cursor = run.state, run.cursor
+    assert state.k == whole.t.size - 1
+    assert prop.steps == state.k
+
+
+def test_a_pull_continued_without_its_beginning_differs():
+    """Why the search rolls a growing pull out again from the run's start: the robot's pulling
+    reference depends on where the run ends."""
+    prop = _propagator()
+    state = prop.initial_state(START, np.full(4, math.pi))
+    cursor = Cursor(*START, 0.0, 0)
+    one = prop.rollout(state, cursor, [Segment("line", 0.6, 0.0, PULL)])
+    two = prop.rollout(one.state, one.cursor, [Segment("arc", 0.8, 1.0, PULL)])
+    whole = prop.rollout(state, cursor, [Segment("line", 0.6, 0.0, PULL),
+                                         Segment("arc", 0.8, 1.0, PULL)])
+    assert two.state.k == whole.state.k
+    assert np.abs(np.array(two.state.z) - np.array(whole.state.z)).max() > 1e-3
+
+
+def test_goal_mode_stops_at_the_first_instant_within_the_tolerance():
+    tracker = TrackerConfig(controller=CONTROLLER, goal_tolerance=(0.01, math.radians(1.0)))
+    prop = _propagator(tracker)
+    state = prop.initial_state(START, np.full(4, math.pi))
+    segs = [Segment("line", 1.0)]
+    goal = Reference.from_segments(START, segs, 0.08, 1.0).goal
+    run = prop.rollout(state, Cursor(*START, 0.0, 0), segs, goal=goal)
+    assert run.ok and run.goal_error[0] <= 0.01
+    x, y, th = prop.last_pose(run.state)
+    assert math.hypot(x - goal[0], y - goal[1]) == pytest.approx(run.goal_error[0])
+    # one instant earlier it was not yet within the tolerance, or the reference had not ended
+    t_end = 1.0 / 0.08
+    if (run.state.k - 1) * 0.025 >= t_end - 1e-9:
+        before = run.z[-2]
+        from pushtrain.planner.propagate import last_pose
+
+        bx, by, _ = last_pose(before, TRAIN.geometry.front, TRAIN.geometry.rear)
+        assert math.hypot(bx - goal[0], by - goal[1]) > 0.01
+    # a goal the reference does not lead to is missed
+    far = (goal[0] + 0.5, goal[1], goal[2])
+    missed = prop.rollout(state, Cursor(*START, 0.0, 0), segs, goal=far)
+    assert not missed.ok and missed.failure["kind"] == "goal_missed"
+    assert missed.failure["distance"] == pytest.approx(0.5, abs=0.03)
+
+
+def test_the_pull_rule_refuses_a_pull_from_a_bent_chain():
+    prop = _propagator()
+    bent = prop.initial_state(START, HEADINGS)  # joints 0.15, 0.15, 0.1 rad
+    pull = [Segment("line", 0.5, 0.0, PULL)]
+    run = prop.rollout(bent, Cursor(*START, 0.0, 0), pull, pull_phi=math.radians(5.0))
+    assert not run.ok and run.failure["kind"] == "pull_rule"
+    assert run.failure["phi"] == pytest.approx(0.15)
+    assert prop.rollout(bent, Cursor(*START, 0.0, 0), pull, pull_phi=0.2).ok
+    straight = prop.initial_state(START, np.full(4, math.pi))
+    # after a push, the pull starts after the cusp dwell: the rule looks at the chain then
+    push = prop.rollout(straight, Cursor(*START, 0.0, 0), [Segment("arc", 1.0, 1.0)])
+    late = prop.rollout(push.state, push.cursor, pull, pull_phi=math.radians(5.0))
+    assert not late.ok and late.failure["kind"] == "pull_rule"
+    assert late.failure["k"] >= push.state.k + int(1.0 / 0.025) - 1
+
+
+def test_a_wall_stops_the_rollout_with_the_body_and_point():
+    world = World.from_dict({"free": [[-6, -0.6], [6, -0.6], [6, 0.6], [-6, 0.6]]})
+    prop = _propagator(world=world, margin=0.05)
+    state = prop.initial_state((2.0, 0.0, math.pi), np.full(4, math.pi))
+    run = prop.rollout(state, Cursor(2.0, 0.0, math.pi, 0.0, 0), [Segment("arc", 1.5, 1.0)])
+    assert not run.ok and run.failure["kind"] == "collision"
+    assert run.failure["body"] == 3  # the last trailer leads into the upper wall
+    assert run.failure["y"] > 0.4
+    assert run.state.k < state.k + int(1.5 / 0.08 / 0.025)
