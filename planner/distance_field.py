@@ -34,7 +34,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-from scipy import ndimage
 
 from pushtrain.errors import PlanningInputError
 
@@ -92,6 +91,8 @@ class DistanceField:
         if blocked.size > MAX_CELLS:
             raise PlanningInputError(
                 f"occupancy grid has {blocked.size} cells: at most {MAX_CELLS} are supported")
+        from scipy import ndimage  # imported here: 0.35 s that runs without a field never pay
+
         h = float(resolution)
         # one blocked cell of border: outside the grid is unknown, and unknown counts as blocked
         padded = np.pad(blocked, 1, constant_values=True)
@@ -116,6 +117,8 @@ class DistanceField:
             raise PlanningInputError(
                 f"a {xmax - xmin:.1f} m x {ymax - ymin:.1f} m map at resolution {h} m needs "
                 f"{nx * ny} grid nodes: at most {MAX_CELLS}; use a coarser resolution")
+        from scipy import ndimage
+
         x0, y0 = xmin - pad, ymin - pad
         xs = x0 + h * np.arange(nx)
         ys = y0 + h * np.arange(ny)
