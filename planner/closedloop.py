@@ -12,14 +12,16 @@
    :data:`~pushtrain.planner.budget.STEPS_PER_SECOND`) and the wall clock ``time_budget``.
 3. **Verification.** A path the search found is simulated again in one go from the start with
    exactly the co-simulation's reference (one :class:`~pushtrain.core.reference.Reference`,
-   cusp dwells, pull guides over whole pulling runs) and checked with
+   cusp dwells, pull guides over whole pulling runs) and the search's checks.
+4. **Smoothing.** :mod:`~pushtrain.planner.smooth` merges equal pieces and replaces
+   stretches by corner and Reeds-Shepp shortcuts where the closed loop allows (fewer turns,
+   shorter), each candidate simulated in one go from the start.
+5. **Exact test.** The final path's run is checked with
    :func:`~pushtrain.planner.train_check.check_train`: every body's exact rectangle (shapely)
    against the free space shrunk by its clearance, the joint limit, self-collision and the goal
-   tolerance. A path that fails is dropped and the search goes on.
-4. **Smoothing.** :mod:`~pushtrain.planner.smooth` merges equal pieces and replaces
-   stretches by Reeds-Shepp shortcuts where the closed loop allows (fewer turns, shorter); the
-   smoothed path is verified again.
-5. **Anytime** (``PlannerConfig.anytime``): the search goes on after the first path until its
+   tolerance, and the clearances measured. If the smoothed path fails it, the path as found
+   is tested; a path that fails is dropped and the search goes on.
+6. **Anytime** (``PlannerConfig.anytime``): the search goes on after the first path until its
    budget is spent, and the cheapest verified path (length, turning, cusps) is kept.
 
 A search that ends without a plan raises :class:`~pushtrain.errors.PlanningError` whose message
@@ -33,7 +35,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import shapely
@@ -46,7 +48,7 @@ from .footprint import body_name, body_positions, body_samples
 from .heuristic import Heuristic
 from .lattice import Search, SearchSettings
 from .path import PlannedPath
-from .propagate import Cursor, Propagator
+from .propagate import Cursor, Propagator, make_propagator
 from .smooth import merge, path_cost, shortcut
 from .train_check import TrackerConfig, Trajectory, check_train, reference_times
 from .world import Train, World
@@ -65,13 +67,17 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     t_begin = time.perf_counter()
     deadline = t_begin + config.time_budget
     margins = config.margins(train)
-    tracker = config.tracker()
+    # the prediction must end within a fraction of the co-simulation's goal tolerance: the rest
+    # is left to the difference between the kinematic prediction and the FMU
+    tol = config.goal_tolerance
+    tracker = replace(config.tracker(), goal_tolerance=(config.goal_fraction * tol[0],
+                                                        config.goal_fraction * tol[1]))
     controller = tracker.controller_for(train.geometry)
     field = world.distance_field()
     samples = body_samples(train, margins, spacing=config.sample_spacing)
     phi_limit = train.phi_max - config.joint_margin
-    prop = Propagator(train, controller, tracker, field, samples, phi_limit,
-                      goal_phi=config.goal_phi)
+    prop = make_propagator(train, controller, tracker, field, samples, phi_limit,
+                           goal_phi=config.goal_phi)
     headings = (np.full(train.n + 1, float(start[2])) if start_headings is None
                 else np.asarray(start_headings, dtype=float))
     state0 = prop.initial_state(start, headings)
@@ -102,11 +108,27 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         solution = search.next_solution()
         if solution is None:
             break
-        checked = _verify(world, train, start, headings, solution.segments, prop, margins,
-                          tracker, goal, deadline)
-        if not checked.ok and checked.failure.get("kind") in ("deadline", "budget"):
-            search.stats.cut = checked.failure["kind"]
+        run = solution.rollout  # the connection's run is the whole path's if it left the start
+        if not run.extra.get("from_start"):
+            run = _simulate(prop, start, headings, solution.segments, goal, deadline)
+        if not run.ok and run.failure["kind"] in ("deadline", "budget"):
+            search.stats.cut = run.failure["kind"]
             break
+        if run.ok:
+            segments, run, smooth_info = _smoothed(prop, start, headings, solution.segments,
+                                                   run, goal, config, train, deadline,
+                                                   clear=search.reference_clear)
+            checked = _exact(world, train, start, headings, segments, run, margins, tracker)
+            if not checked.ok and segments != solution.segments:
+                # the smoothed path failed the exact test: the path as found
+                log.info("the smoothed path failed the exact test: %s", checked.failure)
+                segments = merge(solution.segments)
+                run = _simulate(prop, start, headings, segments, goal, None)
+                checked = _exact(world, train, start, headings, segments, run, margins,
+                                 tracker)
+                smooth_info["shortcuts"] = 0
+        else:
+            checked = _Refused(run.failure)
         if not checked.ok:
             rejected += 1
             log.info("verification dropped a path: %s", checked.failure)
@@ -114,9 +136,6 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
                                  "kind": "verification_" + checked.failure["kind"]})
             continue
         found += 1
-        segments, checked, smooth_info = _smoothed(world, train, start, headings,
-                                                   solution.segments, checked, prop, margins,
-                                                   tracker, goal, config, deadline)
         cost = path_cost(segments)
         if best is None or cost < best[0] - 1e-9:
             best = (cost, segments, checked, smooth_info)
@@ -126,7 +145,6 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         raise _no_plan(search, train, goal, config, margins, phi_limit, t_begin)
     _, segments, checked, smooth_info = best
     smooth_info["solutions"] = found
-    checked = _measured(world, train, start, headings, segments, checked, margins, tracker)
     return _planned(start, headings, segments, radius, config, tracker, checked, search,
                     t_begin, rejected, smooth_info)
 
@@ -201,68 +219,54 @@ def _gap_text(gap: float, margin: float) -> str:
 
 
 # --------------------------------------------------------------------------- verification
-def _verify(world: World, train: Train, start, headings, segments, prop: Propagator, margins,
-            tracker: TrackerConfig, goal, deadline: float | None = None):
-    """The whole path simulated in one go from the start and checked exactly
-    (:func:`~pushtrain.planner.train_check.check_train` on the propagator's run, containment
-    only; :func:`_measured` adds the clearances); the simulation stops at its first failure
-    of the distance-field test or at ``deadline`` (the path then fails with kind
-    ``"deadline"``)."""
+def _simulate(prop: Propagator, start, headings, segments, goal, deadline: float | None):
+    """The whole path simulated in one go from the start with the co-simulation's reference
+    (one :class:`~pushtrain.core.reference.Reference`: cusp dwells, pull guides over whole
+    pulling runs) and the search's checks; it stops at the first failure or at ``deadline``
+    (failure kind ``"deadline"``)."""
     state0 = prop.initial_state(start, headings)
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
-    run = prop.rollout(state0, cursor0, segments, goal=goal, record=True, deadline=deadline)
+    return prop.rollout(state0, cursor0, segments, goal=goal, record=True, deadline=deadline)
+
+
+def _exact(world: World, train: Train, start, headings, segments, run, margins,
+           tracker: TrackerConfig):
+    """The exact test of a simulated path: every body's rectangle (shapely) inside the free
+    space shrunk by its clearance at samples no corner moves more than 1 cm apart, the joint
+    limit, self-collision and the goal, with the clearances measured
+    (:func:`~pushtrain.planner.train_check.check_train` on the run, no new simulation)."""
     traj = Trajectory(run.extra["t"], run.z, run.extra["command"], run.reference,
                       run.extra["direction"], np.ones(run.z.shape[0], dtype=bool))
-    if not run.ok:  # no exact test of what the simulation already refused
-        return _Refused({**run.failure, "s": math.nan, "direction": 0})
-    result = check_train(world, train, start, segments, headings, margin=margins,
-                         resolution=0.01, tracker=tracker, trajectory=traj, self_collision=True,
-                         measure=False)
-    if result.ok and prop.goal_phi is not None:
-        phi = np.abs(result.headings[-1, :-1] - result.headings[-1, 1:])
-        if phi.max() > prop.goal_phi:
-            result.ok = False
-            result.failure = {"kind": "goal_missed", "body": int(np.argmax(phi)) + 1,
-                              "t": float(result.t[-1]), "s": math.nan, "direction": 0,
-                              "x": float(result.poses[-1, 0]), "y": float(result.poses[-1, 1]),
-                              "max_abs_phi": float(phi.max())}
-    return result
+    return check_train(world, train, start, segments, headings, margin=margins,
+                       resolution=0.01, tracker=tracker, trajectory=traj, self_collision=True,
+                       field=world.distance_field())
 
 
 @dataclass
 class _Refused:
-    """A verification the simulation already failed (no exact test made)."""
+    """A path the simulation already failed (no exact test made)."""
 
     failure: dict
     ok: bool = False
 
 
-def _measured(world: World, train: Train, start, headings, segments, checked, margins,
-              tracker: TrackerConfig):
-    """The verified path's check again with its clearances measured (no new simulation)."""
-    return check_train(world, train, start, segments, headings, margin=margins,
-                       resolution=0.01, tracker=tracker, trajectory=checked.trajectory,
-                       self_collision=True, measure=True)
-
-
 # --------------------------------------------------------------------------- smoothing
-def _smoothed(world, train, start, headings, segments, checked, prop, margins, tracker, goal,
-              config, deadline):
-    """Merge equal consecutive pieces and try Reeds-Shepp shortcuts (:mod:`.smooth`)."""
-
+def _smoothed(prop, start, headings, segments, run, goal, config, train, deadline,
+              clear=None):
+    """Merge equal consecutive pieces and try shortcuts (:mod:`.smooth`), each simulated in
+    one go from the start with the search's checks. Returns (segments, their run, info)."""
     merged = merge(segments)
     info = {"pieces_found": len(segments), "pieces_merged": len(merged), "shortcuts": 0}
     if not config.smooth:
-        return merged, checked, info
+        return merged, run, info
 
     def verify(candidate):
-        return _verify(world, train, start, headings, candidate, prop, margins, tracker, goal,
-                       deadline)
+        return _simulate(prop, start, headings, candidate, goal, deadline)
 
-    best, best_check, n_short = shortcut(merged, checked, start, goal, config.radius_for(train),
-                                         verify, deadline)
+    best, best_run, n_short = shortcut(merged, run, start, goal, config.radius_for(train),
+                                       verify, deadline, clear=clear)
     info["shortcuts"] = n_short
-    return best, best_check, info
+    return best, best_run, info
 
 
 # --------------------------------------------------------------------------- results
@@ -278,6 +282,8 @@ def _planned(start, headings, segments, radius, config, tracker, checked, search
         "steps_by_use": {**stats.steps, "verification": search.prop.steps
                          - sum(stats.steps.values())},
         "car_heuristic_at": stats.car_built_at,
+        "propagator": type(search.prop).__name__,
+        "fine_reruns": getattr(search.prop, "fine_reruns", None),
         "clearance": [float(m) for m in config.margins(search.train)],
         "smoothing": smooth_info,
         "train_check": {
@@ -329,9 +335,10 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
     if f["goal_missed"]:
         straight = ("" if config.goal_phi is None else
                     f", every joint within {math.degrees(config.goal_phi):.1f} deg")
-        parts.append(f"{f['goal_missed']} connections to the goal ended outside its tolerance "
-                     f"({config.goal_tolerance[0]:.3f} m, "
-                     f"{math.degrees(config.goal_tolerance[1]):.1f} deg{straight})")
+        g = config.goal_fraction
+        parts.append(f"{f['goal_missed']} connections to the goal ended outside {g:g} of its "
+                     f"tolerance ({g * config.goal_tolerance[0]:.3f} m, "
+                     f"{math.degrees(g * config.goal_tolerance[1]):.2f} deg{straight})")
     verified = sum(v for k, v in f.items() if k.startswith("verification_"))
     if verified:
         parts.append(f"{verified} paths found failed the exact verification")

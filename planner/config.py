@@ -161,6 +161,10 @@ class PlannerConfig:
     goal_tolerance : (float, float)
         ``lattice``: position [m] and heading [rad] tolerance of the simulated last trailer at
         the goal (the co-simulation's goal test; the scenario's ``sim.goal_tolerance``).
+    goal_fraction : float
+        ``lattice``: the planner's prediction must end within this fraction (0, 1] of
+        ``goal_tolerance``; the rest is left to the difference between the kinematic
+        prediction and the co-simulated FMU (about 1-2 cm).
     joint_margin : float
         ``lattice``: the search keeps every |phi_i| <= phi_max - joint_margin [rad] (the
         co-simulation's joints differ from the kinematic prediction by a few degrees).
@@ -216,11 +220,12 @@ class PlannerConfig:
     time_cap: float | None = None
     clearance: float | tuple = 0.05
     goal_tolerance: tuple = (0.05, math.radians(5.0))
+    goal_fraction: float = 0.5
     joint_margin: float = math.radians(5.0)
     pull_phi: float = math.radians(15.0)
     step_length: float = 0.5
     search_weight: float = 2.0
-    sample_spacing: float = 0.025
+    sample_spacing: float = 0.04
     smooth: bool = True
     anytime: bool = False
     goal_phi: float | None = None
@@ -278,6 +283,7 @@ class PlannerConfig:
                 " both finite and > 0")
         object.__setattr__(self, "goal_tolerance", (float(tol[0]), float(tol[1])))
         for key, low, high in (("joint_margin", 0.0, math.pi), ("pull_phi", 0.0, math.pi),
+                               ("goal_fraction", 1e-3, 1.0),
                                ("step_length", 1e-3, 100.0), ("search_weight", 1.0, 100.0),
                                ("sample_spacing", 1e-3, 1.0)):
             value = getattr(self, key)

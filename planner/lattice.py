@@ -78,7 +78,8 @@ from .heuristic import Heuristic
 from .propagate import Cursor, Propagator, Rollout, TrainState
 from .world import Train
 
-__all__ = ["SearchSettings", "Node", "Search", "Solution"]
+__all__ = ["SearchSettings", "Node", "Search", "Solution", "corner_segments", "rs_segments",
+           "segments_cost"]
 
 log = logging.getLogger(__name__)
 
@@ -90,8 +91,9 @@ class SearchSettings:
     Attributes
     ----------
     radius : float
-        The turning radius [m]: primitives' curvatures are ``k / radius`` for k in
-        ``curvatures``; connections use multiples of it.
+        The turning radius [m]: pushing primitives' curvatures are ``k / radius`` for k in
+        ``curvatures``, pulling ones for k in ``pull_curvatures`` (a driver pulls straight or
+        gently turning); connections use multiples of it.
     step_length, pull_length, long_straight : float
         Length [m] of a pushing primitive, of a pulling one, and of the one long straight push.
     approach : float
@@ -101,16 +103,16 @@ class SearchSettings:
         bend (robot heading minus last trailer heading) [rad].
     weight : float
         Heuristic weight (>= 1).
-    turn_weight, change_weight, cusp_cost, pull_factor : float
-        The cost: per radian turned, per change of curvature, per cusp, and the factor of a
-        pulled metre.
+    turn_weight, pull_turn_weight, change_weight, cusp_cost, pull_factor : float
+        The cost (:func:`segments_cost`): per radian turned pushing and pulling, per change of
+        curvature, per cusp, and the factor of a pulled metre.
     pull_phi : float
         The pull rule: the largest |phi_i| [rad] a pulling run may start from.
     max_pull_run : float
         Longest pulling run [m] of primitives (each continuation rolls the run out again).
     analytic_radii, corner_radii : tuple of float
-        Radii (in turning radii) of the Reeds-Shepp connections, and of the corner connections
-        (the first: the widest arc that fits, up to that many turning radii).
+        Radii (in turning radii) of the Reeds-Shepp connections and of the corner connections,
+        in the order tried (the tightest corner first: the shortest path).
     straighten : tuple of float
         Lengths [m] of the straight pushes tried before a pulled corner connection when the
         chain is too bent to pull.
@@ -127,6 +129,7 @@ class SearchSettings:
 
     radius: float
     curvatures: tuple = (0.0, 1.0, -1.0, 0.5, -0.5)
+    pull_curvatures: tuple = (0.0, 0.5, -0.5)
     step_length: float = 0.5
     pull_length: float = 1.0
     long_straight: float = 1.5
@@ -136,13 +139,14 @@ class SearchSettings:
     grid_bend: float = 0.3
     weight: float = 2.0
     turn_weight: float = 0.3
+    pull_turn_weight: float = 1.0
     change_weight: float = 0.25
     cusp_cost: float = 2.0
     pull_factor: float = 1.2
     pull_phi: float = math.radians(15.0)
     max_pull_run: float = 8.0
     analytic_radii: tuple = (1.6, 1.0)
-    corner_radii: tuple = (3.0, 1.6, 1.0)
+    corner_radii: tuple = (1.0, 1.6, 3.0)
     straighten: tuple = (1.5, 3.0)
     analytic_every: int = 4
     analytic_per_node: int = 2
@@ -357,7 +361,7 @@ class Search:
                     self.stats.failures["pull_rule"] += 1
                     continue
             length = s.pull_length if direction == PULL else s.step_length
-            for k in s.curvatures:
+            for k in (s.pull_curvatures if direction == PULL else s.curvatures):
                 kappa = k * self.kappa
                 kind = "line" if kappa == 0.0 else "arc"
                 yield Segment(kind, length, kappa, direction)
@@ -365,19 +369,7 @@ class Search:
                 yield Segment("line", s.long_straight, 0.0, PUSH)
 
     def _cost(self, node: Node, segments) -> float:
-        s = self.s
-        cost = 0.0
-        direction = node.cursor.direction
-        kappa = node.curvature()
-        for seg in segments:
-            factor = s.pull_factor if seg.direction == PULL else 1.0
-            cost += seg.length * factor + s.turn_weight * abs(seg.curvature) * seg.length
-            if direction in (PUSH, PULL) and seg.direction != direction:
-                cost += s.cusp_cost
-            if kappa is not None and seg.curvature != kappa:
-                cost += s.change_weight
-            direction, kappa = seg.direction, seg.curvature
-        return cost
+        return segments_cost(segments, self.s, node.cursor.direction, node.curvature())
 
     def _roll(self, node: Node, segments, goal=None) -> tuple[Rollout, Node | None, tuple]:
         """Roll ``segments`` out after ``node`` (from the start of its pulling run if they
@@ -385,14 +377,13 @@ class Search:
         remaining = max(1, self.s.budget_steps - self.prop.steps)
         if segments[0].direction == PULL and node.cursor.direction == PULL:
             root, run = node.run_root, node.run_segments + tuple(segments)
-            rollout = self.prop.rollout(root.state, root.cursor, run, goal=goal,
-                                        pull_phi=self.s.pull_phi, max_steps=remaining,
-                                        deadline=self.s.deadline)
         else:
             root, run = node, tuple(segments)
-            rollout = self.prop.rollout(node.state, node.cursor, segments, goal=goal,
-                                        pull_phi=self.s.pull_phi, max_steps=remaining,
-                                        deadline=self.s.deadline)
+        # a connection to the goal keeps its commands: from the start it is the whole path's run
+        rollout = self.prop.rollout(root.state, root.cursor, run, goal=goal,
+                                    pull_phi=self.s.pull_phi, max_steps=remaining,
+                                    deadline=self.s.deadline, record=goal is not None)
+        rollout.extra["from_start"] = root is self.root
         self.stats.rollouts += 1
         self.stats.steps["connections" if goal is not None else "motions"] += rollout.steps
         # the run (for a later continuation) is the tail of pulling segments
@@ -424,15 +415,24 @@ class Search:
     def _reference_clear(self, cursor: Cursor, segments, spacing: float = 0.05) -> bool:
         """The last trailer's own footprint, placed exactly on the reference, keeps its
         clearance along ``segments`` (a cheap necessary condition before a rollout)."""
-        poses = _sample_reference(cursor.pose, segments, spacing)
+        return self.reference_clear(cursor.pose, segments, spacing)
+
+    def reference_clear(self, pose, segments, spacing: float = 0.05) -> bool:
+        """:meth:`_reference_clear` from a pose (x, y, theta). Poses whose axle midpoint is
+        clear by the body's whole reach are passed without looking at their points."""
+        poses = _sample_reference(pose, segments, spacing)
         prop = self.prop
         n = self.train.n
         smp = prop.samples
+        field = prop.field
+        near = poses[field.at(poses[:, 0], poses[:, 1]) < smp.slack[n]]
+        if not near.size:
+            return True
         sel = smp.body == n
-        c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
-        px = poses[:, :1] + smp.u[sel][None, :] * c - smp.v[sel][None, :] * s
-        py = poses[:, 1:2] + smp.u[sel][None, :] * s + smp.v[sel][None, :] * c
-        return bool((prop.field.at(px, py) >= smp.threshold[sel][None, :]).all())
+        c, s = np.cos(near[:, 2])[:, None], np.sin(near[:, 2])[:, None]
+        px = near[:, :1] + smp.u[sel][None, :] * c - smp.v[sel][None, :] * s
+        py = near[:, 1:2] + smp.u[sel][None, :] * s + smp.v[sel][None, :] * c
+        return bool((field.at(px, py) >= smp.threshold[sel][None, :]).all())
 
     # ------------------------------------------------------------------ goal
     def _analytic(self, node: Node) -> Solution | None:
@@ -464,8 +464,8 @@ class Search:
 
     def _connections(self, node: Node):
         """Candidate ways to the goal from ``node``, the driver's first: straight, one arc,
-        straight (:func:`corner_segments`, pushing or pulling, the widest arc up to
-        ``corner_radii[0]`` turning radii, then the tighter ones), also after a straight push
+        straight (:func:`corner_segments`, pushing or pulling, with the radii of
+        ``corner_radii``), also after a straight push
         of ``straighten`` metres where the chain is too bent to pull; then Reeds-Shepp paths
         (radius ``turning radius * f`` for f in ``analytic_radii``) to a pose ``approach``
         metres before the goal followed by a straight push onto it (the followers line up
@@ -476,20 +476,16 @@ class Search:
         for direction in (PUSH, PULL):
             if direction == PULL and bent:
                 continue
-            for k, factor in enumerate(s.corner_radii):
-                radius = None if k == 0 else s.radius * factor
-                path = corner_segments(pose, self.goal, direction, radius,
-                                       max_radius=s.radius * s.corner_radii[0])
+            for factor in s.corner_radii:
+                path = corner_segments(pose, self.goal, direction, s.radius * factor)
                 if path:
                     yield ("corner", direction, factor), path
         if bent:
             for d in s.straighten:
                 push = Segment("line", d, 0.0, PUSH)
                 ahead = _sample_reference(pose, [push], d)[-1]
-                for k, factor in enumerate(s.corner_radii):
-                    radius = None if k == 0 else s.radius * factor
-                    path = corner_segments(ahead, self.goal, PULL, radius,
-                                           max_radius=s.radius * s.corner_radii[0])
+                for factor in s.corner_radii:
+                    path = corner_segments(ahead, self.goal, PULL, s.radius * factor)
                     if path:
                         yield ("straighten", d, factor), [push] + path
         gx, gy, gth = self.goal
@@ -501,6 +497,28 @@ class Search:
                 if head:
                     yield ("approach", factor), head + [Segment("line", s.approach, 0.0, PUSH)]
             yield ("direct", factor), rs_segments(pose, self.goal, radius)
+
+
+def segments_cost(segments, settings: SearchSettings, direction: int = 0,
+                  curvature: float | None = None) -> float:
+    """The search's cost of ``segments`` after a motion in ``direction`` (0: none) with
+    ``curvature`` (None: none): length (pulls times ``pull_factor``), the heading turned (times
+    ``turn_weight`` pushing, ``pull_turn_weight`` pulling: a turning pull starts from a chain
+    its guide did not expect, so the last trailer swings off its path), ``change_weight`` per
+    change of curvature and ``cusp_cost`` per direction change."""
+    s = settings
+    cost = 0.0
+    for seg in segments:
+        pull = seg.direction == PULL
+        turned = abs(seg.curvature) * seg.length
+        cost += seg.length * (s.pull_factor if pull else 1.0)
+        cost += (s.pull_turn_weight if pull else s.turn_weight) * turned
+        if direction in (PUSH, PULL) and seg.direction != direction:
+            cost += s.cusp_cost
+        if curvature is not None and seg.curvature != curvature:
+            cost += s.change_weight
+        direction, curvature = seg.direction, seg.curvature
+    return cost
 
 
 def corner_segments(pose, goal, direction: int, radius: float | None = None,
@@ -553,7 +571,7 @@ def rs_segments(pose, goal, radius: float) -> list[Segment]:
     curve = ReedsSheppCurve(radius, a, b)
     if curve.length < 1e-6:
         return []
-    segments = primitives_to_segments(curve.primitives(), radius)
+    segments = primitives_to_segments(curve.primitives(tol=1e-7), radius)
     return [g for g in segments if g.length > 1e-6]
 
 

@@ -56,8 +56,15 @@ def advance_yaw(x: float, y: float, yaw: float, turn: str, gear: int, dist, rho:
 
     Same formulas as OMPL's ``ReedsSheppStateSpace::interpolate`` (scaled by rho).
     """
-    dist = np.asarray(dist, dtype=float)
     k = _TURN[turn]
+    if isinstance(dist, float):  # one pose: plain floats (the recovery asks thousands)
+        v = gear * dist / rho
+        if k == 0.0:
+            return x + rho * v * math.cos(yaw), y + rho * v * math.sin(yaw), yaw
+        phi = yaw + k * v
+        return (x + rho * k * (math.sin(phi) - math.sin(yaw)),
+                y - rho * k * (math.cos(phi) - math.cos(yaw)), phi)
+    dist = np.asarray(dist, dtype=float)
     v = gear * dist / rho  # signed normalized length
     if k == 0.0:
         return x + rho * v * math.cos(yaw), y + rho * v * math.sin(yaw), yaw + 0.0 * v

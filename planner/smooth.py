@@ -24,9 +24,9 @@ import math
 import time
 from collections.abc import Callable, Sequence
 
-from pushtrain.core.reference import PULL, Segment
+from pushtrain.core.reference import Segment
 
-from .lattice import _sample_reference, corner_segments, rs_segments
+from .lattice import SearchSettings, _sample_reference, corner_segments, rs_segments, segments_cost
 
 __all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]
 
@@ -49,22 +49,10 @@ def total_turning(segments: Sequence[Segment]) -> float:
     return float(sum(abs(g.curvature) * g.length for g in segments))
 
 
-def path_cost(segments: Sequence[Segment], turn_weight: float = 0.3, cusp_cost: float = 2.0,
-              pull_factor: float = 1.2, change_weight: float = 0.25) -> float:
-    """Length (pulls weighted), turning, changes of curvature and cusps, priced as the search
-    prices them (:class:`~pushtrain.planner.lattice.SearchSettings`)."""
-    cost = 0.0
-    previous = None
-    for g in segments:
-        cost += g.length * (pull_factor if g.direction == PULL else 1.0)
-        cost += turn_weight * abs(g.curvature) * g.length
-        if previous is not None:
-            if g.direction != previous.direction:
-                cost += cusp_cost
-            if g.curvature != previous.curvature:
-                cost += change_weight
-        previous = g
-    return cost
+def path_cost(segments: Sequence[Segment], settings: SearchSettings | None = None) -> float:
+    """The path's cost as the search prices it (:func:`~pushtrain.planner.lattice.segments_cost`
+    with ``settings``, default :class:`~pushtrain.planner.lattice.SearchSettings`)."""
+    return segments_cost(segments, settings or SearchSettings(radius=1.0))
 
 
 def junction_poses(start, segments: Sequence[Segment]) -> list[tuple]:
@@ -89,11 +77,16 @@ def _bridges(a, b, direction: int, radius: float):
 
 
 def shortcut(segments: list[Segment], checked, start, goal, radius: float,
-             verify: Callable, deadline: float = math.inf, max_tries: int = 12):
-    """Greedy Reeds-Shepp shortcuts (see the module docstring).
+             verify: Callable, deadline: float = math.inf, max_tries: int = 8,
+             clear: Callable | None = None, min_gain: float = 0.02):
+    """Greedy shortcuts (see the module docstring).
 
     ``verify(segments)`` returns a check result with ``ok``; ``checked`` is the verified check
-    of ``segments``. Returns (segments, their check, number of shortcuts taken).
+    of ``segments``. ``clear(pose, bridge)`` (optional) is a cheap necessary test of a bridge
+    from ``pose`` (e.g. the last trailer's own footprint along it): a bridge it refuses is not
+    simulated. At most ``max_tries`` candidates are simulated, each at least ``min_gain`` (a
+    fraction) cheaper than the path so far. Returns (segments, their check, number of
+    shortcuts taken).
     """
     best, best_check = list(segments), checked
     taken, tries = 0, 0
@@ -106,7 +99,9 @@ def shortcut(segments: list[Segment], checked, start, goal, radius: float,
                 return best, best_check, taken
             for bridge in _bridges(poses[i], poses[j], best[i].direction, radius):
                 candidate = merge(best[:i] + bridge + best[j:])
-                if path_cost(candidate) >= path_cost(best) - 1e-3:
+                if path_cost(candidate) > (1.0 - min_gain) * path_cost(best):
+                    continue
+                if clear is not None and not clear(poses[i], bridge):
                     continue
                 tries += 1
                 result = verify(candidate)

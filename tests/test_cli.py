@@ -205,7 +205,7 @@ def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
     from pushtrain.mission.scenario import load_scenario
 
     text = (EXAMPLES / "l_corridor.toml").read_text().replace(
-        'time_budget = 60.0', 'time_budget = 60.0\nplanner = "restarts"\nanytime_time = 0.25\n'
+        'time_budget = 2.0', 'time_budget = 2.0\nplanner = "restarts"\nanytime_time = 0.25\n'
         'pull_start_tolerance = 0.2\nclearance = [0.1, 0.05, 0.05, 0.06]\n'
         'pull_max_phi_deg = 20.0\njoint_margin_deg = 3.0\nstep_length = 0.4\n'
         'search_weight = 1.5\nsmooth = false')

@@ -91,7 +91,7 @@ def test_a_failed_plan_after_a_successful_run_leaves_only_the_failed_run(tmp_pat
     assert (out / "results.npz").is_file()
     blocked = _scenario(tmp_path, "l_corridor", "second_run",
                         replace=[(L_FREE, BLOCKED_MAP),
-                                 ("time_budget = 60.0", "time_budget = 0.3")])
+                                 ("time_budget = 2.0", "time_budget = 0.3")])
     second = _invoke(["plan-and-run", blocked, "--no-plots", "--out", str(out)])
     assert second.exit_code == 1, second.output
     assert "planning failed" in second.output
