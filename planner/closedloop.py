@@ -63,9 +63,14 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
 
     ``start``, ``goal`` (3,) and ``start_headings`` (n+1,) are checked arrays (chain
     convention); ``config`` a :class:`~pushtrain.planner.config.PlannerConfig`.
+
+    The wall clock of ``time_budget`` starts once the map's distance field exists (built once
+    per map and kept by the :class:`~pushtrain.planner.world.World`); the search and the
+    smoothing stop at 90 % of it, leaving the rest for the exact test of the path found.
     """
+    field = world.distance_field()
     t_begin = time.perf_counter()
-    deadline = t_begin + config.time_budget
+    deadline = t_begin + 0.9 * config.time_budget
     margins = config.margins(train)
     # the prediction must end within a fraction of the co-simulation's goal tolerance: the rest
     # is left to the difference between the kinematic prediction and the FMU
@@ -73,7 +78,6 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     tracker = replace(config.tracker(), goal_tolerance=(config.goal_fraction * tol[0],
                                                         config.goal_fraction * tol[1]))
     controller = tracker.controller_for(train.geometry)
-    field = world.distance_field()
     samples = body_samples(train, margins, spacing=config.sample_spacing)
     phi_limit = train.phi_max - config.joint_margin
     prop = make_propagator(train, controller, tracker, field, samples, phi_limit,
