@@ -151,7 +151,9 @@ class PtTrack(ctypes.Structure):
 class PtChecks(ctypes.Structure):
     _fields_ = [("nx", c_int), ("ny", c_int), ("sdf", D_PTR), ("x0", c_double), ("y0", c_double),
                 ("h", c_double), ("point_offset", POINTER(c_int)), ("px", D_PTR), ("py", D_PTR),
-                ("margin", D_PTR), ("phi_max", c_double), ("rect", D_PTR)]
+                ("margin", D_PTR), ("fine_offset", POINTER(c_int)), ("fine_px", D_PTR),
+                ("fine_py", D_PTR), ("fine_margin", D_PTR), ("phi_max", c_double),
+                ("rect", D_PTR)]
 
 
 class PtRollout(ctypes.Structure):

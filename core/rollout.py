@@ -202,11 +202,15 @@ class Checks:
     rectangles : (n + 1, 4) array or None
         Each body's rectangle for the self-collision check: centre (cx, cy) in its own frame,
         half length, half width [m]. None: no self-collision check.
+    fine_points, fine_margins : like ``points`` and ``margins``, or None
+        A second test of a body that failed the first at a state: the body passes there if all
+        its ``fine_points`` keep its ``fine_margins`` (e.g. ``points`` a few disc centres with
+        the discs' radius in the margin, ``fine_points`` the perimeter). None: no second test.
     """
 
     def __init__(self, n: int, sdf=None, origin=(0.0, 0.0), resolution: float | None = None,
                  points: Sequence | None = None, margins=0.0, phi_max: float | None = None,
-                 rectangles=None):
+                 rectangles=None, fine_points: Sequence | None = None, fine_margins=None):
         self.n = int(n)
         nb = self.n + 1
         self.struct = native.PtChecks()
@@ -219,15 +223,7 @@ class Checks:
                 raise ControllerError(f"resolution = {resolution!r} m: must be finite and > 0")
             if points is None or len(points) != nb:
                 raise ControllerError(f"points: need one (m, 2) array per body, {nb} in all")
-            pts = [np.asarray(p, dtype=float).reshape(-1, 2) for p in points]
-            offset = np.ascontiguousarray(np.cumsum([0] + [p.shape[0] for p in pts]),
-                                          dtype=np.intc)
-            allp = np.concatenate(pts) if pts else np.zeros((0, 2))
-            px, py = np.ascontiguousarray(allp[:, 0]), np.ascontiguousarray(allp[:, 1])
-            margin = np.ascontiguousarray(np.broadcast_to(np.asarray(margins, dtype=float),
-                                                          (nb,)).copy())
-            if not np.all(np.isfinite(margin)):
-                raise ControllerError(f"margins = {margins!r}: must be finite")
+            offset, px, py, margin = self._point_set(points, margins, "")
             s = self.struct
             s.ny, s.nx = grid.shape
             s.sdf = native.dptr(grid)
@@ -235,6 +231,13 @@ class Checks:
             s.point_offset = offset.ctypes.data_as(ctypes.POINTER(ctypes.c_int))
             s.px, s.py, s.margin = native.dptr(px), native.dptr(py), native.dptr(margin)
             self._keep += [grid, offset, px, py, margin]
+            if fine_points is not None:
+                offset, px, py, margin = self._point_set(
+                    fine_points, 0.0 if fine_margins is None else fine_margins, "fine_")
+                s.fine_offset = offset.ctypes.data_as(ctypes.POINTER(ctypes.c_int))
+                s.fine_px, s.fine_py = native.dptr(px), native.dptr(py)
+                s.fine_margin = native.dptr(margin)
+                self._keep += [offset, px, py, margin]
         if phi_max is not None:
             if not (math.isfinite(phi_max) and phi_max > 0.0):
                 raise ControllerError(f"phi_max = {phi_max!r} rad: must be finite and > 0")
@@ -245,6 +248,24 @@ class Checks:
                 raise ControllerError(f"rectangles has shape {rect.shape}: need ({nb}, 4), finite")
             self.struct.rect = native.dptr(rect)
             self._keep.append(rect)
+
+    def _point_set(self, points, margins, prefix: str):
+        """Offsets, x, y and per-body margins of one sample set (``prefix`` names it in
+        errors)."""
+        nb = self.n + 1
+        if points is None or len(points) != nb:
+            raise ControllerError(f"{prefix}points: need one (m, 2) array per body, {nb} in all")
+        pts = [np.asarray(p, dtype=float).reshape(-1, 2) for p in points]
+        offset = np.ascontiguousarray(np.cumsum([0] + [p.shape[0] for p in pts]), dtype=np.intc)
+        allp = np.concatenate(pts) if pts else np.zeros((0, 2))
+        px, py = np.ascontiguousarray(allp[:, 0]), np.ascontiguousarray(allp[:, 1])
+        margin = np.ascontiguousarray(np.broadcast_to(np.asarray(margins, dtype=float),
+                                                      (nb,)).copy())
+        if not np.all(np.isfinite(margin)):
+            raise ControllerError(f"{prefix}margins = {margins!r}: must be finite")
+        if not np.all(np.isfinite(allp)):
+            raise ControllerError(f"{prefix}points: every coordinate must be finite")
+        return offset, px, py, margin
 
     def sdf_at(self, x: float, y: float) -> float:
         """The interpolated signed distance [m] at (x, y) (-inf outside the grid)."""

@@ -287,7 +287,6 @@ def _planned(start, headings, segments, radius, config, tracker, checked, search
                          - sum(stats.steps.values())},
         "car_heuristic_at": stats.car_built_at,
         "propagator": type(search.prop).__name__,
-        "fine_reruns": getattr(search.prop, "fine_reruns", None),
         "clearance": [float(m) for m in config.margins(search.train)],
         "smoothing": smooth_info,
         "train_check": {

@@ -41,8 +41,8 @@ from pushtrain.core.kinematics import ChainGeometry
 from .distance_field import DistanceField
 from .world import BodyFootprint, Train
 
-__all__ = ["BodySamples", "body_samples", "body_positions", "first_failure", "FIELD_TOLERANCE",
-           "body_name"]
+__all__ = ["BodySamples", "body_samples", "body_positions", "disc_cover", "first_failure",
+           "FIELD_TOLERANCE", "body_name"]
 
 FIELD_TOLERANCE = 0.002
 """Allowance [m] for the distance field's interpolation error at clearance distances (bilinear
@@ -173,7 +173,7 @@ def body_positions(z: np.ndarray, geometry: ChainGeometry):
     return x, y
 
 
-def _wall_failure(field: DistanceField, samples: BodySamples, x, y, th):
+def _wall_failure(field: DistanceField, samples: BodySamples, x, y, th, covers=None):
     """First state (index) where some body misses its clearance, as (k, body, x, y, distance,
     threshold) of the worst point, or None; and the motion's reserve: the smallest excess
     [m] of a sample over its threshold (bodies that pass the quick test count with the excess
@@ -197,6 +197,12 @@ def _wall_failure(field: DistanceField, samples: BodySamples, x, y, th):
         lowest = excess.min(axis=1)
         reserve = min(reserve, float(lowest.min()))
         bad = np.flatnonzero(lowest < 0.0)
+        if bad.size and covers is not None:
+            centres, threshold = covers[i]
+            cu, cv = centres[None, :, 0], centres[None, :, 1]
+            cx = x[rows[bad], i][:, None] + cu * c[bad] - cv * s[bad]
+            cy = y[rows[bad], i][:, None] + cu * s[bad] + cv * c[bad]
+            bad = bad[~(field.at(cx, cy) >= threshold).all(axis=1)]
         if bad.size:
             r = int(bad[0])
             j = int(np.argmin(excess[r]))
@@ -205,6 +211,19 @@ def _wall_failure(field: DistanceField, samples: BodySamples, x, y, th):
             if failure is None or cand[0] < failure[0]:
                 failure = cand
     return failure, reserve
+
+
+def disc_cover(body: BodyFootprint, cell: float):
+    """Centres (m, 2) [m] of discs that cover ``body``'s rectangle (one per cell of a grid of
+    cells at most ``cell`` metres) and their radius [m] (the cells' half diagonal): a body whose
+    disc centres all keep ``margin + radius`` keeps ``margin`` everywhere, its inside included."""
+    nu = max(1, int(math.ceil(body.length / cell - 1e-9)))
+    nv = max(1, int(math.ceil(body.width / cell - 1e-9)))
+    du, dv = body.length / nu, body.width / nv
+    u = body.offset - 0.5 * body.length + du * (np.arange(nu) + 0.5)
+    v = -0.5 * body.width + dv * (np.arange(nv) + 0.5)
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    return np.column_stack([uu.ravel(), vv.ravel()]), 0.5 * math.hypot(du, dv)
 
 
 def _self_overlap(train: Train, x, y, th):
@@ -254,14 +273,16 @@ def _obb_overlap(a: BodyFootprint, b: BodyFootprint, xa, ya, tha, xb, yb, thb) -
 
 
 def first_failure(train: Train, field: DistanceField, samples: BodySamples, z: np.ndarray,
-                  phi_limit: float):
+                  phi_limit: float, covers=None):
     """The first failure of the train states ``z`` (K, 3 + n), or None, and the motion's
     clearance reserve [m] (smallest distance of a body beyond its margin, approximate).
 
     A failure is a dict: ``kind`` ("collision", "joint_limit" or "self_collision"), ``k`` (state
     index), ``body``, ``x``, ``y`` (the point that misses its clearance, the joint's trailer, or
     between the two bodies), and ``distance``/``threshold`` [m], ``phi`` [rad] or ``other``
-    (the second body).
+    (the second body). ``covers``: per body (disc centres (m, 2) in its frame, threshold [m])
+    of :func:`disc_cover`; a body whose disc centres all keep the threshold at a state passes
+    there whatever its sample points say (None: the samples alone decide).
     """
     x, y = body_positions(z, train.geometry)
     th = z[:, 2:]
@@ -275,7 +296,7 @@ def first_failure(train: Train, field: DistanceField, samples: BodySamples, z: n
         candidates.append({"kind": "joint_limit", "k": k, "body": j + 1,
                            "x": float(x[k, j + 1]), "y": float(y[k, j + 1]),
                            "phi": float(phi[k, j])})
-    wall, reserve = _wall_failure(field, samples, x, y, th)
+    wall, reserve = _wall_failure(field, samples, x, y, th, covers)
     if wall is not None:
         k, i, px, py, d, thr = wall
         candidates.append({"kind": "collision", "k": k, "body": i, "x": px, "y": py,

@@ -496,7 +496,9 @@ class Search:
                 head = rs_segments(pose, pre, radius)
                 if head:
                     yield ("approach", factor), head + [Segment("line", s.approach, 0.0, PUSH)]
-            yield ("direct", factor), rs_segments(pose, self.goal, radius)
+            direct = rs_segments(pose, self.goal, radius)
+            if direct is not None:
+                yield ("direct", factor), direct
 
 
 def segments_cost(segments, settings: SearchSettings, direction: int = 0,
@@ -563,15 +565,21 @@ def corner_segments(pose, goal, direction: int, radius: float | None = None,
     return out
 
 
-def rs_segments(pose, goal, radius: float) -> list[Segment]:
+def rs_segments(pose, goal, radius: float) -> list[Segment] | None:
     """The shortest Reeds-Shepp path of ``radius`` [m] from ``pose`` to ``goal`` (chain
-    convention) as reference segments (forward = pushing)."""
+    convention) as reference segments (forward = pushing); None if its pieces cannot be
+    recovered from OMPL's curve (logged; the caller goes without this connection)."""
     a = (pose[0], pose[1], pose[2] + math.pi)
     b = (goal[0], goal[1], goal[2] + math.pi)
     curve = ReedsSheppCurve(radius, a, b)
     if curve.length < 1e-6:
         return []
-    segments = primitives_to_segments(curve.primitives(tol=1e-7), radius)
+    try:
+        primitives = curve.primitives(tol=1e-7)
+    except RuntimeError as exc:
+        log.warning("no Reeds-Shepp connection from %s to %s: %s", tuple(pose), tuple(goal), exc)
+        return None
+    segments = primitives_to_segments(primitives, radius)
     return [g for g in segments if g.length > 1e-6]
 
 

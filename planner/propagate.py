@@ -56,7 +56,7 @@ from pushtrain.core.tracking import TrackingLoop
 from pushtrain.errors import NativeBuildError
 
 from .distance_field import DistanceField
-from .footprint import FIELD_TOLERANCE, BodySamples, first_failure
+from .footprint import FIELD_TOLERANCE, BodySamples, disc_cover, first_failure
 from .train_check import TrackerConfig, _Measurement, _rk4_step, towed_rates
 from .world import Train
 
@@ -185,12 +185,20 @@ class Propagator:
     goal_phi : float or None
         The goal also needs every |phi_i| <= ``goal_phi`` [rad] (a straight train); None: any
         chain.
+    cover : float
+        Cell size [m] of each body's disc cover (:func:`~pushtrain.planner.footprint.disc_cover`):
+        a body whose discs all keep its clearance plus their radius is clear at that state
+        whatever its sample points say (both tests are conservative; either proves it).
     """
 
     def __init__(self, train: Train, controller: ControllerConfig, tracker: TrackerConfig,
                  field: DistanceField, samples: BodySamples, phi_limit: float,
-                 check_every: int = 1, goal_phi: float | None = None):
+                 check_every: int = 1, goal_phi: float | None = None, cover: float = 0.3):
         self.train = train
+        self.covers = []
+        for i, body in enumerate(train.bodies):
+            centres, radius = disc_cover(body, cover)
+            self.covers.append((centres, float(samples.margins[i]) + radius + FIELD_TOLERANCE))
         self.controller = controller
         self.tracker = tracker
         self.field = field
@@ -222,7 +230,8 @@ class Propagator:
 
     def check(self, z: np.ndarray):
         """:func:`~pushtrain.planner.footprint.first_failure` of states ``z`` (K, 3 + n)."""
-        return first_failure(self.train, self.field, self.samples, z, self.phi_limit)
+        return first_failure(self.train, self.field, self.samples, z, self.phi_limit,
+                             covers=self.covers)
 
     # ------------------------------------------------------------------ rollout
     def reference(self, cursor: Cursor, segments: Sequence[Segment]) -> Reference:
@@ -375,7 +384,7 @@ class NativePropagator(Propagator):
 
     The same rollouts (the same reference, controller, integrator and checks; a test holds the
     two equal), 50 to 100 times faster. The compiled loop checks every state it visits: the
-    joint limit, self-collision and the walls, in two passes:
+    joint limit, self-collision and the walls, the walls in two tiers at each state:
 
     coarse
         Each body's rectangle covered by a few discs (cells of at most ``cover`` metres, about
@@ -383,8 +392,8 @@ class NativePropagator(Propagator):
         if every disc centre keeps the clearance plus the radius. Six lookups per trailer
         instead of a hundred: a train in a corridor wider than itself passes it.
     fine
-        Only when a body failed the coarse test: the rollout again with each body's perimeter
-        points (:attr:`BodySamples.threshold` of the perimeter as the body's margin). The
+        Only for a body that failed the coarse test at that state: its perimeter points
+        (:attr:`BodySamples.threshold` of the perimeter as the body's margin) decide. The
         compiled loop has no per-point thresholds, so the interior points of
         :func:`~pushtrain.planner.footprint.body_samples` (an obstacle wholly inside a body,
         smaller than it) are left to the exact test of the final path.
@@ -399,44 +408,30 @@ class NativePropagator(Propagator):
         from pushtrain.core.rollout import Checks, ClosedLoop
 
         super().__init__(train, controller, tracker, field, samples, phi_limit, check_every,
-                         goal_phi)
-        points, margins, discs, disc_margins = [], [], [], []
-        for i, body in enumerate(train.bodies):
+                         goal_phi, cover)
+        points, margins = [], []
+        for i in range(train.n + 1):
             sel = samples.body == i
             perimeter = sel & (samples.threshold == samples.threshold[sel].min())
             points.append(np.column_stack([samples.u[perimeter], samples.v[perimeter]]))
             margins.append(float(samples.threshold[perimeter][0]))
-            centres, radius = _disc_cover(body, cover)
-            discs.append(centres)
-            disc_margins.append(float(samples.margins[i]) + radius + FIELD_TOLERANCE)
+        discs = [c for c, _ in self.covers]
+        disc_margins = [m for _, m in self.covers]
         rectangles = [[b.offset, 0.0, 0.5 * b.length, 0.5 * b.width] for b in train.bodies]
         grid = {"sdf": field.values, "origin": (field.x0, field.y0),
                 "resolution": field.resolution, "phi_max": self.phi_limit,
                 "rectangles": rectangles}
-        self.fine = Checks(train.n, points=points, margins=margins, **grid)
-        self.coarse = Checks(train.n, points=discs, margins=disc_margins, **grid)
-        # one loop for both passes: it keeps the pull guide of the last reference
-        self.loop = ClosedLoop(train.geometry, controller, self.step, 0.0, self.coarse)
-        self.fine_reruns = 0
+        self.checks = Checks(train.n, points=discs, margins=disc_margins, fine_points=points,
+                             fine_margins=margins, **grid)
+        self.loop = ClosedLoop(train.geometry, controller, self.step, 0.0, self.checks)
 
     def rollout(self, state: TrainState, cursor: Cursor, segments: Sequence[Segment],
                 goal: Sequence[float] | None = None, pull_phi: float | None = None,
                 max_steps: int | None = None, deadline: float | None = None,
                 record: bool = False, chunk: int = 4000) -> Rollout:
-        """:meth:`Propagator.rollout` in C (see the class docstring): with the coarse disc
-        test first, and again with the fine perimeter test if a body came closer to a wall
-        than the coarse test can tell."""
-        args = (state, cursor, segments, goal, pull_phi, max_steps, deadline, record, chunk)
-        ref = self.reference(cursor, segments)
-        self.loop.checks = self.coarse
-        first = self._run(ref, *args)
-        if first.ok or first.failure["kind"] != "collision":
-            return first
-        self.fine_reruns += 1
-        if max_steps is not None:
-            args = args[:5] + (max(1, max_steps - first.steps),) + args[6:]
-        self.loop.checks = self.fine
-        return self._run(ref, *args)
+        """:meth:`Propagator.rollout` in C (see the class docstring)."""
+        return self._run(self.reference(cursor, segments), state, cursor, segments, goal,
+                         pull_phi, max_steps, deadline, record, chunk)
 
     def _run(self, ref, state, cursor, segments, goal, pull_phi, max_steps, deadline, record,
              chunk) -> Rollout:
@@ -526,19 +521,6 @@ class NativePropagator(Propagator):
         reserve = math.nan  # the compiled checks do not measure it
         return Rollout(failure is None, failure, final, new_cursor, z_all, reference, reserve,
                        here.k - state.k, goal_error, extra)
-
-
-def _disc_cover(body, cell: float):
-    """Centres (m, 2) [m] of discs that cover ``body``'s rectangle (one per cell of a grid of
-    cells at most ``cell`` metres) and their radius [m] (the cells' half diagonal): a body whose
-    disc centres all keep ``margin + radius`` keeps ``margin`` everywhere, its inside included."""
-    nu = max(1, int(math.ceil(body.length / cell - 1e-9)))
-    nv = max(1, int(math.ceil(body.width / cell - 1e-9)))
-    du, dv = body.length / nu, body.width / nv
-    u = body.offset - 0.5 * body.length + du * (np.arange(nu) + 0.5)
-    v = -0.5 * body.width + dv * (np.arange(nv) + 0.5)
-    uu, vv = np.meshgrid(u, v, indexing="ij")
-    return np.column_stack([uu.ravel(), vv.ravel()]), 0.5 * math.hypot(du, dv)
 
 
 def _failure_of(violation, margins) -> dict:

@@ -132,9 +132,11 @@ def recover_primitives(
         if t0 >= 1.0 - tol / total_length:
             break
         # 1. identify the primitive that starts at t0 with a probe that shrinks until it fits
+        # (down to a thousandth of tol: a piece shorter than tol, e.g. OMPL's 1e-8 m reversal at
+        # the start of some curves, must be found to be stepped over)
         h = min(step, 1.0 - t0)
         prim = None
-        while prim is None and h * total_length > tol:
+        while prim is None and h * total_length > 1e-3 * tol:
             prim = _classify(pose0, tuple(map(float, interp(t0 + h))), h * total_length, rho, tol)
             if prim is None:
                 h *= 0.25

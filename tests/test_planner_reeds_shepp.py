@@ -7,6 +7,7 @@ import pytest
 
 from pushtrain.core.reference import PULL, PUSH, Reference
 from pushtrain.planner import ReedsSheppCurve, primitives_to_segments
+from pushtrain.planner.lattice import rs_segments
 from pushtrain.planner.reeds_shepp import Primitive, advance_yaw, evaluate_primitives
 
 
@@ -38,6 +39,26 @@ def test_recovery_reproduces_ompl_interpolation(rho):
         assert np.abs(dth).max() < 1e-6
     assert worst < 1e-6
     assert len(counts) >= 2  # several path families were exercised
+
+
+def test_recovery_steps_over_a_reversal_shorter_than_its_tolerance():
+    """OMPL's curve from this pose of the docking example starts with 6.5e-8 m of right arc
+    backward before turning left forward: no probe the size of the tolerance fits one piece,
+    and the recovery used to fail. The tiny piece is found, the pieces end at the goal, and
+    the planner's segments (pieces under a micrometre left out) are the left arc and the line."""
+    rho = 0.9728515741304826
+    a = (9.027148581393263, 1.2499999999999996, 0.0)
+    b = (9.999999880140784, 4.399999998462434, 4.712389106872607 + math.pi)
+    curve = ReedsSheppCurve(rho, a, b)
+    prims = curve.primitives(tol=1e-7)
+    assert [(p.turn, p.gear) for p in prims if p.length > 1e-6] == [("L", 1), ("S", 1)]
+    assert sum(p.length for p in prims) == pytest.approx(curve.length, abs=1e-8)
+    segments = rs_segments((a[0], a[1], a[2] - math.pi), (b[0], b[1], b[2] - math.pi), rho)
+    assert [(g.kind, g.direction) for g in segments] == [("arc", PUSH), ("line", PUSH)]
+    end = evaluate_primitives(a, prims, rho, [sum(p.length for p in prims)])[0]
+    want = curve.interpolate(1.0)
+    assert math.hypot(end[0] - want[0], end[1] - want[1]) < 1e-6
+    assert abs(math.remainder(end[2] - want[2], 2.0 * math.pi)) < 1e-6
 
 
 def test_direction_and_curvature_conventions():

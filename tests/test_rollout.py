@@ -252,6 +252,54 @@ def test_footprint_check_stops_where_shapely_says_and_not_before():
     assert clear.violation is None and clear.end.k == k_end
 
 
+def test_a_second_tier_of_points_decides_only_for_bodies_that_fail_the_first():
+    """Checks(points, margins, fine_points, fine_margins): a body passes a state if all its
+    first-tier points keep their margin, or else all its second-tier points keep theirs."""
+    free, fine_only, points = _corridor_checks(3, margin=0.05)
+    loop, ref, state = _bay_loop(fine_only)
+    k_end = loop.instant_at(ref.t_end + 2.0)
+    want = loop.run(ref, state, k_end)
+    assert want.violation is not None and want.violation.reason == "footprint"
+    grid = {"sdf": np.asarray(fine_only._keep[0]), "origin": (fine_only.struct.x0,
+            fine_only.struct.y0), "resolution": fine_only.struct.h}
+    centre = [np.zeros((1, 2))] * 4
+
+    def run_with(first_margin, k_stop=k_end):
+        checks = Checks(3, points=centre, margins=first_margin, fine_points=points,
+                        fine_margins=0.05, **grid)
+        return ClosedLoop(loop.plant, loop.controller, loop.step, checks=checks).run(
+            ref, state, k_stop)
+
+    # a first tier nobody passes: the second decides everywhere, as if alone
+    every = run_with(100.0)
+    assert every.end.k == want.end.k and np.array_equal(every.states, want.states)
+    assert (every.violation.body, every.violation.x, every.violation.y) == (
+        want.violation.body, want.violation.x, want.violation.y)
+    # a first tier everybody passes (on the grid): the second is never asked
+    past = run_with(-100.0, want.end.k + 40)
+    assert past.violation is None and past.end.k == want.end.k + 40
+    # body centres that must keep 0.3 m: at the stop, the body failing has its centre closer
+    # than 0.3 m and a perimeter point closer than 0.05 m; before it, every body has one or
+    # the other (checked here with the grid's own interpolation, outside the loop)
+    mixed = run_with(0.3)
+    v = mixed.violation
+    assert v is not None and v.reason == "footprint" and mixed.end.k >= want.end.k
+
+    def tiers(z):
+        bx, by = body_positions(z[0], z[1], z[2:], loop.plant)
+        out = []
+        for b, pts in enumerate(points):
+            c, s = math.cos(z[2 + b]), math.sin(z[2 + b])
+            centre_ok = fine_only.sdf_at(bx[b], by[b]) >= 0.3
+            perimeter_ok = all(fine_only.sdf_at(bx[b] + c * u - s * w, by[b] + s * u + c * w)
+                               >= 0.05 for u, w in pts)
+            out.append(centre_ok or perimeter_ok)
+        return out
+
+    assert all(all(tiers(z)) for z in mixed.states[:-1][::7])
+    assert all(tiers(mixed.states[-2])) and not tiers(mixed.states[-1])[v.body]
+
+
 def test_joint_limit_check_stops_at_the_first_excess():
     rng = np.random.default_rng(9)
     geom = ChainGeometry.uniform(3, D)

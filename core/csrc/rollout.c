@@ -23,7 +23,7 @@ size_t pt_rollout_sizeof(int which) {
 
 int pt_rollout_work(int n) {
     const int nz = 3 + n;
-    return RK_STAGES * nz + n + 7 * (n + 1);
+    return RK_STAGES * nz + n + 9 * (n + 1);
 }
 
 /* dz/dt of the robot moving along its heading with (v0, w0) and the towed chain (the f of
@@ -136,11 +136,17 @@ static int edges_cross(const double a[5], const double b[5], double pt[2]) {
     return 0;
 }
 
-int pt_rects_overlap(const double a[5], const double b[5], double pt[2]) {
-    const double ca = cos(a[2]), sa = sin(a[2]), cb = cos(b[2]), sb = sin(b[2]);
+/* pt_rects_overlap with the rectangles' cos and sin of their headings given: (ca, sa), (cb, sb).
+ * A first test of their circumscribed circles rejects far pairs without the axes. */
+static int rects_overlap_cs(const double a[5], const double b[5], double ca, double sa, double cb,
+                            double sb, double pt[2]) {
     const double axes[4][2] = {{ca, sa}, {-sa, ca}, {cb, sb}, {-sb, cb}};
     const double dx = b[0] - a[0], dy = b[1] - a[1];
+    const double reach = sqrt(a[3] * a[3] + a[4] * a[4]) + sqrt(b[3] * b[3] + b[4] * b[4]);
     int q;
+    if (dx * dx + dy * dy >= reach * reach) {
+        return 0;
+    }
     for (q = 0; q < 4; q++) {
         const double lx = axes[q][0], ly = axes[q][1];
         const double ra = a[3] * fabs(ca * lx + sa * ly) + a[4] * fabs(-sa * lx + ca * ly);
@@ -175,6 +181,10 @@ int pt_rects_overlap(const double a[5], const double b[5], double pt[2]) {
     return 1;
 }
 
+int pt_rects_overlap(const double a[5], const double b[5], double pt[2]) {
+    return rects_overlap_cs(a, b, cos(a[2]), sin(a[2]), cos(b[2]), sin(b[2]), pt);
+}
+
 static void set_violation(PtViolation *v, long k, int body, int other, int reason, double x,
                           double y, double value) {
     v->step = k;
@@ -186,16 +196,38 @@ static void set_violation(PtViolation *v, long k, int body, int other, int reaso
     v->value = value;
 }
 
-/* Axle-midpoint positions of every body (kinematics.body_positions). */
-static void positions(const PtChain *plant, const double *z, double *bx, double *by) {
-    const double *th = z + 2;
+/* Axle-midpoint positions of every body (kinematics.body_positions), from the cos and sin of
+ * every heading. */
+static void positions(const PtChain *plant, const double *z, const double *cs, const double *sn,
+                      double *bx, double *by) {
     int i;
     bx[0] = z[0];
     by[0] = z[1];
     for (i = 1; i <= plant->n; i++) {
-        bx[i] = bx[i - 1] - plant->rear[i - 1] * cos(th[i - 1]) - plant->front[i - 1] * cos(th[i]);
-        by[i] = by[i - 1] - plant->rear[i - 1] * sin(th[i - 1]) - plant->front[i - 1] * sin(th[i]);
+        bx[i] = bx[i - 1] - plant->rear[i - 1] * cs[i - 1] - plant->front[i - 1] * cs[i];
+        by[i] = by[i - 1] - plant->rear[i - 1] * sn[i - 1] - plant->front[i - 1] * sn[i];
     }
+}
+
+/* Whether body b (axle midpoint (x, y), heading cos/sin cs, sn) keeps its margin at every one
+ * of its points offset[b] .. offset[b+1]-1 (px, py in its frame); else 0 and the first failing
+ * point and its distance in out[0..2]. */
+static int body_points_clear(const PtChecks *c, const int *offset, const double *px,
+                             const double *py, const double *margin, int b, double x, double y,
+                             double cs, double sn, double out[3]) {
+    int p;
+    for (p = offset[b]; p < offset[b + 1]; p++) {
+        const double u = x + cs * px[p] - sn * py[p];
+        const double v = y + sn * px[p] + cs * py[p];
+        const double d = pt_sdf_at(c, u, v);
+        if (!(d >= margin[b])) {
+            out[0] = u;
+            out[1] = v;
+            out[2] = d;
+            return 0;
+        }
+    }
+    return 1;
 }
 
 int pt_check_state(const PtChain *plant, const PtChecks *c, const double *z, long k, double *work,
@@ -203,6 +235,7 @@ int pt_check_state(const PtChain *plant, const PtChecks *c, const double *z, lon
     const int n = plant->n, nz = 3 + n;
     const double *th = z + 2;
     double *bx = work + RK_STAGES * nz + n, *by = bx + (n + 1), *rects = by + (n + 1);
+    double *cs = rects + 5 * (n + 1), *sn = cs + (n + 1);
     int i, b;
     for (i = 0; i < nz; i++) {
         if (!isfinite(z[i])) {
@@ -213,20 +246,25 @@ int pt_check_state(const PtChain *plant, const PtChecks *c, const double *z, lon
     if (c == NULL) {
         return 0;
     }
-    positions(plant, z, bx, by);
+    for (b = 0; b <= n; b++) {
+        cs[b] = cos(th[b]);
+        sn[b] = sin(th[b]);
+    }
+    positions(plant, z, cs, sn, bx, by);
     if (c->nx >= 2 && c->ny >= 2 && c->sdf != NULL) {
         for (b = 0; b <= n; b++) {
-            const double cs = cos(th[b]), sn = sin(th[b]);
-            int p;
-            for (p = c->point_offset[b]; p < c->point_offset[b + 1]; p++) {
-                const double x = bx[b] + cs * c->px[p] - sn * c->py[p];
-                const double y = by[b] + sn * c->px[p] + cs * c->py[p];
-                const double d = pt_sdf_at(c, x, y);
-                if (!(d >= c->margin[b])) {
-                    set_violation(v, k, b, -1, PT_STOP_FOOTPRINT, x, y, d);
-                    return 1;
-                }
+            double miss[3];
+            if (body_points_clear(c, c->point_offset, c->px, c->py, c->margin, b, bx[b], by[b],
+                                  cs[b], sn[b], miss)) {
+                continue;
             }
+            if (c->fine_offset != NULL &&
+                body_points_clear(c, c->fine_offset, c->fine_px, c->fine_py, c->fine_margin, b,
+                                  bx[b], by[b], cs[b], sn[b], miss)) {
+                continue;
+            }
+            set_violation(v, k, b, -1, PT_STOP_FOOTPRINT, miss[0], miss[1], miss[2]);
+            return 1;
         }
     }
     if (c->phi_max > 0.0) {
@@ -241,10 +279,9 @@ int pt_check_state(const PtChain *plant, const PtChecks *c, const double *z, lon
     if (c->rect != NULL && n >= 2) {
         for (b = 0; b <= n; b++) {
             const double *r = c->rect + 4 * b;
-            const double cs = cos(th[b]), sn = sin(th[b]);
             double *w = rects + 5 * b;
-            w[0] = bx[b] + cs * r[0] - sn * r[1];
-            w[1] = by[b] + sn * r[0] + cs * r[1];
+            w[0] = bx[b] + cs[b] * r[0] - sn[b] * r[1];
+            w[1] = by[b] + sn[b] * r[0] + cs[b] * r[1];
             w[2] = th[b];
             w[3] = r[2];
             w[4] = r[3];
@@ -253,7 +290,8 @@ int pt_check_state(const PtChain *plant, const PtChecks *c, const double *z, lon
             int o;
             for (o = b + 2; o <= n; o++) {
                 double pt[2];
-                if (pt_rects_overlap(rects + 5 * b, rects + 5 * o, pt)) {
+                if (rects_overlap_cs(rects + 5 * b, rects + 5 * o, cs[b], sn[b], cs[o], sn[o],
+                                     pt)) {
                     set_violation(v, k, b, o, PT_STOP_SELF, pt[0], pt[1], 0.0);
                     return 1;
                 }

@@ -50,6 +50,12 @@ typedef struct {
     const int *point_offset; /* n + 2 entries */
     const double *px, *py;
     const double *margin;    /* n + 1 entries [m] */
+    /* (a') optional second sample set (NULL fine_offset: none), same layout: a body with a point
+     * closer than its margin above passes if all of its points here keep fine_margin[b] (e.g. a
+     * cover of discs first, a body's perimeter points only where a disc fails). */
+    const int *fine_offset;
+    const double *fine_px, *fine_py;
+    const double *fine_margin;
     /* (b) joint limit: |wrap(theta_{i-1} - theta_i)| <= phi_max; <= 0: no joint check */
     double phi_max;
     /* (c) self-collision of non-adjacent bodies (|a - b| >= 2): rect[4 b .. 4 b + 3] = centre
