@@ -57,6 +57,10 @@ __all__ = ["plan_lattice"]
 
 log = logging.getLogger(__name__)
 
+HEURISTIC_NODES_PER_SECOND = 1.0e6
+"""Nodes a second assumed of the heuristic's grid Dijkstra when sizing it to the time budget
+(conservative: 3.5 million on a laptop core)."""
+
 
 def plan_lattice(world: World, train: Train, start, goal, start_headings, config) -> PlannedPath:
     """Plan with the closed-loop lattice search (see the module docstring).
@@ -71,6 +75,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     field = world.distance_field()
     t_begin = time.perf_counter()
     deadline = t_begin + 0.9 * config.time_budget
+    hard_stop = t_begin + 1.05 * config.time_budget  # no exact test that would end later
     margins = config.margins(train)
     # the prediction must end within a fraction of the co-simulation's goal tolerance: the rest
     # is left to the difference between the kinematic prediction and the FMU
@@ -89,7 +94,10 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     radius = config.radius_for(train)
     last = train.last
     reach = min(0.5 * last.width, 0.5 * last.length - abs(last.offset))
-    heuristic = Heuristic(field, goal, radius, reach + margins[-1], build_car=False)
+    # the grid's Dijkstra run (about 3.5 million nodes a second on a laptop core) is not
+    # interruptible: it may take at most a quarter of the budget at a million nodes a second
+    heuristic = Heuristic(field, goal, radius, reach + margins[-1], build_car=False,
+                          max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.time_budget))
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
     if heuristic(cursor0.pose) == math.inf:
         raise PlanningError(
@@ -122,12 +130,18 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
             segments, run, smooth_info = _smoothed(prop, start, headings, solution.segments,
                                                    run, goal, config, train, deadline,
                                                    clear=search.reference_clear)
+            if not _exact_fits(run, train, hard_stop):
+                search.stats.cut = "deadline"
+                break
             checked = _exact(world, train, start, headings, segments, run, margins, tracker)
             if not checked.ok and segments != solution.segments:
                 # the smoothed path failed the exact test: the path as found
                 log.info("the smoothed path failed the exact test: %s", checked.failure)
                 segments = merge(solution.segments)
                 run = _simulate(prop, start, headings, segments, goal, None)
+                if not _exact_fits(run, train, hard_stop):
+                    search.stats.cut = "deadline"
+                    break
                 checked = _exact(world, train, start, headings, segments, run, margins,
                                  tracker)
                 smooth_info["shortcuts"] = 0
@@ -233,17 +247,36 @@ def _simulate(prop: Propagator, start, headings, segments, goal, deadline: float
     return prop.rollout(state0, cursor0, segments, goal=goal, record=True, deadline=deadline)
 
 
+_EXACT_RATE = [2.0e-6]
+"""Seconds per simulated state and body of the exact test, the last measured in this process
+(at first a conservative guess: about 0.7 us is usual)."""
+
+
+def _exact_fits(run, train: Train, hard_stop: float) -> bool:
+    """Whether the exact test of ``run`` is expected to end before ``hard_stop`` (a
+    ``time.perf_counter()`` value): it cannot be interrupted, so one that would end past the
+    budget is not started (the result says the clock cut the search short)."""
+    estimate = _EXACT_RATE[0] * run.z.shape[0] * (train.n + 1)
+    if time.perf_counter() + estimate <= hard_stop:
+        return True
+    log.info("no time left for the exact test of a path found (about %.3f s)", estimate)
+    return False
+
+
 def _exact(world: World, train: Train, start, headings, segments, run, margins,
            tracker: TrackerConfig):
     """The exact test of a simulated path: every body's rectangle (shapely) inside the free
     space shrunk by its clearance at samples no corner moves more than 1 cm apart, the joint
     limit, self-collision and the goal, with the clearances measured
     (:func:`~pushtrain.planner.train_check.check_train` on the run, no new simulation)."""
+    t0 = time.perf_counter()
     traj = Trajectory(run.extra["t"], run.z, run.extra["command"], run.reference,
                       run.extra["direction"], np.ones(run.z.shape[0], dtype=bool))
-    return check_train(world, train, start, segments, headings, margin=margins,
-                       resolution=0.01, tracker=tracker, trajectory=traj, self_collision=True,
-                       field=world.distance_field())
+    checked = check_train(world, train, start, segments, headings, margin=margins,
+                          resolution=0.01, tracker=tracker, trajectory=traj,
+                          self_collision=True, field=world.distance_field())
+    _EXACT_RATE[0] = (time.perf_counter() - t0) / (run.z.shape[0] * (train.n + 1))
+    return checked
 
 
 @dataclass

@@ -62,11 +62,15 @@ class Heuristic:
         Further settings of the :class:`CarGrid` (``headings``, ``turn_weight``, ...).
     build_car : bool
         Build the :class:`CarGrid` now (else on :meth:`build_car`).
+    max_nodes : int
+        About the most nodes of the obstacle-aware grid (1000 to :data:`MAX_NODES`): its
+        Dijkstra run cannot be interrupted, so a short time budget asks for a coarser grid.
     """
 
     def __init__(self, field: DistanceField, goal, radius: float, clearance: float,
                  resolution: float = 0.05, car_resolution: float | None = 0.25,
-                 car: dict | None = None, build_car: bool = True):
+                 car: dict | None = None, build_car: bool = True,
+                 max_nodes: int = MAX_NODES):
         self.goal = tuple(float(a) for a in goal)
         self.radius = float(radius)
         xmin, ymin, xmax, ymax = field.bounds
@@ -76,8 +80,9 @@ class Heuristic:
         self._b.setX(self.goal[0])
         self._b.setY(self.goal[1])
         self._b.setYaw(_yaw(self.goal[2]))
-        # at most MAX_NODES grid nodes: a large map gets a coarser grid
-        h = max(float(resolution), math.sqrt((xmax - xmin) * (ymax - ymin) / MAX_NODES))
+        # at most max_nodes grid nodes: a large map gets a coarser grid
+        nodes = max(1000, min(int(max_nodes), MAX_NODES))
+        h = max(float(resolution), math.sqrt((xmax - xmin) * (ymax - ymin) / nodes))
         self.resolution = h
         nx = int(math.floor((xmax - xmin) / h)) + 1
         ny = int(math.floor((ymax - ymin) / h)) + 1

@@ -24,6 +24,24 @@ def test_grid_distance_goes_around_the_corner():
     assert h.grid(gx, gy) == pytest.approx(0.0, abs=0.05)
 
 
+def test_a_node_cap_coarsens_the_grid_and_keeps_it_a_lower_bound_of_the_way():
+    """max_nodes (a short time budget) gives a grid of about that many nodes whose distance
+    still goes around the corner and stays within the 8-connected bound."""
+    case = worlds.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    field = world.distance_field()
+    fine = Heuristic(field, case["goal"], 1.0, 0.35, car_resolution=None)
+    coarse = Heuristic(field, case["goal"], 1.0, 0.35, car_resolution=None, max_nodes=2000)
+    assert coarse.free.size <= 1.05 * 2000 < fine.free.size  # (nx + 1)(ny + 1) nodes
+    assert coarse.resolution > fine.resolution
+    sx, sy = case["start"][:2]
+    corner = (7.0 + 0.35, 2.0 - 0.35)
+    geodesic = math.dist((sx, sy), corner) + math.dist(corner, case["goal"][:2])
+    # the coarse grid lets a point pass up to h / sqrt(2) closer to the corner
+    slack = 2.0 * coarse.resolution
+    assert geodesic - slack <= coarse.grid(sx, sy) <= 1.09 * geodesic
+
+
 def test_rs_is_the_reeds_shepp_length_of_the_chain_poses():
     case = worlds.bay()
     world = World.from_dict(case["world"])

@@ -177,3 +177,25 @@ def test_the_same_plan_under_load():
     assert all(p.returncode == 0 for p in procs)
     assert not outs[0]["capped"] and not outs[1]["capped"]
     assert outs[0] == outs[1]
+
+
+def test_an_exact_test_that_would_end_past_the_budget_is_not_started(monkeypatch):
+    """The exact test cannot be interrupted: with its cost estimated past ``1.05 x
+    time_budget`` the planner stops, says the clock cut it short, and names the budget; with a
+    small estimate the same problem plans."""
+    from pushtrain.planner import closedloop
+
+    case = worlds.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    config = PlannerConfig(time_budget=2.0)
+    monkeypatch.setattr(closedloop, "_EXACT_RATE", [1.0])  # 1 s per state and body
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], TRAIN, config)
+    err = info.value
+    assert err.reason == "budget_exhausted" and err.details["time_capped"]
+    assert err.details["constraint"] == "budget" and "time budget of 2 s" in str(err)
+    monkeypatch.setattr(closedloop, "_EXACT_RATE", [1e-9])
+    path = plan(world, case["start"], case["goal"], TRAIN, config)
+    assert not path.info["time_capped"]
+    # the rate is measured again by every exact test
+    assert closedloop._EXACT_RATE[0] > 1e-9
