@@ -52,6 +52,7 @@ from .events import EventSchedule, Push, SetBias, Slide, _positive
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
 from .recorder import Recorder
 from .sensors import Measurement, SensorConfig, Sensors
+from .step_loop import STEP_LOOPS, CompiledLoop, unsupported
 
 __all__ = [
     "CosimError",
@@ -68,6 +69,7 @@ __all__ = [
     "STATUS_FMU_ERROR",
     "STATUS_TIME_LIMIT",
     "IMPLEMENTATIONS",
+    "STEP_LOOPS",
 ]
 
 log = logging.getLogger(__name__)
@@ -291,14 +293,16 @@ class _PlantIO:
         self.n = n
         self.state = np.empty(n + 6)
         self.pose, self.phi = self.state[:6], self.state[6:]
-        self.read_state = slave.real_reader(["x[0]", "y[0]", "theta[0]", f"x[{n}]", f"y[{n}]",
-                                             f"theta[{n}]"] + slave.names("phi", 1, n),
-                                            out=self.state)
-        names = [f"{fmu}[{i}]" for fmu, _, first in _OUTPUTS for i in range(first, n + 1)]
-        self.read_outputs = slave.real_reader(names, out=recorder.view("outputs"))
-        self.read_flags = slave.bool_reader(slave.names("slipping", 1, n) + ["jackknifed"],
-                                            out=recorder.view("flags"))
-        self.write_inputs = slave.real_writer(["v_cmd", "w_cmd", "push_x", "push_y"])
+        self.state_names = ["x[0]", "y[0]", "theta[0]", f"x[{n}]", f"y[{n}]", f"theta[{n}]",
+                            *slave.names("phi", 1, n)]
+        self.output_names = [f"{fmu}[{i}]" for fmu, _, first in _OUTPUTS
+                             for i in range(first, n + 1)]
+        self.flag_names = [*slave.names("slipping", 1, n), "jackknifed"]
+        self.input_names = ["v_cmd", "w_cmd", "push_x", "push_y"]
+        self.read_state = slave.real_reader(self.state_names, out=self.state)
+        self.read_outputs = slave.real_reader(self.output_names, out=recorder.view("outputs"))
+        self.read_flags = slave.bool_reader(self.flag_names, out=recorder.view("flags"))
+        self.write_inputs = slave.real_writer(self.input_names)
         self.write_slide = {i: slave.real_writer([f"slide[{i}]"]) for i in slid}
         recorder.view("F_lat_max")[:] = slave.get_reals(slave.names("F_lat_max", 1, n))
 
@@ -462,6 +466,7 @@ def simulate(
     progress: bool | None = None,
     out_dir=None,
     implementation: str = "c",
+    step_loop: str = "auto",
 ) -> Result:
     """Co-simulate the FMU with the backward controller tracking ``reference``.
 
@@ -502,6 +507,13 @@ def simulate(
         leader and command in one C call per step), ``"python"`` the readable
         :class:`~pushtrain.core.controller.BackwardController`. A controller passed in built is
         used as it is.
+    step_loop : {"auto", "c", "python"}
+        Which loop steps the run: ``"auto"`` the compiled step loop
+        (:mod:`~pushtrain.cosim.step_loop`: many steps per C call) when the run allows it (an
+        FMI 2.0 FMU, the compiled control law on a line/arc reference, :class:`Sensors`), else
+        the Python loop; ``"c"`` the compiled loop or a CosimInputError saying why not;
+        ``"python"`` the Python loop. Both give the same results bit for bit; the summary's
+        ``step_loop`` says which ran (and ``step_loop_fallback`` why not the compiled one).
 
     Raises
     ------
@@ -509,6 +521,9 @@ def simulate(
         Bad configuration, detected before any stepping (the FMU's own errors during a run end
         the run with status ``fmu_error`` instead).
     """
+    if step_loop not in STEP_LOOPS:
+        raise CosimInputError(f"step_loop = {step_loop!r}: allowed are "
+                              f"{', '.join(map(repr, STEP_LOOPS))}")
     step = _positive("step", step)
     t0, horizon = _timing(reference, initial, step, horizon, settle_time)
     n_steps = _steps(horizon, step)
@@ -537,6 +552,12 @@ def simulate(
             f"the FMU {Path(fmu).name} has n = {slave.n} trailers; "
             f"the controller's chain has {n}"
         )
+    why_not_c = (unsupported(slave, loop, sens) if step_loop != "python"
+                 else "step_loop = 'python' was asked for")
+    if step_loop == "c" and why_not_c is not None:
+        slave.close()
+        raise CosimInputError(f"step_loop = 'c': the compiled step loop cannot run {why_not_c}; "
+                              "allowed for this run are 'auto' and 'python'")
     # rows for the whole run up to 8 MiB (pages never written cost no memory), then doubling
     recorder = _recorder(n, min(n_steps + 1, max(4096, (8 << 20) // (8 * len(_columns(n))))))
     show = progress if progress is not None else (sys.stderr.isatty() and n_steps > 200)
@@ -544,8 +565,9 @@ def simulate(
     try:
         slave.start({**plant.start_values(), **initial.start_values()}, t0)
         run = _Run(slave, loop, sens, schedule, recorder, goal)
+        stepper = run if why_not_c is not None else CompiledLoop(run)
         with _progress_bar(show, n_steps) as bar:
-            end = run.run(t0, step, n_steps, bar)
+            end = stepper.run(t0, step, n_steps, bar)
         status, message = end or _horizon_end(recorder, goal, horizon, n)
     except CosimError as exc:
         status, message = STATUS_FMU_ERROR, str(exc)
@@ -559,8 +581,11 @@ def simulate(
     wall = _time.perf_counter() - wall_start
 
     data = recorder.to_array()
-    result = Result(status, message, data, _summarize(data, n, status, message, wall, step), n,
-                    fmu_log)
+    summary = _summarize(data, n, status, message, wall, step)
+    summary["step_loop"] = "python" if why_not_c is not None else "c"
+    if why_not_c is not None:
+        summary["step_loop_fallback"] = why_not_c
+    result = Result(status, message, data, summary, n, fmu_log)
     log.info("co-simulation %s: %s (%d steps, %.2f s wall)", status, message, len(data) - 1, wall)
     if out_dir is not None:
         result.save(out_dir)
