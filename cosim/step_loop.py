@@ -79,7 +79,7 @@ class PtMasterLoop(ctypes.Structure):
         ("f_lat_max", _D_PTR),
         ("check_goal", c_int), ("goal_from", c_double), ("goal_x", c_double),
         ("goal_y", c_double), ("goal_theta", c_double), ("goal_position", c_double),
-        ("goal_heading", c_double),
+        ("goal_heading", c_double), ("goal_slack", c_double),
         ("pause_at", c_double), ("next_bias", c_double), ("n_pushes", c_int),
         ("pushes", _D_PTR), ("slide", c_double), ("n_slide_writes", c_int),
         ("slide_vr", _U_PTR), ("slide_values", _D_PTR),
@@ -127,6 +127,10 @@ class CompiledLoop:
     """The compiled step loop of one run (a :class:`~pushtrain.cosim.master._Run` whose
     :func:`unsupported` is None); :meth:`run` as ``_Run.run``."""
 
+    goal_slack = 1e-9
+    """The C loop hands a step back as a goal candidate when the last trailer is within
+    (1 + goal_slack) times the goal's tolerances; Python's own test (``math.hypot``) decides."""
+
     def __init__(self, run):
         self.run_ = run
         self.lib = _library()
@@ -173,6 +177,7 @@ class CompiledLoop:
         m.goal_from = goal.t_end - 1e-12
         m.goal_x, m.goal_y, m.goal_theta = (float(a) for a in goal.pose)
         m.goal_position, m.goal_heading = goal.position, goal.heading
+        m.goal_slack = self.goal_slack
         # scratch
         m.state = native.dptr(io.state)
         self._flags = (c_int * (n + 1))()

@@ -9,8 +9,7 @@
 #include <math.h>
 #include <string.h>
 
-#define PT_EPS_T 1e-12    /* [s] event times against communication points (events.py) */
-#define PT_GOAL_SLACK 1e-9 /* relative: a goal candidate within this much more is handed back */
+#define PT_EPS_T 1e-12 /* [s] event times against communication points (events.py) */
 
 size_t pt_master_loop_sizeof(void) { return sizeof(PtMasterLoop); }
 
@@ -210,8 +209,8 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
         }
         if (m->check_goal && t >= m->goal_from) {
             const double dist = hypot(x_n - m->goal_x, y_n - m->goal_y);
-            if (dist <= m->goal_position * (1.0 + PT_GOAL_SLACK) &&
-                fabs(pt_wrap(th_n - m->goal_theta)) <= m->goal_heading * (1.0 + PT_GOAL_SLACK)) {
+            if (dist <= m->goal_position * (1.0 + m->goal_slack) &&
+                fabs(pt_wrap(th_n - m->goal_theta)) <= m->goal_heading * (1.0 + m->goal_slack)) {
                 reason = PT_LOOP_GOAL_CANDIDATE;
                 break;
             }

@@ -47,8 +47,8 @@ enum {
     PT_LOOP_PAUSE = 0,           /* at the top of step k: the budget is used or an event is due */
     PT_LOOP_HORIZON = 1,         /* step k = n_steps recorded: the horizon ended */
     PT_LOOP_JACKKNIFE = 2,       /* step k recorded with the jackknife flag set; no doStep */
-    PT_LOOP_GOAL_CANDIDATE = 3,  /* step k recorded, the last trailer (nearly) within the goal's
-                                  * tolerance: the caller decides; no doStep done */
+    PT_LOOP_GOAL_CANDIDATE = 3,  /* step k recorded, the last trailer within goal_slack of the
+                                  * goal's tolerance: the caller decides; no doStep done */
     PT_LOOP_FMI_ERROR = 4,       /* an FMI call of step k failed (failed_call, fmi_status) */
     PT_LOOP_CONTROL_ERROR = 5,   /* pt_track refused step k (control_status); nothing recorded */
     PT_LOOP_ARGUMENT = 6         /* a NULL pointer or a bad size */
@@ -117,7 +117,9 @@ typedef struct {
     int check_goal;
     double goal_from;              /* the goal is tested from t >= goal_from [s] */
     double goal_x, goal_y, goal_theta;
-    double goal_position, goal_heading; /* tolerances [m, rad], a candidate within 1e-9 more */
+    double goal_position, goal_heading; /* tolerances [m, rad] */
+    double goal_slack;             /* a candidate is within (1 + goal_slack) times them (the
+                                    * caller's exact test decides) */
 
     /* ---- events of the call ---- */
     double pause_at;               /* return at the top of a later step with t >= pause_at */
