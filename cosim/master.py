@@ -239,6 +239,12 @@ _OUTPUTS = (  # FMU output array, its result column prefix, first index
 )
 
 
+_SCALARS = ("t", "v_cmd", "w_cmd", "push_x", "push_y", "slide", "x_d", "y_d", "theta_d", "v_d",
+            "w_d", "direction", "e_lon", "e_lat", "e_theta")
+"""The columns of a row that are neither FMU values nor measured joint angles, in the order the
+loops write them."""
+
+
 def _columns(n: int) -> list[str]:
     """The result's columns in order (``u{i}`` is the FMU's ``slide_speed[i]`` [m/s])."""
     cols = ["t"]
@@ -252,19 +258,31 @@ def _columns(n: int) -> list[str]:
     return cols
 
 
-def _recorder(n: int, capacity: int) -> Recorder:
+def _recorder(n: int, capacity: int, by_column: bool = False) -> Recorder:
     """The recorder of a run: the blocks the loop writes, the columns of :func:`_columns`.
 
-    The FMU's outputs and flags land in their blocks of the recorder's row straight from the FMU;
-    ``scalars`` holds the time, the inputs, the reference sample and the tracking errors."""
+    For the Python loop the FMU's outputs and flags land in their blocks of the recorder's row
+    straight from the FMU; ``scalars`` holds the time, the inputs, the reference sample and the
+    tracking errors. With ``by_column`` (the compiled loop, which places every value itself) a
+    row is laid out in the result's column order, so the table is the storage itself
+    (:meth:`Recorder.to_array` copies nothing)."""
     joints = range(1, n + 1)
+    if by_column:
+        columns = _columns(n)
+        starts = [0, 1, columns.index("phi_meas1"), columns.index("F_lat1"),
+                  columns.index("F_lat_max1"), columns.index("slipping1"), columns.index("u1"),
+                  columns.index("v_cmd"), columns.index("x_d"), len(columns) - 1, len(columns)]
+        names = ("t", "states", "phi_meas", "F_lat", "F_lat_max", "slipping", "u", "inputs",
+                 "reference", "jackknifed")
+        return Recorder([(name, columns[a:b]) for name, a, b in zip(names, starts, starts[1:],
+                                                                      strict=False)],
+                        columns, capacity)
     blocks = [
         ("outputs", [f"{col}{i}" for _, col, first in _OUTPUTS for i in range(first, n + 1)]),
         ("flags", [f"slipping{i}" for i in joints] + ["jackknifed"]),
         ("F_lat_max", [f"F_lat_max{i}" for i in joints]),
         ("phi_meas", [f"phi_meas{i}" for i in joints]),
-        ("scalars", ["t", "v_cmd", "w_cmd", "push_x", "push_y", "slide",
-                  "x_d", "y_d", "theta_d", "v_d", "w_d", "direction", "e_lon", "e_lat", "e_theta"]),
+        ("scalars", list(_SCALARS)),
     ]
     return Recorder(blocks, _columns(n), capacity)
 
@@ -297,11 +315,17 @@ class _PlantIO:
                             *slave.names("phi", 1, n)]
         self.output_names = [f"{fmu}[{i}]" for fmu, _, first in _OUTPUTS
                              for i in range(first, n + 1)]
+        self.output_columns = [f"{col}{i}" for _, col, first in _OUTPUTS
+                               for i in range(first, n + 1)]
         self.flag_names = [*slave.names("slipping", 1, n), "jackknifed"]
+        self.flag_columns = [f"slipping{i}" for i in range(1, n + 1)] + ["jackknifed"]
         self.input_names = ["v_cmd", "w_cmd", "push_x", "push_y"]
         self.read_state = slave.real_reader(self.state_names, out=self.state)
-        self.read_outputs = slave.real_reader(self.output_names, out=recorder.view("outputs"))
-        self.read_flags = slave.bool_reader(self.flag_names, out=recorder.view("flags"))
+        rows = recorder.has("outputs")  # the Python loop's layout: read straight into the row
+        self.read_outputs = slave.real_reader(self.output_names,
+                                              out=recorder.view("outputs") if rows else None)
+        self.read_flags = slave.bool_reader(self.flag_names,
+                                            out=recorder.view("flags") if rows else None)
         self.write_inputs = slave.real_writer(self.input_names)
         self.write_slide = {i: slave.real_writer([f"slide[{i}]"]) for i in slid}
         recorder.view("F_lat_max")[:] = slave.get_reals(slave.names("F_lat_max", 1, n))
@@ -338,9 +362,6 @@ class _Run:
         self.recorder, self.goal, self.n = recorder, goal, sensors.n
         slid = {self.n if ev.trailer is None else ev.trailer for ev in events.slides}
         self.io = _PlantIO(slave, self.n, recorder, sorted(slid))
-        self.phi_meas, self.flags = recorder.view("phi_meas"), recorder.view("flags")
-        scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
-        self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
         self.measure = self._measure_ideal if sensors.ideal else self._measure
 
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
@@ -349,6 +370,10 @@ class _Run:
 
         Per step: four FMI calls, one doStep, scalar Python and one copy of the row (the
         per-step objects are bound to locals once)."""
+        recorder = self.recorder
+        self.phi_meas, self.flags = recorder.view("phi_meas"), recorder.view("flags")
+        scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
+        self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
         events, io, n, goal = self.events, self.io, self.n, self.goal
         read_state, write_inputs = io.read_state, io.write_inputs
         read_outputs, read_flags = io.read_outputs, io.read_flags
@@ -559,7 +584,8 @@ def simulate(
         raise CosimInputError(f"step_loop = 'c': the compiled step loop cannot run {why_not_c}; "
                               "allowed for this run are 'auto' and 'python'")
     # rows for the whole run up to 8 MiB (pages never written cost no memory), then doubling
-    recorder = _recorder(n, min(n_steps + 1, max(4096, (8 << 20) // (8 * len(_columns(n))))))
+    recorder = _recorder(n, min(n_steps + 1, max(4096, (8 << 20) // (8 * len(_columns(n))))),
+                         by_column=why_not_c is None)
     show = progress if progress is not None else (sys.stderr.isatty() and n_steps > 200)
     wall_start = _time.perf_counter()
     try:

@@ -94,6 +94,14 @@ class Recorder:
         if count:
             self.row[:] = self._store[self.rows - 1]
 
+    def index(self, column: str) -> int:
+        """Index in a row of ``column``."""
+        return self._where[column]
+
+    def has(self, block: str) -> bool:
+        """Whether ``block`` is one of the recorder's blocks."""
+        return block in self._spans
+
     def block_start(self, block: str) -> int:
         """Index in a row of the first column of ``block``."""
         return self._spans[block].start
@@ -124,8 +132,13 @@ class Recorder:
         return float(self._store[self.rows - 1, self._where[name]])
 
     def to_array(self) -> np.ndarray:
-        """The rows so far as a structured array of float64 columns in :attr:`columns` order."""
+        """The rows so far as a structured array of float64 columns in :attr:`columns` order.
+
+        If the blocks lie in that order, the array is the storage's first rows (no copy; rows
+        recorded later do not change it), else a copy."""
         rows = self.rows
+        if self._runs == [(0, 0, self._store.shape[1])]:
+            return self._store[:rows].view(self._dtype).reshape(rows)
         table = np.empty((rows, self._store.shape[1]))
         for to, start, count in self._runs:  # a few block copies, not a gather per element
             table[:, to:to + count] = self._store[:rows, start:start + count]

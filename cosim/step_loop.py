@@ -74,16 +74,16 @@ class PtMasterLoop(ctypes.Structure):
         ("bias", _D_PTR), ("half_backlash", c_double), ("play", _D_PTR), ("has_play", c_int),
         ("quantization", c_double), ("noise", c_int), ("measure_last_pose", c_int),
         ("noise_values", _D_PTR), ("noise_per_step", c_int),
-        ("rows", _D_PTR), ("row_width", c_int), ("at_outputs", c_int), ("at_flags", c_int),
-        ("at_f_lat_max", c_int), ("at_phi_meas", c_int), ("at_scalars", c_int),
-        ("f_lat_max", _D_PTR),
+        ("rows", _D_PTR), ("row_width", c_int), ("n_output_runs", c_int),
+        ("output_runs", _I_PTR), ("flag_at", _I_PTR), ("scalar_at", _I_PTR),
+        ("at_phi_meas", c_int), ("at_f_lat_max", c_int), ("f_lat_max", _D_PTR),
         ("check_goal", c_int), ("goal_from", c_double), ("goal_x", c_double),
         ("goal_y", c_double), ("goal_theta", c_double), ("goal_position", c_double),
         ("goal_heading", c_double), ("goal_slack", c_double),
         ("pause_at", c_double), ("next_bias", c_double), ("n_pushes", c_int),
         ("pushes", _D_PTR), ("slide", c_double), ("n_slide_writes", c_int),
         ("slide_vr", _U_PTR), ("slide_values", _D_PTR),
-        ("state", _D_PTR), ("flags", _I_PTR),
+        ("state", _D_PTR), ("outputs", _D_PTR), ("flags", _I_PTR),
         ("k", c_long), ("time", c_double), ("inputs", c_double * 4), ("failed_call", c_int),
         ("failed_slide", c_int), ("fmi_status", c_int), ("control_status", c_int),
     ]
@@ -121,6 +121,18 @@ def unsupported(slave, loop, sensors) -> str | None:
     if type(sensors) is not Sensors:
         return f"sensors of type {type(sensors).__name__} (the compiled loop models Sensors)"
     return None
+
+
+def _runs(indices: list[int]) -> list[tuple[int, int, int]]:
+    """``(first value, first row index, count)`` of each run of values that land side by side
+    in a row (value j goes to row index ``indices[j]``)."""
+    runs: list[list[int]] = []
+    for j, index in enumerate(indices):
+        if runs and runs[-1][1] + runs[-1][2] == index:
+            runs[-1][2] += 1
+        else:
+            runs.append([j, index, 1])
+    return [tuple(run) for run in runs]
 
 
 class CompiledLoop:
@@ -163,14 +175,24 @@ class CompiledLoop:
                    | (_NOISE_HEADING if sensors._heading_noise > 0.0 else 0))
         self.noise_scales = np.array(scales, dtype=float)
         m.noise_per_step = len(scales)
-        # recording
+        # recording: where each value goes in a row
+        from .master import _SCALARS  # the master imports this module
+
         recorder = run.recorder
         self._f_lat_max = np.array(recorder.view("F_lat_max"))
         m.f_lat_max = native.dptr(self._f_lat_max)
         m.row_width = len(recorder.row)
-        m.at_outputs, m.at_flags, m.at_f_lat_max, m.at_phi_meas, m.at_scalars = (
-            recorder.block_start(b) for b in ("outputs", "flags", "F_lat_max", "phi_meas",
-                                              "scalars"))
+        at = recorder.index
+        runs = _runs([at(c) for c in io.output_columns])
+        self._indices = [np.array(a, dtype=np.intc) for a in (
+            runs, [at(c) for c in io.flag_columns], [at(c) for c in _SCALARS])]
+        m.n_output_runs = len(runs)
+        m.output_runs, m.flag_at, m.scalar_at = (a.ctypes.data_as(_I_PTR) for a in self._indices)
+        for block in ("phi_meas", "F_lat_max"):
+            first = at(f"{block}1")
+            if [at(f"{block}{i}") for i in range(1, n + 1)] != list(range(first, first + n)):
+                raise CosimError(f"the recorder's {block} columns are not side by side")
+        m.at_phi_meas, m.at_f_lat_max = at("phi_meas1"), at("F_lat_max1")
         # goal
         goal = run.goal
         m.check_goal = int(bool(goal.check))
@@ -180,6 +202,8 @@ class CompiledLoop:
         m.goal_slack = self.goal_slack
         # scratch
         m.state = native.dptr(io.state)
+        self._outputs = np.empty(len(io.output_names))
+        m.outputs = native.dptr(self._outputs)
         self._flags = (c_int * (n + 1))()
         m.flags = ctypes.cast(self._flags, _I_PTR)
         # events: the times at which a push or slide starts or ends (events.py _active)
@@ -320,8 +344,8 @@ class CompiledLoop:
         error for the measurement it was given)."""
         tracker = self.tracker
         k = tracker._track
-        phi = np.ctypeslib.as_array(
-            self.run_.recorder.free_rows()[0, self.m.at_phi_meas:][: self.run_.n]).tolist()
+        row = self.run_.recorder.free_rows()[0]  # the refused step's row, not recorded
+        phi = row[self.m.at_phi_meas:self.m.at_phi_meas + self.run_.n].tolist()
         last = (k.m.x_n, k.m.y_n, k.m.theta_n) if k.m.has_last else None
         measurement = Measurement(k.m.x0, k.m.y0, k.m.theta0, phi, last)
         sample = k.sample

@@ -69,7 +69,9 @@ static int valid(const PtMasterLoop *m) {
     return m->component != NULL && m->get_real != NULL && m->set_real != NULL &&
            m->get_boolean != NULL && m->do_step != NULL && m->state_vr != NULL &&
            m->input_vr != NULL && m->output_vr != NULL && m->flag_vr != NULL && m->n >= 1 &&
-           m->n_outputs >= 1 && m->track != NULL && m->bias != NULL &&
+           m->n_outputs >= 1 && m->n_output_runs >= 1 && m->output_runs != NULL &&
+           m->flag_at != NULL && m->scalar_at != NULL && m->outputs != NULL &&
+           m->track != NULL && m->bias != NULL &&
            (m->half_backlash == 0.0 || m->play != NULL) &&
            (m->noise == 0 || (m->noise_values != NULL && m->noise_per_step > 0)) &&
            m->rows != NULL && m->f_lat_max != NULL && m->state != NULL && m->flags != NULL &&
@@ -97,8 +99,7 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
         const double t = m->t0 + (double)k * m->step;
         double *row = m->rows + (size_t)j * (size_t)m->row_width;
         double *phi_meas = row + m->at_phi_meas;
-        double *flags = row + m->at_flags;
-        double *scalars = row + m->at_scalars;
+        const int *at = m->scalar_at;
         const double *noise = m->noise ? m->noise_values + (size_t)j * m->noise_per_step : NULL;
         const double *st = m->state;
         double x0, y0, th0, x_n, y_n, th_n, push_x = 0.0, push_y = 0.0, dx, dy, c, s;
@@ -164,9 +165,8 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
                 break;
             }
         }
-        /* record: outputs and flags straight into the row, then the scalars */
-        status = m->get_real(m->component, m->output_vr, (size_t)m->n_outputs,
-                             row + m->at_outputs);
+        /* record: the outputs and flags, then the scalars */
+        status = m->get_real(m->component, m->output_vr, (size_t)m->n_outputs, m->outputs);
         if (status > 1) {
             m->failed_call = PT_CALL_GET_OUTPUTS;
             m->fmi_status = status;
@@ -180,30 +180,34 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
             reason = PT_LOOP_FMI_ERROR;
             break;
         }
+        for (i = 0; i < m->n_output_runs; i++) {
+            const int *run = m->output_runs + 3 * i;
+            memcpy(row + run[1], m->outputs + run[0], (size_t)run[2] * sizeof(double));
+        }
         for (i = 0; i <= m->n; i++) {
-            flags[i] = (double)m->flags[i];
+            row[m->flag_at[i]] = (double)m->flags[i];
         }
         memcpy(row + m->at_f_lat_max, m->f_lat_max, (size_t)m->n * sizeof(double));
         dx = x_n - track->sample.x; /* the last trailer's error in the reference frame */
         dy = y_n - track->sample.y;
         c = cos(track->sample.theta);
         s = sin(track->sample.theta);
-        scalars[0] = t;
-        scalars[1] = m->inputs[0];
-        scalars[2] = m->inputs[1];
-        scalars[3] = push_x;
-        scalars[4] = push_y;
-        scalars[5] = m->slide;
-        scalars[6] = track->sample.x;
-        scalars[7] = track->sample.y;
-        scalars[8] = track->sample.theta;
-        scalars[9] = track->sample.v;
-        scalars[10] = track->sample.w;
-        scalars[11] = (double)track->sample.direction;
-        scalars[12] = c * dx + s * dy;
-        scalars[13] = -s * dx + c * dy;
-        scalars[14] = pt_wrap(th_n - track->sample.theta);
-        if (flags[m->n] != 0.0) {
+        row[at[0]] = t;
+        row[at[1]] = m->inputs[0];
+        row[at[2]] = m->inputs[1];
+        row[at[3]] = push_x;
+        row[at[4]] = push_y;
+        row[at[5]] = m->slide;
+        row[at[6]] = track->sample.x;
+        row[at[7]] = track->sample.y;
+        row[at[8]] = track->sample.theta;
+        row[at[9]] = track->sample.v;
+        row[at[10]] = track->sample.w;
+        row[at[11]] = (double)track->sample.direction;
+        row[at[12]] = c * dx + s * dy;
+        row[at[13]] = -s * dx + c * dy;
+        row[at[14]] = pt_wrap(th_n - track->sample.theta);
+        if (m->flags[m->n] != 0) {
             reason = PT_LOOP_JACKKNIFE;
             break;
         }

@@ -9,8 +9,9 @@
  *   -> push force of the active pushes (cosim/events.py push_force)
  *   -> fmi2SetReal(v_cmd, w_cmd, push_x, push_y) (then, at the first step of a call only, the
  *      slide speeds that change there)
- *   -> fmi2GetReal of every recorded output and fmi2GetBoolean of the flags, straight into the
- *      row; the time, inputs, reference sample and tracking errors -> the row is committed
+ *   -> fmi2GetReal of every recorded output and fmi2GetBoolean of the flags; the row (in the
+ *      layout the caller gives: the result table's columns) gets them, the measured joint
+ *      angles, the time, inputs, reference sample and tracking errors
  *   -> jackknife and goal tests -> fmi2DoStep (unless the horizon ends).
  *
  * The FMU is called through its own exported functions (pointers the caller takes from the
@@ -82,7 +83,7 @@ typedef struct {
     PtFmi2DoStep do_step;
     const unsigned int *state_vr;  /* n + 6: x[0], y[0], theta[0], x[n], y[n], theta[n], phi[1..n] */
     const unsigned int *input_vr;  /* 4: v_cmd, w_cmd, push_x, push_y */
-    const unsigned int *output_vr; /* n_outputs recorded outputs, in the row's order */
+    const unsigned int *output_vr; /* n_outputs recorded outputs */
     const unsigned int *flag_vr;   /* n + 1: slipping[1..n], jackknifed */
     int n_outputs;
     int n;                         /* trailers */
@@ -107,11 +108,17 @@ typedef struct {
                                     * the call on */
     int noise_per_step;
 
-    /* ---- recording ---- */
+    /* ---- recording: where each value goes in a row (indices of row elements) ---- */
     double *rows;                  /* the row of the call's first step; row_width doubles/row */
     int row_width;
-    int at_outputs, at_flags, at_f_lat_max, at_phi_meas, at_scalars; /* block offsets */
-    const double *f_lat_max;       /* n values copied into every row */
+    int n_output_runs;             /* the outputs (read into the scratch `outputs`) are copied */
+    const int *output_runs;        /* in runs of (first output, first row index, count) */
+    const int *flag_at;            /* n + 1: where slipping[1..n] and jackknifed go */
+    const int *scalar_at;          /* 15: t, v_cmd, w_cmd, push_x, push_y, slide, x_d, y_d,
+                                    * theta_d, v_d, w_d, direction, e_lon, e_lat, e_theta */
+    int at_phi_meas;               /* n consecutive: the measured joint angles */
+    int at_f_lat_max;              /* n consecutive: copied from f_lat_max into every row */
+    const double *f_lat_max;
 
     /* ---- goal ---- */
     int check_goal;
@@ -134,6 +141,7 @@ typedef struct {
 
     /* ---- scratch ---- */
     double *state;                 /* n + 6 */
+    double *outputs;               /* n_outputs */
     int *flags;                    /* n + 1 */
 
     /* ---- out ---- */
