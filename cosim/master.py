@@ -18,9 +18,16 @@ do step
     ``fmi2DoStep`` from t_k to t_k + h, unless the last trailer reached the goal, a joint
     jackknifed or the horizon ended.
 
-Per step that is four FMI calls and one doStep, made through bare ctypes with preallocated
-arrays (:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), and scalar Python in between;
-``benchmarks/bench_cosim.py`` compares it with a raw-ctypes loop doing the same calls.
+Per step that is four FMI calls and one doStep. Two loops do it, with the same results bit for
+bit: the compiled step loop (:mod:`~pushtrain.cosim.step_loop`, ``cosim/csrc/master_loop.c``:
+up to :data:`~pushtrain.cosim.step_loop.CHUNK` steps per C call, back in Python only for events,
+the progress bar, the goal, a jackknife or a failure), used whenever the run allows it (an FMI 2.0
+FMU, the compiled control law tracking a line/arc reference); and the Python loop
+(:meth:`_Run.run`: the FMI calls through bare ctypes with preallocated arrays
+(:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), scalar Python in between), for
+everything else (the governor, open-loop profiles, the Python control law, FMI 3.0).
+``simulate(step_loop=...)`` picks one; ``benchmarks/bench_cosim.py`` compares both with a
+raw-ctypes loop doing the same calls.
 
 Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save` CSV, NPZ and
 ``summary.json`` (each written atomically).

@@ -11,6 +11,7 @@ control-law failures.
 """
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -33,6 +34,8 @@ from pushtrain.cosim.master import (
     simulate,
 )
 from pushtrain.cosim.sensors import SensorConfig, Sensors
+from pushtrain.mission.runner import plan_path, run_scenario
+from pushtrain.mission.scenario import load_scenario
 
 
 def _push_pull():
@@ -217,3 +220,26 @@ def test_a_bad_step_loop_in_a_scenario_exits_2_naming_it(tmp_path):
     assert result.exit_code == 2, result.output
     assert "sim.step_loop" in result.output and "fortran" in result.output
     assert "'auto'" in result.output and "Traceback" not in result.output
+
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.mark.parametrize("name", ["joint_bias_5deg", "circle", "l_corridor", "slip_governor"])
+def test_bundled_examples_run_alike_in_both_loops(name):
+    """A scripted run with a joint bias and the last trailer localized, an arc, a planned
+    push-pull corridor mission, and the governor (which takes the Python loop under auto)."""
+    sc = load_scenario(EXAMPLES / f"{name}.toml")
+    reference = None
+    if sc.mission.kind == "plan":
+        path = plan_path(sc)
+        reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
+    runs = {}
+    for loop in ("auto", "python"):
+        scenario = sc.model_copy(update={"sim": sc.sim.model_copy(update={"step_loop": loop})})
+        runs[loop] = run_scenario(scenario, reference=reference, progress=False)
+    auto, py = runs["auto"], runs["python"]
+    assert auto.summary["step_loop"] == ("python" if sc.controller.governor else "c")
+    assert (auto.status, auto.message) == (py.status, py.message) == (
+        "goal_reached", auto.message)
+    assert auto.data.tobytes() == py.data.tobytes()
