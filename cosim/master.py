@@ -363,6 +363,9 @@ class _Goal:
 class _Run:
     """One run's loop: at each communication point apply the inputs, record, ``fmi2DoStep``."""
 
+    scalar_columns = _SCALARS
+    """The row's columns besides the FMU's values and the measured joint angles."""
+
     def __init__(self, slave, loop: TrackingLoop, sensors: Sensors, events: EventSchedule,
                  recorder: Recorder, goal: _Goal):
         self.slave, self.loop, self.sensors, self.events = slave, loop, sensors, events

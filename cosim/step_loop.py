@@ -176,8 +176,6 @@ class CompiledLoop:
         self.noise_scales = np.array(scales, dtype=float)
         m.noise_per_step = len(scales)
         # recording: where each value goes in a row
-        from .master import _SCALARS  # the master imports this module
-
         recorder = run.recorder
         self._f_lat_max = np.array(recorder.view("F_lat_max"))
         m.f_lat_max = native.dptr(self._f_lat_max)
@@ -185,7 +183,7 @@ class CompiledLoop:
         at = recorder.index
         runs = _runs([at(c) for c in io.output_columns])
         self._indices = [np.array(a, dtype=np.intc) for a in (
-            runs, [at(c) for c in io.flag_columns], [at(c) for c in _SCALARS])]
+            runs, [at(c) for c in io.flag_columns], [at(c) for c in run.scalar_columns])]
         m.n_output_runs = len(runs)
         m.output_runs, m.flag_at, m.scalar_at = (a.ctypes.data_as(_I_PTR) for a in self._indices)
         for block in ("phi_meas", "F_lat_max"):
