@@ -4,9 +4,12 @@ For n = 3 and n = 50, in one process, on the same FMI 2.0 FMU:
 
 (a) master
     :func:`pushtrain.cosim.master.simulate` tracking an arc backward (check_goal off, so every
-    run takes the same number of steps): events, sensors, reference, controller, recorder, FMU;
-    with the compiled control law (``implementation="c"``, the default: the number judged) and,
-    side by side, with the Python one (``"python"``), which must give the same run bit for bit.
+    run takes the same number of steps): events, sensors, reference, controller, recorder, FMU.
+    Judged: the default, the compiled step loop (``step_loop="auto"`` picks it: many steps per
+    C call, ``cosim/csrc/master_loop.c``) with the compiled control law. Side by side: the
+    Python step loop with the same compiled law (``step_loop="python"``) and the Python loop
+    with the Python law (``implementation="python"``); all three must give the same run bit for
+    bit.
 (b) raw
     a loop of bare ctypes calls on the FMU's own functions with preallocated value-reference and
     value arrays, doing per step the FMI calls the master does: ``fmi2GetReal`` of the states
@@ -21,10 +24,10 @@ shared: wall time would count other processes' turns); the medians of microsecon
 and their ratio master / raw (the number judged; target <= 1.5) are printed. The master's time
 is the whole :func:`simulate` call (set-up, loop, result table) over its steps; a warm-up run
 first reads and extracts the FMU in this process (as for a sweep's later runs). Also printed:
-the control law's share, C and Python (the tracking loop replayed alone on the master's
-measurements; it must give the master's commands bit for bit), what the master costs without
-it, and the raw loop's getter share (the raw loop without its three gets). ``--profile`` adds a
-cProfile of one master run per n (top functions by own time).
+the control law's share of the Python-loop masters, C and Python (the tracking loop replayed
+alone on the master's measurements; it must give the master's commands bit for bit), what those
+masters cost without it, and the raw loop's getter share (the raw loop without its three
+gets). ``--profile`` adds a cProfile of one master run per n (top functions by own time).
 
 Run: python benchmarks/bench_cosim.py [--repeats 5] [--profile] [--n 3 50]
 """
@@ -65,15 +68,27 @@ def mission(n: int):
     return ref, ControllerConfig.uniform(n)
 
 
-def run_master(fmu, n: int, horizon: float, implementation: str = "c"):
-    """(microseconds per step, Result) of one :func:`simulate` run."""
+MASTERS = {  # label -> simulate's keywords
+    "C loop": {},
+    "Py loop": {"step_loop": "python"},
+    "Py law": {"implementation": "python"},
+}
+"""The masters timed: the default (judged), the Python step loop, the Python control law."""
+
+
+def run_master(fmu, n: int, horizon: float, label: str = "C loop"):
+    """(microseconds per step, Result) of one :func:`simulate` run of master ``label``."""
     ref, cfg = mission(n)
     start = time.process_time()
     result = simulate(fmu, ref, cfg, horizon=horizon, check_goal=False, progress=False,
-                      implementation=implementation)
+                      **MASTERS[label])
     wall = time.process_time() - start
     if not result.ok:
         raise SystemExit(f"master run n = {n} ended early: {result.status}: {result.message}")
+    want = "c" if label == "C loop" else "python"
+    if result.summary["step_loop"] != want:
+        raise SystemExit(f"master {label!r} ran the {result.summary['step_loop']} step loop: "
+                         f"{result.summary.get('step_loop_fallback')}")
     return wall / (len(result.data) - 1) * 1e6, result
 
 
@@ -243,44 +258,48 @@ def main() -> None:
     parser.add_argument("--n", type=int, nargs="+", default=[3, 50])
     parser.add_argument("--profile", action="store_true")
     args = parser.parse_args()
+    ratios = {}
     for n in args.n:
         fmu = build_fmu(n)
         horizon = HORIZON.get(n, 20.0)
-        run_master(fmu, n, horizon)  # warm-up: imports, caches, the C library
-        run_master(fmu, n, horizon, "python")
-        impls = ("c", "python")
-        masters = {impl: [] for impl in impls}
-        laws = {impl: [] for impl in impls}
-        raws, same, same_law, same_impl = [], True, True, True
+        for label in MASTERS:  # warm-up: imports, caches, the C library
+            run_master(fmu, n, horizon, label)
+        masters = {label: [] for label in MASTERS}
+        laws = {impl: [] for impl in ("c", "python")}
+        raws, same, same_law, same_runs = [], True, True, True
         for _ in range(args.repeats):
             results = {}
-            for impl in impls:
-                us, results[impl] = run_master(fmu, n, horizon, impl)
-                masters[impl].append(us)
-            result = results["c"]
-            same_impl = same_impl and all(
-                np.array_equal(result.data[k], results["python"].data[k], equal_nan=True)
-                for k in result.data.dtype.names)
+            for label in MASTERS:
+                us, results[label] = run_master(fmu, n, horizon, label)
+                masters[label].append(us)
+            result = results["C loop"]
+            same_runs = same_runs and all(
+                np.array_equal(result.data[k], other.data[k], equal_nan=True)
+                for other in results.values() for k in result.data.dtype.names)
             us_raw, equal = run_raw(fmu, n, result)
             raws.append(us_raw)
             same = same and equal
-            for impl in impls:
-                us_law, equal_law = control_law(n, results[impl], impl)
+            for impl, label in (("c", "Py loop"), ("python", "Py law")):
+                us_law, equal_law = control_law(n, results[label], impl)
                 laws[impl].append(us_law)
                 same_law = same_law and equal_law
         r = statistics.median(raws)
-        print(f"n = {n:2d}, {len(result.data) - 1} steps, medians of {args.repeats}:")
-        for impl in impls:
-            m, c = statistics.median(masters[impl]), statistics.median(laws[impl])
-            judged = "judged; " if impl == "c" else ""
-            print(f"  master ({impl:6s}) {m:7.2f} us/step, raw ctypes {r:6.2f} us/step: "
+        ratios[n] = {label: statistics.median(masters[label]) / r for label in MASTERS}
+        print(f"n = {n:2d}, {len(result.data) - 1} steps, medians of {args.repeats} "
+              "(CPU time of this process):")
+        for label in MASTERS:
+            m = statistics.median(masters[label])
+            judged = "judged; " if label == "C loop" else ""
+            print(f"  master ({label:7s}) {m:7.2f} us/step, raw ctypes {r:6.2f} us/step: "
                   f"RATIO master/raw = {m / r:.2f}x ({judged}target <= 1.5x; of the fastest "
-                  f"runs {min(masters[impl]):.2f} / {min(raws):.2f} = "
-                  f"{min(masters[impl]) / min(raws):.2f}x)\n"
-                  f"    control law ({impl}: reference + controller, replayed alone) {c:.2f} "
-                  f"us/step = {100 * c / m:.0f} % of it; the rest {m - c:.2f} us/step = "
-                  f"{(m - c) / r:.2f}x raw")
-        print(f"  master runs with the C and the Python control law bit-identical: {same_impl}\n"
+                  f"runs {min(masters[label]):.2f} / {min(raws):.2f} = "
+                  f"{min(masters[label]) / min(raws):.2f}x)")
+        for impl, label in (("c", "Py loop"), ("python", "Py law")):
+            m, c = statistics.median(masters[label]), statistics.median(laws[impl])
+            print(f"    control law ({impl}: reference + controller, replayed alone) {c:.2f} "
+                  f"us/step = {100 * c / m:.0f} % of the {label} master; the rest "
+                  f"{m - c:.2f} us/step = {(m - c) / r:.2f}x raw")
+        print(f"  the three masters' runs bit-identical: {same_runs}\n"
               f"  raw loop reproduces the master's outputs bit for bit: {same}; "
               f"replayed control laws their masters' commands: {same_law}")
         bare = statistics.median(run_raw(fmu, n, result, without_gets=True)
@@ -289,6 +308,10 @@ def main() -> None:
               f"set + doStep {bare:.2f} us/step")
         if args.profile:
             profile(fmu, n, horizon)
+    print("RATIO master/raw, " + "; ".join(
+        f"n = {n}: {ratios[n]['C loop']:.2f}x (Python loop {ratios[n]['Py loop']:.2f}x, "
+        f"Python law {ratios[n]['Py law']:.2f}x)" for n in ratios)
+        + " -- judged: the C loop, target <= 1.5x")
 
 
 if __name__ == "__main__":

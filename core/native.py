@@ -1,6 +1,7 @@
 """Build and load the compiled control law (``core/csrc``) with ctypes.
 
-The C sources (``control.c``, the law, and ``rollout.c``, the closed loop) are compiled once per
+The C sources (``control.c``, the law, ``rollout.c``, the closed loop, and the co-simulation
+master's step loop ``cosim/csrc/master_loop.c``) are compiled once per
 machine with the system C compiler into a shared library, ``-std=c99 -O2 -fPIC -shared
 -ffp-contract=off -lm`` (no fused multiply-add, so the C arithmetic rounds like Python's), and
 cached under ``$PUSHTRAIN_CACHE/native`` (default ``~/.cache/pushtrain/native``) by a hash of the
@@ -65,8 +66,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-SOURCES = ("control.c", "rollout.c")
-HEADERS = ("control.h", "rollout.h")
+SOURCES = ("control.c", "rollout.c", "master_loop.c")
+HEADERS = ("control.h", "rollout.h", "master_loop.h")
+_COSIM_SOURCES = ("master_loop.c", "master_loop.h")  # in cosim/csrc, the rest in core/csrc
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-ffp-contract=off")
 LDFLAGS = ("-shared",)
 LIBS = ("-lm",)
@@ -249,8 +251,10 @@ def compiler_command() -> list[str]:
     return argv
 
 
-def _source_dir():
-    return resources.files("pushtrain.core") / "csrc"
+def _source(name: str):
+    """The source file ``name`` (``core/csrc``, or ``cosim/csrc`` for the master's loop)."""
+    package = "pushtrain.cosim" if name in _COSIM_SOURCES else "pushtrain.core"
+    return resources.files(package) / "csrc" / name
 
 
 @functools.lru_cache(maxsize=8)
@@ -268,10 +272,9 @@ def _fingerprint(argv: list[str]) -> str:
     digest.update(f"format={BUILD_FORMAT};platform={sys.platform};".encode())
     recipe = [*argv, _compiler_version(tuple(argv)), *CFLAGS, *LDFLAGS, *LIBS]
     digest.update("\0".join(recipe).encode())
-    src = _source_dir()
     for name in SOURCES + HEADERS:
         digest.update(name.encode() + b"\0")
-        digest.update((src / name).read_bytes())
+        digest.update(_source(name).read_bytes())
     return digest.hexdigest()
 
 
@@ -283,9 +286,8 @@ def _compile(argv: list[str], target: Path) -> None:
     """Compile the sources into ``target`` through a temporary file renamed into place."""
     partial = target.with_name(f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.part")
     with tempfile.TemporaryDirectory(prefix="pushtrain-native-") as tmp:
-        src = _source_dir()
         for name in SOURCES + HEADERS:
-            (Path(tmp) / name).write_bytes((src / name).read_bytes())
+            (Path(tmp) / name).write_bytes(_source(name).read_bytes())
         command = [*argv, *CFLAGS, *LDFLAGS, "-o", str(partial),
                    *(str(Path(tmp) / name) for name in SOURCES), *LIBS]
         try:

@@ -397,8 +397,7 @@ class TrailerTrainSlave:
         def read() -> np.ndarray:
             status = call(*args)
             if status > _WARNING:
-                raise CosimError(f"reading {names[0]} .. {names[-1]} failed at "
-                                 f"t = {self.time:.6f} s: {self._why(status)}")
+                raise self.read_error(names, status)
             if finish is not None:
                 finish()
             return result
@@ -426,9 +425,7 @@ class TrailerTrainSlave:
                 values[index] = new_values
             status = set_real(*args)
             if status > _WARNING:
-                raise CosimError(
-                    f"setting {list(names)} = {list(new_values)} failed at t = {self.time:.6f} s: "
-                    f"{self._why(status)}")
+                raise self.write_error(names, new_values, status)
             if not plan.identity:
                 for last, start, size in spans:
                     last[:] = values[start:start + size]
@@ -449,11 +446,42 @@ class TrailerTrainSlave:
         """One communication step from ``t`` to ``t + h`` [s]; raises CosimError on failure."""
         status = self._step(self._component, t, h, *self._fmu.step_tail)
         if status > _WARNING:
-            raise CosimError(
-                f"fmi{self.fmi_version}DoStep failed at t = {t:.6f} s (h = {h} s): "
-                f"{self._why(status)}"
-            )
+            raise self.step_error(t, h, status)
         self.time = t + h
+
+    # -------------------------------------------------------------- errors of per-step calls
+    def read_error(self, names, status: int) -> CosimError:
+        """The error of a failed read of ``names`` with FMI status ``status``."""
+        return CosimError(f"reading {names[0]} .. {names[-1]} failed at "
+                          f"t = {self.time:.6f} s: {self._why(status)}")
+
+    def write_error(self, names, values, status: int) -> CosimError:
+        """The error of a failed write of ``values`` to ``names``."""
+        return CosimError(f"setting {list(names)} = {list(values)} failed at "
+                          f"t = {self.time:.6f} s: {self._why(status)}")
+
+    def step_error(self, t: float, h: float, status: int) -> CosimError:
+        """The error of a failed doStep from ``t`` over ``h`` [s]."""
+        return CosimError(f"fmi{self.fmi_version}DoStep failed at t = {t:.6f} s (h = {h} s): "
+                          f"{self._why(status)}")
+
+    def fmi2_functions(self) -> dict[str, int]:
+        """Addresses of this instance's FMI 2.0 functions ``fmi2GetReal``, ``fmi2SetReal``,
+        ``fmi2GetBoolean``, ``fmi2DoStep`` (for compiled code that calls them) and of its
+        component (``"component"``); after :meth:`start`."""
+        if self.fmi_version != 2 or not self._instantiated:
+            raise CosimError("fmi2_functions: needs a started FMI 2.0 instance")
+        out = {name: ctypes.cast(getattr(self.slave.dll, name), ctypes.c_void_p).value
+               for name in ("fmi2GetReal", "fmi2SetReal", "fmi2GetBoolean", "fmi2DoStep")}
+        out["component"] = self.slave.component
+        return out
+
+    def value_references(self, names) -> list[int]:
+        """The value reference of each of ``names`` (FMI 2.0: one scalar per name)."""
+        plan = _Plan(self, names)
+        if not plan.identity:
+            raise CosimError(f"value_references: {names[0]} .. {names[-1]} are array elements")
+        return plan.refs
 
     # -------------------------------------------------------------- life cycle
     def close(self) -> None:

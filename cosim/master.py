@@ -18,9 +18,16 @@ do step
     ``fmi2DoStep`` from t_k to t_k + h, unless the last trailer reached the goal, a joint
     jackknifed or the horizon ended.
 
-Per step that is four FMI calls and one doStep, made through bare ctypes with preallocated
-arrays (:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), and scalar Python in between;
-``benchmarks/bench_cosim.py`` compares it with a raw-ctypes loop doing the same calls.
+Per step that is four FMI calls and one doStep. Two loops do it, with the same results bit for
+bit: the compiled step loop (:mod:`~pushtrain.cosim.step_loop`, ``cosim/csrc/master_loop.c``:
+up to :data:`~pushtrain.cosim.step_loop.CHUNK` steps per C call, back in Python only for events,
+the progress bar, the goal, a jackknife or a failure), used whenever the run allows it (an FMI 2.0
+FMU, the compiled control law tracking a line/arc reference); and the Python loop
+(:meth:`_Run.run`: the FMI calls through bare ctypes with preallocated arrays
+(:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), scalar Python in between), for
+everything else (the governor, open-loop profiles, the Python control law, FMI 3.0).
+``simulate(step_loop=...)`` picks one; ``benchmarks/bench_cosim.py`` compares both with a
+raw-ctypes loop doing the same calls.
 
 Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save` CSV, NPZ and
 ``summary.json`` (each written atomically).
@@ -52,6 +59,7 @@ from .events import EventSchedule, Push, SetBias, Slide, _positive
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
 from .recorder import Recorder
 from .sensors import Measurement, SensorConfig, Sensors
+from .step_loop import STEP_LOOPS, CompiledLoop, unsupported
 
 __all__ = [
     "CosimError",
@@ -68,6 +76,7 @@ __all__ = [
     "STATUS_FMU_ERROR",
     "STATUS_TIME_LIMIT",
     "IMPLEMENTATIONS",
+    "STEP_LOOPS",
 ]
 
 log = logging.getLogger(__name__)
@@ -237,6 +246,12 @@ _OUTPUTS = (  # FMU output array, its result column prefix, first index
 )
 
 
+_SCALARS = ("t", "v_cmd", "w_cmd", "push_x", "push_y", "slide", "x_d", "y_d", "theta_d", "v_d",
+            "w_d", "direction", "e_lon", "e_lat", "e_theta")
+"""The columns of a row that are neither FMU values nor measured joint angles, in the order the
+loops write them."""
+
+
 def _columns(n: int) -> list[str]:
     """The result's columns in order (``u{i}`` is the FMU's ``slide_speed[i]`` [m/s])."""
     cols = ["t"]
@@ -250,19 +265,31 @@ def _columns(n: int) -> list[str]:
     return cols
 
 
-def _recorder(n: int, capacity: int) -> Recorder:
+def _recorder(n: int, capacity: int, by_column: bool = False) -> Recorder:
     """The recorder of a run: the blocks the loop writes, the columns of :func:`_columns`.
 
-    The FMU's outputs and flags land in their blocks of the recorder's row straight from the FMU;
-    ``scalars`` holds the time, the inputs, the reference sample and the tracking errors."""
+    For the Python loop the FMU's outputs and flags land in their blocks of the recorder's row
+    straight from the FMU; ``scalars`` holds the time, the inputs, the reference sample and the
+    tracking errors. With ``by_column`` (the compiled loop, which places every value itself) a
+    row is laid out in the result's column order, so the table is the storage itself
+    (:meth:`Recorder.to_array` copies nothing)."""
     joints = range(1, n + 1)
+    if by_column:
+        columns = _columns(n)
+        starts = [0, 1, columns.index("phi_meas1"), columns.index("F_lat1"),
+                  columns.index("F_lat_max1"), columns.index("slipping1"), columns.index("u1"),
+                  columns.index("v_cmd"), columns.index("x_d"), len(columns) - 1, len(columns)]
+        names = ("t", "states", "phi_meas", "F_lat", "F_lat_max", "slipping", "u", "inputs",
+                 "reference", "jackknifed")
+        return Recorder([(name, columns[a:b]) for name, a, b in zip(names, starts, starts[1:],
+                                                                      strict=False)],
+                        columns, capacity)
     blocks = [
         ("outputs", [f"{col}{i}" for _, col, first in _OUTPUTS for i in range(first, n + 1)]),
         ("flags", [f"slipping{i}" for i in joints] + ["jackknifed"]),
         ("F_lat_max", [f"F_lat_max{i}" for i in joints]),
         ("phi_meas", [f"phi_meas{i}" for i in joints]),
-        ("scalars", ["t", "v_cmd", "w_cmd", "push_x", "push_y", "slide",
-                  "x_d", "y_d", "theta_d", "v_d", "w_d", "direction", "e_lon", "e_lat", "e_theta"]),
+        ("scalars", list(_SCALARS)),
     ]
     return Recorder(blocks, _columns(n), capacity)
 
@@ -291,14 +318,22 @@ class _PlantIO:
         self.n = n
         self.state = np.empty(n + 6)
         self.pose, self.phi = self.state[:6], self.state[6:]
-        self.read_state = slave.real_reader(["x[0]", "y[0]", "theta[0]", f"x[{n}]", f"y[{n}]",
-                                             f"theta[{n}]"] + slave.names("phi", 1, n),
-                                            out=self.state)
-        names = [f"{fmu}[{i}]" for fmu, _, first in _OUTPUTS for i in range(first, n + 1)]
-        self.read_outputs = slave.real_reader(names, out=recorder.view("outputs"))
-        self.read_flags = slave.bool_reader(slave.names("slipping", 1, n) + ["jackknifed"],
-                                            out=recorder.view("flags"))
-        self.write_inputs = slave.real_writer(["v_cmd", "w_cmd", "push_x", "push_y"])
+        self.state_names = ["x[0]", "y[0]", "theta[0]", f"x[{n}]", f"y[{n}]", f"theta[{n}]",
+                            *slave.names("phi", 1, n)]
+        self.output_names = [f"{fmu}[{i}]" for fmu, _, first in _OUTPUTS
+                             for i in range(first, n + 1)]
+        self.output_columns = [f"{col}{i}" for _, col, first in _OUTPUTS
+                               for i in range(first, n + 1)]
+        self.flag_names = [*slave.names("slipping", 1, n), "jackknifed"]
+        self.flag_columns = [f"slipping{i}" for i in range(1, n + 1)] + ["jackknifed"]
+        self.input_names = ["v_cmd", "w_cmd", "push_x", "push_y"]
+        self.read_state = slave.real_reader(self.state_names, out=self.state)
+        rows = recorder.has("outputs")  # the Python loop's layout: read straight into the row
+        self.read_outputs = slave.real_reader(self.output_names,
+                                              out=recorder.view("outputs") if rows else None)
+        self.read_flags = slave.bool_reader(self.flag_names,
+                                            out=recorder.view("flags") if rows else None)
+        self.write_inputs = slave.real_writer(self.input_names)
         self.write_slide = {i: slave.real_writer([f"slide[{i}]"]) for i in slid}
         recorder.view("F_lat_max")[:] = slave.get_reals(slave.names("F_lat_max", 1, n))
 
@@ -328,15 +363,15 @@ class _Goal:
 class _Run:
     """One run's loop: at each communication point apply the inputs, record, ``fmi2DoStep``."""
 
+    scalar_columns = _SCALARS
+    """The row's columns besides the FMU's values and the measured joint angles."""
+
     def __init__(self, slave, loop: TrackingLoop, sensors: Sensors, events: EventSchedule,
                  recorder: Recorder, goal: _Goal):
         self.slave, self.loop, self.sensors, self.events = slave, loop, sensors, events
         self.recorder, self.goal, self.n = recorder, goal, sensors.n
         slid = {self.n if ev.trailer is None else ev.trailer for ev in events.slides}
         self.io = _PlantIO(slave, self.n, recorder, sorted(slid))
-        self.phi_meas, self.flags = recorder.view("phi_meas"), recorder.view("flags")
-        scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
-        self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
         self.measure = self._measure_ideal if sensors.ideal else self._measure
 
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
@@ -345,6 +380,10 @@ class _Run:
 
         Per step: four FMI calls, one doStep, scalar Python and one copy of the row (the
         per-step objects are bound to locals once)."""
+        recorder = self.recorder
+        self.phi_meas, self.flags = recorder.view("phi_meas"), recorder.view("flags")
+        scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
+        self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
         events, io, n, goal = self.events, self.io, self.n, self.goal
         read_state, write_inputs = io.read_state, io.write_inputs
         read_outputs, read_flags = io.read_outputs, io.read_flags
@@ -462,6 +501,7 @@ def simulate(
     progress: bool | None = None,
     out_dir=None,
     implementation: str = "c",
+    step_loop: str = "auto",
 ) -> Result:
     """Co-simulate the FMU with the backward controller tracking ``reference``.
 
@@ -502,6 +542,13 @@ def simulate(
         leader and command in one C call per step), ``"python"`` the readable
         :class:`~pushtrain.core.controller.BackwardController`. A controller passed in built is
         used as it is.
+    step_loop : {"auto", "c", "python"}
+        Which loop steps the run: ``"auto"`` the compiled step loop
+        (:mod:`~pushtrain.cosim.step_loop`: many steps per C call) when the run allows it (an
+        FMI 2.0 FMU, the compiled control law on a line/arc reference, :class:`Sensors`), else
+        the Python loop; ``"c"`` the compiled loop or a CosimInputError saying why not;
+        ``"python"`` the Python loop. Both give the same results bit for bit; the summary's
+        ``step_loop`` says which ran (and ``step_loop_fallback`` why not the compiled one).
 
     Raises
     ------
@@ -509,6 +556,9 @@ def simulate(
         Bad configuration, detected before any stepping (the FMU's own errors during a run end
         the run with status ``fmu_error`` instead).
     """
+    if step_loop not in STEP_LOOPS:
+        raise CosimInputError(f"step_loop = {step_loop!r}: allowed are "
+                              f"{', '.join(map(repr, STEP_LOOPS))}")
     step = _positive("step", step)
     t0, horizon = _timing(reference, initial, step, horizon, settle_time)
     n_steps = _steps(horizon, step)
@@ -537,15 +587,23 @@ def simulate(
             f"the FMU {Path(fmu).name} has n = {slave.n} trailers; "
             f"the controller's chain has {n}"
         )
+    why_not_c = (unsupported(slave, loop, sens) if step_loop != "python"
+                 else "step_loop = 'python' was asked for")
+    if step_loop == "c" and why_not_c is not None:
+        slave.close()
+        raise CosimInputError(f"step_loop = 'c': the compiled step loop cannot run {why_not_c}; "
+                              "allowed for this run are 'auto' and 'python'")
     # rows for the whole run up to 8 MiB (pages never written cost no memory), then doubling
-    recorder = _recorder(n, min(n_steps + 1, max(4096, (8 << 20) // (8 * len(_columns(n))))))
+    recorder = _recorder(n, min(n_steps + 1, max(4096, (8 << 20) // (8 * len(_columns(n))))),
+                         by_column=why_not_c is None)
     show = progress if progress is not None else (sys.stderr.isatty() and n_steps > 200)
     wall_start = _time.perf_counter()
     try:
         slave.start({**plant.start_values(), **initial.start_values()}, t0)
         run = _Run(slave, loop, sens, schedule, recorder, goal)
+        stepper = run if why_not_c is not None else CompiledLoop(run)
         with _progress_bar(show, n_steps) as bar:
-            end = run.run(t0, step, n_steps, bar)
+            end = stepper.run(t0, step, n_steps, bar)
         status, message = end or _horizon_end(recorder, goal, horizon, n)
     except CosimError as exc:
         status, message = STATUS_FMU_ERROR, str(exc)
@@ -559,8 +617,11 @@ def simulate(
     wall = _time.perf_counter() - wall_start
 
     data = recorder.to_array()
-    result = Result(status, message, data, _summarize(data, n, status, message, wall, step), n,
-                    fmu_log)
+    summary = _summarize(data, n, status, message, wall, step)
+    summary["step_loop"] = "python" if why_not_c is not None else "c"
+    if why_not_c is not None:
+        summary["step_loop_fallback"] = why_not_c
+    result = Result(status, message, data, summary, n, fmu_log)
     log.info("co-simulation %s: %s (%d steps, %.2f s wall)", status, message, len(data) - 1, wall)
     if out_dir is not None:
         result.save(out_dir)

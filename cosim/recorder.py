@@ -6,7 +6,9 @@ the reference sample, ...), so no caller computes offsets into a flat row. Two w
 * :meth:`~Recorder.append` a row by block name (blocks not given stay NaN);
 * fill the blocks of the preallocated :attr:`~Recorder.row` through :meth:`~Recorder.view` (an
   FMU reader can write into its view directly) and :meth:`~Recorder.commit` it: one copy of one
-  row per step, the master's per-step path. Values not rewritten are kept from the row before.
+  row per step, the master's Python step loop. Values not rewritten are kept from the row before;
+* write whole rows straight into the storage (:meth:`~Recorder.free_rows`, at the offsets of
+  :meth:`~Recorder.block_start`) and :meth:`~Recorder.advance`: the compiled step loop.
 
 Storage is one float array (one row per point, the blocks side by side) that grows by doubling
 and is trimmed at the end, so a horizon much longer than the run costs nothing
@@ -75,6 +77,35 @@ class Recorder:
         self._store[k] = self.row
         self.rows = k + 1
 
+    def free_rows(self) -> np.ndarray:
+        """The storage's rows after the recorded ones (at least one: full storage grows), for
+        a writer that fills several rows at once (the compiled step loop) and then
+        :meth:`advance` them; a view, valid until the next :meth:`commit` or :meth:`advance`."""
+        if self.rows == self._capacity:
+            self._grow()
+        return self._store[self.rows:]
+
+    def advance(self, count: int) -> None:
+        """Record the first ``count`` rows of :meth:`free_rows` as written; :attr:`row` becomes
+        the last of them."""
+        if not 0 <= count <= self._capacity - self.rows:
+            raise ValueError(f"advance({count}): {self._capacity - self.rows} rows are free")
+        self.rows += count
+        if count:
+            self.row[:] = self._store[self.rows - 1]
+
+    def index(self, column: str) -> int:
+        """Index in a row of ``column``."""
+        return self._where[column]
+
+    def has(self, block: str) -> bool:
+        """Whether ``block`` is one of the recorder's blocks."""
+        return block in self._spans
+
+    def block_start(self, block: str) -> int:
+        """Index in a row of the first column of ``block``."""
+        return self._spans[block].start
+
     def append(self, **values) -> None:
         """Add a row: each keyword is a block with its values (as many as its columns, or one
         value for a one-column block); columns of blocks not given stay NaN."""
@@ -101,8 +132,13 @@ class Recorder:
         return float(self._store[self.rows - 1, self._where[name]])
 
     def to_array(self) -> np.ndarray:
-        """The rows so far as a structured array of float64 columns in :attr:`columns` order."""
+        """The rows so far as a structured array of float64 columns in :attr:`columns` order.
+
+        If the blocks lie in that order, the array is the storage's first rows (no copy; rows
+        recorded later do not change it), else a copy."""
         rows = self.rows
+        if self._runs == [(0, 0, self._store.shape[1])]:
+            return self._store[:rows].view(self._dtype).reshape(rows)
         table = np.empty((rows, self._store.shape[1]))
         for to, start, count in self._runs:  # a few block copies, not a gather per element
             table[:, to:to + count] = self._store[:rows, start:start + count]

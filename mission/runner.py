@@ -283,6 +283,7 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
         step=sc.sim.step, horizon=horizon, settle_time=sc.sim.settle_time,
         goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
         progress=progress, implementation=sc.controller.implementation,
+        step_loop=sc.sim.step_loop,
     )
     result.summary["scenario"] = sc.name
     result.summary["mission"] = sc.mission.kind

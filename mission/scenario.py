@@ -236,6 +236,10 @@ class SimSection(_Section):
     settle_time: NonNegFloat = 20.0
     goal_tolerance: PositiveFloat = 0.05
     goal_heading_tolerance_deg: PositiveFloat = 5.0
+    # which loop steps the co-simulation: "auto" the compiled step loop when the run allows it
+    # (FMI 2.0, the compiled control law, no governor), else the Python loop; "c" the compiled
+    # loop or an error; "python" the Python loop (both give the same results; for debugging)
+    step_loop: Literal["auto", "c", "python"] = "auto"
 
 
 class MissionSection(_Section):

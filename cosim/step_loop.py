@@ -1,0 +1,352 @@
+"""The master's compiled step loop (``cosim/csrc/master_loop.c``) and when it can run.
+
+:func:`pushtrain.cosim.master.simulate` steps a run either with its Python loop
+(``_Run.run``) or, when the run allows it, with the compiled loop: one C call runs many
+communication steps (FMU reads and writes through the FMU's own functions, sensors, the
+compiled control law, the recorder's rows, the jackknife and goal tests, ``fmi2DoStep``) and
+returns to Python only where Python must act:
+
+* at the top of a step where an event is due (a bias switch, a push or a slide starting or
+  ending): Python applies it exactly as the Python loop does, and the next call goes on;
+* after a budget of steps (:data:`CHUNK`, or when the recorder's storage is full): the progress
+  bar moves;
+* at a goal candidate (the last trailer within the goal's tolerance up to 1e-9 relative): Python
+  makes the Python loop's own test and stops or steps on;
+* at a jackknife, at the horizon's end, on a failed FMI call or a refused control instant:
+  Python ends the run with the Python loop's status, message or exception.
+
+Noise comes from the sensors' own ``numpy.random.Generator``: for each call Python draws the
+standard normals of its steps in one block, in the order the Python sensors draw them (joints,
+robot position, robot heading, last trailer's position and heading), scales them as
+``Generator.normal`` does (``0.0 + std * z``), and, if the call stops early, rewinds the
+generator and draws again only what the steps run used. A run gives the Python loop's results
+bit for bit (``tests/test_master_loop.py``).
+
+:func:`unsupported` says why a run cannot use the compiled loop (then the Python loop runs).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from ctypes import POINTER, c_double, c_int, c_long, c_uint, c_void_p
+
+import numpy as np
+
+from pushtrain.core import native
+from pushtrain.core.native_controller import _Tracker
+from pushtrain.core.reference import ReferenceSample
+from pushtrain.errors import CosimError, NativeBuildError
+
+from .events import _EPS_T, _active
+from .sensors import Measurement, Sensors
+
+__all__ = ["CHUNK", "STEP_LOOPS", "CompiledLoop", "unsupported"]
+
+STEP_LOOPS = ("auto", "c", "python")
+"""Values of ``simulate(step_loop=...)``: ``"auto"`` the compiled loop when the run allows it
+(:func:`unsupported`), else the Python loop; ``"c"`` the compiled loop or an error; ``"python"``
+the Python loop."""
+
+CHUNK = 1024
+"""Most steps one call of the compiled loop runs (then the progress bar moves)."""
+
+# reasons pt_master_run returns (master_loop.h PT_LOOP_*)
+_PAUSE, _HORIZON, _JACKKNIFE, _GOAL_CANDIDATE, _FMI_ERROR, _CONTROL_ERROR, _ARGUMENT = range(7)
+# failed FMI calls (PT_CALL_*)
+_GET_STATE, _SET_INPUTS, _SET_SLIDE, _GET_OUTPUTS, _GET_FLAGS, _DO_STEP = range(1, 7)
+# noise blocks (PT_NOISE_*)
+_NOISE_JOINTS, _NOISE_POSITION, _NOISE_HEADING = 1, 2, 4
+
+_U_PTR, _D_PTR, _I_PTR = POINTER(c_uint), native.D_PTR, POINTER(c_int)
+
+
+class PtMasterLoop(ctypes.Structure):
+    """``PtMasterLoop`` of ``master_loop.h``."""
+
+    _fields_ = [
+        ("component", c_void_p), ("get_real", c_void_p), ("set_real", c_void_p),
+        ("get_boolean", c_void_p), ("do_step", c_void_p),
+        ("state_vr", _U_PTR), ("input_vr", _U_PTR), ("output_vr", _U_PTR), ("flag_vr", _U_PTR),
+        ("n_outputs", c_int), ("n", c_int),
+        ("t0", c_double), ("step", c_double), ("n_steps", c_long),
+        ("track", POINTER(native.PtTrack)),
+        ("bias", _D_PTR), ("half_backlash", c_double), ("play", _D_PTR), ("has_play", c_int),
+        ("quantization", c_double), ("noise", c_int), ("measure_last_pose", c_int),
+        ("noise_values", _D_PTR), ("noise_per_step", c_int),
+        ("rows", _D_PTR), ("row_width", c_int), ("n_output_runs", c_int),
+        ("output_runs", _I_PTR), ("flag_at", _I_PTR), ("scalar_at", _I_PTR),
+        ("at_phi_meas", c_int), ("at_f_lat_max", c_int), ("f_lat_max", _D_PTR),
+        ("check_goal", c_int), ("goal_from", c_double), ("goal_x", c_double),
+        ("goal_y", c_double), ("goal_theta", c_double), ("goal_position", c_double),
+        ("goal_heading", c_double), ("goal_slack", c_double),
+        ("pause_at", c_double), ("next_bias", c_double), ("n_pushes", c_int),
+        ("pushes", _D_PTR), ("slide", c_double), ("n_slide_writes", c_int),
+        ("slide_vr", _U_PTR), ("slide_values", _D_PTR),
+        ("state", _D_PTR), ("outputs", _D_PTR), ("flags", _I_PTR),
+        ("k", c_long), ("time", c_double), ("inputs", c_double * 4), ("failed_call", c_int),
+        ("failed_slide", c_int), ("fmi_status", c_int), ("control_status", c_int),
+    ]
+
+
+def _library() -> ctypes.CDLL:
+    """The native library with the loop's prototypes declared (layout checked)."""
+    lib = native.load()
+    if getattr(lib, "_pt_master_loop_ready", False):
+        return lib
+    lib.pt_master_loop_sizeof.restype, lib.pt_master_loop_sizeof.argtypes = ctypes.c_size_t, []
+    lib.pt_master_run.restype = c_int
+    lib.pt_master_run.argtypes = [POINTER(PtMasterLoop), c_long, c_long]
+    size = lib.pt_master_loop_sizeof()
+    if size != ctypes.sizeof(PtMasterLoop):
+        raise NativeBuildError(f"PtMasterLoop is {size} bytes in the library but "
+                               f"{ctypes.sizeof(PtMasterLoop)} in cosim/step_loop.py: the "
+                               "binding does not match master_loop.h")
+    lib._pt_master_loop_ready = True
+    return lib
+
+
+def unsupported(slave, loop, sensors) -> str | None:
+    """Why the compiled loop cannot run a run with this FMU instance, tracking loop and sensors,
+    or None if it can."""
+    if slave.fmi_version != 2:
+        return f"an FMI {slave.md.fmiVersion} FMU (the compiled loop calls FMI 2.0)"
+    tracker = getattr(loop.command, "__self__", None)
+    if not isinstance(tracker, _Tracker):
+        return ("the control law is not the compiled one tracking a line/arc Reference "
+                "(implementation 'python', a governor, an open-loop profile or a sampled "
+                "reference)")
+    if tracker.info:
+        return "the tracking loop records ControlInfo"
+    if type(sensors) is not Sensors:
+        return f"sensors of type {type(sensors).__name__} (the compiled loop models Sensors)"
+    return None
+
+
+def _runs(indices: list[int]) -> list[tuple[int, int, int]]:
+    """``(first value, first row index, count)`` of each run of values that land side by side
+    in a row (value j goes to row index ``indices[j]``)."""
+    runs: list[list[int]] = []
+    for j, index in enumerate(indices):
+        if runs and runs[-1][1] + runs[-1][2] == index:
+            runs[-1][2] += 1
+        else:
+            runs.append([j, index, 1])
+    return [tuple(run) for run in runs]
+
+
+class CompiledLoop:
+    """The compiled step loop of one run (a :class:`~pushtrain.cosim.master._Run` whose
+    :func:`unsupported` is None); :meth:`run` as ``_Run.run``."""
+
+    goal_slack = 1e-9
+    """The C loop hands a step back as a goal candidate when the last trailer is within
+    (1 + goal_slack) times the goal's tolerances; Python's own test (``math.hypot``) decides."""
+
+    def __init__(self, run):
+        self.run_ = run
+        self.lib = _library()
+        slave, io, n, sensors = run.slave, run.io, run.n, run.sensors
+        self.tracker: _Tracker = run.loop.command.__self__
+        functions = slave.fmi2_functions()
+        m = self.m = PtMasterLoop()
+        m.component = functions["component"]
+        m.get_real, m.set_real = functions["fmi2GetReal"], functions["fmi2SetReal"]
+        m.get_boolean, m.do_step = functions["fmi2GetBoolean"], functions["fmi2DoStep"]
+        refs = [slave.value_references(names) for names in
+                (io.state_names, io.input_names, io.output_names, io.flag_names)]
+        self._refs = [(c_uint * len(r))(*r) for r in refs]  # kept alive with the struct
+        m.state_vr, m.input_vr, m.output_vr, m.flag_vr = (
+            ctypes.cast(r, _U_PTR) for r in self._refs)
+        m.n_outputs, m.n = len(io.output_names), n
+        m.track = ctypes.pointer(self.tracker._track)
+        # sensors
+        config = sensors.config
+        m.half_backlash, m.quantization = sensors._half, sensors._q
+        self._play = np.zeros(n)
+        m.play = native.dptr(self._play)
+        m.measure_last_pose = int(bool(config.measure_last_pose))
+        pose_scales = ([sensors._pos_noise] * 2 if sensors._pos_noise > 0.0 else []) + (
+            [sensors._heading_noise] if sensors._heading_noise > 0.0 else [])
+        scales = ([sensors._joint_noise] * n if sensors._joint_noise > 0.0 else []) + \
+            pose_scales * (2 if config.measure_last_pose else 1)
+        m.noise = ((_NOISE_JOINTS if sensors._joint_noise > 0.0 else 0)
+                   | (_NOISE_POSITION if sensors._pos_noise > 0.0 else 0)
+                   | (_NOISE_HEADING if sensors._heading_noise > 0.0 else 0))
+        self.noise_scales = np.array(scales, dtype=float)
+        m.noise_per_step = len(scales)
+        # recording: where each value goes in a row
+        recorder = run.recorder
+        self._f_lat_max = np.array(recorder.view("F_lat_max"))
+        m.f_lat_max = native.dptr(self._f_lat_max)
+        m.row_width = len(recorder.row)
+        at = recorder.index
+        runs = _runs([at(c) for c in io.output_columns])
+        self._indices = [np.array(a, dtype=np.intc) for a in (
+            runs, [at(c) for c in io.flag_columns], [at(c) for c in run.scalar_columns])]
+        m.n_output_runs = len(runs)
+        m.output_runs, m.flag_at, m.scalar_at = (a.ctypes.data_as(_I_PTR) for a in self._indices)
+        for block in ("phi_meas", "F_lat_max"):
+            first = at(f"{block}1")
+            if [at(f"{block}{i}") for i in range(1, n + 1)] != list(range(first, first + n)):
+                raise CosimError(f"the recorder's {block} columns are not side by side")
+        m.at_phi_meas, m.at_f_lat_max = at("phi_meas1"), at("F_lat_max1")
+        # goal
+        goal = run.goal
+        m.check_goal = int(bool(goal.check))
+        m.goal_from = goal.t_end - 1e-12
+        m.goal_x, m.goal_y, m.goal_theta = (float(a) for a in goal.pose)
+        m.goal_position, m.goal_heading = goal.position, goal.heading
+        m.goal_slack = self.goal_slack
+        # scratch
+        m.state = native.dptr(io.state)
+        self._outputs = np.empty(len(io.output_names))
+        m.outputs = native.dptr(self._outputs)
+        self._flags = (c_int * (n + 1))()
+        m.flags = ctypes.cast(self._flags, _I_PTR)
+        # events: the times at which a push or slide starts or ends (events.py _active)
+        events = run.events
+        self.thresholds = sorted({b for ev in (*events.pushes, *events.slides)
+                                  for b in (ev.t - _EPS_T, ev.t + ev.duration - _EPS_T)})
+        self._slide_refs = {i: slave.value_references([f"slide[{i}]"])[0]
+                            for i in io.write_slide}
+
+    # ------------------------------------------------------------------ the run
+    def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
+        """Step from ``t0`` as ``_Run.run`` does, with the same results bit for bit: the status
+        and message of a jackknife or the goal, or None if the horizon ended first."""
+        r, m, lib = self.run_, self.m, self.lib
+        slave, events, sensors, recorder = r.slave, r.events, r.sensors, r.recorder
+        m.t0, m.step, m.n_steps = t0, step, n_steps
+        if sensors._play is not None:
+            self._play[:] = sensors._play
+            m.has_play = 1
+        call = lib.pt_master_run
+        ref = ctypes.byref(m)
+        k = 0
+        while True:
+            t = t0 + k * step
+            # the events due at t_k, as the Python loop applies them
+            if events.biases:
+                for bias in events.biases_due(t):
+                    sensors.set_bias(bias.joint, bias.bias)
+            self._keep = self._events_at(t)  # arrays the struct points to
+            m.bias = native.dptr(sensors._bias)
+            rows = recorder.free_rows()
+            m.rows = native.dptr(rows)
+            k_stop = min(n_steps + 1, k + CHUNK, k + len(rows))
+            noise_state = self._draw_noise(sensors, k_stop - k)
+            m.time = slave.time
+            reason = call(ref, k, k_stop)
+            done = m.k - k  # steps recorded and stepped
+            recorded = done + (reason in (_HORIZON, _JACKKNIFE, _GOAL_CANDIDATE)
+                               or (reason == _FMI_ERROR and m.failed_call == _DO_STEP))
+            measured = done + (reason not in (_PAUSE, _ARGUMENT)
+                               and not (reason == _FMI_ERROR and m.failed_call == _GET_STATE))
+            recorder.advance(recorded)
+            slave.time = m.time
+            if m.has_play:
+                sensors._play = self._play
+            self.tracker._has_last = bool(m.measure_last_pose)
+            if noise_state is not None and measured < k_stop - k:
+                self._rewind_noise(sensors, noise_state, measured)
+            if bar is not None and done:
+                bar.update(done)
+            t_k = t0 + m.k * step
+            if reason == _PAUSE:
+                k = m.k
+            elif reason == _HORIZON:
+                return None
+            elif reason == _JACKKNIFE:
+                return r._jackknife(t_k)
+            elif reason == _GOAL_CANDIDATE:
+                x_n, y_n, th_n = r.io.pose.tolist()[3:]
+                reached = r._goal_reached(t_k, x_n, y_n, th_n)
+                if reached is not None:
+                    return reached
+                if m.k == n_steps:
+                    return None
+                slave.do_step(t_k, step)
+                if bar is not None:
+                    bar.update(1)
+                k = m.k + 1
+            elif reason == _FMI_ERROR:
+                raise self._fmi_error(t_k, step)
+            elif reason == _CONTROL_ERROR:
+                raise self._control_error(t_k)
+            else:
+                raise CosimError(f"the compiled step loop refused its arguments at step {m.k}")
+
+    def _events_at(self, t: float):
+        """Set the call's events from ``t`` [s] on: the slide writes due now, the active
+        pushes, the next instant where an event is due. Returns the arrays the struct points
+        to (keep them alive through the call)."""
+        m, events = self.m, self.run_.events
+        changes = events.slide_changes(t) if events.slides else []
+        m.slide = events.slide_speed(self.run_.n) if events.slides else 0.0
+        slide_vr = (c_uint * max(len(changes), 1))(*[self._slide_refs[i] for i, _ in changes])
+        slide_values = np.array([speed for _, speed in changes] or [0.0])
+        m.n_slide_writes = len(changes)
+        m.slide_vr, m.slide_values = ctypes.cast(slide_vr, _U_PTR), native.dptr(slide_values)
+        pushes = np.array([(p.fx, p.fy, p.lateral) for p in events.pushes if _active(p, t)]
+                          or [(0.0, 0.0, 0.0)], dtype=float)
+        m.n_pushes = sum(1 for p in events.pushes if _active(p, t))
+        m.pushes = native.dptr(pushes)
+        m.pause_at = next((b for b in self.thresholds if b > t), math.inf)
+        biases = events.biases
+        m.next_bias = biases[events._next_bias].t if events._next_bias < len(biases) else math.inf
+        self._changes = changes
+        return slide_vr, slide_values, pushes
+
+    def _draw_noise(self, sensors: Sensors, steps: int):
+        """Draw the noise of ``steps`` steps (None without noise; else the generator's state
+        before the draw)."""
+        m = self.m
+        if not m.noise:
+            return None
+        rng = sensors._rng
+        state = rng.bit_generator.state
+        z = rng.standard_normal((steps, m.noise_per_step))
+        np.multiply(z, self.noise_scales, out=z)
+        z += 0.0  # Generator.normal's loc + scale * z (-0.0 becomes 0.0)
+        self._noise = z
+        m.noise_values = native.dptr(z)
+        return state
+
+    def _rewind_noise(self, sensors: Sensors, state, steps: int) -> None:
+        """Leave the generator where the Python sensors would after ``steps`` steps."""
+        rng = sensors._rng
+        rng.bit_generator.state = state
+        if steps:
+            rng.standard_normal(steps * self.m.noise_per_step)
+
+    def _fmi_error(self, t: float, step: float) -> CosimError:
+        """The Python loop's error of the FMI call that failed at ``t``."""
+        m, slave, io = self.m, self.run_.slave, self.run_.io
+        call, status = m.failed_call, m.fmi_status
+        if call == _GET_STATE:
+            return slave.read_error(io.state_names, status)
+        if call == _SET_INPUTS:
+            return slave.write_error(io.input_names, tuple(m.inputs), status)
+        if call == _SET_SLIDE:
+            i, speed = self._changes[m.failed_slide]
+            return slave.write_error([f"slide[{i}]"], (speed,), status)
+        if call == _GET_OUTPUTS:
+            return slave.read_error(io.output_names, status)
+        if call == _GET_FLAGS:
+            return slave.read_error(io.flag_names, status)
+        return slave.step_error(t, step, status)
+
+    def _control_error(self, t: float) -> Exception:
+        """The exception of the control instant the C law refused at ``t`` (the tracker's own
+        error for the measurement it was given)."""
+        tracker = self.tracker
+        k = tracker._track
+        row = self.run_.recorder.free_rows()[0]  # the refused step's row, not recorded
+        phi = row[self.m.at_phi_meas:self.m.at_phi_meas + self.run_.n].tolist()
+        last = (k.m.x_n, k.m.y_n, k.m.theta_n) if k.m.has_last else None
+        measurement = Measurement(k.m.x0, k.m.y0, k.m.theta0, phi, last)
+        sample = k.sample
+        ref = ReferenceSample(sample.x, sample.y, sample.theta, sample.v, sample.w,
+                              sample.direction)
+        return tracker._error(self.m.control_status, t, measurement, ref)
