@@ -18,7 +18,7 @@ from .common import EXIT_NOT_REACHED, EXIT_OK
 from .progress import Phases
 
 __all__ = ["plan_or_fail", "write_path", "write_scenario", "describe_path", "summary_text",
-           "run_and_report"]
+           "run_and_report", "PlotFailure"]
 
 log = logging.getLogger(__name__)
 
@@ -108,53 +108,53 @@ def _phase(phases: Phases | None, name: str, what: str):
     return phases.phase(name, what) if phases is not None else contextlib.nullcontext()
 
 
-PLOT_FILES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
-GIF_FILE = "train.gif"
+class PlotFailure(click.ClickException):
+    """Some pictures could not be drawn (exit 1); the results are saved."""
 
-
-def _plot(result, sc: Scenario, out_dir: Path, path, gif: bool, phases: Phases | None) -> None:
-    """Write the plots (phase ``plots``) and the animation (phase ``gif``) into ``out_dir``; a
-    failure is a warning (the results are already written)."""
-    from pushtrain.mission.runner import geometry_of, world_of
-
-    try:
-        with _phase(phases, "plots", f"plotting {', '.join(PLOT_FILES)}"):
-            from pushtrain.report import plots as plotting
-
-            options = {"world": world_of(sc), "geometry": geometry_of(sc),
-                       "path_xy": None if path is None else path.poses[:, :2],
-                       "footprints": {
-                           "robot": (sc.train.robot_size.length, sc.train.robot_size.width),
-                           "trailer": (sc.train.trailer_size.length,
-                                       sc.train.trailer_size.width)}}
-            written = plotting.plot_all(result, sc.train.n, out_dir, gif=False, **options)
-        if gif:
-            with _phase(phases, "gif", f"rendering {GIF_FILE}"):
-                written.append(plotting.animate(result.data, sc.train.n, out_dir / GIF_FILE,
-                                                **options))
-        log.info("plots: %s", ", ".join(p.name for p in written))
-    except Exception as exc:  # plots must never lose the results already written
-        log.exception("plotting failed")
-        click.echo(f"warning: plotting failed ({exc}); results are in {out_dir}", err=True)
+    exit_code = EXIT_NOT_REACHED
 
 
 def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gif: bool, *,
-                   csv: bool = False, phases: Phases | None = None) -> int:
+                   csv: bool = False, phases: Phases | None = None, plotter=None) -> int:
     """Co-simulate ``sc``, save the results into ``out_dir`` (``results.csv`` too with
-    ``csv``), plot, print the summary; the exit code (0 if the goal was reached or the
-    fixed-horizon run completed, else 1). Each step is a phase of ``phases``, if given."""
+    ``csv``), draw the plots (and with ``gif`` the animation), print the summary; the exit
+    code (0 if the goal was reached or the fixed-horizon run completed, else 1). Each step is
+    a phase of ``phases``, if given.
+
+    ``plotter`` (from :func:`pushtrain.cli.plotting.plotter`, started before planning) draws
+    the pictures while the results are saved; without one they are drawn here, after saving.
+    A picture that cannot be drawn raises :class:`PlotFailure` (exit 1) once the summary is
+    printed; the results and the other pictures stay written.
+    """
     from pushtrain.mission.runner import run_scenario, save_results
 
-    with _phase(phases, "co-simulate", "co-simulating"):
-        result = run_scenario(sc, None, reference=reference)
-    with _phase(phases, "save", "saving the results"):
-        save_results(result, out_dir, csv=csv)
-    if plots:
-        _plot(result, sc, out_dir, path, gif, phases)
+    from .plotting import GIF_FILE, PNG_FILES
+    from .plotting import plotter as start_plotter
+
+    with contextlib.ExitStack() as stack:
+        if plots and plotter is None:
+            plotter = stack.enter_context(start_plotter(sc, out_dir, gif=gif, processes=0))
+        with _phase(phases, "co-simulate", "co-simulating"):
+            result = run_scenario(sc, None, reference=reference)
+        if plots:
+            plotter.submit(result, path)
+        with _phase(phases, "save", "saving the results"):
+            save_results(result, out_dir, csv=csv)
+        problems = []
+        if plots:
+            with _phase(phases, "plots", f"plotting {', '.join(PNG_FILES)}"):
+                problems += plotter.wait(PNG_FILES)
+            if gif:
+                with _phase(phases, "gif", f"rendering {GIF_FILE}"):
+                    problems += plotter.wait((GIF_FILE,))
     if phases is not None:
         phases.done()
     click.echo(summary_text(result.summary))
     click.echo(f"results: {out_dir}")
+    if problems:
+        raise PlotFailure("could not draw " + "; ".join(map(str, problems))
+                          + f" (the results and the other files are in {out_dir}; details in "
+                          "run.log)")
     return EXIT_OK if result.ok else EXIT_NOT_REACHED
 
 

@@ -58,6 +58,9 @@ __all__ = [
     "plot_lateral_forces",
     "animate",
     "plot_all",
+    "plot_file",
+    "PNG_FILES",
+    "GIF_FILE",
     "map_figure",
     "inputs_and_joints_figure",
     "tracking_error_figure",
@@ -104,6 +107,45 @@ def _collecting():
             gc.unfreeze()
 
 
+PNG_FILES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
+"""The standard plots of a run, as :func:`plot_file` names them."""
+GIF_FILE = "train.gif"
+"""The standard animation of a run."""
+
+
+def _title(n: int, status: str | None) -> str | None:
+    """The map's title naming the run's status (None without one)."""
+    if status is None:
+        return None
+    return f"Robot with {n} trailer{'s' if n > 1 else ''}: {status.replace('_', ' ')}"
+
+
+def plot_file(name: str, data, n: int, out_dir, *, world=None, path_xy=None, footprints=None,
+              geometry=None, status: str | None = None) -> Path:
+    """Write the standard file ``name`` (one of :data:`PNG_FILES` or :data:`GIF_FILE`) of a run
+    into ``out_dir`` (which must exist) and return its path.
+
+    ``data`` and ``n`` as in :func:`plot_map`; ``world``, ``path_xy``, ``footprints`` and
+    ``geometry`` as there (the plots over time ignore them); ``status`` (e.g. ``goal_reached``)
+    goes into the map's title.
+    """
+    out = Path(out_dir)
+    if name == "map.png":
+        return plot_map(data, n, out / name, world=world, path_xy=path_xy, footprints=footprints,
+                        title=_title(n, status), geometry=geometry)
+    if name == "inputs_joints.png":
+        return plot_inputs_and_joints(data, n, out / name)
+    if name == "tracking_error.png":
+        return plot_tracking_error(data, n, out / name)
+    if name == "lateral_forces.png":
+        return plot_lateral_forces(data, n, out / name)
+    if name == GIF_FILE:
+        return animate(data, n, out / name, world=world, footprints=footprints, path_xy=path_xy,
+                       geometry=geometry)
+    raise PlotError(f"file {name!r}: the standard files are "
+                    f"{', '.join(PNG_FILES + (GIF_FILE,))}")
+
+
 def plot_all(result_or_data, n: int, out_dir, *, world=None, path_xy=None, footprints=None,
              gif: bool = True, geometry=None) -> list[Path]:
     """Write ``map.png``, ``inputs_joints.png``, ``tracking_error.png``, ``lateral_forces.png``
@@ -130,26 +172,14 @@ def plot_all(result_or_data, n: int, out_dir, *, world=None, path_xy=None, footp
     """
     n = check_n(n)
     data, status = _unwrap(result_or_data, n)
-    title = None
-    if status is not None:
-        title = f"Robot with {n} trailer{'s' if n > 1 else ''}: {status.replace('_', ' ')}"
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     start = _time.perf_counter()
-    jobs = [
-        lambda: plot_map(data, n, out / "map.png", world=world, path_xy=path_xy,
-                         footprints=footprints, title=title, geometry=geometry),
-        lambda: plot_inputs_and_joints(data, n, out / "inputs_joints.png"),
-        lambda: plot_tracking_error(data, n, out / "tracking_error.png"),
-        lambda: plot_lateral_forces(data, n, out / "lateral_forces.png"),
-    ]
-    if gif:
-        jobs.append(lambda: animate(data, n, out / "train.gif", world=world,
-                                    footprints=footprints, path_xy=path_xy, geometry=geometry))
     written = []
     with _collecting() as collect:
-        for job in jobs:
-            written.append(job())
+        for name in PNG_FILES + ((GIF_FILE,) if gif else ()):
+            written.append(plot_file(name, data, n, out, world=world, path_xy=path_xy,
+                                     footprints=footprints, geometry=geometry, status=status))
             collect()
     log.info("wrote %d plot files to %s in %.1f s", len(written), out, _time.perf_counter() - start)
     return written

@@ -14,6 +14,7 @@ from ..common import (
     scenario_argument,
     trailers_option,
 )
+from ..plotting import plotter
 from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import describe_path, plan_or_fail, run_and_report, write_path, write_scenario
@@ -39,7 +40,8 @@ def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv):
     phases = Phases()
     sc = _scenario(scenario, trailers, seed)
     check_map(sc)
-    with run_folder(out, sc.name, sc) as out_dir:
+    with run_folder(out, sc.name, sc) as out_dir, \
+            plotter(sc, out_dir, plots=not no_plots, gif=not no_gif) as pictures:
         write_scenario(sc, out_dir)
         reference = path = None
         if sc.mission.kind == "plan":
@@ -48,5 +50,5 @@ def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv):
             click.echo(describe_path(path))
             reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
         code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif, csv=csv,
-                              phases=phases)
+                              phases=phases, plotter=pictures)
     sys.exit(code)

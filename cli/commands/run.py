@@ -14,6 +14,7 @@ from ..common import (
     out_dir_option,
     scenario_argument,
 )
+from ..plotting import plotter
 from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import run_and_report, write_path, write_scenario
@@ -59,12 +60,13 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv):
     elif sc.mission.kind == "plan":
         raise BadInput(f"{scenario}: mission.kind = 'plan' has no scripted reference: give "
                        "--path PATH.json or use plan-and-run")
-    with run_folder(out, sc.name, sc) as out_dir:
+    with run_folder(out, sc.name, sc) as out_dir, \
+            plotter(sc, out_dir, plots=not no_plots, gif=not no_gif) as pictures:
         write_scenario(sc, out_dir)
         reference = None
         if path is not None:
             write_path(path, out_dir / "path.json")
             reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
         code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif, csv=csv,
-                              phases=phases)
+                              phases=phases, plotter=pictures)
     sys.exit(code)
