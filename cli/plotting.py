@@ -1,22 +1,23 @@
 """The pictures of a run (four PNG plots and the GIF), drawn in helper processes while the main
 process plans, co-simulates and saves.
 
-:func:`plotter` starts, as soon as the scenario and its map are loaded, up to two plot
-processes (forked, so they share the loaded scenario, map and modules). While the main process
-plans and co-simulates they import matplotlib and ready its fonts. :meth:`PlotWorkers.submit`
-then sends each of them the results table (its raw bytes through the process's pipe, from a
-thread, so the main process saves the results meanwhile), and each takes the next file nobody
-has taken yet (the GIF first, the largest job) until none is left. :meth:`PlotWorkers.wait`
-waits for the named files and returns what went wrong with them.
+:func:`plotter` forks a plot process as soon as the scenario is read. While the main process
+checks the map, plans and co-simulates, that process imports matplotlib (and the map's module),
+draws a small figure to ready the fonts, and forks a second plot process, which so starts warm.
+:meth:`PlotWorkers.submit` sends both the run's setting (map, geometry, planned path, status,
+output folder) and the results table (its raw bytes through the pipe, from a thread, so the main
+process saves the results meanwhile); each process takes the next file nobody has taken yet (the
+GIF first, the largest job) until none is left. :meth:`PlotWorkers.wait` waits for the named
+files and returns what went wrong with them.
 
-What can go wrong becomes a :class:`PlotProblem` naming the file: the drawing raised (the
-message and the traceback, which goes to ``run.log``), the process died (its pipe closed), or
-no word came from the processes for :data:`SILENCE_LIMIT_S` (they are stopped). Files already
-written stay: each is written atomically. Where processes cannot be forked, :class:`InlinePlotter`
-draws the same files in the main process, behind the same methods.
+What can go wrong becomes a :class:`PlotProblem` naming the file: the drawing raised (its
+message; the traceback goes to ``run.log``), the process died (its pipe closed), or no word came
+from the processes for :data:`SILENCE_LIMIT_S` (they are stopped). Files already written stay:
+each is written atomically. Where processes cannot be forked, :class:`InlinePlotter` draws the
+same files in the main process, behind the same methods.
 
 The main process never imports matplotlib on this route, so its peak memory is that of planning
-and co-simulation; each plot process logs its own peak (``run.log``).
+and co-simulation; ``run.log`` gets the peak of every process.
 """
 
 from __future__ import annotations
@@ -50,8 +51,8 @@ _ORDER = (GIF_FILE, "inputs_joints.png", "tracking_error.png", "map.png", "later
 at about the same time."""
 
 SILENCE_LIMIT_S = 300.0
-"""A plot process that sends nothing (no file started or finished) for this long [s] is stopped
-and its file reported as failed (a file takes well under 10 s)."""
+"""A plot process that says nothing (no file started or finished) for this long [s] is stopped
+and its file reported as failed (one file takes well under 10 s)."""
 
 MAX_PROCESSES = 2
 
@@ -67,37 +68,35 @@ class PlotProblem:
         return f"{self.name}: {self.message}"
 
 
-def _peak_rss_mib() -> float:
-    """This process's peak resident memory [MiB] (Linux reports KiB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
 @dataclass(frozen=True)
-class _Setting:
-    """What every file of a run needs besides the results: drawn by :func:`_draw`."""
+class _Run:
+    """What the files of one run need besides the results table (picklable)."""
 
-    n: int
     out_dir: Path
-    world: object
-    geometry: object
+    n: int
+    world: object  # pushtrain.planner.world.World or None
+    geometry: object  # pushtrain.core.kinematics.ChainGeometry
     footprints: dict
+    path_xy: np.ndarray | None  # the planned path of the last trailer [m]
+    status: str | None
 
 
-def _setting(sc, out_dir: Path) -> _Setting:
+def _run_of(sc, out_dir, result, path) -> _Run:
     from pushtrain.mission.runner import geometry_of, world_of
 
     t = sc.train
-    return _Setting(sc.train.n, Path(out_dir), world_of(sc), geometry_of(sc),
-                    {"robot": (t.robot_size.length, t.robot_size.width),
-                     "trailer": (t.trailer_size.length, t.trailer_size.width)})
+    return _Run(Path(out_dir), t.n, world_of(sc), geometry_of(sc),
+                {"robot": (t.robot_size.length, t.robot_size.width),
+                 "trailer": (t.trailer_size.length, t.trailer_size.width)},
+                None if path is None else np.ascontiguousarray(path.poses[:, :2]),
+                getattr(result, "status", None))
 
 
-def _draw(name: str, data, setting: _Setting, path_xy, status) -> Path:
+def _draw(name: str, data, run: _Run) -> Path:
     from pushtrain.report.plots import plot_file
 
-    return plot_file(name, data, setting.n, setting.out_dir, world=setting.world,
-                     path_xy=path_xy, footprints=setting.footprints, geometry=setting.geometry,
-                     status=status)
+    return plot_file(name, data, run.n, run.out_dir, world=run.world, path_xy=run.path_xy,
+                     footprints=run.footprints, geometry=run.geometry, status=run.status)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -105,8 +104,9 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def _path_xy(path):
-    return None if path is None else np.ascontiguousarray(path.poses[:, :2])
+def _peak_rss_mib() -> float:
+    """This process's peak resident memory [MiB] (Linux reports KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -114,25 +114,25 @@ def _path_xy(path):
 # ---------------------------------------------------------------------------------------------
 class InlinePlotter:
     """The files drawn one after the other in the main process, when :meth:`wait` asks for
-    them (the same methods as :class:`PlotWorkers`)."""
+    them (the methods of :class:`PlotWorkers`)."""
 
-    def __init__(self, setting: _Setting, files):
-        self.setting, self.files = setting, tuple(files)
+    def __init__(self, sc, files):
+        self.sc, self.files = sc, tuple(files)
         self.finished: dict[str, PlotProblem | None] = {}
-        self.data = self.path_xy = self.status = None
+        self.data = self.run = None
 
-    def submit(self, result, path=None) -> None:
-        self.data, self.status, self.path_xy = result.data, result.status, _path_xy(path)
+    def submit(self, out_dir, result, path=None) -> None:
+        self.data, self.run = result.data, _run_of(self.sc, out_dir, result, path)
 
     def wait(self, names) -> list[PlotProblem]:
         problems = []
         for name in names:
             if name not in self.finished:
                 try:
-                    _draw(name, self.data, self.setting, self.path_xy, self.status)
+                    _draw(name, self.data, self.run)
                     self.finished[name] = None
-                except Exception as exc:
-                    log.error("drawing %s failed", name, exc_info=True)
+                except Exception as exc:  # the traceback goes to run.log only
+                    log.debug("drawing %s failed", name, exc_info=True)
                     self.finished[name] = PlotProblem(name, _one_line(exc))
                 gc.collect()
             if self.finished[name] is not None:
@@ -146,9 +146,13 @@ class InlinePlotter:
 # ---------------------------------------------------------------------------------------------
 # in the plot processes
 # ---------------------------------------------------------------------------------------------
-def _warm_up() -> None:
-    """Import the figures' modules and draw a small figure once (fonts, text layout)."""
+def _warm_up(with_map: bool) -> None:
+    """Import the figures' modules (and the map's, to unpickle it at once) and draw a small
+    figure (fonts, text layout)."""
     from pushtrain.report.common import new_figure
+
+    if with_map:
+        import pushtrain.planner.world  # noqa: F401
 
     fig = new_figure(2.0, 1.5, dpi=50)
     ax = fig.add_subplot()
@@ -156,6 +160,51 @@ def _warm_up() -> None:
     ax.legend()
     ax.set_title("warm-up")
     fig.canvas.draw()
+
+
+def _first_process(conns, counter, with_map: bool, inherited) -> None:
+    """The first plot process: warm up, fork the second plot process (which so starts warm),
+    then draw; wait for the second. ``conns`` are the plot processes' pipes, its own first;
+    ``inherited`` are the main process's ends of them, closed here."""
+    for other in inherited:
+        other.close()
+    # stopped by the main process: end through the ``finally`` blocks (no partial file is left)
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    gc.freeze()  # the inherited objects are never collected here: their pages stay shared
+    try:
+        _warm_up(with_map)
+    except Exception as exc:  # e.g. matplotlib missing: say so and end
+        for conn in conns:
+            _last_word(conn, ("fatal", f"cannot draw: {_one_line(exc)}", traceback.format_exc()))
+        return
+    second = 0
+    if len(conns) > 1:
+        try:
+            second = os.fork()
+        except OSError as exc:
+            _last_word(conns[1], ("fatal", f"cannot fork: {exc}", traceback.format_exc()))
+        else:
+            if second == 0:  # the second plot process
+                try:
+                    conns[0].close()
+                    gc.freeze()
+                    _serve(conns[1], counter)
+                finally:
+                    os._exit(0)
+            conns[1].close()
+    try:
+        _serve(conns[0], counter)
+    finally:
+        if second > 0:
+            os.waitpid(second, 0)
+
+
+def _last_word(conn, message) -> None:
+    try:
+        conn.send(message)
+    except OSError:
+        pass
+    conn.close()
 
 
 def _read_exactly(fd: int, buffer: memoryview) -> None:
@@ -167,28 +216,19 @@ def _read_exactly(fd: int, buffer: memoryview) -> None:
         got += count
 
 
-def _worker(conn, counter, setting: _Setting, inherited) -> None:
-    """A plot process: import matplotlib, receive the results, draw files until none is left.
+def _serve(conn, counter) -> None:
+    """Receive the run and its results, then draw files until none is left.
 
-    Messages to the main process: ``("start", name)``, ``("done", name, wall [s], CPU [s])``,
-    ``("failed", name, message, traceback)``, ``("fatal", message, traceback)`` (nothing more
-    will come) and ``("end", peak memory [MiB])``.
+    Messages to the main process: ``("ready", pid)``, ``("start", name)``, ``("done", name,
+    wall [s], CPU [s])``, ``("failed", name, message, traceback)`` and, at the end, ``("end",
+    peak memory [MiB])``.
     """
-    for other in inherited:  # the other processes' pipes: only the main process may hold them
-        other.close()
-    # stopped by the main process: end through the ``finally`` blocks (no partial file is left)
-    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
-    gc.freeze()  # the inherited objects are never collected here: their pages stay shared
     try:
-        try:
-            _warm_up()
-        except Exception as exc:  # e.g. matplotlib missing: say so and end
-            conn.send(("fatal", f"cannot draw: {_one_line(exc)}", traceback.format_exc()))
-            return
+        conn.send(("ready", os.getpid()))
         header = conn.recv()
+        run, files = header["run"], header["files"]
         data = np.empty(header["rows"], dtype=header["dtype"])
         _read_exactly(conn.fileno(), memoryview(data.view(np.uint8)).cast("B"))
-        files = header["files"]
         while True:
             with counter.get_lock():
                 k = counter.value
@@ -199,7 +239,7 @@ def _worker(conn, counter, setting: _Setting, inherited) -> None:
             conn.send(("start", name))
             wall, cpu = time.perf_counter(), time.process_time()
             try:
-                _draw(name, data, setting, header["path_xy"], header["status"])
+                _draw(name, data, run)
             except Exception as exc:
                 conn.send(("failed", name, _one_line(exc), traceback.format_exc()))
             else:
@@ -216,51 +256,75 @@ def _worker(conn, counter, setting: _Setting, inherited) -> None:
 # the main process's side of the plot processes
 # ---------------------------------------------------------------------------------------------
 class _Process:
-    def __init__(self, process, conn):
-        self.process, self.conn = process, conn
+    """The main process's view of one plot process: its pipe, its pid (the first one is a
+    child of the main process, the second a child of the first), the file it draws."""
+
+    def __init__(self, conn, process=None):
+        self.conn, self.process = conn, process
+        self.pid = None if process is None else process.pid
         self.current: str | None = None  # the file it is drawing
         self.open = True  # its pipe may still bring messages
         self.peak_mib: float | None = None
 
+    def stop(self) -> None:
+        """Ask it to end (SIGTERM: its ``finally`` blocks run)."""
+        if self.pid is not None:
+            try:
+                os.kill(self.pid, signal.SIGTERM)
+            except OSError:
+                pass
+
+    def exit_text(self) -> str:
+        code = None if self.process is None else self.process.exitcode
+        if code is None:
+            return "the plot process ended unexpectedly"
+        if code < 0:
+            return f"the plot process was killed by signal {-code}"
+        return f"the plot process exited with code {code}"
+
 
 class PlotWorkers:
-    """Up to :data:`MAX_PROCESSES` forked plot processes drawing ``files`` of one run.
+    """Up to :data:`MAX_PROCESSES` plot processes drawing ``files`` of one run of ``sc``.
 
     Raises OSError or ValueError when processes cannot be forked (use :class:`InlinePlotter`).
     """
 
-    def __init__(self, setting: _Setting, files, processes: int = MAX_PROCESSES):
+    def __init__(self, sc, files, processes: int = MAX_PROCESSES):
         context = multiprocessing.get_context("fork")
+        self.sc = sc
         self.files = tuple(name for name in _ORDER if name in files)
         self.counter = context.Value("i", 0)
         self.finished: dict[str, PlotProblem | None] = {}
-        self.taken: set[str] = set()
         self.last_word = "no answer"
         self.sender: threading.Thread | None = None
-        self.procs: list[_Process] = []
+        self.closed = False
+        pipes = [context.Pipe(duplex=True)
+                 for _ in range(max(1, min(processes, MAX_PROCESSES, len(self.files))))]
+        mine = [pipe[0] for pipe in pipes]
+        theirs = [pipe[1] for pipe in pipes]
         try:
-            for k in range(max(1, min(processes, len(self.files)))):
-                mine, theirs = context.Pipe(duplex=True)
-                process = context.Process(
-                    target=_worker, name=f"pushtrain-plot-{k + 1}", daemon=True,
-                    args=(theirs, self.counter, setting, [p.conn for p in self.procs]))
-                process.start()
-                theirs.close()
-                self.procs.append(_Process(process, mine))
+            first = context.Process(target=_first_process, name="pushtrain-plot", daemon=True,
+                                    args=(theirs, self.counter, sc.map is not None, mine))
+            first.start()
         except BaseException:
-            self.close()
+            for conn in mine + theirs:
+                conn.close()
             raise
-        log.debug("started plot processes %s", [p.process.pid for p in self.procs])
+        for conn in theirs:
+            conn.close()
+        self.procs = [_Process(mine[0], first)] + [_Process(conn) for conn in mine[1:]]
+        log.debug("started plot process %d (it forks %d more)", first.pid, len(mine) - 1)
 
-    # -- sending the results -----------------------------------------------------------------
-    def submit(self, result, path=None) -> None:
-        """Send the results (and the planned ``path``, if any) to every plot process; they
-        start drawing. Returns at once (a thread sends the table)."""
+    # -- sending the run ---------------------------------------------------------------------
+    def submit(self, out_dir, result, path=None) -> None:
+        """Send the run (into ``out_dir``, along the planned ``path``, if any) and its
+        ``result`` to every plot process; they start drawing. Returns at once (a thread
+        sends)."""
         data = np.ascontiguousarray(result.data)
-        header = {"rows": len(data), "dtype": data.dtype, "files": self.files,
-                  "path_xy": _path_xy(path), "status": result.status}
-        conns = [p.conn for p in self.procs]
-        self.sender = threading.Thread(target=_send, args=(conns, header, data),
+        header = {"run": _run_of(self.sc, out_dir, result, path), "files": self.files,
+                  "rows": len(data), "dtype": data.dtype}
+        self.sender = threading.Thread(target=_send, args=([p.conn for p in self.procs],
+                                                           header, data),
                                        name="pushtrain-plot-sender", daemon=True)
         self.sender.start()
 
@@ -268,13 +332,12 @@ class PlotWorkers:
     def wait(self, names) -> list[PlotProblem]:
         """Wait until each of ``names`` is written or has failed; the problems, in the order
         of ``names``."""
-        deadline = time.monotonic() + SILENCE_LIMIT_S
         while any(name not in self.finished for name in names):
             live = [p for p in self.procs if p.open]
             if not live:
                 self._give_up(f"no plot process left ({self.last_word})")
                 break
-            ready = wait_for_any([p.conn for p in live], timeout=deadline - time.monotonic())
+            ready = wait_for_any([p.conn for p in live], timeout=SILENCE_LIMIT_S)
             if not ready:
                 self._stop_all()
                 self._give_up(f"no word from the plot processes in {SILENCE_LIMIT_S:g} s; "
@@ -283,7 +346,6 @@ class PlotWorkers:
             for p in live:
                 if p.conn in ready:
                     self._receive(p)
-            deadline = time.monotonic() + SILENCE_LIMIT_S
         return [self.finished[name] for name in names if self.finished[name] is not None]
 
     def _receive(self, p: _Process) -> None:
@@ -293,21 +355,22 @@ class PlotWorkers:
             self._lost(p)
             return
         kind = message[0]
-        if kind == "start":
+        if kind == "ready":
+            p.pid = message[1]
+        elif kind == "start":
             p.current = message[1]
-            self.taken.add(p.current)
         elif kind == "done":
             name, wall, cpu = message[1:]
-            log.info("%s drawn in %.2f s (CPU %.2f s) by plot process %d", name, wall, cpu,
-                     p.process.pid)
+            log.info("%s drawn in %.2f s (CPU %.2f s) by plot process %s", name, wall, cpu,
+                     p.pid)
             self.finished[name], p.current = None, None
         elif kind == "failed":
             name, text, trace = message[1:]
-            log.error("drawing %s failed (plot process %d):\n%s", name, p.process.pid, trace)
+            log.debug("drawing %s failed (plot process %s):\n%s", name, p.pid, trace)
             self.finished[name], p.current = PlotProblem(name, text), None
         elif kind == "fatal":
             text, trace = message[1:]
-            log.error("plot process %d: %s\n%s", p.process.pid, text, trace)
+            log.debug("plot process %s: %s\n%s", p.pid, text, trace)
             self.last_word = text
             self._lost(p, text)
         elif kind == "end":
@@ -318,50 +381,51 @@ class PlotWorkers:
         """``p``'s pipe closed or it gave up: its current file failed."""
         p.open = False
         if why is None:
-            p.process.join(timeout=2.0)
-            code = p.process.exitcode
-            why = ("the plot process ended unexpectedly" if code is None else
-                   f"the plot process was killed by signal {-code}" if code < 0 else
-                   f"the plot process exited with code {code}")
-            self.last_word = why
+            if p.process is not None:
+                p.process.join(timeout=2.0)
+            why = self.last_word = p.exit_text()
         if p.current is not None:
             self.finished[p.current] = PlotProblem(p.current, why)
             p.current = None
 
     def _give_up(self, why: str) -> None:
-        for p in self.procs:
-            if p.current is not None:
-                self.finished[p.current] = PlotProblem(p.current, why)
-                p.current = None
         for name in self.files:
             self.finished.setdefault(name, PlotProblem(name, why))
 
     def _stop_all(self) -> None:
         for p in self.procs:
             p.open = False
-            if p.process.is_alive():
-                p.process.terminate()
+            p.stop()
 
     # -- the end -----------------------------------------------------------------------------
     def close(self) -> None:
         """End the plot processes and log their peak memory: with every file finished, they
-        end on their own; otherwise (the run failed) they are stopped."""
-        if all(name in self.finished for name in self.files):
-            for p in self.procs:  # their last word: the peak memory
-                while p.open and p.conn.poll(5.0):
-                    self._receive(p)
-        else:
+        end on their own; otherwise (the run failed or was interrupted) they are stopped.
+        Closing again does nothing."""
+        if self.closed:
+            return
+        self.closed = True
+        done = all(name in self.finished for name in self.files)
+        for p in self.procs:  # their last words: pids, files, the peak memory at the end
+            while p.open and p.conn.poll(5.0 if done else 0.0):
+                self._receive(p)
+        if not done:
             for p in self.procs:
-                if p.process.is_alive():
-                    p.process.terminate()
+                p.stop()
         if self.sender is not None:
             self.sender.join(timeout=5.0)
         for p in self.procs:
             p.conn.close()
-            p.process.join(timeout=5.0)
-            if p.process.is_alive():
-                p.process.kill()
-                p.process.join(timeout=5.0)
+        first = self.procs[0].process  # it waits for the second before it ends
+        first.join(timeout=10.0)
+        if first.is_alive():
+            for p in self.procs[::-1]:
+                if p.pid is not None:
+                    try:
+                        os.kill(p.pid, signal.SIGKILL)
+                    except OSError:
+                        pass
+            first.join(timeout=5.0)
         peaks = [f"{p.peak_mib:.1f}" for p in self.procs if p.peak_mib is not None]
         if peaks:
             log.info("peak resident memory [MiB]: main process %.1f, plot processes %s",
@@ -369,7 +433,7 @@ class PlotWorkers:
 
 
 def _send(conns, header: dict, data: np.ndarray) -> None:
-    """Send ``header`` and the raw bytes of ``data`` to each pipe (a process that died is
+    """Send ``header`` and the raw bytes of ``data`` through each pipe (a process that died is
     skipped: the main process learns of it from its pipe)."""
     raw = memoryview(data.view(np.uint8)).cast("B")
     for conn in conns:
@@ -384,23 +448,22 @@ def _send(conns, header: dict, data: np.ndarray) -> None:
 
 # ---------------------------------------------------------------------------------------------
 @contextmanager
-def plotter(sc, out_dir: Path, *, plots: bool = True, gif: bool = True,
-            processes: int | None = None):
-    """The plotter of a run into ``out_dir``: :class:`PlotWorkers` (``processes`` of them,
-    default up to 2, one per core), or :class:`InlinePlotter` when processes cannot be forked
-    or ``processes`` is 0; None without ``plots``. Closed at the end of the block."""
+def plotter(sc, *, plots: bool = True, gif: bool = True, processes: int | None = None):
+    """What draws the pictures of a run of ``sc``, closed at the end of the block:
+    :class:`PlotWorkers` (``processes`` of them; default 2, or 1 on one core), or
+    :class:`InlinePlotter` when processes cannot be forked or ``processes`` is 0; None
+    without ``plots``. Start it early: the plot processes get ready while the main one works."""
     if not plots:
         yield None
         return
     files = PNG_FILES + ((GIF_FILE,) if gif else ())
-    setting = _setting(sc, out_dir)
     if processes is None:
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
         processes = max(1, min(MAX_PROCESSES, cores))
-    used = InlinePlotter(setting, files)
+    used = InlinePlotter(sc, files)
     if processes > 0:
         try:
-            used = PlotWorkers(setting, files, processes)
+            used = PlotWorkers(sc, files, processes)
         except (OSError, ValueError) as exc:
             log.warning("cannot start plot processes (%s): drawing in this one", exc)
     try:

@@ -133,11 +133,11 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
 
     with contextlib.ExitStack() as stack:
         if plots and plotter is None:
-            plotter = stack.enter_context(start_plotter(sc, out_dir, gif=gif, processes=0))
+            plotter = stack.enter_context(start_plotter(sc, gif=gif, processes=0))
         with _phase(phases, "co-simulate", "co-simulating"):
             result = run_scenario(sc, None, reference=reference)
         if plots:
-            plotter.submit(result, path)
+            plotter.submit(out_dir, result, path)
         with _phase(phases, "save", "saving the results"):
             save_results(result, out_dir, csv=csv)
         problems = []
@@ -147,14 +147,18 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
             if gif:
                 with _phase(phases, "gif", f"rendering {GIF_FILE}"):
                     problems += plotter.wait((GIF_FILE,))
+            plotter.close()  # the plot processes end (and log their peak memory in run.log)
     if phases is not None:
         phases.done()
     click.echo(summary_text(result.summary))
     click.echo(f"results: {out_dir}")
     if problems:
-        raise PlotFailure("could not draw " + "; ".join(map(str, problems))
-                          + f" (the results and the other files are in {out_dir}; details in "
-                          "run.log)")
+        reasons: dict[str, list[str]] = {}  # the files that failed for each reason, in order
+        for problem in problems:
+            reasons.setdefault(problem.message, []).append(problem.name)
+        raise PlotFailure("could not draw " + "; ".join(
+            f"{', '.join(names)}: {why}" for why, names in reasons.items())
+            + f" (the results and the other files are in {out_dir}; details in run.log)")
     return EXIT_OK if result.ok else EXIT_NOT_REACHED
 
 
