@@ -1,14 +1,15 @@
 """The pictures of a run (four PNG plots and the GIF), drawn in helper processes while the main
 process plans, co-simulates and saves.
 
-:func:`plotter` forks a plot process as soon as the scenario is read. While the main process
-checks the map, plans and co-simulates, that process imports matplotlib (and the map's module),
-draws a small figure to ready the fonts, and forks a second plot process, which so starts warm.
-:meth:`PlotWorkers.submit` sends both the run's setting (map, geometry, planned path, status,
-output folder) and the results table (its raw bytes through the pipe, from a thread, so the main
-process saves the results meanwhile); each process takes the next file nobody has taken yet (the
-GIF first, the largest job) until none is left. :meth:`PlotWorkers.wait` waits for the named
-files and returns what went wrong with them.
+:func:`plotter` forks a plot process as soon as the scenario and its map are checked (it
+shares their memory with the main process). While the main process plans and co-simulates, that
+process imports matplotlib and draws a small figure to ready the fonts. :meth:`PlotWorkers.submit`
+sends it the run's setting (map, geometry, planned path, status, output folder) and the results
+table (its raw bytes through the pipe, from a thread, so the main process saves the results
+meanwhile); it then forks the second plot process, which so shares matplotlib and the results,
+and each takes the next file nobody has taken yet (the GIF first, the largest job) until none is
+left. :meth:`PlotWorkers.wait` waits for the named files and returns what went wrong with
+them.
 
 What can go wrong becomes a :class:`PlotProblem` naming the file: the drawing raised (its
 message; the traceback goes to ``run.log``), the process died (its pipe closed), or no word came
@@ -163,9 +164,10 @@ def _warm_up(with_map: bool) -> None:
 
 
 def _first_process(conns, counter, with_map: bool, inherited) -> None:
-    """The first plot process: warm up, fork the second plot process (which so starts warm),
-    then draw; wait for the second. ``conns`` are the plot processes' pipes, its own first;
-    ``inherited`` are the main process's ends of them, closed here."""
+    """The first plot process: warm up, receive the run and its results, fork the second plot
+    process (which so shares matplotlib and the results), then draw; wait for the second.
+    ``conns`` are the plot processes' pipes, its own first; ``inherited`` are the main
+    process's ends of them, closed here."""
     for other in inherited:
         other.close()
     # stopped by the main process: end through the ``finally`` blocks (no partial file is left)
@@ -177,8 +179,16 @@ def _first_process(conns, counter, with_map: bool, inherited) -> None:
         for conn in conns:
             _last_word(conn, ("fatal", f"cannot draw: {_one_line(exc)}", traceback.format_exc()))
         return
+    try:
+        conns[0].send(("ready", os.getpid()))
+        header = conns[0].recv()
+        data = np.empty(header["rows"], dtype=header["dtype"])
+        _read_exactly(conns[0].fileno(), memoryview(data.view(np.uint8)).cast("B"))
+    except (EOFError, OSError, KeyboardInterrupt):
+        return  # the main process stopped us or went away: nothing to report to
     second = 0
     if len(conns) > 1:
+        gc.freeze()
         try:
             second = os.fork()
         except OSError as exc:
@@ -187,13 +197,12 @@ def _first_process(conns, counter, with_map: bool, inherited) -> None:
             if second == 0:  # the second plot process
                 try:
                     conns[0].close()
-                    gc.freeze()
-                    _serve(conns[1], counter)
+                    _draw_files(conns[1], counter, header, data, hello=True)
                 finally:
                     os._exit(0)
             conns[1].close()
     try:
-        _serve(conns[0], counter)
+        _draw_files(conns[0], counter, header, data)
     finally:
         if second > 0:
             os.waitpid(second, 0)
@@ -216,19 +225,17 @@ def _read_exactly(fd: int, buffer: memoryview) -> None:
         got += count
 
 
-def _serve(conn, counter) -> None:
-    """Receive the run and its results, then draw files until none is left.
+def _draw_files(conn, counter, header: dict, data: np.ndarray, *, hello: bool = False) -> None:
+    """Draw files of ``header["files"]`` until none is left (``counter`` says which is next).
 
-    Messages to the main process: ``("ready", pid)``, ``("start", name)``, ``("done", name,
-    wall [s], CPU [s])``, ``("failed", name, message, traceback)`` and, at the end, ``("end",
-    peak memory [MiB])``.
+    Messages to the main process: ``("ready", pid)`` (with ``hello``), ``("start", name)``,
+    ``("done", name, wall [s], CPU [s])``, ``("failed", name, message, traceback)`` and, at the
+    end, ``("end", peak memory [MiB])``.
     """
+    run, files = header["run"], header["files"]
     try:
-        conn.send(("ready", os.getpid()))
-        header = conn.recv()
-        run, files = header["run"], header["files"]
-        data = np.empty(header["rows"], dtype=header["dtype"])
-        _read_exactly(conn.fileno(), memoryview(data.view(np.uint8)).cast("B"))
+        if hello:
+            conn.send(("ready", os.getpid()))
         while True:
             with counter.get_lock():
                 k = counter.value
@@ -318,13 +325,12 @@ class PlotWorkers:
     # -- sending the run ---------------------------------------------------------------------
     def submit(self, out_dir, result, path=None) -> None:
         """Send the run (into ``out_dir``, along the planned ``path``, if any) and its
-        ``result`` to every plot process; they start drawing. Returns at once (a thread
-        sends)."""
+        ``result`` to the first plot process, which forks the second; they start drawing.
+        Returns at once (a thread sends)."""
         data = np.ascontiguousarray(result.data)
         header = {"run": _run_of(self.sc, out_dir, result, path), "files": self.files,
                   "rows": len(data), "dtype": data.dtype}
-        self.sender = threading.Thread(target=_send, args=([p.conn for p in self.procs],
-                                                           header, data),
+        self.sender = threading.Thread(target=_send, args=([self.procs[0].conn], header, data),
                                        name="pushtrain-plot-sender", daemon=True)
         self.sender.start()
 
