@@ -141,12 +141,10 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
         with _phase(phases, "save", "saving the results"):
             save_results(result, out_dir, csv=csv)
         problems = []
-        if plots:
-            with _phase(phases, "plots", f"plotting {', '.join(PNG_FILES)}"):
-                problems += plotter.wait(PNG_FILES)
-            if gif:
-                with _phase(phases, "gif", f"rendering {GIF_FILE}"):
-                    problems += plotter.wait((GIF_FILE,))
+        if plots:  # one phase: the plot processes draw the GIF beside the plots
+            what = f"plotting {', '.join(PNG_FILES)}" + (f" and {GIF_FILE}" if gif else "")
+            with _phase(phases, "plots", what):
+                problems += plotter.wait(PNG_FILES + ((GIF_FILE,) if gif else ()))
             plotter.close()  # the plot processes end (and log their peak memory in run.log)
     if phases is not None:
         phases.done()
