@@ -1,7 +1,7 @@
 """The ``pushtrain`` command line: plan, co-simulate and look at a robot pushing n trailers.
 
-Exit codes: 0 success; 1 the run completed but the goal was not reached (or no plan was found);
-2 bad input (scenario file, option, path file, output folder).
+Exit codes: 0 success; 1 the run completed but the goal was not reached (or no plan was found,
+or a plot could not be drawn); 2 bad input (scenario file, option, path file, output folder).
 
 One module per command in :mod:`pushtrain.cli.commands`; the heavy libraries (OMPL, Dask,
 matplotlib) are imported only by the commands that need them.
