@@ -27,7 +27,6 @@ import gc
 import logging
 import multiprocessing
 import os
-import resource
 import signal
 import sys
 import threading
@@ -106,7 +105,11 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _peak_rss_mib() -> float:
-    """This process's peak resident memory [MiB] (Linux reports KiB)."""
+    """This process's peak resident memory [MiB] (Linux reports KiB; nan where unknown)."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return float("nan")
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
@@ -467,7 +470,9 @@ def plotter(sc, *, plots: bool = True, gif: bool = True, processes: int | None =
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
         processes = max(1, min(MAX_PROCESSES, cores))
     used = InlinePlotter(sc, files)
-    if processes > 0:
+    if processes > 0 and "fork" not in multiprocessing.get_all_start_methods():
+        log.info("no fork on this platform: the plots are drawn in this process")
+    elif processes > 0:
         try:
             used = PlotWorkers(sc, files, processes)
         except (OSError, ValueError) as exc:
