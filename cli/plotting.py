@@ -173,22 +173,23 @@ def _first_process(conns, counter, with_map: bool, inherited) -> None:
     process's ends of them, closed here."""
     for other in inherited:
         other.close()
-    # stopped by the main process: end through the ``finally`` blocks (no partial file is left)
+    # Ctrl-C is the main process's to handle; it stops us with SIGTERM, which ends us through
+    # the ``finally`` blocks (no partial file is left)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     gc.freeze()  # the inherited objects are never collected here: their pages stay shared
     try:
         _warm_up(with_map)
-    except Exception as exc:  # e.g. matplotlib missing: say so and end
-        for conn in conns:
-            _last_word(conn, ("fatal", f"cannot draw: {_one_line(exc)}", traceback.format_exc()))
-        return
-    try:
         conns[0].send(("ready", os.getpid()))
         header = conns[0].recv()
         data = np.empty(header["rows"], dtype=header["dtype"])
         _read_exactly(conns[0].fileno(), memoryview(data.view(np.uint8)).cast("B"))
-    except (EOFError, OSError, KeyboardInterrupt):
+    except (EOFError, OSError):
         return  # the main process stopped us or went away: nothing to report to
+    except Exception as exc:  # e.g. matplotlib missing: say so (not as a traceback) and end
+        for conn in conns:
+            _last_word(conn, ("fatal", f"cannot draw: {_one_line(exc)}", traceback.format_exc()))
+        return
     second = 0
     if len(conns) > 1:
         gc.freeze()
@@ -256,8 +257,11 @@ def _draw_files(conn, counter, header: dict, data: np.ndarray, *, hello: bool = 
                 conn.send(("done", name, time.perf_counter() - wall, time.process_time() - cpu))
             gc.collect()
         conn.send(("end", _peak_rss_mib()))
-    except (EOFError, OSError, KeyboardInterrupt):
+    except (EOFError, OSError):
         return  # the main process stopped us or went away: nothing to report to
+    except Exception as exc:  # a bug here: say so (not as a traceback on stderr)
+        _last_word(conn, ("fatal", f"plot process failed: {_one_line(exc)}",
+                          traceback.format_exc()))
     finally:
         conn.close()
 
