@@ -39,13 +39,13 @@ from pathlib import Path
 
 import numpy as np
 
+from pushtrain.report import GIF_FILE, PNG_FILES  # names only: no matplotlib here
+
 __all__ = ["PNG_FILES", "GIF_FILE", "PlotProblem", "PlotWorkers", "InlinePlotter", "plotter",
            "SILENCE_LIMIT_S"]
 
 log = logging.getLogger(__name__)
 
-PNG_FILES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
-GIF_FILE = "train.gif"
 _ORDER = (GIF_FILE, "inputs_joints.png", "tracking_error.png", "map.png", "lateral_forces.png")
 """The order in which the files are handed out: the slowest first, so that two processes end
 at about the same time."""

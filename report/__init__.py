@@ -2,4 +2,12 @@
 
 :mod:`.plots` offers every figure and :func:`~.plots.plot_all`; the figures live by concern in
 :mod:`.mapview`, :mod:`.timeseries` and :mod:`.animation`, on :mod:`.common` and :mod:`.geometry`.
+
+Importing this package imports nothing else (no matplotlib): code that only names the files of
+a run (the CLI's main process) takes the names from here.
 """
+
+PNG_FILES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
+"""The standard plots of a run, as :func:`~.plots.plot_file` names them."""
+GIF_FILE = "train.gif"
+"""The standard animation of a run."""

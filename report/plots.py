@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from pushtrain.errors import PlotError
+from pushtrain.report import GIF_FILE, PNG_FILES
 from pushtrain.report.animation import animate
 from pushtrain.report.common import DPI, GIF_DPI, check_n
 from pushtrain.report.geometry import (
@@ -105,12 +106,6 @@ def _collecting():
     finally:
         if frozen_here:
             gc.unfreeze()
-
-
-PNG_FILES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
-"""The standard plots of a run, as :func:`plot_file` names them."""
-GIF_FILE = "train.gif"
-"""The standard animation of a run."""
 
 
 def _title(n: int, status: str | None) -> str | None:
