@@ -5,10 +5,11 @@ cache, matplotlib's font cache, the OS file cache), then ``--repeats`` times, an
 each run and as medians:
 
 * the wall time of the whole process (start-up and imports included) and its CPU time (user +
-  system, from ``wait4``: on a shared machine the CPU time moves less with the load than the
-  wall time),
+  system of the process and its plot processes, from ``wait4``: on a shared machine the CPU
+  time moves less with the load than the wall time),
 * the time of each phase as the command itself prints it on stderr (plan, co-simulate, save,
-  plots, gif) and the rest (interpreter start-up, the CLI's imports, exit),
+  plots: the wait for the plot processes after saving) and the rest (interpreter start-up, the
+  CLI's imports, the scenario and map checks, exit),
 * the peak resident memory (RSS) of each process: the command's own (main) process and each
   of the two plot processes that draw the PNGs and the GIF (as the command logs them in
   ``run.log``); ``wait4`` gives the largest of them,
