@@ -1,15 +1,15 @@
 """The pictures of a run (four PNG plots and the GIF), drawn in helper processes while the main
 process plans, co-simulates and saves.
 
-:func:`plotter` forks a plot process as soon as the scenario and its map are checked (it
-shares their memory with the main process). While the main process plans and co-simulates, that
-process imports matplotlib and draws a small figure to ready the fonts. :meth:`PlotWorkers.submit`
-sends it the run's setting (map, geometry, planned path, status, output folder) and the results
-table (its raw bytes through the pipe, from a thread, so the main process saves the results
-meanwhile); it then forks the second plot process, which so shares matplotlib and the results,
-and each takes the next file nobody has taken yet (the GIF first, the largest job) until none is
-left. :meth:`PlotWorkers.wait` waits for the named files and returns what went wrong with
-them.
+:func:`plotter` forks a plot process as soon as the scenario is read. While the main process
+checks the map, plans and co-simulates, that process imports matplotlib (and the map's module,
+``pushtrain.planner.world``, to unpickle the map) and draws a small figure to ready the fonts.
+:meth:`PlotWorkers.submit` sends it the run's setting (map, geometry, planned path, status,
+output folder) and the results table (its raw bytes through the pipe, from a thread, so the
+main process saves the results meanwhile); it then forks the second plot process, which so
+shares matplotlib and the results, and each takes the next file nobody has taken yet (the GIF
+first, the largest job) until none is left. :meth:`PlotWorkers.wait` waits for the named files
+and returns what went wrong with them.
 
 What can go wrong becomes a :class:`PlotProblem` naming the file: the drawing raised (its
 message; the traceback goes to ``run.log``), the process died (its pipe closed), or no word came

@@ -39,17 +39,19 @@ def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv):
     """
     phases = Phases()
     sc = _scenario(scenario, trailers, seed)
-    check_map(sc)
-    # the plot processes get ready (import matplotlib) while the path is planned and the run made
-    with run_folder(out, sc.name, sc) as out_dir, \
-            plotter(sc, plots=not no_plots, gif=not no_gif) as pictures:
-        write_scenario(sc, out_dir)
-        reference = path = None
-        if sc.mission.kind == "plan":
-            path = plan_or_fail(sc, out_dir, phases)
-            write_path(path, out_dir / "path.json")
-            click.echo(describe_path(path))
-            reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
-        code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif, csv=csv,
-                              phases=phases, plotter=pictures)
+    # the plot processes get ready (import matplotlib) while the map is checked, the path
+    # planned and the run made
+    with plotter(sc, plots=not no_plots, gif=not no_gif) as pictures:
+        check_map(sc)
+        with run_folder(out, sc.name, sc) as out_dir:
+            write_scenario(sc, out_dir)
+            reference = path = None
+            if sc.mission.kind == "plan":
+                path = plan_or_fail(sc, out_dir, phases)
+                write_path(path, out_dir / "path.json")
+                click.echo(describe_path(path))
+                reference = path.to_reference(speed=sc.planner.speed,
+                                              cusp_dwell=sc.planner.cusp_dwell)
+            code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif,
+                                  csv=csv, phases=phases, plotter=pictures)
     sys.exit(code)

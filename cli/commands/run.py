@@ -53,21 +53,23 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv):
     """
     phases = Phases()
     sc = _scenario(scenario)
-    check_map(sc)
-    path = None
-    if path_file:
-        path = _load_path(path_file)
-    elif sc.mission.kind == "plan":
-        raise BadInput(f"{scenario}: mission.kind = 'plan' has no scripted reference: give "
-                       "--path PATH.json or use plan-and-run")
-    # the plot processes get ready (import matplotlib) while the run is made
-    with run_folder(out, sc.name, sc) as out_dir, \
-            plotter(sc, plots=not no_plots, gif=not no_gif) as pictures:
-        write_scenario(sc, out_dir)
-        reference = None
-        if path is not None:
-            write_path(path, out_dir / "path.json")
-            reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
-        code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif, csv=csv,
-                              phases=phases, plotter=pictures)
+    # the plot processes get ready (import matplotlib) while the map is checked and the run
+    # made
+    with plotter(sc, plots=not no_plots, gif=not no_gif) as pictures:
+        check_map(sc)
+        path = None
+        if path_file:
+            path = _load_path(path_file)
+        elif sc.mission.kind == "plan":
+            raise BadInput(f"{scenario}: mission.kind = 'plan' has no scripted reference: give "
+                           "--path PATH.json or use plan-and-run")
+        with run_folder(out, sc.name, sc) as out_dir:
+            write_scenario(sc, out_dir)
+            reference = None
+            if path is not None:
+                write_path(path, out_dir / "path.json")
+                reference = path.to_reference(speed=sc.planner.speed,
+                                              cusp_dwell=sc.planner.cusp_dwell)
+            code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif,
+                                  csv=csv, phases=phases, plotter=pictures)
     sys.exit(code)
