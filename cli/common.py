@@ -93,3 +93,8 @@ trailers_option = click.option("--trailers", type=click.IntRange(1, MAX_TRAILERS
                                help="Override train.n.")
 csv_option = click.option("--csv", "csv", is_flag=True,
                           help="Also write results.csv (the results.npz table as text).")
+plot_processes_option = click.option(
+    "--plot-processes", "plot_processes", type=click.IntRange(0, 2), default=None, metavar="N",
+    help="Processes that draw the plots and the GIF beside this one (0: draw here, the least "
+         "memory; default: 2 on two or more cores, else 1).")
+

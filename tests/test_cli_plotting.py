@@ -273,3 +273,24 @@ def test_the_maps_module_imports_without_the_planner():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["[]", "True"], done.stdout
+
+
+def test_plot_processes_0_draws_here_the_same_files(tmp_path, monkeypatch):
+    """--plot-processes 0 starts no plot process (the least memory) and writes the files the
+    plot processes write; a count outside 0..2 is exit 2 naming the option."""
+    forked = _invoke(["run", _quick(tmp_path), "--out", str(tmp_path / "forked")])
+    assert forked.exit_code == 0, forked.output
+
+    def no_workers(*args, **kwargs):
+        raise AssertionError("a plot process was started")
+
+    monkeypatch.setattr(plotting, "PlotWorkers", no_workers)
+    here = tmp_path / "here"
+    result = _invoke(["run", _quick(tmp_path), "--plot-processes", "0", "--out", str(here)])
+    assert result.exit_code == 0, result.output
+    _complete(here, ALL)
+    for name in ALL:
+        assert (here / name).read_bytes() == (tmp_path / "forked" / name).read_bytes(), name
+    bad = _invoke(["run", _quick(tmp_path), "--plot-processes", "3", "--out",
+                   str(tmp_path / "bad")])
+    assert bad.exit_code == 2 and "--plot-processes" in bad.output and "0<=x<=2" in bad.output

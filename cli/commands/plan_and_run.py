@@ -11,6 +11,7 @@ from ..common import (
     check_map,
     csv_option,
     out_dir_option,
+    plot_processes_option,
     scenario_argument,
     trailers_option,
 )
@@ -28,7 +29,8 @@ from ..runs import describe_path, plan_or_fail, run_and_report, write_path, writ
 @click.option("--no-plots", is_flag=True, help="Skip the PNG plots and the GIF.")
 @click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
 @csv_option
-def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv):
+@plot_processes_option
+def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv, plot_processes):
     """Plan the last trailer's path, co-simulate the FMU with the controller, plot the run.
 
     \b
@@ -41,7 +43,8 @@ def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv):
     sc = _scenario(scenario, trailers, seed)
     # the plot processes get ready (import matplotlib) while the map is checked, the path
     # planned and the run made
-    with plotter(sc, plots=not no_plots, gif=not no_gif) as pictures:
+    with plotter(sc, plots=not no_plots, gif=not no_gif,
+                 processes=plot_processes) as pictures:
         check_map(sc)
         with run_folder(out, sc.name, sc) as out_dir:
             write_scenario(sc, out_dir)

@@ -12,6 +12,7 @@ from ..common import (
     check_map,
     csv_option,
     out_dir_option,
+    plot_processes_option,
     scenario_argument,
 )
 from ..plotting import plotter
@@ -41,7 +42,8 @@ def _load_path(path_file: str):
 @click.option("--no-plots", is_flag=True, help="Skip the PNG plots and the GIF.")
 @click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
 @csv_option
-def run_cmd(scenario, path_file, out, no_plots, no_gif, csv):
+@plot_processes_option
+def run_cmd(scenario, path_file, out, no_plots, no_gif, csv, plot_processes):
     """Co-simulate a saved path or the scenario's scripted line/arc reference.
 
     \b
@@ -55,7 +57,8 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv):
     sc = _scenario(scenario)
     # the plot processes get ready (import matplotlib) while the map is checked and the run
     # made
-    with plotter(sc, plots=not no_plots, gif=not no_gif) as pictures:
+    with plotter(sc, plots=not no_plots, gif=not no_gif,
+                 processes=plot_processes) as pictures:
         check_map(sc)
         path = None
         if path_file:
