@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import math
+import pickle
 import tempfile
 import time
 from dataclasses import dataclass
@@ -27,7 +28,8 @@ from pushtrain.mission.scenario import parse_scenario
 
 from .sweep_spec import METRICS, STATUS_ERROR
 
-__all__ = ["FmuRef", "sha256_of", "run_task", "metrics_of", "failure_row", "execute"]
+__all__ = ["FmuRef", "sha256_of", "run_task", "metrics_of", "failure_row", "execute",
+           "execute_batch"]
 
 log = logging.getLogger(__name__)
 
@@ -149,4 +151,12 @@ def execute(task_fn: Callable, index: int, key: str, payload, shared,
     row["task_time_s"] = time.perf_counter() - t0
     row["index"], row["key"] = index, key
     return row
+
+
+def execute_batch(task_fn: Callable, packed: bytes, shared, steady_window: float) -> list[dict]:
+    """Worker side: :func:`execute` for each ``(index, key, payload)`` of the pickled list
+    ``packed`` in turn, their rows in that order (one Dask task for several short runs; pickled
+    by the client so that Dask does not walk every payload looking for futures)."""
+    return [execute(task_fn, index, key, payload, shared, steady_window)
+            for index, key, payload in pickle.loads(packed)]
 

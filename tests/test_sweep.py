@@ -206,6 +206,40 @@ def test_cluster_gives_the_same_numbers_as_serial(client, base, serial8, tmp_pat
     assert len(list((tmp_path / "chunks").glob("chunk-*.csv"))) == 4  # chunk_size = 2
 
 
+def test_runs_batched_in_few_tasks_give_the_same_numbers(client, base, serial8, tmp_path,
+                                                        monkeypatch):
+    """Several runs per Dask task (one task per worker here: 4 runs each) give the rows of
+    the serial loop, in the runs' order."""
+    from pushtrain.studies import sweep as sweep_module
+
+    monkeypatch.setattr(sweep_module, "TASKS_PER_WORKER", 1)
+    submitted = []
+    original = client.submit
+
+    def counting_submit(*args, **kwargs):
+        submitted.append(args[0].__name__)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(client, "submit", counting_submit)
+    outcome = sweep(base, parse_sweep_spec(SPEC8), tmp_path, client=client, plots=False)
+    assert submitted == ["execute_batch"] * 2
+    assert outcome.complete and outcome.new == 8
+    assert _table(outcome.rows) == _table(serial8.rows)
+
+
+def test_batches_cut_runs_in_order_into_enough_tasks():
+    from pushtrain.studies.sweep import MAX_BATCH, TASKS_PER_WORKER, batches
+
+    runs = list(range(1000))
+    for workers in (1, 2, 7):
+        cut = batches(runs, workers)
+        assert [r for b in cut for r in b] == runs
+        assert len(cut) >= TASKS_PER_WORKER * workers
+        assert max(len(b) for b in cut) <= MAX_BATCH
+    assert batches(list(range(5)), 2) == [[0], [1], [2], [3], [4]]  # small sweeps: one each
+    assert batches([], 2) == []
+
+
 def test_bias_offset_matches_the_closed_form(serial8):
     for row in serial8.rows:
         eps = math.radians(row["sensors.joint_bias_deg[2]"])
