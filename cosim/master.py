@@ -296,6 +296,9 @@ def _recorder(n: int, capacity: int, by_column: bool = False) -> Recorder:
 
 def _steps(horizon: float, step: float) -> int:
     ratio = horizon / step
+    if not (math.isfinite(ratio) and ratio < 1e12):
+        raise CosimInputError(f"horizon = {horizon!r} s with step = {step!r} s: more than 1e12 "
+                              "steps; choose a shorter horizon or a longer step")
     k = round(ratio)
     if abs(ratio - k) > 1e-9 * max(1.0, ratio) or k < 1:
         raise CosimInputError(

@@ -415,7 +415,9 @@ def _inconsistent_run(sc: "Scenario") -> list[tuple[str, object, str]]:
                                  "physically: use a push event"))
     horizon, step = sc.sim.horizon, sc.sim.step
     ratio = None if horizon is None else horizon / step
-    if ratio is not None and abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+    # (a horizon too long for the step is the bounds check's to report)
+    if ratio is not None and math.isfinite(ratio) and \
+            abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
         problems.append(("sim.horizon", horizon,
                          f"a whole number of steps of sim.step = {step:g} s "
                          f"(e.g. {step * max(1, round(horizon / step)):g} s)"))

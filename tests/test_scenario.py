@@ -128,6 +128,7 @@ def test_the_fmu_declares_the_same_bounds():
     ("[train]\nn = 51\n", "train.n"),
     ("[sim]\nstep = 5.0\n", "sim.step"),
     ("[sim]\nhorizon = 1e9\n", "sim.horizon"),
+    ("[sim]\nhorizon = 8.98846567431158e+305\n", "sim.horizon"),  # horizon / step overflows
     ("[sim]\nhorizon = 1.0\nstep = 0.003\n", "sim.horizon"),
     ("[fmu]\nslip_mode = 1\n[[events]]\ntype = 'slide'\nt = 1.0\nduration = 1.0\n"
      "distance = 0.1\ntrailer = 1\n", "events[0].type"),

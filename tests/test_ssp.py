@@ -380,8 +380,21 @@ def test_planned_missions_in_libcosim_match_plan_and_run(tmp_path, example):
         assert ref.pull_intervals()  # the pull guide's table was exercised
 
 
+def _load_tbb() -> None:
+    """ecospy's native library needs libtbb.so.12 (Debian's libtbb12); the test extras install
+    the ``tbb`` wheel, which puts it in the environment's lib folder, off the loader's path:
+    load it first, globally, so that ecospy's library finds it."""
+    import ctypes
+    import sys
+
+    lib = Path(sys.prefix) / "lib" / "libtbb.so.12"
+    if lib.exists():
+        ctypes.CDLL(str(lib), mode=ctypes.RTLD_GLOBAL)
+
+
 def ecos_run(path: Path, n: int, steps: int, step: float) -> dict:
     """Step the package in ecos (ecospy); the last trailer's pose after every step."""
+    _load_tbb()
     try:
         from ecospy import EcosLib, EcosSimulation
     except (ImportError, OSError) as exc:  # not installed, or its libtbb12 missing
@@ -447,6 +460,7 @@ def _readme_block(after: str) -> str:
                                            ("ecospy", "With ecos (`pip install")])
 def test_readme_snippets_run_the_package(short, tmp_path, monkeypatch, capsys, tool, heading):
     """The README's snippets run an exported package to ``done`` (and plot it)."""
+    _load_tbb()
     try:
         __import__(tool)
     except (ImportError, OSError) as exc:
