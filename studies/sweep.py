@@ -42,6 +42,7 @@ from .sweep_results import (
     ChunkWriter,
     SweepOutcome,
     check_manifest,
+    check_out_folder,
     columns_of,
     combine,
     existing_rows,
@@ -171,6 +172,7 @@ def run_sweep(
     if client is None and not serial:
         raise SweepError("run_sweep", [("client", None, "a distributed.Client, or serial=True")])
     out = Path(out_dir)
+    check_out_folder(out)
     chunk_dir = out / "chunks"
     chunk_dir.mkdir(parents=True, exist_ok=True)
     check_manifest(out, manifest)

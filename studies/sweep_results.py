@@ -165,6 +165,23 @@ def _fingerprint(manifest: dict) -> str:
     return hashlib.sha256(json.dumps(manifest, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def check_out_folder(out_dir: Path) -> None:
+    """Refuse an output folder that is neither new, nor empty, nor a sweep's own (it has
+    ``sweep.json`` or ``chunks/``): a sweep's files must not mix with a run's or anything else
+    (a run folder is replaced whole by the next run into it)."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise SweepError(str(out_dir), [("out", str(out_dir), "is a file: a sweep needs a folder")])
+    if not out_dir.is_dir() or (out_dir / "sweep.json").is_file() or (out_dir / "chunks").is_dir():
+        return
+    others = sorted(p.name for p in out_dir.iterdir())
+    if others:
+        listed = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")
+        raise SweepError(str(out_dir), [(
+            "out", str(out_dir),
+            f"holds other files ({listed}): a sweep writes into a new or empty folder, or "
+            "resumes in its own")])
+
+
 def check_manifest(out_dir: Path, manifest: dict | None) -> None:
     """Refuse to mix rows of a different sweep into ``out_dir``; write ``sweep.json``."""
     if manifest is None:

@@ -491,6 +491,29 @@ def test_cli_workers_0_runs_serially_and_max_runs_stops_then_resumes(tmp_path, m
     assert [r["rms_lat_m"] for r in rows] == pytest.approx([0.01 / k for k in (4, 6) * 4])
 
 
+@pytest.mark.parametrize("what", ["notes", "run folder"])
+def test_a_sweep_refuses_a_folder_of_other_files_and_leaves_it_alone(tmp_path, what):
+    """A sweep's files must not mix with others: into a folder of notes, or a plan-and-run
+    folder (replaced whole by the next run there, sweep results and all), it is exit 2 naming
+    --out and the files, and nothing is written."""
+    from pushtrain.cli.main import cli
+
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(SPEC8_TOML)
+    out = tmp_path / "out"
+    out.mkdir()
+    names = {"notes.txt"} if what == "notes" else {".pushtrain-run", "summary.json"}
+    for name in names:
+        (out / name).write_text("mine")
+    result = CliRunner().invoke(cli, ["sweep", str(tmp_path / "base.toml"), "--spec",
+                                      str(tmp_path / "spec.toml"), "--workers", "0", "--out",
+                                      str(out), "--no-plots"])
+    assert result.exit_code == 2, result.output
+    assert "holds other files" in result.output and str(out) in result.output
+    assert {p.name for p in out.iterdir()} == names
+    assert all((out / name).read_text() == "mine" for name in names)
+
+
 # ------------------------------------------------------------------------------------------ CLI
 @pytest.mark.parametrize("workers", ["0", "2"])
 def test_cli_sweep(tmp_path, workers):
