@@ -48,11 +48,18 @@ for _command in (plan_and_run, plan_cmd, run_cmd, build_fmu_cmd, analyze_cmd, va
 cli.add_command(sweep_cmd)
 
 
-def plan_and_run_main():
-    """Console script ``plan-and-run SCENARIO``: the main job on its own."""
+def plan_and_run_main(standalone_mode: bool = True):
+    """``plan-and-run SCENARIO``: the main job on its own (the console script is
+    :func:`pushtrain.cli.entry.plan_and_run`)."""
     with to_stderr(0):
-        plan_and_run.main(args=sys.argv[1:], prog_name="plan-and-run",
-                          help_option_names=["-h", "--help"])
+        return plan_and_run.main(args=sys.argv[1:], prog_name="plan-and-run",
+                                 help_option_names=["-h", "--help"],
+                                 standalone_mode=standalone_mode)
+
+
+def pushtrain_main(standalone_mode: bool = True):
+    """``pushtrain COMMAND ...`` (the console script is :func:`pushtrain.cli.entry.pushtrain`)."""
+    return cli.main(args=sys.argv[1:], prog_name="pushtrain", standalone_mode=standalone_mode)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -18,7 +18,7 @@ from .common import EXIT_BAD_INPUT, EXIT_NOT_REACHED, BadInput, click_error
 from .logs import to_run_log
 
 __all__ = ["run_folder", "default_folder", "STATUS_INVALID", "STATUS_PLANNING_FAILED",
-           "STATUS_FAILED", "STATUS_ERROR"]
+           "STATUS_FAILED", "STATUS_ERROR", "STATUS_INTERRUPTED"]
 
 log = logging.getLogger(__name__)
 
@@ -27,6 +27,8 @@ STATUS_INVALID = "invalid"                  # bad input found late (exit 2)
 STATUS_PLANNING_FAILED = "planning_failed"  # no plan found (exit 1)
 STATUS_FAILED = "failed"                    # another run-time failure, e.g. an FMU build (exit 1)
 STATUS_ERROR = "error"                      # an unexpected exception (a bug; traceback, exit 1)
+STATUS_INTERRUPTED = "interrupted"          # Ctrl-C (exit 130)
+EXIT_INTERRUPTED = 130
 
 
 def default_folder(name: str) -> Path:
@@ -70,8 +72,9 @@ def run_folder(out: str | None, name: str, sc=None):
     (:func:`pushtrain.files.fresh_run_folder`: a previous run there is replaced, a folder of
     other files or an impossible path is bad input), logs into its ``run.log`` for the duration
     of the block and removes that handler afterwards. If the block fails, the failure goes to
-    ``run.log`` and into ``summary.json`` (status ``invalid``, ``planning_failed``, ``failed`` or
-    ``error``), and pushtrain's errors become click exceptions with the right exit code.
+    ``run.log`` and into ``summary.json`` (status ``invalid``, ``planning_failed``, ``failed``,
+    ``error`` or, on Ctrl-C, ``interrupted`` with exit code 130), and pushtrain's errors become
+    click exceptions with the right exit code.
     """
     path = Path(out) if out else default_folder(name)
     try:
@@ -91,6 +94,11 @@ def run_folder(out: str | None, name: str, sc=None):
             status = STATUS_INVALID if exc.exit_code == EXIT_BAD_INPUT else STATUS_FAILED
             _record_failure(path, sc, status, exc.format_message(), exc.exit_code)
             raise
+        except KeyboardInterrupt:
+            message = "interrupted (Ctrl-C): the files written so far are kept"
+            _record_failure(path, sc, STATUS_INTERRUPTED, message, EXIT_INTERRUPTED)
+            click.echo(f"{message} in {path}", err=True)
+            raise click.exceptions.Exit(EXIT_INTERRUPTED) from None
         except Exception as exc:
             log.info("unexpected error", exc_info=True)
             _record_failure(path, sc, STATUS_ERROR, f"{type(exc).__name__}: {exc}",

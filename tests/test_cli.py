@@ -227,3 +227,35 @@ def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
     # the co-simulation's goal test is the planner's
     assert cfg.goal_tolerance == pytest.approx((sc.sim.goal_tolerance,
                                                 math.radians(sc.sim.goal_heading_tolerance_deg)))
+
+
+def test_ctrl_c_during_a_run_is_exit_130_with_a_summary_saying_so(tmp_path):
+    """SIGINT once the run folder exists (planning the three-point turn): the console script
+    ends with one line and exit code 130, not click's "Aborted!" and exit 1 (which means the
+    goal was not reached); summary.json says "interrupted" and the files written are kept."""
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    scenario = Path(__file__).resolve().parents[1] / "examples" / "three_point_turn.toml"
+    out = tmp_path / "out"
+    code = ("import sys; from pushtrain.cli.entry import plan_and_run; "
+            f"sys.argv = ['plan-and-run', {str(scenario)!r}, '--out', {str(out)!r}, "
+            "'--no-plots']; plan_and_run()")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.monotonic() + 120
+    while not (out / "scenario.json").exists() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "Aborted" not in err
+    assert "interrupted (Ctrl-C)" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["exit_code"] == 130
+    assert (out / "scenario.json").exists() and (out / "run.log").exists()
