@@ -105,6 +105,14 @@ def test_plan_writes_a_path_that_run_replays(runner, tmp_path):
     assert result.exit_code == 0, result.output
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "goal_reached"
+    # the same path with another scenario: refused, naming --path and what differs
+    other = tmp_path / "other"
+    result = runner.invoke(cli, ["run", str(EXAMPLES / "bay.toml"), "--path", str(path_file),
+                                 "--out", str(other), "--no-plots"])
+    assert result.exit_code == 2, result.output
+    assert "--path" in result.output and "is not the scenario's start (11.500, 1.500" in \
+        result.output
+    assert not other.exists()
 
 
 def test_run_with_a_broken_path_file_exits_2(runner, tmp_path):

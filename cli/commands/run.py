@@ -33,6 +33,28 @@ def _load_path(path_file: str):
         raise BadInput(f"--path {path_file}: cannot be read: {exc.strerror}") from None
 
 
+def _check_path_fits(sc, path, path_file) -> None:
+    """Refuse a saved path that does not start at the scenario's start or end at its goal
+    (the run would follow it anyway, and the scenario's files would describe another run)."""
+    import math
+
+    tol_pos = max(0.01, sc.sim.goal_tolerance)
+    tol_head = max(math.radians(1.0), math.radians(sc.sim.goal_heading_tolerance_deg))
+    for name, pose, where in (("start", sc.start, path.start), ("goal", sc.goal, path.goal)):
+        if pose is None:
+            continue
+        want = (pose.x, pose.y, math.radians(pose.theta_deg))
+        off = math.hypot(where[0] - want[0], where[1] - want[1])
+        turn = abs(math.remainder(float(where[2]) - want[2], 2.0 * math.pi))
+        if off > tol_pos or turn > tol_head:
+            raise BadInput(
+                f"--path {path_file}: the path's {'end' if name == 'goal' else 'start'} "
+                f"({where[0]:.3f}, {where[1]:.3f}, {math.degrees(where[2]):.1f} deg) is not the "
+                f"scenario's {name} ({want[0]:.3f}, {want[1]:.3f}, {pose.theta_deg:.1f} deg): "
+                f"it must be within {tol_pos:g} m and {math.degrees(tol_head):g} deg (a path "
+                "planned for this scenario: `pushtrain plan SCENARIO --out DIR`)")
+
+
 @click.command("run")
 @scenario_argument
 @click.option("--path", "path_file", type=click.Path(exists=True, dir_okay=False),
@@ -63,6 +85,7 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv, plot_processes):
         path = None
         if path_file:
             path = _load_path(path_file)
+            _check_path_fits(sc, path, path_file)
         elif sc.mission.kind == "plan":
             raise BadInput(f"{scenario}: mission.kind = 'plan' has no scripted reference: give "
                            "--path PATH.json or use plan-and-run")
