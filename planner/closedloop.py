@@ -366,7 +366,8 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
     if f["self_collision"]:
         parts.append(f"{f['self_collision']} folded the train onto itself")
     if f["pull_rule"]:
-        parts.append(f"{f['pull_rule']} pulls were not started because the chain was bent "
+        parts.append(f"{f['pull_rule']} pull{'s were' if f['pull_rule'] != 1 else ' was'} not "
+                     "started because the chain was bent "
                      f"more than {math.degrees(config.pull_phi):.1f} deg (pull rule)")
     if f["goal_missed"]:
         straight = ("" if config.goal_phi is None else
@@ -383,12 +384,14 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
     if stats.cut == "budget":
         reason, head = "budget_exhausted", (
             f"no plan within the budget of {config.budget_steps()} simulated control steps "
-            f"(time_budget {config.time_budget:g} s; {stats.expansions} expansions)")
+            f"(time_budget {config.time_budget:g} s; {stats.expansions} expansions; a larger "
+            "planner.time_budget searches further)")
     elif stats.cut == "deadline":
         reason, head = "budget_exhausted", (
             f"no plan before the time budget of {config.time_budget:g} s ran out on the clock "
             f"({search.prop.steps} of {config.budget_steps()} steps done, {stats.expansions} "
-            "expansions; a faster or less loaded machine does more)")
+            "expansions; a larger planner.time_budget, or a faster or less loaded machine, does "
+            "more)")
     else:
         reason, head = "unreachable", (
             f"no plan: the search ran out of states after {stats.expansions} expansions "
