@@ -108,6 +108,19 @@ def _phase(phases: Phases | None, name: str, what: str):
     return phases.phase(name, what) if phases is not None else contextlib.nullcontext()
 
 
+def _build_fmu_once(sc: Scenario, phases: Phases | None) -> None:
+    """The scenario's FMU compiled as a phase of its own on first use (a few seconds; cached
+    for every later run), so that the co-simulation's time is the co-simulation's."""
+    from pushtrain.fmu.build import build_fmu, is_built
+
+    version = sc.fmu.fmi_version
+    n = sc.train.n if version == 2 else None
+    if not is_built(n, fmi_version=version):
+        with _phase(phases, "build FMU", f"building the FMU (FMI {version}.0; first use, cached "
+                                         "for later runs)"):
+            build_fmu(n, fmi_version=version)
+
+
 class PlotFailure(click.ClickException):
     """Some pictures could not be drawn (exit 1); the results are saved."""
 
@@ -134,6 +147,7 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
     with contextlib.ExitStack() as stack:
         if plots and plotter is None:
             plotter = stack.enter_context(start_plotter(sc, gif=gif, processes=0))
+        _build_fmu_once(sc, phases)
         with _phase(phases, "co-simulate", "co-simulating"):
             result = run_scenario(sc, None, reference=reference)
         if plots:

@@ -193,6 +193,29 @@ def package_fmu(files: dict[str, bytes], identifier: str, fmi_version: int, targ
         atomic_write(target, write_zip)
 
 
+def _cache_entry(n_trailers, fmi_version, strict: bool):
+    """(n, description, source fingerprint, cached .fmu path) of a build (see build_fmu)."""
+    if isinstance(fmi_version, bool) or fmi_version not in FMI_VERSIONS:
+        raise FmuInputError(f"fmi_version = {fmi_version!r}: allowed are 2 and 3")
+    if fmi_version == 2:
+        n = check_n(n_trailers)
+        name, what = f"{MODEL_IDENTIFIER}-n{n}", f"FMI 2.0, n = {n}"
+    elif n_trailers is not None:
+        raise FmuInputError(
+            f"n_trailers = {n_trailers!r} with fmi_version = 3: the FMI 3.0 FMU serves every n "
+            f"from 1 to {MAX_TRAILERS}; set its structural parameter n instead")
+    else:
+        n, name, what = None, f"{MODEL_IDENTIFIER}3", "FMI 3.0, n = 1.." + str(MAX_TRAILERS)
+    fingerprint = _fingerprint(n, strict, fmi_version)
+    return n, what, fingerprint, cache_dir() / f"{name}-{fingerprint[:16]}.fmu"
+
+
+def is_built(n_trailers: int | None = None, *, fmi_version: int = 2,
+             strict: bool = False) -> bool:
+    """Whether :func:`build_fmu` has this build in its cache (it then costs no compilation)."""
+    return _cache_entry(n_trailers, fmi_version, strict)[3].is_file()
+
+
 def build_fmu(n_trailers: int | None = None, output_path=None, *, fmi_version: int = 2,
               strict: bool = False, force: bool = False) -> Path:
     """Build (or take from the cache) a TrailerTrain FMU.
@@ -224,19 +247,7 @@ def build_fmu(n_trailers: int | None = None, output_path=None, *, fmi_version: i
     FmuBuildError
         cmake missing, or the compiler failed.
     """
-    if isinstance(fmi_version, bool) or fmi_version not in FMI_VERSIONS:
-        raise FmuInputError(f"fmi_version = {fmi_version!r}: allowed are 2 and 3")
-    if fmi_version == 2:
-        n = check_n(n_trailers)
-        name, what = f"{MODEL_IDENTIFIER}-n{n}", f"FMI 2.0, n = {n}"
-    elif n_trailers is not None:
-        raise FmuInputError(
-            f"n_trailers = {n_trailers!r} with fmi_version = 3: the FMI 3.0 FMU serves every n "
-            f"from 1 to {MAX_TRAILERS}; set its structural parameter n instead")
-    else:
-        n, name, what = None, f"{MODEL_IDENTIFIER}3", "FMI 3.0, n = 1.." + str(MAX_TRAILERS)
-    fingerprint = _fingerprint(n, strict, fmi_version)
-    cached = cache_dir() / f"{name}-{fingerprint[:16]}.fmu"
+    n, what, fingerprint, cached = _cache_entry(n_trailers, fmi_version, strict)
     if force or not cached.is_file():
         cached.parent.mkdir(parents=True, exist_ok=True)
         guid = "{" + str(uuid.UUID(fingerprint[:32])) + "}"

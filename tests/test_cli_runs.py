@@ -367,3 +367,17 @@ def test_save_results_keeps_every_bit_and_writes_atomically(tmp_path, monkeypatc
         assert z["t"].tobytes() == data["t"].tobytes()
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["results.npz",
                                                                     "summary.json"]
+
+
+def test_the_first_fmu_build_is_a_phase_of_its_own(tmp_path, monkeypatch):
+    """With an empty FMU cache the run announces the build (a few seconds) before
+    co-simulating, and times it as its own phase; the next run, cached, does not."""
+    monkeypatch.setenv("PUSHTRAIN_CACHE", str(tmp_path / "cache"))
+    short = _short(tmp_path)
+    first = _invoke(["run", short, "--no-plots", "--out", str(tmp_path / "a")])
+    assert first.exit_code == 1, first.output  # the short horizon misses the goal
+    assert "building the FMU (FMI 2.0; first use" in first.output
+    assert "build FMU " in first.output  # in the closing "done: ..." line of phase times
+    assert list((tmp_path / "cache" / "fmu").glob("*.fmu"))
+    again = _invoke(["run", short, "--no-plots", "--out", str(tmp_path / "b")])
+    assert again.exit_code == 1 and "building the FMU" not in again.output
