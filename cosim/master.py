@@ -36,28 +36,37 @@ Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save`
 from __future__ import annotations
 
 import ctypes
-import json
 import logging
 import math
 import sys
 import time as _time
 from collections.abc import Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
-from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
+from pushtrain.core.kinematics import wrap_scalar
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
-from pushtrain.files import atomic_write
 
 from .events import EventSchedule, Push, SetBias, Slide, _positive
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
+from .plant import InitialState, PlantConfig
 from .recorder import Recorder
+from .result import (
+    STATUS_COMPLETED,
+    STATUS_FMU_ERROR,
+    STATUS_GOAL,
+    STATUS_JACKKNIFE,
+    STATUS_NOT_REACHED,
+    STATUS_TIME_LIMIT,
+    Result,
+    summarize,
+)
 from .sensors import Measurement, SensorConfig, Sensors
 from .step_loop import STEP_LOOPS, CompiledLoop, unsupported
 
@@ -81,163 +90,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-STATUS_GOAL = "goal_reached"
-STATUS_NOT_REACHED = "goal_not_reached"
-STATUS_JACKKNIFE = "jackknifed"
-STATUS_FMU_ERROR = "fmu_error"
-STATUS_TIME_LIMIT = "time_limit"
-STATUS_COMPLETED = "completed"  # fixed-horizon run without a goal check
-
 _new_tuple = tuple.__new__
-
-
-@dataclass
-class PlantConfig:
-    """Parameters of the TrailerTrain FMU (names as in the FMU; arrays per trailer i = 1..n).
-
-    ``None`` keeps the FMU's default (Table 1 of the paper). ``front`` holds F_1..F_n, ``rear``
-    R_0..R_{n-1} [m]; ``mass``, ``payload`` [kg], ``inertia`` [kg m^2], ``mu`` [-] per trailer.
-    """
-
-    n_trailers: int
-    front: Sequence[float] | float | None = None
-    rear: Sequence[float] | float | None = None
-    mass: Sequence[float] | float | None = None
-    inertia: Sequence[float] | float | None = None
-    payload: Sequence[float] | float | None = None
-    mu: Sequence[float] | float | None = None
-    g: float | None = None
-    robot_tau: float | None = None
-    robot_acc_max: float | None = None
-    robot_alpha_max: float | None = None
-    phi_max: float | None = None
-    slip_mode: int | None = None
-    max_substep: float | None = None
-    slip_substep: float | None = None
-
-    def _array(self, name: str, first: int):
-        value = getattr(self, name)
-        if value is None:
-            return None
-        arr = np.broadcast_to(np.asarray(value, dtype=float), (self.n_trailers,))
-        return {f"{name}[{first + k}]": float(arr[k]) for k in range(self.n_trailers)}
-
-    def geometry(self) -> ChainGeometry:
-        """The plant's true hitch geometry (defaults 0.52 m)."""
-        n = self.n_trailers
-        front = np.broadcast_to(np.asarray(0.52 if self.front is None else self.front, float), (n,))
-        rear = np.broadcast_to(np.asarray(0.52 if self.rear is None else self.rear, float), (n,))
-        return ChainGeometry(front.copy(), rear.copy())
-
-    def start_values(self) -> dict:
-        """FMU start values for the parameters that are set."""
-        out = {}
-        for name, first in (("front", 1), ("rear", 0), ("mass", 1), ("inertia", 1),
-                            ("payload", 1), ("mu", 1)):
-            values = self._array(name, first)
-            if values:
-                out.update(values)
-        for name in ("g", "robot_tau", "robot_acc_max", "robot_alpha_max", "phi_max",
-                     "slip_mode", "max_substep", "slip_substep"):
-            value = getattr(self, name)
-            if value is not None:
-                out[name] = value
-        return out
-
-
-@dataclass
-class InitialState:
-    """Initial configuration: robot pose, all headings and robot velocities.
-
-    Build it with :meth:`behind_reference` to place the train on the reference's start.
-    """
-
-    x0: float
-    y0: float
-    theta: np.ndarray  # (n+1,) [rad]
-    v0: float = 0.0
-    w0: float = 0.0
-
-    @classmethod
-    def behind_reference(
-        cls,
-        reference: Reference,
-        geometry: ChainGeometry,
-        lateral_offset: float = 0.0,
-        heading_offset: float = 0.0,
-        joint_angles: Sequence[float] | None = None,
-    ) -> "InitialState":
-        """A train whose last trailer starts at the reference's start pose.
-
-        ``lateral_offset`` [m] moves the last trailer along the reference heading's left normal,
-        ``heading_offset`` [rad] turns it; ``joint_angles`` (n,) [rad] bend the chain (default
-        straight).
-        """
-        x, y, th = (float(a) for a in reference.start)
-        th_n = th + heading_offset
-        x += -math.sin(th) * lateral_offset
-        y += math.cos(th) * lateral_offset
-        n = geometry.n
-        phi = np.zeros(n) if joint_angles is None else np.asarray(joint_angles, dtype=float)
-        if phi.shape != (n,):
-            raise CosimInputError(f"joint_angles has shape {phi.shape}; expected ({n},)")
-        # theta_{i-1} = theta_i + phi_i, from the last trailer forward
-        theta = th_n + np.concatenate((np.cumsum(phi[::-1])[::-1], [0.0]))
-        xs, ys = body_positions_from_last(x, y, theta, geometry)
-        return cls(float(xs[0]), float(ys[0]), theta)
-
-    def start_values(self) -> dict:
-        out = {"x0_start": self.x0, "y0_start": self.y0, "v_start": self.v0, "w_start": self.w0}
-        out.update({f"theta_start[{i}]": float(a) for i, a in enumerate(self.theta)})
-        return out
-
-
-@dataclass
-class Result:
-    """Outcome of :func:`simulate`."""
-
-    status: str
-    message: str
-    data: np.ndarray  # structured array, one row per communication point
-    summary: dict
-    n_trailers: int
-    fmu_log: str = ""
-    files: dict = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        return self.status in (STATUS_GOAL, STATUS_COMPLETED)
-
-    def save(self, out_dir) -> dict:
-        """Write ``results.csv``, ``results.npz`` and ``summary.json`` into ``out_dir``."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        names = self.data.dtype.names
-        csv_path = out / "results.csv"
-        _atomic_write(csv_path, lambda f: _write_csv(f, self.data), binary=False)
-        npz_path = out / "results.npz"
-        _atomic_write(npz_path,
-                      lambda f: np.savez_compressed(f, **{k: self.data[k] for k in names}))
-        summary_path = out / "summary.json"
-        _atomic_write(summary_path, lambda f: json.dump(self.summary, f, indent=2), binary=False)
-        self.files = {"csv": str(csv_path), "npz": str(npz_path), "summary": str(summary_path)}
-        return self.files
-
-
-def _write_csv(f, data: np.ndarray) -> None:
-    names = data.dtype.names
-    f.write(",".join(names) + "\n")
-    columns = np.column_stack([data[k].astype(float) for k in names])
-    np.savetxt(f, columns, delimiter=",", fmt="%.10g")
-
-
-def _atomic_write(path: Path, writer, binary: bool = True) -> None:
-    """``writer(f)`` on an open file, written atomically over ``path``."""
-    def write(partial: Path) -> None:
-        with open(partial, "wb" if binary else "w") as f:
-            writer(f)
-
-    atomic_write(path, write)
 
 
 _OUTPUTS = (  # FMU output array, its result column prefix, first index
@@ -620,7 +473,7 @@ def simulate(
     wall = _time.perf_counter() - wall_start
 
     data = recorder.to_array()
-    summary = _summarize(data, n, status, message, wall, step)
+    summary = summarize(data, n, status, message, wall, step)
     summary["step_loop"] = "python" if why_not_c is not None else "c"
     if why_not_c is not None:
         summary["step_loop_fallback"] = why_not_c
@@ -693,40 +546,3 @@ def _progress_bar(show: bool, total: int):
         yield bar
     finally:
         bar.close()
-
-
-def _rms(a: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(a**2))) if a.size else float("nan")
-
-
-def _summarize(data, n, status, message, wall, step) -> dict:
-    summary = {"status": status, "message": message, "n_trailers": n, "step": step,
-               "steps": max(len(data) - 1, 0), "wall_time_s": round(wall, 4)}
-    if len(data) == 0:
-        return summary
-    e_lat, e_th = data["e_lat"], data["e_theta"]
-    summary.update(
-        t_final=float(data["t"][-1]),
-        lateral_error_m={"rms": _rms(e_lat), "max": float(np.max(np.abs(e_lat))),
-                         "final": float(e_lat[-1])},
-        heading_error_rad={"rms": _rms(e_th), "max": float(np.max(np.abs(e_th))),
-                           "final": float(e_th[-1])},
-        longitudinal_error_m={"rms": _rms(data["e_lon"]), "final": float(data["e_lon"][-1])},
-        max_abs_phi_deg=[float(np.degrees(np.max(np.abs(data[f"phi{i}"]))))
-                         for i in range(1, n + 1)],
-        steps_per_second=round((len(data) - 1) / wall, 1) if wall > 0 else None,
-    )
-    ratios, slips = [], []
-    for i in range(1, n + 1):
-        f = np.abs(data[f"F_lat{i}"])
-        ratios.append(float(np.max(f) / data[f"F_lat_max{i}"][0])
-                      if data[f"F_lat_max{i}"][0] > 0 else None)
-        flag = data[f"slipping{i}"] > 0.5
-        rising = np.flatnonzero(flag[1:] & ~flag[:-1]) + 1
-        starts = ([0] if flag[0] else []) + rising.tolist()
-        slips.append({"trailer": i, "events": len(starts),
-                      "first_t": float(data["t"][starts[0]]) if starts else None,
-                      "time_slipping_s": float(np.count_nonzero(flag) * step)})
-    summary["max_F_lat_ratio"] = ratios
-    summary["slip"] = slips
-    return summary

@@ -1,6 +1,6 @@
 """Figures and an animation of a co-simulation run (matplotlib with the Agg canvas, no pyplot).
 
-Every function takes the structured array ``data`` of :attr:`pushtrain.cosim.master.Result.data`
+Every function takes the structured array ``data`` of :attr:`pushtrain.cosim.result.Result.data`
 (columns as in ``master._columns(n)``) and the number of trailers ``n``. The ``plot_*`` functions
 and :func:`animate` write one file each, atomically (a temporary file in the same folder, then
 ``os.replace``), and return its path; :func:`plot_all` writes the standard set into a folder.
@@ -149,7 +149,7 @@ def plot_all(result_or_data, n: int, out_dir, *, world=None, path_xy=None, footp
     Parameters
     ----------
     result_or_data : Result or numpy structured array
-        A :class:`~pushtrain.cosim.master.Result` (its status goes into the map's title) or its
+        A :class:`~pushtrain.cosim.result.Result` (its status goes into the map's title) or its
         ``data``.
     n : int
         Number of trailers (must match ``Result.n_trailers``).

@@ -92,7 +92,7 @@ def _max_or_nan(values) -> float:
 
 def metrics_of(result, steady_window: float) -> dict:
     """Every metric of :data:`METRICS` (plus ``status`` and ``message``) from a
-    :class:`~pushtrain.cosim.master.Result`.
+    :class:`~pushtrain.cosim.result.Result`.
 
     ``steady_lat_m`` is the mean lateral error over the last ``steady_window`` seconds of the run
     [m]; NaN when the run is shorter than that.
