@@ -26,7 +26,8 @@ from collections.abc import Callable, Sequence
 
 from pushtrain.core.reference import Segment
 
-from .lattice import SearchSettings, _sample_reference, corner_segments, rs_segments, segments_cost
+from .connect import corner_segments, rs_segments, sample_reference
+from .lattice import SearchSettings, segments_cost
 
 __all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]
 
@@ -59,7 +60,7 @@ def junction_poses(start, segments: Sequence[Segment]) -> list[tuple]:
     """The reference pose at the start of every segment and at the end, (len + 1) poses."""
     poses = [tuple(float(a) for a in start)]
     for g in segments:
-        poses.append(tuple(_sample_reference(poses[-1], [g], g.length + 1.0)[-1]))
+        poses.append(tuple(sample_reference(poses[-1], [g], g.length + 1.0)[-1]))
     return poses
 
 

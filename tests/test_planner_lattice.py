@@ -12,7 +12,7 @@ import pytest
 
 from pushtrain.core.reference import PULL, PUSH, Reference
 from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
-from pushtrain.planner.lattice import corner_segments
+from pushtrain.planner.connect import corner_segments
 from pushtrain.planner.smooth import merge, total_turning
 
 TRAIN = Train.uniform(3)

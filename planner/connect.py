@@ -1,0 +1,101 @@
+"""Local connections between two poses of the last trailer (chain convention), as the line and
+arc reference segments the controller tracks: a driver's corner (straight, arc, straight) and
+OMPL's shortest Reeds-Shepp curve; and poses sampled along segments. Used by the search
+(:mod:`~pushtrain.planner.lattice`) and the smoothing (:mod:`~pushtrain.planner.smooth`)."""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from pushtrain.core.reference import PUSH, Segment
+
+from .curves import ReedsSheppCurve, primitives_to_segments
+
+__all__ = ["corner_segments", "rs_segments", "sample_reference"]
+
+log = logging.getLogger(__name__)
+
+
+def corner_segments(pose, goal, direction: int, radius: float | None = None,
+                    max_radius: float = math.inf) -> list[Segment] | None:
+    """Straight, arc, straight from ``pose`` to ``goal`` (chain convention) in one
+    ``direction`` (PUSH or PULL): the path a driver takes round a corner.
+
+    The two poses' lines of travel must meet ahead of ``pose`` and behind ``goal``; the arc of
+    ``radius`` [m] (None: the largest that fits, at most ``max_radius``) is tangent to both.
+    Collinear poses give one straight line. Returns None where no such path exists (the lines
+    do not meet ahead, or the radius does not fit between the corner and the poses).
+    """
+    sigma = -1.0 if direction == PUSH else 1.0
+    ax, ay = sigma * math.cos(pose[2]), sigma * math.sin(pose[2])
+    bx, by = sigma * math.cos(goal[2]), sigma * math.sin(goal[2])
+    dx, dy = goal[0] - pose[0], goal[1] - pose[1]
+    cross = ax * by - ay * bx
+    alpha = math.atan2(cross, ax * bx + ay * by)  # turn of the direction of travel
+    if abs(alpha) < 1e-9:
+        lateral = ax * dy - ay * dx
+        ahead = float(ax * dx + ay * dy)
+        if abs(lateral) > 1e-6 or ahead <= 1e-6:
+            return None
+        return [Segment("line", ahead, 0.0, direction)]
+    # pose + s a = goal - t b
+    s = float((dx * by - dy * bx) / cross)
+    t = float((dy * ax - dx * ay) / cross)
+    if s <= 0.0 or t <= 0.0:
+        return None
+    half = math.tan(0.5 * abs(alpha))
+    fits = min(s, t) / half
+    r = min(fits, max_radius) if radius is None else radius
+    if r > fits + 1e-9 or r <= 0.0:
+        return None
+    tangent = r * half
+    out = []
+    if s - tangent > 1e-6:
+        out.append(Segment("line", s - tangent, 0.0, direction))
+    out.append(Segment("arc", r * abs(alpha), math.copysign(1.0 / r, alpha), direction))
+    if t - tangent > 1e-6:
+        out.append(Segment("line", t - tangent, 0.0, direction))
+    return out
+
+
+def rs_segments(pose, goal, radius: float) -> list[Segment] | None:
+    """The shortest Reeds-Shepp path of ``radius`` [m] from ``pose`` to ``goal`` (chain
+    convention) as reference segments (forward = pushing); None if its pieces cannot be
+    recovered from OMPL's curve (logged; the caller goes without this connection)."""
+    a = (pose[0], pose[1], pose[2] + math.pi)
+    b = (goal[0], goal[1], goal[2] + math.pi)
+    curve = ReedsSheppCurve(radius, a, b)
+    if curve.length < 1e-6:
+        return []
+    try:
+        primitives = curve.primitives(tol=1e-7)
+    except RuntimeError as exc:
+        log.warning("no Reeds-Shepp connection from %s to %s: %s", tuple(pose), tuple(goal), exc)
+        return None
+    segments = primitives_to_segments(primitives, radius)
+    return [g for g in segments if g.length > 1e-6]
+
+
+def sample_reference(pose, segments, spacing: float) -> np.ndarray:
+    """Poses (x, y, theta) along line/arc ``segments`` from ``pose`` every <= ``spacing`` m."""
+    out = [tuple(pose)]
+    x, y, th = (float(a) for a in pose)
+    for seg in segments:
+        sigma = -float(seg.direction)
+        m = max(1, int(math.ceil(seg.length / spacing)))
+        ds = seg.length / m
+        k = seg.curvature
+        for _ in range(m):
+            if abs(k) < 1e-12:
+                x += sigma * ds * math.cos(th)
+                y += sigma * ds * math.sin(th)
+            else:
+                th1 = th + k * ds
+                x += sigma * (math.sin(th1) - math.sin(th)) / k
+                y -= sigma * (math.cos(th1) - math.cos(th)) / k
+                th = th1
+            out.append((x, y, th))
+    return np.array(out)
