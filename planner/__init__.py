@@ -22,7 +22,8 @@ _EXPORTS = {
     "plan": "planner",
     "Primitive": "reeds_shepp", "evaluate_primitives": "reeds_shepp",
     "recover_primitives": "reeds_shepp",
-    "TrackerConfig": "train_check", "TrainCheckResult": "train_check", "check_train": "train_check",
+    "TrackerConfig": "kinematic_loop", "TrainCheckResult": "train_check",
+    "check_train": "train_check",
     "BodyFootprint": "world", "Train": "world", "World": "world", "draw_poses": "world",
     "save_diagnostic": "world",
 }

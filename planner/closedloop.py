@@ -46,11 +46,12 @@ from pushtrain.errors import PlanningError
 
 from .footprint import body_name, body_positions, body_samples
 from .heuristic import Heuristic
+from .kinematic_loop import TrackerConfig, Trajectory, reference_times
 from .lattice import Search, SearchSettings
 from .path import PlannedPath
 from .propagate import Cursor, Propagator, make_propagator
 from .smooth import merge, path_cost, shortcut
-from .train_check import TrackerConfig, Trajectory, check_train, reference_times
+from .train_check import check_train
 from .world import Train, World
 
 __all__ = ["plan_lattice"]

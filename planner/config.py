@@ -22,7 +22,7 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.errors import PlanningInputError
 
 from .budget import checks_for, steps_for
-from .train_check import TrackerConfig
+from .kinematic_loop import TrackerConfig
 from .world import Train
 
 __all__ = ["PLANNERS", "PlannerConfig", "turning_radius_from_joint_limit"]

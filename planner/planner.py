@@ -41,9 +41,10 @@ from .curves import (
     primitives_to_segments,
     rs_distance,
 )
+from .kinematic_loop import TrackerConfig, reference_times
 from .path import PlannedPath
 from .search import _Attempt, _solve_once, _solve_restarts
-from .train_check import TrackerConfig, check_train, reference_times
+from .train_check import check_train
 from .world import Train, World
 
 __all__ = [

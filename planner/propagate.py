@@ -57,7 +57,7 @@ from pushtrain.errors import NativeBuildError
 
 from .distance_field import DistanceField
 from .footprint import FIELD_TOLERANCE, BodySamples, disc_cover, first_failure
-from .train_check import TrackerConfig, _Measurement, _rk4_step, towed_rates
+from .kinematic_loop import TrackerConfig, _Measurement, _rk4_step, towed_rates
 from .world import Train
 
 __all__ = ["TrainState", "Cursor", "Rollout", "Propagator", "NativePropagator",

@@ -383,7 +383,7 @@ def test_leader_sampling_equals_python():
 
 def test_native_controller_drops_into_the_closed_loop(monkeypatch):
     """simulate_tracking with the C controller in place of the Python one: the same run."""
-    import pushtrain.planner.train_check as tc
+    import pushtrain.planner.kinematic_loop as tc
 
     geom = ChainGeometry(np.array([0.5, 0.6, 0.45]), np.array([0.3, 0.52, 0.7]))
     ref = Reference.from_segments((0.0, 0.0, math.pi), [

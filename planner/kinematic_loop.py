@@ -1,0 +1,289 @@
+"""The co-simulation's closed loop on the kinematic chain: what the planner predicts of a plan.
+
+The planner plans the last trailer only. Here the whole train's motion along the plan is
+predicted by running the co-simulation's own controller,
+:class:`~pushtrain.core.controller.BackwardController`, in closed loop with the kinematic chain:
+
+Reference
+    ``Reference.from_segments(start, segments, tracker.speed, tracker.cusp_dwell)``, the same
+    time-parameterized reference :meth:`~pushtrain.planner.path.PlannedPath.to_reference`
+    hands to the co-simulation master.
+Controller
+    ``BackwardController(tracker.controller)`` (gains, robot limits, rate limits and its own
+    chain model, from which the robot's pulling reference, a
+    :class:`~pushtrain.core.pulling.PullGuide`, is built), called every ``tracker.step``
+    seconds at ``t_k = k * step`` through the master's own per-step logic,
+    :class:`~pushtrain.core.tracking.TrackingLoop`, with a perfect measurement (robot pose and
+    joint angles ``phi_i = theta_{i-1} - theta_i``); the command is held over the step
+    (zero-order hold) and the rate limits start from rest one step before t = 0, as in the
+    master.
+Plant
+    The robot moves along its heading with the commanded ``(v0, w0)`` (no first-order velocity
+    lag: the FMU's ``tau`` = 0.05 s is ignored, no slip), the trailers are towed:
+    ``d(theta)/dt`` from the forward velocity map of :mod:`pushtrain.core.kinematics`
+    (:func:`~pushtrain.core.kinematics.forward_velocities`, here as the fast scalar
+    :func:`towed_rates`), with the train's own geometry (the controller's model may differ).
+    The state ``(x0, y0, theta_0..theta_n)`` is integrated with RK4 over each step (the
+    command is constant within a step). The error is that of the zero-order hold, first
+    order in the step: on a bay plan with a cusp and 0.24 m transients (3 trailers) the last
+    trailer's trajectory differs from a 0.002 s run by 2.4 cm with a 0.1 s step, 1.0 cm with
+    0.05 s and 0.36 cm with the default 0.025 s (a test keeps it below 1 cm).
+Start and end
+    The last trailer starts at ``start`` with the given headings (the co-simulation's
+    ``InitialState.behind_reference``), at rest. The run continues ``tracker.settle_time``
+    seconds past the reference's end (the reference then rests and the robot brakes to a
+    stop within its acceleration limit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.kinematics import ChainGeometry, body_positions_along
+from pushtrain.core.ode import rk4_step
+from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.tracking import TrackingLoop
+from pushtrain.errors import PlanningInputError
+
+__all__ = ["TrackerConfig", "Trajectory", "default_controller", "reference_times",
+           "simulate_tracking", "towed_rates"]
+
+
+def default_controller(geometry: ChainGeometry) -> ControllerConfig:
+    """The scenario defaults of :class:`~pushtrain.core.controller.ControllerConfig` for a chain.
+
+    Default gains (K_x = 1 1/s, K_y = 4 1/m², K_theta = 4 1/m), v_max = 0.1 m/s,
+    w_max = 0.1 rad/s, acc_max = 0.2 m/s², alpha_max = 10 deg/s² (``mission/scenario.py``'s
+    robot and controller sections) and ``geometry`` as the controller's chain model.
+    """
+    return ControllerConfig(geometry=geometry, v_max=0.1, w_max=0.1, acc_max=0.2,
+                            alpha_max=math.radians(10.0))
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """How the co-simulation will track the plan (what :func:`check_train` simulates).
+
+    Parameters
+    ----------
+    controller : ControllerConfig or None
+        The co-simulation's controller; None: :func:`default_controller` of the train's
+        geometry.
+    speed : float
+        Reference speed |v_d| [m/s] on every segment without its own speed, > 0.
+    cusp_dwell : float
+        Rest [s] of the reference at every direction change, >= 0.
+    step : float
+        Control and integration step [s], > 0 (the controller is called every ``step``).
+    settle_time : float
+        Simulated time [s] past the reference's end, >= 0.
+    goal_tolerance : (float, float) or None
+        Position [m] and heading [rad] tolerance of the last trailer at the end of the run
+        (the co-simulation's goal test); None: report the goal error only.
+    """
+
+    controller: ControllerConfig | None = None
+    speed: float = 0.08
+    cusp_dwell: float = 1.0
+    step: float = 0.025
+    settle_time: float = 2.0
+    goal_tolerance: tuple[float, float] | None = (0.05, math.radians(5.0))
+
+    def __post_init__(self):
+        if self.controller is not None and not isinstance(self.controller, ControllerConfig):
+            raise PlanningInputError(
+                f"tracker.controller = {self.controller!r}: must be a ControllerConfig or None")
+        checks = (("speed", None), ("step", None), ("cusp_dwell", 0.0), ("settle_time", 0.0))
+        for key, low in checks:
+            value = getattr(self, key)
+            ok = isinstance(value, (int, float)) and math.isfinite(value)
+            ok = ok and (value > 0.0 if low is None else value >= low)
+            if not ok:
+                allowed = "finite and > 0" if low is None else "finite and >= 0"
+                raise PlanningInputError(f"tracker.{key} = {value!r}: must be {allowed}")
+        if self.goal_tolerance is not None:
+            tol = tuple(self.goal_tolerance)
+            if len(tol) != 2 or not all(math.isfinite(a) and a > 0.0 for a in tol):
+                raise PlanningInputError(
+                    f"tracker.goal_tolerance = {self.goal_tolerance!r}: need None or two finite "
+                    "numbers > 0 (position [m], heading [rad])")
+            object.__setattr__(self, "goal_tolerance", (float(tol[0]), float(tol[1])))
+
+    def controller_for(self, geometry: ChainGeometry) -> ControllerConfig:
+        """The controller configuration used for a chain of ``geometry`` (checks its n)."""
+        config = self.controller if self.controller is not None else default_controller(geometry)
+        if config.geometry.n != geometry.n:
+            raise PlanningInputError(
+                f"tracker.controller has a chain model of n = {config.geometry.n} trailers; the "
+                f"train has n = {geometry.n}")
+        return config
+
+
+def towed_rates(geometry: ChainGeometry):
+    """A fast scalar form of :func:`pushtrain.core.kinematics.forward_velocities` (yaw rates).
+
+    Returns ``f(theta, v0, w0) -> list`` of d(theta_i)/dt [rad/s], i = 0..n, for headings
+    ``theta`` (n+1,) [rad] and the robot's (v0 [m/s], w0 [rad/s]): the same recursion
+    v_i = c v_{i-1} + R_{i-1} s w_{i-1}, w_i = (s v_{i-1} - R_{i-1} c w_{i-1}) / F_i with
+    c, s of phi_i = theta_{i-1} - theta_i.
+    """
+    front = [float(a) for a in geometry.front]
+    rear = [float(a) for a in geometry.rear]
+    n = geometry.n
+
+    def rates(theta, v0: float, w0: float, cos=math.cos, sin=math.sin):
+        w = [0.0] * (n + 1)
+        v, w[0] = v0, w0
+        for i in range(1, n + 1):
+            phi = theta[i - 1] - theta[i]
+            c, s = cos(phi), sin(phi)
+            r = rear[i - 1]
+            v, w[i] = c * v + r * s * w[i - 1], (s * v - r * c * w[i - 1]) / front[i - 1]
+        return w
+
+    return rates
+
+
+def _robot_positions(state: np.ndarray, geometry: ChainGeometry):
+    """Positions (x, y), each (N, n+1), of all bodies from states (N, 3 + n) = (x0, y0, theta)."""
+    th = state[:, 2:]
+    c, s = np.cos(th), np.sin(th)
+    step_x = -geometry.rear * c[:, :-1] - geometry.front * c[:, 1:]
+    step_y = -geometry.rear * s[:, :-1] - geometry.front * s[:, 1:]
+    zero = np.zeros((state.shape[0], 1))
+    x = state[:, :1] + np.concatenate((zero, np.cumsum(step_x, axis=1)), axis=1)
+    y = state[:, 1:2] + np.concatenate((zero, np.cumsum(step_y, axis=1)), axis=1)
+    return x, y
+
+
+def reference_times(segments: Sequence[Segment], speed: float, cusp_dwell: float, s):
+    """Time [s] at which the reference of :class:`~pushtrain.core.reference.Reference` (t0 = 0)
+    reaches the travelled distance ``s`` [m] (array); at a cusp the arrival (start of the dwell).
+
+    Returns ``(t, knots)`` where ``knots = (t_knots, s_knots)`` is the piecewise-linear map
+    t -> s (flat during dwells) for :func:`numpy.interp`.
+    """
+    t_k, s_k = [0.0], [0.0]
+    t, pos, previous = 0.0, 0.0, None
+    starts, ends, seg_t0, seg_speed = [], [], [], []
+    for seg in segments:
+        if previous is not None and seg.direction != previous:
+            t += cusp_dwell
+            t_k.append(t), s_k.append(pos)
+        v = speed if seg.speed is None else seg.speed
+        starts.append(pos), seg_t0.append(t), seg_speed.append(v)
+        t += seg.length / v
+        pos += seg.length
+        ends.append(pos)
+        t_k.append(t), s_k.append(pos)
+        previous = seg.direction
+    s = np.asarray(s, dtype=float)
+    j = np.clip(np.searchsorted(np.array(ends), s, side="left"), 0, len(ends) - 1)
+    times = np.array(seg_t0)[j] + (s - np.array(starts)[j]) / np.array(seg_speed)[j]
+    return times, (np.array(t_k), np.array(s_k))
+
+
+@dataclass
+class Trajectory:
+    """A closed-loop run of :func:`simulate_tracking` (every row one sample).
+
+    Attributes
+    ----------
+    t : (K,) array
+        Times [s]: the control instants ``k * step`` and, where a step was subdivided for the
+        footprint test, intermediate times.
+    state : (K, 3 + n) array
+        Robot position and all headings ``(x0, y0, theta_0..theta_n)`` [m, m, rad].
+    command : (K, 2) array
+        Robot command (v0 [m/s], w0 [rad/s]) held from this sample on.
+    reference : (K, 3) array
+        The last trailer's reference pose (x, y, theta) at ``t``.
+    direction : (K,) int array
+        Reference direction at ``t`` (PUSH +1, PULL -1, REST 0).
+    control : (K,) bool array
+        True at the control instants (False at subdivision samples).
+    """
+
+    t: np.ndarray
+    state: np.ndarray
+    command: np.ndarray
+    reference: np.ndarray
+    direction: np.ndarray
+    control: np.ndarray
+
+
+def _rk4_step(rates, state, v0: float, w0: float, h: float):
+    """One RK4 step of (x0, y0, theta...) under the constant robot command (v0, w0)."""
+    def f(_t, z):
+        th = z[2:]
+        return [v0 * math.cos(th[0]), v0 * math.sin(th[0])] + rates(th, v0, w0)
+
+    return rk4_step(f, 0.0, state, h)
+
+
+class _Measurement:
+    """Perfect measurement handed to the controller (robot pose and joint angles)."""
+
+    __slots__ = ("x0", "y0", "theta0", "phi")
+    last_pose = None  # the last trailer's pose is estimated from the joints, as in the master
+
+    def __init__(self, state):
+        self.x0, self.y0, self.theta0 = state[0], state[1], state[2]
+        th = state[2:]
+        self.phi = [th[i - 1] - th[i] for i in range(1, len(th))]
+
+
+def simulate_tracking(
+    geometry: ChainGeometry,
+    reference: Reference,
+    start_headings: Sequence[float],
+    controller: ControllerConfig,
+    step: float = 0.025,
+    settle_time: float = 2.0,
+) -> Trajectory:
+    """Run ``controller`` in closed loop with the kinematic chain along ``reference``.
+
+    Parameters
+    ----------
+    geometry : ChainGeometry
+        The plant's chain (the controller uses its own model ``controller.geometry``).
+    reference : Reference
+        The last trailer's reference (t0 = 0); the last trailer starts at ``reference.start``.
+    start_headings : (n+1,)
+        Start headings [rad] of robot and trailers (the last equals the start theta).
+    controller : ControllerConfig
+    step : float
+        Control and RK4 step [s].
+    settle_time : float
+        Time [s] simulated past ``reference.t_end``.
+
+    Returns
+    -------
+    Trajectory
+        Samples at the control instants ``k * step`` (k = 0..K-1, the last one at or after
+        ``t_end + settle_time``).
+    """
+    ctrl = BackwardController(controller)
+    ctrl.reset(0.0, 0.0, -step)
+    loop = TrackingLoop(ctrl, reference)
+    rates = towed_rates(geometry)
+    th0 = np.asarray(start_headings, dtype=float)
+    x, y = body_positions_along(np.asarray(reference.start, dtype=float)[None, :], th0[None, :],
+                                geometry)
+    state = [float(x[0, 0]), float(y[0, 0])] + [float(a) for a in th0]
+    n_steps = int(math.ceil((reference.t_end + settle_time) / step - 1e-9))
+    states, commands, refs, dirs = [], [], [], []
+    for k in range(n_steps + 1):
+        t = k * step
+        v0, w0, _, ref = loop.command(t, _Measurement(state))
+        states.append(state), commands.append((v0, w0))
+        refs.append((ref.x, ref.y, ref.theta)), dirs.append(ref.direction)
+        if k < n_steps:
+            state = _rk4_step(rates, state, v0, w0, step)
+    return Trajectory(step * np.arange(n_steps + 1), np.array(states), np.array(commands),
+                      np.array(refs), np.array(dirs, dtype=int), np.ones(n_steps + 1, dtype=bool))
