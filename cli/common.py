@@ -12,11 +12,13 @@ from pushtrain.errors import InputError, PlanningError, PushtrainError
 from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.mission.scenario import Scenario, ScenarioError, load_scenario, parse_scenario
 
-__all__ = ["EXIT_OK", "EXIT_NOT_REACHED", "EXIT_BAD_INPUT", "MAX_TRAILERS", "BadInput",
+from .exits import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_REACHED, EXIT_OK
+
+__all__ = ["EXIT_OK", "EXIT_NOT_REACHED", "EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "MAX_TRAILERS",
+           "BadInput",
            "_scenario", "check_map", "click_error", "click_errors", "scenario_argument",
            "out_dir_option", "trailers_option", "csv_option"]
 
-EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
 # planning failures that are the scenario's fault (exit 2); the others mean no plan was found
 _INPUT_REASONS = {"start_in_collision", "goal_in_collision", "no_free_space"}
 

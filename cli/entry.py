@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sys
 
-EXIT_INTERRUPTED = 130
+from .exits import EXIT_INTERRUPTED
 
 
 def _interrupted() -> None:

@@ -14,7 +14,7 @@ import click
 from pushtrain.errors import InputError, PlanningError, PushtrainError
 from pushtrain.files import atomic_write_text, fresh_run_folder
 
-from .common import EXIT_BAD_INPUT, EXIT_NOT_REACHED, BadInput, click_error
+from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_REACHED, BadInput, click_error
 from .logs import to_run_log
 
 __all__ = ["run_folder", "default_folder", "STATUS_INVALID", "STATUS_PLANNING_FAILED",
@@ -28,7 +28,6 @@ STATUS_PLANNING_FAILED = "planning_failed"  # no plan found (exit 1)
 STATUS_FAILED = "failed"                    # another run-time failure, e.g. an FMU build (exit 1)
 STATUS_ERROR = "error"                      # an unexpected exception (a bug; traceback, exit 1)
 STATUS_INTERRUPTED = "interrupted"          # Ctrl-C (exit 130)
-EXIT_INTERRUPTED = 130
 
 
 def default_folder(name: str) -> Path:

@@ -112,13 +112,13 @@ def _build_fmu_once(sc: Scenario, phases: Phases | None) -> None:
     """The scenario's FMU compiled as a phase of its own on first use (a few seconds; cached
     for every later run), so that the co-simulation's time is the co-simulation's."""
     from pushtrain.fmu.build import build_fmu, is_built
+    from pushtrain.mission.runner import fmu_build_args
 
-    version = sc.fmu.fmi_version
-    n = sc.train.n if version == 2 else None
-    if not is_built(n, fmi_version=version):
-        with _phase(phases, "build FMU", f"building the FMU (FMI {version}.0; first use, cached "
-                                         "for later runs)"):
-            build_fmu(n, fmi_version=version)
+    args = fmu_build_args(sc)
+    if not is_built(**args):
+        with _phase(phases, "build FMU", f"building the FMU (FMI {args['fmi_version']}.0; first "
+                                         "use, cached for later runs)"):
+            build_fmu(**args)
 
 
 class PlotFailure(click.ClickException):

@@ -33,9 +33,6 @@ def __getattr__(name: str):
 
 
 # ------------------------------------------------------------------------------------------ CLI
-EXIT_INTERRUPTED = 130
-"""Exit code after Ctrl-C (128 + SIGINT, as a shell reports it); the rows done are kept."""
-
 PIPE_INTERVAL_S = 10.0
 """Seconds between progress lines when stderr is not a terminal (a pipe, a log file)."""
 
@@ -125,7 +122,7 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
     """
     from pushtrain.fmu import FmuBuildError
 
-    from .common import EXIT_OK, BadInput, _scenario
+    from .common import EXIT_INTERRUPTED, EXIT_OK, BadInput, _scenario
 
     sc = _scenario(scenario)
     try:

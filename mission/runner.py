@@ -34,7 +34,8 @@ from pushtrain.fmu import build_fmu
 from .scenario import Scenario, ScenarioError
 
 __all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "events_of",
-           "scripted_reference", "plan_path", "run_scenario", "save_results", "load_results",
+           "scripted_reference", "plan_path", "fmu_build_args", "run_scenario", "save_results",
+           "load_results",
            "RESULTS_NPZ", "RESULTS_CSV", "SUMMARY_JSON"]
 
 log = logging.getLogger(__name__)
@@ -251,6 +252,14 @@ def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:
         heading_offset=math.radians(sc.start.heading_offset_deg), joint_angles=joints)
 
 
+def fmu_build_args(sc: Scenario) -> dict:
+    """:func:`~pushtrain.fmu.build_fmu`'s arguments for ``sc``'s FMU: FMI 2.0 built for
+    ``train.n``, or the FMI 3.0 FMU that serves every n."""
+    if sc.fmu.fmi_version == 2:
+        return {"n_trailers": sc.train.n, "fmi_version": 2}
+    return {"fmi_version": 3}
+
+
 def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Reference | None = None,
                  progress: bool | None = None, fmu=None, csv: bool = False) -> Result:
     """Co-simulate ``sc`` along ``reference`` (or its scripted reference / the rotation profile).
@@ -262,7 +271,7 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
     (status ``collision`` if a body leaves it).
     """
     if fmu is None:
-        fmu = build_fmu(sc.train.n) if sc.fmu.fmi_version == 2 else build_fmu(fmi_version=3)
+        fmu = build_fmu(**fmu_build_args(sc))
     plant = plant_of(sc)
     if sc.mission.kind == "rotation":
         rot = sc.rotation
