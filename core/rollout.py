@@ -221,8 +221,6 @@ class Checks:
                 raise ControllerError(f"sdf has shape {grid.shape}: need (ny, nx) with both >= 2")
             if resolution is None or not (math.isfinite(resolution) and resolution > 0.0):
                 raise ControllerError(f"resolution = {resolution!r} m: must be finite and > 0")
-            if points is None or len(points) != nb:
-                raise ControllerError(f"points: need one (m, 2) array per body, {nb} in all")
             offset, px, py, margin = self._point_set(points, margins, "")
             s = self.struct
             s.ny, s.nx = grid.shape

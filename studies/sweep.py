@@ -246,11 +246,8 @@ def _run_distributed(client, runs, task_fn, shared, steady_window, collect) -> N
             try:
                 raws = fut.result()
             except Exception as exc:  # the worker died or the task was cancelled
-                raws = []
-                for _ in batch:
-                    raw = failure_row(STATUS_LOST, f"{type(exc).__name__}: {exc}")
-                    raw["task_time_s"] = math.nan
-                    raws.append(raw)
+                raws = [failure_row(STATUS_LOST, f"{type(exc).__name__}: {exc}")
+                        | {"task_time_s": math.nan} for _ in batch]
             for raw, run in zip(raws, batch, strict=True):
                 collect(raw, run)
             fut.release()
