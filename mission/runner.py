@@ -413,12 +413,11 @@ def check_run_clearance(sc: Scenario, data, resolution: float = 0.01) -> dict | 
     if keep[-1] != len(data) - 1:
         keep.append(len(data) - 1)
     keep = np.array(keep)
-    boundary = world.free.boundary
     first_contact, clearance = {}, np.inf
     for i, body in enumerate(train.bodies):
         polys = body.polygons(xs[keep, i], ys[keep, i], ths[keep, i])
         inside = shapely.covers(world.free, polys)
-        clearance = min(clearance, float(np.min(shapely.distance(polys, boundary))))
+        clearance = min(clearance, float(np.min(world.wall_distance(polys))))
         bad = np.flatnonzero(~inside)
         if bad.size:
             k = keep[bad[0]]

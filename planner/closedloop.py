@@ -50,6 +50,7 @@ from .kinematic_loop import TrackerConfig, Trajectory, reference_times
 from .lattice import Search, SearchSettings
 from .path import PlannedPath
 from .propagate import Cursor, Propagator, make_propagator
+from .route import find_route, widest_gap
 from .smooth import merge, path_cost, shortcut
 from .train_check import check_train
 from .world import Train, World
@@ -69,14 +70,14 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     ``start``, ``goal`` (3,) and ``start_headings`` (n+1,) are checked arrays (chain
     convention); ``config`` a :class:`~pushtrain.planner.config.PlannerConfig`.
 
-    The wall clock of ``time_budget`` starts once the map's distance field exists (built once
-    per map and kept by the :class:`~pushtrain.planner.world.World`); the search and the
-    smoothing stop at 90 % of it, leaving the rest for the exact test of the path found.
+    Budgets count work (simulated control steps), so the plan is a function of the scenario
+    alone; the wall clock only stops the search at the safety cap
+    (:meth:`~pushtrain.planner.config.PlannerConfig.wall_cap`, 10 x ``time_budget`` + 10 s),
+    and a result cut short by it says so.
     """
     field = world.distance_field()
     t_begin = time.perf_counter()
-    deadline = t_begin + 0.9 * config.time_budget
-    hard_stop = t_begin + 1.05 * config.time_budget  # no exact test that would end later
+    deadline = hard_stop = t_begin + config.wall_cap()
     margins = config.margins(train)
     # the prediction must end within a fraction of the co-simulation's goal tolerance: the rest
     # is left to the difference between the kinematic prediction and the FMU
@@ -100,14 +101,14 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     heuristic = Heuristic(field, goal, radius, reach + margins[-1], build_car=False,
                           max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.time_budget))
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
+    # the route of the last trailer (the body that goes everywhere the train goes: it leads
+    # into docks and bays), kept to the middle of corridors
+    half_width = 0.5 * last.width + float(margins[-1])
     if heuristic(cursor0.pose) == math.inf:
-        raise PlanningError(
-            "unreachable",
-            f"no way of the last trailer ({last.width} m wide, clearance {margins[-1]} m) "
-            f"leads from the start ({start[0]:.3f}, {start[1]:.3f}) to the goal ({goal[0]:.3f}, "
-            f"{goal[1]:.3f}): every passage between them is narrower than "
-            f"{2 * (reach + margins[-1]):.3f} m", where=tuple(goal[:2]),
-            details={"constraint": "map"})
+        raise _unreachable(field, train, start, goal, half_width)
+    route = find_route(field, start, goal, half_width)
+    if route is not None:
+        log.info("route %.1f m; narrowest: %s", route.length, route.bottleneck().text())
     # with a straight train asked for at the goal, the final straight approach is as long as
     # the train (the followers line up behind the last trailer on it)
     approach = 1.5 if config.goal_phi is None else max(1.5, _train_length(train) + 0.5)
@@ -115,7 +116,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         radius=radius, step_length=config.step_length, weight=config.search_weight,
         pull_phi=config.pull_phi, budget_steps=config.budget_steps(), deadline=deadline,
         approach=approach)
-    search = Search(train, prop, heuristic, state0, cursor0, goal, settings)
+    search = Search(train, prop, heuristic, state0, cursor0, goal, settings, route=route)
     rejected, best, found = 0, None, 0
     while True:
         solution = search.next_solution()
@@ -166,6 +167,31 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     smooth_info["solutions"] = found
     return _planned(start, headings, segments, radius, config, tracker, checked, search,
                     t_begin, rejected, smooth_info)
+
+
+def _unreachable(field, train: Train, start, goal, half_width: float) -> PlanningError:
+    """The PlanningError of a mission whose goal no way of the train's width reaches: where the
+    widest way between start and goal is narrowest (:func:`~pushtrain.planner.route.widest_gap`)
+    against the width the train needs."""
+    width = train.last.width
+    gap = widest_gap(field, start, goal, half_width)
+    if gap is None:
+        text = (f"no free way at all joins the start ({start[0]:.2f}, {start[1]:.2f}) and the goal "
+                f"({goal[0]:.2f}, {goal[1]:.2f}): they lie in separate parts of the map")
+        where = tuple(goal[:2])
+    else:
+        text = (f"the last trailer ({width:.2f} m wide, clearance {half_width - 0.5 * width:.3f}"
+                f" m, leading the train into every place it goes) needs passages "
+                f"{2 * half_width:.2f} m wide, and every way from the start ({start[0]:.2f}, "
+                f"{start[1]:.2f}) to the goal ({goal[0]:.2f}, {goal[1]:.2f}) narrows to "
+                f"{gap.width:.2f} m or less: the widest way's narrowest place is at "
+                f"({gap.x:.2f}, {gap.y:.2f})")
+        where = (gap.x, gap.y)
+    details = {"constraint": "map", "impossible": True,
+               "bottleneck": None if gap is None else {"x": gap.x, "y": gap.y,
+                                                       "width": gap.width,
+                                                       "needed": 2 * half_width}}
+    return PlanningError("unreachable", f"impossible here: {text}", where=where, details=details)
 
 
 def _train_length(train: Train) -> float:
@@ -220,7 +246,7 @@ def _exact_gap(world: World, poly) -> float:
     depth of the overlap's farthest point if it leaves it (approximate), -inf if wholly out."""
     poly = shapely.geometry.Polygon(poly) if not hasattr(poly, "geom_type") else poly
     if world.free.covers(poly):
-        return float(world.free.boundary.distance(poly))
+        return float(world.wall_distance([poly])[0])
     outside = poly.difference(world.free)
     if outside.is_empty:
         return 0.0

@@ -14,9 +14,18 @@ from pushtrain.core.reference import PUSH, Segment
 
 from .curves import ReedsSheppCurve, primitives_to_segments
 
-__all__ = ["corner_segments", "rs_segments", "sample_reference"]
+__all__ = ["corner_segments", "rs_segments", "sample_reference", "MAX_CORNER_REACH",
+           "MAX_SAMPLES"]
 
 log = logging.getLogger(__name__)
+
+MAX_CORNER_REACH = 1.0e4
+"""Farthest corner [m] of a straight-arc-straight connection: nearly parallel lines of travel
+meet arbitrarily far away (1e16 m for opposite headings in floating point); no building has such
+a corner."""
+
+MAX_SAMPLES = 2_000_000
+"""Most poses :func:`sample_reference` returns (48 MB): 100 km at 5 cm."""
 
 
 def corner_segments(pose, goal, direction: int, radius: float | None = None,
@@ -27,7 +36,9 @@ def corner_segments(pose, goal, direction: int, radius: float | None = None,
     The two poses' lines of travel must meet ahead of ``pose`` and behind ``goal``; the arc of
     ``radius`` [m] (None: the largest that fits, at most ``max_radius``) is tangent to both.
     Collinear poses give one straight line. Returns None where no such path exists (the lines
-    do not meet ahead, or the radius does not fit between the corner and the poses).
+    do not meet ahead, the radius does not fit between the corner and the poses, or the travel
+    turns by half a turn: parallel lines of opposite directions meet nowhere, and nearly so
+    meet farther than :data:`MAX_CORNER_REACH` away).
     """
     sigma = -1.0 if direction == PUSH else 1.0
     ax, ay = sigma * math.cos(pose[2]), sigma * math.sin(pose[2])
@@ -35,6 +46,8 @@ def corner_segments(pose, goal, direction: int, radius: float | None = None,
     dx, dy = goal[0] - pose[0], goal[1] - pose[1]
     cross = ax * by - ay * bx
     alpha = math.atan2(cross, ax * bx + ay * by)  # turn of the direction of travel
+    if math.pi - abs(alpha) < 1e-6:
+        return None  # a U-turn: no corner of one arc (tan(alpha / 2) is infinite)
     if abs(alpha) < 1e-9:
         lateral = ax * dy - ay * dx
         ahead = float(ax * dx + ay * dy)
@@ -44,7 +57,7 @@ def corner_segments(pose, goal, direction: int, radius: float | None = None,
     # pose + s a = goal - t b
     s = float((dx * by - dy * bx) / cross)
     t = float((dy * ax - dx * ay) / cross)
-    if s <= 0.0 or t <= 0.0:
+    if s <= 0.0 or t <= 0.0 or max(s, t) > MAX_CORNER_REACH:
         return None
     half = math.tan(0.5 * abs(alpha))
     fits = min(s, t) / half
@@ -80,7 +93,15 @@ def rs_segments(pose, goal, radius: float) -> list[Segment] | None:
 
 
 def sample_reference(pose, segments, spacing: float) -> np.ndarray:
-    """Poses (x, y, theta) along line/arc ``segments`` from ``pose`` every <= ``spacing`` m."""
+    """Poses (x, y, theta) along line/arc ``segments`` from ``pose`` every <= ``spacing`` m.
+
+    Raises ValueError for a non-finite length or more than :data:`MAX_SAMPLES` poses (a
+    caller's bug, never a long path of a real building)."""
+    total = sum(max(1, math.ceil(seg.length / spacing)) if math.isfinite(seg.length) else math.inf
+                for seg in segments)
+    if not total <= MAX_SAMPLES:
+        raise ValueError(f"sample_reference: {sum(s.length for s in segments):.6g} m at "
+                         f"{spacing} m spacing is more than {MAX_SAMPLES} poses")
     out = [tuple(pose)]
     x, y, th = (float(a) for a in pose)
     for seg in segments:

@@ -76,6 +76,7 @@ from .connect import corner_segments, rs_segments, sample_reference
 from .footprint import body_positions
 from .heuristic import Heuristic
 from .propagate import Cursor, Propagator, Rollout, TrainState
+from .route import Route
 from .world import Train
 
 __all__ = ["SearchSettings", "Node", "Search", "Solution", "segments_cost"]
@@ -109,6 +110,12 @@ class SearchSettings:
         The pull rule: the largest |phi_i| [rad] a pulling run may start from.
     max_pull_run : float
         Longest pulling run [m] of primitives (each continuation rolls the run out again).
+    follow_lengths : tuple of float
+        How far ahead along the route [m] the route-following pushes aim (see
+        :meth:`Search._follow`).
+    follow_offset, follow_angle : float
+        Farthest distance [m] of the reference from the route, and largest angle [rad] between
+        the direction it pushes and the route's, for a route-following push.
     analytic_radii, corner_radii : tuple of float
         Radii (in turning radii) of the Reeds-Shepp connections and of the corner connections,
         in the order tried (the tightest corner first: the shortest path).
@@ -147,6 +154,9 @@ class SearchSettings:
     analytic_radii: tuple = (1.6, 1.0)
     corner_radii: tuple = (1.0, 1.6, 3.0)
     straighten: tuple = (1.5, 3.0)
+    follow_lengths: tuple = (2.0, 4.0, 8.0)
+    follow_offset: float = 1.0
+    follow_angle: float = math.radians(45.0)
     analytic_every: int = 4
     analytic_per_node: int = 2
     car_after: int = 20
@@ -235,11 +245,16 @@ class Search:
     start_cursor : Cursor
     goal : (x, y, theta)
     settings : SearchSettings
+    route : Route or None
+        The route through the building (:mod:`~pushtrain.planner.route`): pushes along it are
+        added to each node's motions.
     """
 
     def __init__(self, train: Train, propagator: Propagator, heuristic: Heuristic,
-                 start: TrainState, start_cursor: Cursor, goal, settings: SearchSettings):
+                 start: TrainState, start_cursor: Cursor, goal, settings: SearchSettings,
+                 route: Route | None = None):
         self.train = train
+        self.route = route
         self.prop = propagator
         self.heuristic = heuristic
         self.goal = tuple(float(a) for a in goal)
@@ -320,10 +335,10 @@ class Search:
 
     def _expand_all(self, node: Node) -> None:
         """Queue every child of ``node`` that its motions reach."""
-        for seg in self._primitives(node):
+        for segments in itertools.chain(self._follow(node), self._primitives(node)):
             if self._spent() is not None:
                 return
-            child = self._expand(node, seg)
+            child = self._expand(node, segments)
             if child is not None:
                 self._push(child)
 
@@ -363,9 +378,39 @@ class Search:
             for k in (s.pull_curvatures if direction == PULL else s.curvatures):
                 kappa = k * self.kappa
                 kind = "line" if kappa == 0.0 else "arc"
-                yield Segment(kind, length, kappa, direction)
+                yield [Segment(kind, length, kappa, direction)]
             if direction == PUSH and s.long_straight > length:
-                yield Segment("line", s.long_straight, 0.0, PUSH)
+                yield [Segment("line", s.long_straight, 0.0, PUSH)]
+
+    def _follow(self, node: Node):
+        """Pushes along the route: from the node's reference pose to the route's pose
+        ``follow_lengths`` metres ahead of the nearest route point (the train pushed along the
+        route there), by the driver's corner (straight, arc, straight: the widest arc that fits,
+        at least the turning radius) or else a pushing-only Reeds-Shepp curve. A long straight
+        or gently curved stretch of corridor then costs one rollout, not a dozen primitives."""
+        route, s = self.route, self.s
+        if route is None:
+            return
+        pose = node.cursor.pose
+        along, off = route.project(pose[0], pose[1])
+        if off > s.follow_offset:
+            return
+        travel_here = route.pose_at(along)[2]
+        if abs(math.remainder(pose[2] + math.pi - travel_here, 2.0 * math.pi)) > s.follow_angle:
+            return  # not pushed along the route here: the primitives turn it first
+        for ahead in s.follow_lengths:
+            if along + ahead > route.length - 0.5 * ahead:
+                return  # the goal is near: the connections take it from here
+            x, y, travel = route.pose_at(along + ahead)
+            target = (x, y, travel + math.pi)
+            path = corner_segments(pose, target, PUSH, None, max_radius=4.0 * s.radius)
+            if path and all(abs(g.curvature) <= self.kappa + 1e-9 for g in path):
+                yield path
+                continue
+            path = rs_segments(pose, target, s.radius)
+            if path and all(g.direction == PUSH for g in path) and (
+                    sum(g.length for g in path) <= 1.5 * ahead):
+                yield path
 
     def _cost(self, node: Node, segments) -> float:
         return segments_cost(segments, self.s, node.cursor.direction, node.curvature())
@@ -395,20 +440,20 @@ class Search:
             root = None  # a pull run that starts inside these segments: never continued
         return rollout, root, tuple(tail)
 
-    def _expand(self, node: Node, seg: Segment) -> Node | None:
-        if not self._reference_clear(node.cursor, [seg]):
+    def _expand(self, node: Node, segments: list) -> Node | None:
+        if not self._reference_clear(node.cursor, segments):
             self.stats.failures["reference"] += 1
             return None
-        rollout, root, run = self._roll(node, [seg])
+        rollout, root, run = self._roll(node, segments)
         if not rollout.ok:
             if rollout.failure["kind"] not in ("budget", "deadline"):
                 self.stats.record(rollout.failure)
             return None
         h = self.heuristic(rollout.cursor.pose, rollout.cursor.direction)
-        child = Node(rollout.state, rollout.cursor, node.g + self._cost(node, [seg]), h, node,
-                     (seg,), root if seg.direction == PULL else None,
-                     run if seg.direction == PULL else (), _trace(rollout, self.train.geometry),
-                     node.depth + 1)
+        pull = segments[-1].direction == PULL
+        child = Node(rollout.state, rollout.cursor, node.g + self._cost(node, segments), h, node,
+                     tuple(segments), root if pull else None, run if pull else (),
+                     _trace(rollout, self.train.geometry), node.depth + 1)
         return child
 
     def _reference_clear(self, cursor: Cursor, segments, spacing: float = 0.05) -> bool:

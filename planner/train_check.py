@@ -383,7 +383,7 @@ def _footprints(world: World, train: Train, corners, x, y, margins, regions, mea
     if measure and measured.any():
         # a body's distance beyond its margin is its distance to the walls minus the margin
         # (the distance to the level set {d = m} of the distance to the walls is d - m)
-        gap = shapely.distance(world.free.boundary, polys[measured])
+        gap = world.wall_distance(polys[measured])
         covered = shapely.covers(world.free, polys[measured])
         gap = np.where(covered, gap, -gap)
         clear[measured] = gap - np.broadcast_to(margins[None, :], x.shape)[measured]

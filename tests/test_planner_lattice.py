@@ -129,8 +129,23 @@ def test_separated_rooms_are_unreachable_at_once():
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         plan(world, case["start"], case["goal"], TRAIN)
+    err = info.value
+    assert err.reason == "unreachable" and "impossible here" in str(err)
+    # the slit (x from 5 to 6, 0.5 m wide) is named against the 0.6 m trailer's 0.7 m
+    assert "needs passages 0.70 m wide" in str(err) and "narrows to 0.50 m" in str(err)
+    bottleneck = err.details["bottleneck"]
+    assert 5.0 - 0.05 <= bottleneck["x"] <= 6.0 + 0.05
+    assert bottleneck["y"] == pytest.approx(2.5, abs=0.05)
+    assert bottleneck["width"] == pytest.approx(0.5, abs=0.03)
+
+
+def test_separate_parts_of_the_map_are_named_as_such():
+    case = worlds.two_rooms(0.0)
+    world = World.from_dict(case["world"])
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], TRAIN)
     assert info.value.reason == "unreachable"
-    assert "narrower than 0.700 m" in str(info.value)
+    assert "separate parts of the map" in str(info.value)
 
 
 def test_a_joint_limit_that_forbids_the_corner_says_so(monkeypatch):

@@ -1,0 +1,294 @@
+"""The route through the building: where the train goes, before how it manoeuvres.
+
+A tugger driver crossing a building first knows the way (down this corridor, left at the hall,
+through that door) and only then thinks about the manoeuvres at the junctions, doors and docks.
+:class:`Route` is that way for the whole-train search (:mod:`~pushtrain.planner.lattice`):
+
+Grid
+    The map's distance field sampled on a grid of at most :data:`MAX_ROUTE_NODES` nodes (5 cm
+    on a 30 m x 30 m map, coarser on larger ones). A node is open when the train's widest body
+    fits there with its clearance (``half_width``: half the widest body plus its margin),
+    relaxed by half a cell diagonal so that sampling never closes a passage.
+Cost
+    An 8-connected Dijkstra from the goal (scipy's compiled one) whose edges cost their length
+    times ``1 + centre_weight * max(0, 1 - (d - half_width) / centre_band)``: a driver keeps to
+    the middle of a corridor and away from wall corners, so the route does too, where the
+    corridor is wider than the train by less than ``centre_band``.
+Route
+    The predecessors from the start to the goal, as a polyline of node centres, smoothed
+    (a moving average over ``smooth`` metres, the ends kept) and resampled every
+    :data:`SPACING` metres, with its heading of travel and the free half-width beside it.
+Bottleneck
+    The narrowest free width along the route, and where it is; when the goal cannot be
+    reached at all, the narrowest place of the widest way (a maximin path over the same grid,
+    :meth:`Route.widest_gap`) says where the building is too narrow for the train and by how
+    much.
+
+All lengths in metres, angles in radians; headings here are directions of *travel* (the chain
+convention's theta of a pushed train is the travel direction plus pi).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from .distance_field import DistanceField
+
+__all__ = ["Route", "Bottleneck", "MAX_ROUTE_NODES", "SPACING", "find_route", "widest_gap"]
+
+MAX_ROUTE_NODES = 400_000
+"""Most nodes of the route's grid (about 26 MB of graph): a 100 m x 100 m map gets 16 cm cells."""
+
+SPACING = 0.1
+"""Spacing [m] of the route's resampled points."""
+
+
+@dataclass(frozen=True)
+class Bottleneck:
+    """The narrowest place of a way: its free width [m] (wall to wall through the point) and
+    where it is (x, y) [m]; ``needed`` is the width the train needs there [m]."""
+
+    width: float
+    x: float
+    y: float
+    needed: float
+
+    def text(self) -> str:
+        return (f"the passage at ({self.x:.2f}, {self.y:.2f}) is {self.width:.2f} m wide; "
+                f"the train needs {self.needed:.2f} m")
+
+
+@dataclass(frozen=True)
+class Route:
+    """A route of the train from the start to the goal (see the module docstring).
+
+    Attributes
+    ----------
+    points : (m, 2) array
+        Positions [m] every about :data:`SPACING` m, from the start to the goal.
+    s : (m,) array
+        Length [m] along the route at each point.
+    heading : (m,) array
+        Direction of travel [rad] at each point.
+    half_width : (m,) array
+        Distance [m] from each point to the nearest wall.
+    needed : float
+        Half the width [m] the train needs (its widest body plus its clearance).
+    """
+
+    points: np.ndarray
+    s: np.ndarray
+    heading: np.ndarray
+    half_width: np.ndarray
+    needed: float
+
+    @property
+    def length(self) -> float:
+        return float(self.s[-1])
+
+    def bottleneck(self) -> Bottleneck:
+        """The narrowest place along the route."""
+        i = int(np.argmin(self.half_width))
+        return Bottleneck(2.0 * float(self.half_width[i]), float(self.points[i, 0]),
+                          float(self.points[i, 1]), 2.0 * self.needed)
+
+    def project(self, x: float, y: float) -> tuple[float, float]:
+        """(length along the route [m], distance from it [m]) of the point nearest to (x, y)."""
+        d2 = (self.points[:, 0] - x) ** 2 + (self.points[:, 1] - y) ** 2
+        i = int(np.argmin(d2))
+        return float(self.s[i]), math.sqrt(float(d2[i]))
+
+    def pose_at(self, s: float) -> tuple[float, float, float]:
+        """(x, y, direction of travel) [m, m, rad] at length ``s`` [m] along the route."""
+        s = min(max(float(s), 0.0), self.length)
+        i = int(np.searchsorted(self.s, s, side="right")) - 1
+        i = min(max(i, 0), len(self.s) - 2)
+        span = self.s[i + 1] - self.s[i]
+        a = 0.0 if span <= 0.0 else (s - self.s[i]) / span
+        x, y = (1.0 - a) * self.points[i] + a * self.points[i + 1]
+        dth = math.remainder(float(self.heading[i + 1] - self.heading[i]), 2.0 * math.pi)
+        return float(x), float(y), float(self.heading[i] + a * dth)
+
+    def to_dict(self) -> dict:
+        """Plain data (for the diagnostics and the picture)."""
+        b = self.bottleneck()
+        return {"points": self.points[:: max(1, len(self.points) // 400)].tolist()
+                + [self.points[-1].tolist()],
+                "length": self.length, "bottleneck": {"x": b.x, "y": b.y, "width": b.width,
+                                                       "needed": b.needed}}
+
+
+class _Grid:
+    """The route's grid over a distance field: nodes, their free distance and open mask."""
+
+    def __init__(self, field: DistanceField, half_width: float, max_nodes: int):
+        xmin, ymin, xmax, ymax = field.bounds
+        h = max(field.resolution, math.sqrt((xmax - xmin) * (ymax - ymin) / max_nodes))
+        self.h, self.x0, self.y0 = h, xmin, ymin
+        nx = int(math.floor((xmax - xmin) / h)) + 1
+        ny = int(math.floor((ymax - ymin) / h)) + 1
+        xs = xmin + h * np.arange(nx)
+        ys = ymin + h * np.arange(ny)
+        self.d = field.at(xs[None, :], ys[:, None])
+        self.open = self.d >= half_width - h * math.sqrt(0.5)
+        self.ii, self.jj = np.nonzero(self.open)
+        self.index = np.full((ny, nx), -1, dtype=np.int64)
+        self.index[self.ii, self.jj] = np.arange(self.ii.size)
+
+    def cell(self, x: float, y: float) -> tuple[int, int]:
+        ny, nx = self.open.shape
+        return (min(max(int(round((y - self.y0) / self.h)), 0), ny - 1),
+                min(max(int(round((x - self.x0) / self.h)), 0), nx - 1))
+
+    def nearest_open(self, x: float, y: float, within: float) -> int | None:
+        """Index of the open node nearest to (x, y) within ``within`` [m], None if none."""
+        i, j = self.cell(x, y)
+        r = int(math.ceil(within / self.h))
+        ny, nx = self.open.shape
+        i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, ny), max(j - r, 0), min(j + r + 1, nx)
+        window = self.open[i0:i1, j0:j1]
+        if not window.any():
+            return None
+        wi, wj = np.nonzero(window)
+        d2 = (wi + i0 - (y - self.y0) / self.h) ** 2 + (wj + j0 - (x - self.x0) / self.h) ** 2
+        k = int(np.argmin(d2))
+        if d2[k] * self.h ** 2 > within ** 2:
+            return None
+        return int(self.index[wi[k] + i0, wj[k] + j0])
+
+    def edges(self):
+        """(rows, cols, lengths [m], mean free distance [m]) of the 8-connected open edges."""
+        ny, nx = self.open.shape
+        ii, jj, index = self.ii, self.jj, self.index
+        rows, cols, lengths, dist = [], [], [], []
+        for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+            i2, j2 = ii + di, jj + dj
+            ok = (i2 < ny) & (j2 >= 0) & (j2 < nx)
+            ok[ok] &= self.open[i2[ok], j2[ok]]
+            rows.append(index[ii[ok], jj[ok]])
+            cols.append(index[i2[ok], j2[ok]])
+            lengths.append(np.full(int(ok.sum()), self.h * math.hypot(di, dj)))
+            dist.append(0.5 * (self.d[ii[ok], jj[ok]] + self.d[i2[ok], j2[ok]]))
+        return (np.concatenate(rows), np.concatenate(cols), np.concatenate(lengths),
+                np.concatenate(dist))
+
+
+def find_route(field: DistanceField, start, goal, half_width: float, *,
+               centre_band: float = 0.6, centre_weight: float = 2.0, smooth: float = 1.0,
+               max_nodes: int = MAX_ROUTE_NODES) -> Route | None:
+    """The route from ``start`` to ``goal`` (x, y, ...) [m] where a body of ``half_width``
+    [m] (half its width plus its clearance) fits (see the module docstring); None if there is
+    none (see :func:`widest_gap` for why)."""
+    grid = _Grid(field, half_width, max_nodes)
+    if grid.ii.size < 2:
+        return None
+    a = grid.nearest_open(start[0], start[1], 3.0 * grid.h + 0.5)
+    b = grid.nearest_open(goal[0], goal[1], 3.0 * grid.h + 0.5)
+    if a is None or b is None:
+        return None
+    r, c, length, dist = grid.edges()
+    excess = np.clip(1.0 - (dist - half_width) / centre_band, 0.0, 1.0)
+    w = length * (1.0 + centre_weight * excess)
+    m = grid.ii.size
+    graph = csr_matrix((np.concatenate([w, w]), (np.concatenate([r, c]), np.concatenate([c, r]))),
+                       shape=(m, m))
+    cost, pred = dijkstra(graph, directed=False, indices=b, return_predecessors=True)
+    if not math.isfinite(cost[a]):
+        return None
+    chain = [a]
+    while chain[-1] != b:
+        chain.append(int(pred[chain[-1]]))
+    xy = np.column_stack([grid.x0 + grid.h * grid.jj[chain], grid.y0 + grid.h * grid.ii[chain]])
+    xy[0] = start[:2]
+    xy[-1] = goal[:2]
+    return _route_from_polyline(xy, field, half_width, smooth)
+
+
+def _route_from_polyline(xy: np.ndarray, field: DistanceField, needed: float,
+                         smooth: float) -> Route:
+    """Resample the node polyline every :data:`SPACING` m, smooth it over ``smooth`` m (the
+    ends kept), and measure its headings and free half-widths."""
+    xy = _resample(xy, SPACING)
+    k = max(1, int(round(0.5 * smooth / SPACING)))
+    if len(xy) > 2 * k + 2:
+        kernel = np.ones(2 * k + 1) / (2 * k + 1)
+        padded = np.vstack([np.repeat(xy[:1], k, axis=0), xy, np.repeat(xy[-1:], k, axis=0)])
+        sm = np.column_stack([np.convolve(padded[:, 0], kernel, mode="valid"),
+                              np.convolve(padded[:, 1], kernel, mode="valid")])
+        sm[0], sm[-1] = xy[0], xy[-1]
+        xy = _resample(sm, SPACING)
+    d = np.diff(xy, axis=0)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(d[:, 0], d[:, 1]))])
+    heading = np.arctan2(d[:, 1], d[:, 0])
+    heading = np.unwrap(np.concatenate([heading, heading[-1:]]))
+    half = field.at(xy[:, 0], xy[:, 1])
+    return Route(xy, s, heading, half, float(needed))
+
+
+def _resample(xy: np.ndarray, spacing: float) -> np.ndarray:
+    """The polyline ``xy`` resampled at about ``spacing`` [m] (its ends kept)."""
+    d = np.diff(xy, axis=0)
+    seg = np.hypot(d[:, 0], d[:, 1])
+    keep = np.concatenate([[True], seg > 1e-12])
+    xy = xy[keep]
+    s = np.concatenate([[0.0], np.cumsum(seg[seg > 1e-12])])
+    if s[-1] <= 0.0:
+        return xy[:1].repeat(2, axis=0)
+    m = max(2, int(math.ceil(s[-1] / spacing)) + 1)
+    t = np.linspace(0.0, s[-1], m)
+    return np.column_stack([np.interp(t, s, xy[:, 0]), np.interp(t, s, xy[:, 1])])
+
+
+def widest_gap(field: DistanceField, start, goal, half_width: float,
+               max_nodes: int = MAX_ROUTE_NODES) -> Bottleneck | None:
+    """Where the widest way from ``start`` to ``goal`` is narrowest: the largest free distance
+    d* such that the nodes with at least d* join start and goal (8-connected components,
+    scipy.ndimage.label, bisected to 1 mm), and the node of the way that is narrowest. None
+    where no free way joins them. ``half_width`` [m] gives ``needed``."""
+    from scipy import ndimage
+
+    grid = _Grid(field, 0.0, max_nodes)
+    a = grid.nearest_open(start[0], start[1], 3.0 * grid.h + 0.5)
+    b = grid.nearest_open(goal[0], goal[1], 3.0 * grid.h + 0.5)
+    if a is None or b is None:
+        return None
+    ia, ja, ib, jb = grid.ii[a], grid.jj[a], grid.ii[b], grid.jj[b]
+    eight = np.ones((3, 3), dtype=bool)
+
+    def joined(level: float):
+        labels, _ = ndimage.label(grid.d >= level, structure=eight)
+        return labels if labels[ia, ja] and labels[ia, ja] == labels[ib, jb] else None
+
+    lo, hi = 0.0, float(min(grid.d[ia, ja], grid.d[ib, jb]))
+    if joined(lo) is None:
+        return None
+    if joined(hi) is not None:
+        lo = hi
+    while hi - lo > 1e-3:
+        mid = 0.5 * (lo + hi)
+        if joined(mid) is not None:
+            lo = mid
+        else:
+            hi = mid
+    # the bottleneck: of the nodes that drop out between lo and hi (the way breaks there),
+    # the one closest to both pieces the way breaks into
+    low = joined(lo)
+    comp = low == low[ia, ja]
+    above, _ = ndimage.label(grid.d >= hi, structure=eight)
+    pieces = []
+    for i, j in ((ia, ja), (ib, jb)):
+        piece = above == above[i, j] if above[i, j] else np.zeros_like(comp)
+        piece[i, j] = True
+        pieces.append(ndimage.distance_transform_edt(~piece))
+    narrow = comp & (grid.d < hi)
+    if not narrow.any():
+        narrow = comp
+    score = np.where(narrow, pieces[0] + pieces[1], np.inf)
+    i, j = np.unravel_index(int(np.argmin(score)), score.shape)
+    return Bottleneck(2.0 * lo, float(grid.x0 + grid.h * j), float(grid.y0 + grid.h * i),
+                      2.0 * half_width)
