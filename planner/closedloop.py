@@ -415,10 +415,11 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
             "planner.time_budget searches further)")
     elif stats.cut == "deadline":
         reason, head = "budget_exhausted", (
-            f"no plan before the time budget of {config.time_budget:g} s ran out on the clock "
-            f"({search.prop.steps} of {config.budget_steps()} steps done, {stats.expansions} "
-            "expansions; a larger planner.time_budget, or a faster or less loaded machine, does "
-            "more)")
+            f"no plan before the wall-clock safety cap of {config.wall_cap():g} s stopped the "
+            f"search ({search.prop.steps} of {config.budget_steps()} steps of time_budget "
+            f"{config.time_budget:g} s done, {stats.expansions} expansions; this result depends "
+            "on the machine's speed: a faster or less loaded machine, or a larger "
+            "planner.time_budget, does more)")
     else:
         reason, head = "unreachable", (
             f"no plan: the search ran out of states after {stats.expansions} expansions "

@@ -47,6 +47,10 @@ def dense_samples(start: Sequence[float], segments: Sequence[Segment], resolutio
     return s, np.column_stack([x, y, theta]), np.concatenate(seg_ids).astype(int)
 
 
+_MACHINE_DEPENDENT = ("time",)
+"""Entries of ``info`` that depend on the machine and its load, not written to ``path.json``."""
+
+
 @dataclass(eq=False)
 class PlannedPath:
     """A planned line/arc path of the last trailer's axle midpoint.
@@ -161,7 +165,9 @@ class PlannedPath:
         return Reference.from_segments(self.start, self.segments, speed, cusp_dwell, t0)
 
     def to_dict(self) -> dict:
-        """Plain data (JSON-ready)."""
+        """Plain data (JSON-ready). The planning's wall time (``info["time"]``) is left out:
+        ``path.json`` is a function of the scenario alone, the same on any machine and under
+        any load."""
         return {
             "format": "pushtrain.planned_path",
             "version": FORMAT_VERSION,
@@ -181,7 +187,7 @@ class PlannedPath:
                 }
                 for g in self.segments
             ],
-            "info": _plain(self.info),
+            "info": _plain({k: v for k, v in self.info.items() if k not in _MACHINE_DEPENDENT}),
         }
 
     @classmethod

@@ -194,10 +194,10 @@ def test_the_same_plan_under_load():
     assert outs[0] == outs[1]
 
 
-def test_an_exact_test_that_would_end_past_the_budget_is_not_started(monkeypatch):
-    """The exact test cannot be interrupted: with its cost estimated past ``1.05 x
-    time_budget`` the planner stops, says the clock cut it short, and names the budget; with a
-    small estimate the same problem plans."""
+def test_an_exact_test_that_would_end_past_the_safety_cap_is_not_started(monkeypatch):
+    """The exact test cannot be interrupted: with its cost estimated past the wall-clock safety
+    cap (10 x time_budget + 10 s) the planner stops, says the clock cut it short, and names the
+    cap; with a small estimate the same problem plans."""
     from pushtrain.planner import closedloop
 
     case = worlds.l_corridor(2.0)
@@ -208,7 +208,7 @@ def test_an_exact_test_that_would_end_past_the_budget_is_not_started(monkeypatch
         plan(world, case["start"], case["goal"], TRAIN, config)
     err = info.value
     assert err.reason == "budget_exhausted" and err.details["time_capped"]
-    assert err.details["constraint"] == "budget" and "time budget of 2 s" in str(err)
+    assert err.details["constraint"] == "budget" and "safety cap of 30 s" in str(err)
     monkeypatch.setattr(closedloop, "_EXACT_RATE", [1e-9])
     path = plan(world, case["start"], case["goal"], TRAIN, config)
     assert not path.info["time_capped"]

@@ -1,0 +1,159 @@
+"""The route through the building and the planning it guides (issue 28): real maps, degenerate
+connections, bottlenecks, and plans that depend on nothing but their scenario."""
+
+import json
+import math
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pushtrain.core.reference import PULL, PUSH, Segment
+from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
+from pushtrain.planner.connect import MAX_SAMPLES, corner_segments, sample_reference
+from pushtrain.planner.route import find_route, widest_gap
+
+PUBLIC = Path(__file__).resolve().parents[1] / "examples" / "maps" / "public"
+BOOKSTORE = PUBLIC / "aws_bookstore.yaml"
+
+
+@pytest.mark.parametrize("direction", [PUSH, PULL])
+@pytest.mark.parametrize("delta", [0.0, 1e-12, 1e-9, -1e-9, 1e-7])
+def test_opposite_headings_have_no_corner_and_no_giant_lines(direction, delta):
+    """Start and goal headings exactly (or nearly) opposite: the lines of travel are parallel
+    and meet nowhere (or 1e16 m away); no straight-arc-straight corner exists (it crashed)."""
+    pose = (2.0, 3.0, 0.0)
+    for goal in [(12.0, 3.0 + dy, math.pi + delta) for dy in (-2.0, 0.0, 2.0)] + [
+            (-5.0, 9.0, math.pi + delta), (2.0, 3.0, math.pi + delta)]:
+        path = corner_segments(pose, goal, direction)
+        assert path is None or all(g.length < 100.0 for g in path)
+
+
+def test_nearly_parallel_lines_meeting_far_away_give_no_corner():
+    # headings 1e-7 rad apart, 2 m apart sideways: the lines meet about 2e7 m ahead
+    assert corner_segments((0.0, 0.0, math.pi), (10.0, 2.0, math.pi + 1e-7), PUSH) is None
+    # a real corner still works
+    assert corner_segments((0.0, 0.0, math.pi), (5.0, 5.0, -math.pi / 2), PUSH, 2.0)
+
+
+def test_sampling_refuses_references_no_building_has():
+    with pytest.raises(ValueError, match="more than"):
+        sample_reference((0.0, 0.0, 0.0), [Segment("line", 1e16, 0.0, PUSH)], 0.05)
+    with pytest.raises(ValueError):
+        sample_reference((0.0, 0.0, 0.0), [Segment("line", 0.05 * MAX_SAMPLES * 2, 0.0, PUSH)],
+                         0.05)
+    assert sample_reference((0.0, 0.0, 0.0), [Segment("line", 1.0, 0.0, PUSH)], 0.05).shape \
+        == (21, 3)
+
+
+def test_the_route_goes_round_the_corner_in_the_middle_of_the_corridor():
+    case = worlds.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    field = world.distance_field()
+    start, goal = case["start"], case["goal"]
+    route = find_route(field, start, goal, 0.35)
+    assert route is not None
+    # it starts and ends at the poses and never comes nearer a wall than the trailer needs
+    assert route.points[0] == pytest.approx(start[:2])
+    assert route.points[-1] == pytest.approx(goal[:2])
+    assert route.half_width[5:-5].min() >= 0.35 - 0.05
+    # kept to the middle: away from the ends, most of it is near the centre line (1 m)
+    inner = route.half_width[int(0.1 * len(route.s)):int(0.9 * len(route.s))]
+    assert np.median(inner) > 0.85
+    # its length is that of a way round the corner, not through the wall
+    straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
+    assert straight < route.length < 1.6 * straight
+    # headings follow the points
+    x, y, th = route.pose_at(0.5 * route.length)
+    s, off = route.project(x, y)
+    assert off < 0.06 and s == pytest.approx(0.5 * route.length, abs=0.11)
+
+
+def test_the_widest_way_names_the_slit_and_no_route_fits_it():
+    case = worlds.two_rooms(0.5)
+    world = World.from_dict(case["world"])
+    field = world.distance_field()
+    assert find_route(field, case["start"], case["goal"], 0.35) is None
+    assert find_route(field, case["start"], case["goal"], 0.2) is not None
+    gap = widest_gap(field, case["start"], case["goal"], 0.35)
+    assert gap.width == pytest.approx(0.5, abs=0.03)
+    assert 4.95 <= gap.x <= 6.05 and gap.y == pytest.approx(2.5, abs=0.05)
+    assert gap.needed == pytest.approx(0.7)
+
+
+def test_a_u_turn_across_a_real_bookstore_plans():
+    """Opposite headings at start and goal on a public map (this mission crashed with
+    MemoryError): west along the north aisle, down the west side, east along the south."""
+    from pushtrain.planner.mapworld import map_world
+
+    world = map_world(grid=str(BOOKSTORE))
+    path = plan(world, (-3.4, 6.3, 0.0), (4.4, -6.2, math.pi), Train.uniform(1),
+                PlannerConfig(time_budget=10.0))
+    assert path.length > 15.0
+    assert path.info["train_check"]["min_clearance"] >= 0.0
+    goal_error = path.info["train_check"]["goal_error"]
+    assert goal_error[0] <= 0.05 and goal_error[1] <= math.radians(5.0)
+
+
+def test_pushes_along_the_route_carry_a_long_corridor():
+    """A 16 m corridor with a corner: the route's pushes reach the goal in a handful of
+    expansions (the primitives alone need dozens)."""
+    case = worlds.corner_long(2.5, 16.0, 3)
+    world = World.from_dict(case["world"])
+    path = plan(world, case["start"], case["goal"], Train.uniform(3),
+                PlannerConfig(time_budget=5.0))
+    assert path.info["expansions"] <= 12
+    assert path.info["train_check"]["min_clearance"] >= 0.0
+
+
+_HOG = "import time\nt = time.time()\nwhile time.time() - t < 120:\n    pass\n"
+
+
+def _plan_bookstore() -> dict:
+    code = textwrap.dedent(f"""
+        import json, math
+        from pushtrain.planner import PlannerConfig, Train, plan
+        from pushtrain.planner.mapworld import map_world
+        world = map_world(grid={str(BOOKSTORE)!r})
+        path = plan(world, (-7.0, 1.2, math.pi / 2), (4.4, -6.2, math.pi), Train.uniform(2),
+                    PlannerConfig(time_budget=10.0))
+        print(json.dumps({{"path": path.to_dict(), "capped": path.info["time_capped"],
+                           "steps": path.info["steps"]}}))
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=600, check=True)
+    return json.loads(out.stdout)
+
+
+def test_the_same_path_with_and_without_a_cpu_hog_beside_it():
+    """A plan is a function of its scenario: the same path.json whether the machine is idle or
+    two busy loops take its cores."""
+    quiet = _plan_bookstore()
+    hogs = [subprocess.Popen([sys.executable, "-c", _HOG]) for _ in range(2)]
+    try:
+        loaded = _plan_bookstore()
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+    assert not quiet["capped"] and not loaded["capped"]
+    assert "time" not in quiet["path"]["info"]  # the wall time is no part of path.json
+    assert quiet == loaded
+
+
+def test_an_impossible_mission_names_the_bottleneck():
+    """A 0.6 m trailer and a 0.5 m slit: 'impossible here', the slit's place and width, at
+    once (no search)."""
+    case = worlds.two_rooms(0.5)
+    world = World.from_dict(case["world"])
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], Train.uniform(2), PlannerConfig())
+    err = info.value
+    assert err.reason == "unreachable" and err.details["impossible"]
+    assert err.details.get("expansions") is None
+    b = err.details["bottleneck"]
+    assert 4.9 <= b["x"] <= 6.1 and f"({b['x']:.2f}, {b['y']:.2f})" in str(err)
+    assert "0.50 m" in str(err)
