@@ -432,12 +432,18 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
         "failures": dict(f), "failure_points": stats.points,
         "margins": [float(m) for m in margins],
         "tree": [n.trace.tolist() for n in search.nodes if n.trace is not None][:3000],
+        "route": None if search.route is None else search.route.to_dict(),
         "closest": {"segments": _segments_data(closest.path_segments()),
                     "pose": list(closest.cursor.pose), "remaining": closest.h,
                     **_train_at(closest.state, train)},
     }
+    route = ""
+    if search.route is not None:
+        route = (f". The route through the building is {search.route.length:.1f} m; on it "
+                 f"{search.route.bottleneck().text()} (the last trailer's width and clearance)")
     return PlanningError(reason, f"{head}. Of {tried} motions tried: {blocked}. The closest "
-                         f"the last trailer came was {closest.h:.2f} m of path from the goal",
+                         f"the last trailer came was {closest.h:.2f} m of path from the goal"
+                         f"{route}",
                          where=tuple(goal[:2]), details=details)
 
 

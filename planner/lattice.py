@@ -110,6 +110,9 @@ class SearchSettings:
         The pull rule: the largest |phi_i| [rad] a pulling run may start from.
     max_pull_run : float
         Longest pulling run [m] of primitives (each continuation rolls the run out again).
+    inch_fractions : tuple of float
+        Fractions of the primitives' lengths tried, in turn, from a node none of whose
+        full-length motions succeeded (inching out of a tight spot).
     follow_lengths : tuple of float
         How far ahead along the route [m] the route-following pushes aim (see
         :meth:`Search._follow`).
@@ -154,6 +157,7 @@ class SearchSettings:
     analytic_radii: tuple = (1.6, 1.0)
     corner_radii: tuple = (1.0, 1.6, 3.0)
     straighten: tuple = (1.5, 3.0)
+    inch_fractions: tuple = (0.4, 0.15)
     follow_lengths: tuple = (2.0, 4.0, 8.0)
     follow_offset: float = 1.0
     follow_angle: float = math.radians(45.0)
@@ -335,12 +339,26 @@ class Search:
 
     def _expand_all(self, node: Node) -> None:
         """Queue every child of ``node`` that its motions reach."""
+        moved = False
         for segments in itertools.chain(self._follow(node), self._primitives(node)):
             if self._spent() is not None:
                 return
             child = self._expand(node, segments)
             if child is not None:
+                moved = True
                 self._push(child)
+        # from a tight spot every full-length motion may hit a wall: shorter ones, a driver's
+        # inching out, before the node is given up
+        for fraction in self.s.inch_fractions:
+            if moved:
+                return
+            for segments in self._primitives(node, fraction):
+                if self._spent() is not None:
+                    return
+                child = self._expand(node, segments)
+                if child is not None:
+                    moved = True
+                    self._push(child)
 
     def _can_build_car(self) -> bool:
         """Whether the car heuristic is configured and its build (about 2 us per state of
@@ -364,7 +382,9 @@ class Search:
         log.debug("car heuristic built after %d expansions", self.stats.expansions)
 
     # ------------------------------------------------------------------ edges
-    def _primitives(self, node: Node):
+    def _primitives(self, node: Node, fraction: float = 1.0):
+        """The motions of ``node``: lines and arcs pushing and pulling (``fraction`` of their
+        usual lengths; the long straight push only at full length)."""
         s = self.s
         for direction in (PUSH, PULL):
             if direction == PULL:
@@ -374,12 +394,12 @@ class Search:
                 elif np.abs(node.state.phi()).max() > s.pull_phi:
                     self.stats.failures["pull_rule"] += 1
                     continue
-            length = s.pull_length if direction == PULL else s.step_length
+            length = fraction * (s.pull_length if direction == PULL else s.step_length)
             for k in (s.pull_curvatures if direction == PULL else s.curvatures):
                 kappa = k * self.kappa
                 kind = "line" if kappa == 0.0 else "arc"
                 yield [Segment(kind, length, kappa, direction)]
-            if direction == PUSH and s.long_straight > length:
+            if direction == PUSH and fraction == 1.0 and s.long_straight > length:
                 yield [Segment("line", s.long_straight, 0.0, PUSH)]
 
     def _follow(self, node: Node):

@@ -478,7 +478,21 @@ def save_diagnostic(path, world: World, start=None, goal=None, train: Train | No
 
 
 def _draw_failure(ax, world: World, details: dict, start) -> None:
-    """The search's tree, failure points, best partial plan and keep-out margins on ``ax``."""
+    """The search's tree, failure points, best partial plan, keep-out margins, the route
+    through the building and the bottleneck on ``ax``."""
+    route = details.get("route")
+    if route and route.get("points"):
+        xy = np.asarray(route["points"], dtype=float)
+        ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:green", lw=2.0, alpha=0.5,
+                label=f"route ({route['length']:.1f} m)")
+    bottleneck = details.get("bottleneck")
+    what = "bottleneck"
+    if not bottleneck and route:
+        bottleneck, what = route.get("bottleneck"), "narrowest on the route"
+    if bottleneck:
+        ax.plot([bottleneck["x"]], [bottleneck["y"]], "o", ms=14, mfc="none", mew=2,
+                color="crimson", label=f"{what}: {bottleneck['width']:.2f} m wide, "
+                f"{bottleneck['needed']:.2f} m needed")
     for k, trace in enumerate(details.get("tree") or []):
         xy = np.asarray(trace, dtype=float)
         if xy.ndim == 2 and xy.shape[0] > 1:
