@@ -338,27 +338,23 @@ class Search:
         return None
 
     def _expand_all(self, node: Node) -> None:
-        """Queue every child of ``node`` that its motions reach."""
-        moved = False
-        for segments in itertools.chain(self._follow(node), self._primitives(node)):
-            if self._spent() is not None:
-                return
-            child = self._expand(node, segments)
-            if child is not None:
-                moved = True
-                self._push(child)
-        # from a tight spot every full-length motion may hit a wall: shorter ones, a driver's
-        # inching out, before the node is given up
-        for fraction in self.s.inch_fractions:
-            if moved:
-                return
-            for segments in self._primitives(node, fraction):
+        """Queue every child of ``node`` that its motions reach. From a tight spot every
+        full-length motion may hit a wall: then shorter ones (``inch_fractions``, a driver's
+        inching out) are tried before the node is given up."""
+        motions = itertools.chain(self._follow(node), self._primitives(node))
+        for fraction in (None, *self.s.inch_fractions):
+            if fraction is not None:
+                motions = self._primitives(node, fraction)
+            moved = False
+            for segments in motions:
                 if self._spent() is not None:
                     return
                 child = self._expand(node, segments)
                 if child is not None:
                     moved = True
                     self._push(child)
+            if moved:
+                return
 
     def _can_build_car(self) -> bool:
         """Whether the car heuristic is configured and its build (about 2 us per state of
