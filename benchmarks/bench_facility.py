@@ -39,6 +39,8 @@ import time
 import tomllib
 from pathlib import Path
 
+from bench_planner import percentile  # the benchmarks' one nearest-rank quantile
+
 HERE = Path(__file__).resolve().parent
 MISSIONS = HERE / "facility" / "missions.toml"
 FEASIBILITY = HERE / "facility" / "feasibility.json"
@@ -157,14 +159,6 @@ def in_child(args: list[str]) -> dict:
     return result
 
 
-def _percentile(values, q: float) -> float:
-    values = sorted(values)
-    if not values:
-        return math.nan
-    k = min(len(values) - 1, max(0, math.ceil(q * len(values)) - 1))
-    return values[k]
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--budget", type=float, default=10.0, help="planner.time_budget [s]")
@@ -232,7 +226,7 @@ def main() -> None:
         print(f"{p}: {len(ok)}/{len(feasible)} feasible missions planned and co-simulated to the "
               f"goal ({100 * len(ok) / max(1, len(feasible)):.0f} %, target >= 95 %); "
               f"plan time median {statistics.median(times) if times else math.nan:.2f} s "
-              f"(target <= 2), p95 {_percentile(times, 0.95):.2f} s (target <= 10); peak "
+              f"(target <= 2), p95 {percentile(times, 0.95):.2f} s (target <= 10); peak "
               f"{max((r['peak_mib'] for r in rs), default=0):.0f} MiB (target <= 1024); "
               f"path/route median {statistics.median(ratios) if ratios else math.nan:.2f}; "
               f"{crashed} crashed, {capped} cut by the clock; {len(infeasible)} not shown "

@@ -88,7 +88,8 @@ def _timed(world, start, goal, train, config, headings):
     return path, time.perf_counter() - t0, time.process_time() - c0, error
 
 
-def _pct(values, q):
+def percentile(values, q: float) -> float:
+    """The nearest-rank ``q`` quantile (0 < q <= 1) of ``values``; NaN if there are none."""
     values = sorted(values)
     if not values:
         return math.nan
@@ -156,7 +157,7 @@ def _report(r: dict) -> None:
           f"{r['field_s']:.2f} s, built once per map)")
     print(f"  success {100 * r['success']:.0f} %  (target 100 %)"
           + (f"  errors: {', '.join(r['errors'])}" if r["errors"] else ""))
-    med, p95 = statistics.median(wall), _pct(wall, 0.95)
+    med, p95 = statistics.median(wall), percentile(wall, 0.95)
     print(f"  plan time: median {med:.3f} s, p95 {p95:.3f} s, max {max(wall):.3f} s wall; "
           f"median {statistics.median(r['cpu']):.3f} s CPU")
     if name in FAST:

@@ -77,7 +77,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     """
     field = world.distance_field()
     t_begin = time.perf_counter()
-    deadline = hard_stop = t_begin + config.wall_cap()
+    deadline = t_begin + config.wall_cap()
     margins = config.margins(train)
     # the prediction must end within a fraction of the co-simulation's goal tolerance: the rest
     # is left to the difference between the kinematic prediction and the FMU
@@ -132,7 +132,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
             segments, run, smooth_info = _smoothed(prop, start, headings, solution.segments,
                                                    run, goal, config, train, deadline,
                                                    clear=search.reference_clear)
-            if not _exact_fits(run, train, hard_stop):
+            if not _exact_fits(run, train, deadline):
                 search.stats.cut = "deadline"
                 break
             checked = _exact(world, train, start, headings, segments, run, margins, tracker)
@@ -141,7 +141,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
                 log.info("the smoothed path failed the exact test: %s", checked.failure)
                 segments = merge(solution.segments)
                 run = _simulate(prop, start, headings, segments, goal, None)
-                if not _exact_fits(run, train, hard_stop):
+                if not _exact_fits(run, train, deadline):
                     search.stats.cut = "deadline"
                     break
                 checked = _exact(world, train, start, headings, segments, run, margins,
@@ -279,12 +279,13 @@ _EXACT_RATE = [2.0e-6]
 (at first a conservative guess: about 0.7 us is usual)."""
 
 
-def _exact_fits(run, train: Train, hard_stop: float) -> bool:
-    """Whether the exact test of ``run`` is expected to end before ``hard_stop`` (a
-    ``time.perf_counter()`` value): it cannot be interrupted, so one that would end past the
-    budget is not started (the result says the clock cut the search short)."""
+def _exact_fits(run, train: Train, deadline: float) -> bool:
+    """Whether the exact test of ``run`` is expected to end before ``deadline`` (a
+    ``time.perf_counter()`` value, the wall-clock safety cap): it cannot be interrupted, so
+    one that would end past the cap is not started (the result says the clock cut the search
+    short)."""
     estimate = _EXACT_RATE[0] * run.z.shape[0] * (train.n + 1)
-    if time.perf_counter() + estimate <= hard_stop:
+    if time.perf_counter() + estimate <= deadline:
         return True
     log.info("no time left for the exact test of a path found (about %.3f s)", estimate)
     return False

@@ -28,6 +28,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from .curves import _space
 from .distance_field import DistanceField
+from .route import grid_graph, undirected_graph
 
 __all__ = ["Heuristic", "CarGrid", "MAX_NODES", "MAX_CAR_CELLS"]
 
@@ -283,26 +284,11 @@ def _yaw(theta: float) -> float:
 def _dijkstra(free: np.ndarray, source: tuple[int, int], h: float) -> np.ndarray:
     """Shortest 8-connected distances [m] over the ``free`` nodes from ``source`` (row, col);
     inf on blocked or unreachable nodes (and everywhere if the source is blocked)."""
-    ny, nx = free.shape
-    out = np.full((ny, nx), np.inf)
+    out = np.full(free.shape, np.inf)
     if not free[source]:
         return out
-    index = np.full((ny, nx), -1, dtype=np.int64)
-    ii, jj = np.nonzero(free)
-    index[ii, jj] = np.arange(ii.size)
-    rows, cols, weights = [], [], []
-    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        i2, j2 = ii + di, jj + dj
-        ok = (i2 < ny) & (j2 >= 0) & (j2 < nx)
-        ok[ok] &= free[i2[ok], j2[ok]]
-        rows.append(index[ii[ok], jj[ok]])
-        cols.append(index[i2[ok], j2[ok]])
-        weights.append(np.full(int(ok.sum()), h * math.hypot(di, dj)))
-    r = np.concatenate(rows)
-    c = np.concatenate(cols)
-    w = np.concatenate(weights)
-    graph = csr_matrix((np.concatenate([w, w]), (np.concatenate([r, c]), np.concatenate([c, r]))),
-                       shape=(ii.size, ii.size))
-    dist = dijkstra(graph, directed=False, indices=int(index[source]))
+    ii, jj, index, r, c, w = grid_graph(free, h)
+    dist = dijkstra(undirected_graph(r, c, w, ii.size), directed=False,
+                    indices=int(index[source]))
     out[ii, jj] = dist
     return out

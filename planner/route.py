@@ -6,9 +6,10 @@ through that door) and only then thinks about the manoeuvres at the junctions, d
 
 Grid
     The map's distance field sampled on a grid of at most :data:`MAX_ROUTE_NODES` nodes (5 cm
-    on a 30 m x 30 m map, coarser on larger ones). A node is open when the train's widest body
-    fits there with its clearance (``half_width``: half the widest body plus its margin),
-    relaxed by half a cell diagonal so that sampling never closes a passage.
+    on a 30 m x 30 m map, coarser on larger ones). A node is open when the last trailer fits
+    there with its clearance (``half_width``: half its width plus its margin; it leads the
+    train into every place the train goes), relaxed by half a cell diagonal so that sampling
+    never closes a passage.
 Cost
     An 8-connected Dijkstra from the goal (scipy's compiled one) whose edges cost their length
     times ``1 + centre_weight * max(0, 1 - (d - half_width) / centre_band)``: a driver keeps to
@@ -20,9 +21,9 @@ Route
     :data:`SPACING` metres, with its heading of travel and the free half-width beside it.
 Bottleneck
     The narrowest free width along the route, and where it is; when the goal cannot be
-    reached at all, the narrowest place of the widest way (a maximin path over the same grid,
-    :meth:`Route.widest_gap`) says where the building is too narrow for the train and by how
-    much.
+    reached at all, the narrowest place of the widest way (:func:`widest_gap`: the largest
+    free distance at which start and goal are still connected) says where the building is too
+    narrow for the train and by how much.
 
 All lengths in metres, angles in radians; headings here are directions of *travel* (the chain
 convention's theta of a pushed train is the travel direction plus pi).
@@ -39,7 +40,8 @@ from scipy.sparse.csgraph import dijkstra
 
 from .distance_field import DistanceField
 
-__all__ = ["Route", "Bottleneck", "MAX_ROUTE_NODES", "SPACING", "find_route", "widest_gap"]
+__all__ = ["Route", "Bottleneck", "MAX_ROUTE_NODES", "SPACING", "find_route", "widest_gap",
+           "grid_graph", "undirected_graph"]
 
 MAX_ROUTE_NODES = 400_000
 """Most nodes of the route's grid (about 26 MB of graph): a 100 m x 100 m map gets 16 cm cells."""
@@ -78,7 +80,7 @@ class Route:
     half_width : (m,) array
         Distance [m] from each point to the nearest wall.
     needed : float
-        Half the width [m] the train needs (its widest body plus its clearance).
+        Half the width [m] the train needs (the last trailer's width plus its clearance).
     """
 
     points: np.ndarray
@@ -136,9 +138,7 @@ class _Grid:
         ys = ymin + h * np.arange(ny)
         self.d = field.at(xs[None, :], ys[:, None])
         self.open = self.d >= half_width - h * math.sqrt(0.5)
-        self.ii, self.jj = np.nonzero(self.open)
-        self.index = np.full((ny, nx), -1, dtype=np.int64)
-        self.index[self.ii, self.jj] = np.arange(self.ii.size)
+        self.ii, self.jj, self.index, *self._graph = grid_graph(self.open, h)
 
     def cell(self, x: float, y: float) -> tuple[int, int]:
         ny, nx = self.open.shape
@@ -163,19 +163,38 @@ class _Grid:
 
     def edges(self):
         """(rows, cols, lengths [m], mean free distance [m]) of the 8-connected open edges."""
-        ny, nx = self.open.shape
-        ii, jj, index = self.ii, self.jj, self.index
-        rows, cols, lengths, dist = [], [], [], []
-        for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-            i2, j2 = ii + di, jj + dj
-            ok = (i2 < ny) & (j2 >= 0) & (j2 < nx)
-            ok[ok] &= self.open[i2[ok], j2[ok]]
-            rows.append(index[ii[ok], jj[ok]])
-            cols.append(index[i2[ok], j2[ok]])
-            lengths.append(np.full(int(ok.sum()), self.h * math.hypot(di, dj)))
-            dist.append(0.5 * (self.d[ii[ok], jj[ok]] + self.d[i2[ok], j2[ok]]))
-        return (np.concatenate(rows), np.concatenate(cols), np.concatenate(lengths),
-                np.concatenate(dist))
+        rows, cols, lengths = self._graph
+        ii, jj = self.ii, self.jj
+        dist = 0.5 * (self.d[ii[rows], jj[rows]] + self.d[ii[cols], jj[cols]])
+        return rows, cols, lengths, dist
+
+
+def grid_graph(open_mask: np.ndarray, h: float):
+    """The 8-connected graph of the ``open_mask`` (ny, nx) nodes of a grid of spacing ``h``
+    [m]: (ii, jj) the open nodes' rows and columns, ``index`` (ny, nx) their numbers (-1 where
+    closed), and each edge once as (rows, cols, lengths [m]), in the order right, up,
+    up-right, up-left."""
+    ny, nx = open_mask.shape
+    ii, jj = np.nonzero(open_mask)
+    index = np.full((ny, nx), -1, dtype=np.int64)
+    index[ii, jj] = np.arange(ii.size)
+    rows, cols, lengths = [], [], []
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        i2, j2 = ii + di, jj + dj
+        ok = (i2 < ny) & (j2 >= 0) & (j2 < nx)
+        ok[ok] &= open_mask[i2[ok], j2[ok]]
+        rows.append(index[ii[ok], jj[ok]])
+        cols.append(index[i2[ok], j2[ok]])
+        lengths.append(np.full(int(ok.sum()), h * math.hypot(di, dj)))
+    return ii, jj, index, np.concatenate(rows), np.concatenate(cols), np.concatenate(lengths)
+
+
+def undirected_graph(rows, cols, weights, m: int) -> csr_matrix:
+    """The (m, m) sparse matrix of the edges (rows, cols) of ``weights`` in both directions,
+    for scipy's Dijkstra."""
+    return csr_matrix((np.concatenate([weights, weights]),
+                       (np.concatenate([rows, cols]), np.concatenate([cols, rows]))),
+                      shape=(m, m))
 
 
 def find_route(field: DistanceField, start, goal, half_width: float, *,
@@ -194,9 +213,7 @@ def find_route(field: DistanceField, start, goal, half_width: float, *,
     r, c, length, dist = grid.edges()
     excess = np.clip(1.0 - (dist - half_width) / centre_band, 0.0, 1.0)
     w = length * (1.0 + centre_weight * excess)
-    m = grid.ii.size
-    graph = csr_matrix((np.concatenate([w, w]), (np.concatenate([r, c]), np.concatenate([c, r]))),
-                       shape=(m, m))
+    graph = undirected_graph(r, c, w, grid.ii.size)
     cost, pred = dijkstra(graph, directed=False, indices=b, return_predecessors=True)
     if not math.isfinite(cost[a]):
         return None
