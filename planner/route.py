@@ -5,11 +5,11 @@ through that door) and only then thinks about the manoeuvres at the junctions, d
 :class:`Route` is that way for the whole-train search (:mod:`~pushtrain.planner.lattice`):
 
 Grid
-    The map's distance field sampled on a grid of at most :data:`MAX_ROUTE_NODES` nodes (5 cm
-    on a 30 m x 30 m map, coarser on larger ones). A node is open when the last trailer fits
-    there with its clearance (``half_width``: half its width plus its margin; it leads the
-    train into every place the train goes), relaxed by half a cell diagonal so that sampling
-    never closes a passage.
+    The map's distance field sampled on a grid of at most :data:`MAX_ROUTE_NODES` nodes
+    (:data:`MIN_CELL`, 5 cm, on a 30 m x 30 m map, coarser on larger ones). A node is open
+    when the last trailer fits there with its clearance (``half_width``: half its width plus
+    its margin; it leads the train into every place the train goes), relaxed by half a cell
+    diagonal so that sampling never closes a passage.
 Cost
     An 8-connected Dijkstra from the goal (scipy's compiled one) whose edges cost their length
     times ``1 + centre_weight * max(0, 1 - (d - half_width) / centre_band)``: a driver keeps to
@@ -48,6 +48,11 @@ MAX_ROUTE_NODES = 400_000
 
 SPACING = 0.1
 """Spacing [m] of the route's resampled points."""
+
+MIN_CELL = 0.05
+"""Finest cell [m] of the route's grid: a guide needs no finer (the heuristic's grid is as
+coarse), and a polygon map's 2 cm distance field would make it six times dearer. The widest
+way's bottleneck (:func:`widest_gap`) keeps the field's own resolution: it measures."""
 
 
 @dataclass(frozen=True)
@@ -105,6 +110,14 @@ class Route:
         i = int(np.argmin(d2))
         return float(self.s[i]), math.sqrt(float(d2[i]))
 
+    def turn(self, s0: float, s1: float) -> float:
+        """The largest change of the direction of travel [rad] from length ``s0`` to any
+        point up to ``s1`` [m] along the route."""
+        last = len(self.s) - 1
+        i0, i1 = (min(int(i), last) for i in np.searchsorted(self.s, [s0, s1]))
+        stretch = self.heading[i0:max(i1, i0) + 1]
+        return float(np.abs(stretch - self.heading[i0]).max())
+
     def pose_at(self, s: float) -> tuple[float, float, float]:
         """(x, y, direction of travel) [m, m, rad] at length ``s`` [m] along the route."""
         s = min(max(float(s), 0.0), self.length)
@@ -128,9 +141,10 @@ class Route:
 class _Grid:
     """The route's grid over a distance field: nodes, their free distance and open mask."""
 
-    def __init__(self, field: DistanceField, half_width: float, max_nodes: int):
+    def __init__(self, field: DistanceField, half_width: float, max_nodes: int,
+                 min_cell: float = 0.0):
         xmin, ymin, xmax, ymax = field.bounds
-        h = max(field.resolution, math.sqrt((xmax - xmin) * (ymax - ymin) / max_nodes))
+        h = max(field.resolution, min_cell, math.sqrt((xmax - xmin) * (ymax - ymin) / max_nodes))
         self.h, self.x0, self.y0 = h, xmin, ymin
         nx = int(math.floor((xmax - xmin) / h)) + 1
         ny = int(math.floor((ymax - ymin) / h)) + 1
@@ -203,7 +217,7 @@ def find_route(field: DistanceField, start, goal, half_width: float, *,
     """The route from ``start`` to ``goal`` (x, y, ...) [m] where a body of ``half_width``
     [m] (half its width plus its clearance) fits (see the module docstring); None if there is
     none (see :func:`widest_gap` for why)."""
-    grid = _Grid(field, half_width, max_nodes)
+    grid = _Grid(field, half_width, max_nodes, MIN_CELL)
     if grid.ii.size < 2:
         return None
     a = grid.nearest_open(start[0], start[1], 3.0 * grid.h + 0.5)

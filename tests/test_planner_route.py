@@ -14,7 +14,7 @@ import pytest
 from pushtrain.core.reference import PULL, PUSH, Segment
 from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
 from pushtrain.planner.connect import MAX_SAMPLES, corner_segments, sample_reference
-from pushtrain.planner.route import find_route, widest_gap
+from pushtrain.planner.route import MAX_ROUTE_NODES, MIN_CELL, _Grid, find_route, widest_gap
 
 PUBLIC = Path(__file__).resolve().parents[1] / "examples" / "maps" / "public"
 BOOKSTORE = PUBLIC / "aws_bookstore.yaml"
@@ -66,6 +66,14 @@ def test_the_route_goes_round_the_corner_in_the_middle_of_the_corridor():
     # its length is that of a way round the corner, not through the wall
     straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
     assert straight < route.length < 1.6 * straight
+    # the route turns by a quarter turn across the corner, hardly at all along a leg
+    assert route.turn(0.0, route.length) == pytest.approx(math.pi / 2, abs=0.05)
+    assert route.turn(0.0, 2.0) < math.radians(5.0)
+    assert route.turn(route.length - 2.0, route.length) < math.radians(5.0)
+    assert route.turn(route.length, route.length + 1.0) == 0.0
+    # on a 2 cm polygon map the route's grid is no finer than MIN_CELL
+    assert field.resolution == pytest.approx(0.02)
+    assert _Grid(field, 0.35, MAX_ROUTE_NODES, MIN_CELL).h == pytest.approx(MIN_CELL)
     # headings follow the points
     x, y, th = route.pose_at(0.5 * route.length)
     s, off = route.project(x, y)
@@ -157,3 +165,16 @@ def test_an_impossible_mission_names_the_bottleneck():
     b = err.details["bottleneck"]
     assert 4.9 <= b["x"] <= 6.1 and f"({b['x']:.2f}, {b['y']:.2f})" in str(err)
     assert "0.50 m" in str(err)
+
+
+def test_pushes_along_the_route_leave_the_corner_of_a_narrow_l_to_the_search():
+    """Five trailers round the corner of a 1.3 m L (examples/narrow_l_5.toml): pushes that
+    follow the route round the corner mislead the search (without the turn limit: 4 times
+    the expansions, or two cusps); left to the primitives it goes round in one push."""
+    from pushtrain.mission import runner
+    from pushtrain.mission.scenario import load_scenario
+
+    sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "narrow_l_5.toml")
+    path = runner.plan_path(sc)
+    assert path.n_cusps == 0
+    assert path.info["expansions"] <= 12
