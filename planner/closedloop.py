@@ -102,13 +102,18 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
                           max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.time_budget))
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
     # the route of the last trailer (the body that goes everywhere the train goes: it leads
-    # into docks and bays), kept to the middle of corridors
+    # into docks and bays), kept to the middle of corridors; made when the search first needs
+    # it (a goal the start connects to straight away needs none)
     half_width = 0.5 * last.width + float(margins[-1])
     if heuristic(cursor0.pose) == math.inf:
         raise _unreachable(field, train, start, goal, half_width)
-    route = find_route(field, start, goal, half_width)
-    if route is not None:
-        log.info("route %.1f m; narrowest: %s", route.length, route.bottleneck().text())
+
+    def route_of():
+        route = find_route(field, start, goal, half_width)
+        if route is not None:
+            log.info("route %.1f m; narrowest: %s", route.length, route.bottleneck().text())
+        return route
+
     # with a straight train asked for at the goal, the final straight approach is as long as
     # the train (the followers line up behind the last trailer on it)
     approach = 1.5 if config.goal_phi is None else max(1.5, _train_length(train) + 0.5)
@@ -116,7 +121,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         radius=radius, step_length=config.step_length, weight=config.search_weight,
         pull_phi=config.pull_phi, budget_steps=config.budget_steps(), deadline=deadline,
         approach=approach)
-    search = Search(train, prop, heuristic, state0, cursor0, goal, settings, route=route)
+    search = Search(train, prop, heuristic, state0, cursor0, goal, settings, route=route_of)
     rejected, best, found = 0, None, 0
     while True:
         solution = search.next_solution()

@@ -66,6 +66,7 @@ import logging
 import math
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -259,16 +260,18 @@ class Search:
     start_cursor : Cursor
     goal : (x, y, theta)
     settings : SearchSettings
-    route : Route or None
-        The route through the building (:mod:`~pushtrain.planner.route`): pushes along it are
-        added to each node's motions.
+    route : callable or None
+        Returns the route through the building (:mod:`~pushtrain.planner.route`), or None;
+        called once, when the search first expands a node (a goal its start connects to
+        needs none). Pushes along it are added to each node's motions.
     """
 
     def __init__(self, train: Train, propagator: Propagator, heuristic: Heuristic,
                  start: TrainState, start_cursor: Cursor, goal, settings: SearchSettings,
-                 route: Route | None = None):
+                 route: Callable[[], Route | None] | None = None):
         self.train = train
-        self.route = route
+        self._route_of = route
+        self._route: Route | None = None
         self.prop = propagator
         self.heuristic = heuristic
         self.goal = tuple(float(a) for a in goal)
@@ -285,6 +288,13 @@ class Search:
         self.root = root
         self.closest = root
         self._push(root)
+
+    @property
+    def route(self) -> Route | None:
+        """The route through the building (built on first use), or None."""
+        if self._route_of is not None:
+            self._route, self._route_of = self._route_of(), None
+        return self._route
 
     # ------------------------------------------------------------------ bookkeeping
     def _key(self, node: Node) -> tuple:
