@@ -11,3 +11,5 @@ PNG_FILES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forc
 """The standard plots of a run, as :func:`~.plots.plot_file` names them."""
 GIF_FILE = "train.gif"
 """The standard animation of a run."""
+HTML_FILE = "report.html"
+"""The run's page to open in a browser (:mod:`.html`)."""

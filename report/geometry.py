@@ -23,6 +23,7 @@ __all__ = [
     "top_view",
     "footprints_of",
     "body_corners",
+    "spaced_snapshots",
     "hitch_links",
     "snapshot_indices",
     "frame_indices",
@@ -222,6 +223,50 @@ def snapshot_indices(t, count: int) -> np.ndarray:
     left = np.clip(right - 1, 0, t.size - 1)
     pick = np.where(np.abs(t[left] - targets) <= np.abs(t[right] - targets), left, right)
     return np.unique(pick)
+
+
+def spaced_snapshots(x, y, th, feet, count: int, max_overlap: float = 0.25) -> np.ndarray:
+    """Row indices (ascending) of at most ``count`` train snapshots that can be told apart.
+
+    Candidates are ``4 count`` rows evenly spaced in the distance the robot and the last
+    trailer have travelled (so a slow final straight gets no more than its share); the last
+    row and the first are always taken (a short run's may overlap), then each candidate in
+    order whose bodies cover at most ``max_overlap`` of their area with an already taken
+    snapshot. ``x``, ``y``, ``th`` are
+    (rows, n+1) poses [m, rad]; ``feet`` the (length, width, offset) of each body [m].
+    """
+    from shapely import Polygon, union_all
+
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
+        raise PlotError(f"snapshots = {count!r}: need an integer >= 0")
+    rows = len(x)
+    if count == 0 or rows == 0:
+        return np.zeros(0, dtype=int)
+    n = x.shape[1] - 1
+    step = (np.hypot(np.diff(x[:, 0]), np.diff(y[:, 0]))
+            + np.hypot(np.diff(x[:, n]), np.diff(y[:, n])))
+    travel = np.concatenate(([0.0], np.cumsum(np.nan_to_num(step))))
+    if travel[-1] <= 0.0:
+        candidates = np.unique(np.linspace(0, rows - 1, 4 * count).round().astype(int))
+    else:
+        candidates = np.unique(np.searchsorted(travel, np.linspace(0.0, travel[-1], 4 * count))
+                               .clip(0, rows - 1))
+    order = [rows - 1, 0] + [int(r) for r in candidates if 0 < r < rows - 1]
+
+    def shape(r):
+        return union_all([Polygon(body_corners(x[r, i], y[r, i], th[r, i], *feet[i]))
+                          for i in range(n + 1)])
+
+    taken, shapes = [], []
+    for r in order:
+        if len(taken) >= count or r in taken:
+            continue
+        g = shape(r)
+        if r in (0, rows - 1) or all(g.intersection(h).area <= max_overlap * g.area
+                                     for h in shapes):
+            taken.append(r)
+            shapes.append(g)
+    return np.array(sorted(taken), dtype=int)
 
 
 def frame_indices(rows: int, max_frames: int) -> np.ndarray:

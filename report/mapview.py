@@ -33,7 +33,7 @@ from pushtrain.report.geometry import (
     equal_limits,
     extent_of,
     map_size,
-    snapshot_indices,
+    spaced_snapshots,
     top_view,
     train_polyline,
     wheel_segments,
@@ -46,12 +46,14 @@ def map_figure(data, n: int, *, world=None, path_xy=None, footprints=None, snaps
                title: str | None = None, geometry=None) -> Figure:
     """The top view of :func:`plot_map` as an unsaved Figure.
 
-    Snapshot artists carry gids ``"snapshot{k}:body{i}"`` (rectangles), ``"snapshot{k}:train"``
-    (the line P_0 -> H_1 -> P_1 -> ... -> P_n through the hitch points) for snapshot k at row
-    ``snapshot_indices(data['t'], snapshots)[k]``.
+    At most ``snapshots`` snapshots, spread by distance travelled and none covering another by
+    more than a quarter (:func:`~pushtrain.report.geometry.spaced_snapshots`; the figure's
+    ``snapshot_rows`` attribute lists their rows). Their artists carry gids
+    ``"snapshot{k}:body{i}"`` (rectangles) and ``"snapshot{k}:train"`` (the line
+    P_0 -> H_1 -> P_1 -> ... -> P_n through the hitch points).
     """
     run = top_view(data, n, footprints=footprints, geometry=geometry, path_xy=path_xy)
-    idx = snapshot_indices(run.t, snapshots)
+    idx = spaced_snapshots(run.x, run.y, run.th, run.bodies, snapshots)
     corners = {(k, i): body_corners(run.x[r, i], run.y[r, i], run.th[r, i], *run.bodies[i])
                for k, r in enumerate(idx) for i in range(run.n + 1)}
     goal_box = body_corners(run.xd[-1], run.yd[-1], run.thd[-1], *run.bodies[run.n])
@@ -71,6 +73,7 @@ def map_figure(data, n: int, *, world=None, path_xy=None, footprints=None, snaps
                        z=5 + k / max(len(idx), 1))
     _draw_ends(ax, run, goal_box)
     _draw_events(ax, data, run)
+    fig.snapshot_rows = idx
     _finish(fig, ax, extent, len(idx), norm, title or
             f"Backward motion of a robot with {run.n} trailer{'s' if run.n > 1 else ''}: "
             f"top view ({t[-1] - t[0]:.1f} s)")
@@ -80,9 +83,9 @@ def map_figure(data, n: int, *, world=None, path_xy=None, footprints=None, snaps
 def _draw_paths(ax, run: TopView) -> None:
     """Planned path, reference and the traces of the last trailer and the robot."""
     n = run.n
-    if run.path is not None:
-        ax.plot(run.path[:, 0], run.path[:, 1], "-", color=C_PATH, lw=2.5, alpha=0.6, zorder=2,
-                label="planned path (last trailer)")
+    if run.path is not None:  # a wide pale band, seen around the reference and trace on it
+        ax.plot(run.path[:, 0], run.path[:, 1], "-", color=C_PATH, lw=9.0, alpha=0.35,
+                solid_capstyle="round", zorder=2, label="planned path (last trailer)")
     ax.plot(run.xd, run.yd, "--", color=C_REF, lw=1.3, zorder=22, label="reference (last trailer)")
     ax.plot(run.x[:, n], run.y[:, n], "-", color=C_LAST, lw=1.8, zorder=21,
             label=f"last trailer ({n}) trace")
@@ -92,13 +95,15 @@ def _draw_paths(ax, run: TopView) -> None:
 def _draw_snapshot(ax, run: TopView, k: int, r: int, corners: dict, color, z: float) -> None:
     """Snapshot ``k`` at row ``r``: bodies, wheels, the line through the hitches, robot heading."""
     x, y, th = run.x, run.y, run.th
-    for i in range(run.n + 1):
-        patch = PolygonPatch(corners[(k, i)], closed=True, facecolor=color,
-                             alpha=0.55 if i == 0 else 0.14, edgecolor="none", zorder=z)
+    for i in range(run.n + 1):  # every body filled alike (its time's colour); the robot's
+        # outline is red, so the robot stands out without looking later than its trailers
+        patch = PolygonPatch(corners[(k, i)], closed=True, facecolor=color, alpha=0.45,
+                             edgecolor="none", zorder=z)
         patch.set_gid(f"snapshot{k}:body{i}")
         ax.add_patch(patch)
-        ax.add_patch(PolygonPatch(corners[(k, i)], closed=True, fill=False, edgecolor=color,
-                                  lw=1.3 if i == 0 else 0.8, zorder=z))
+        ax.add_patch(PolygonPatch(corners[(k, i)], closed=True, fill=False,
+                                  edgecolor=C_ROBOT if i == 0 else color,
+                                  lw=1.6 if i == 0 else 0.8, zorder=z))
         if i > 0:
             for seg in wheel_segments(x[r, i], y[r, i], th[r, i], run.bodies[i][1]):
                 ax.plot(*zip(*seg, strict=True), "-", color=color, lw=2.6, solid_capstyle="butt",
@@ -107,10 +112,10 @@ def _draw_snapshot(ax, run: TopView, k: int, r: int, corners: dict, color, z: fl
     (line,) = ax.plot(px, py, "-", color=color, lw=1.2, zorder=z + 0.01)
     line.set_gid(f"snapshot{k}:train")
     ax.plot(px[1::2], py[1::2], "o", ms=2.5, color=color, zorder=z + 0.01)  # hitch points
-    # robot heading: a tick from its centre to its front edge
+    # robot heading: a red tick from its centre to its front edge
     head = 0.5 * run.bodies[0][0] + run.bodies[0][2]
     ax.plot([x[r, 0], x[r, 0] + head * math.cos(th[r, 0])],
-            [y[r, 0], y[r, 0] + head * math.sin(th[r, 0])], "-", color="white", lw=1.4,
+            [y[r, 0], y[r, 0] + head * math.sin(th[r, 0])], "-", color=C_ROBOT, lw=1.6,
             zorder=z + 0.02)
 
 
@@ -153,8 +158,10 @@ def _finish(fig, ax, extent, snapshots: int, norm, title: str) -> None:
     handles, labels = ax.get_legend_handles_labels()
     if snapshots:
         shade = SNAPSHOT_CMAP(0.6)
-        handles.append(Patch(facecolor=shade, edgecolor=shade, alpha=0.5))
-        labels.append(f"train, {snapshots} snapshots")
+        handles.append(Patch(facecolor=shade, edgecolor=C_ROBOT, alpha=0.6, lw=1.6))
+        labels.append("robot (red outline, tick: its heading)")
+        handles.append(Patch(facecolor=shade, edgecolor=shade, alpha=0.6))
+        labels.append(f"trailers; train in {snapshots} snapshots")
     ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8,
               frameon=False)
     if snapshots:

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from pushtrain.errors import PlotError
-from pushtrain.report import GIF_FILE, PNG_FILES
+from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
 from pushtrain.report.animation import animate
 from pushtrain.report.common import DPI, GIF_DPI, check_n
 from pushtrain.report.geometry import (
@@ -116,20 +116,29 @@ def _title(n: int, status: str | None) -> str | None:
 
 
 def plot_file(name: str, data, n: int, out_dir, *, world=None, path_xy=None, footprints=None,
-              geometry=None, status: str | None = None) -> Path:
-    """Write the standard file ``name`` (one of :data:`PNG_FILES` or :data:`GIF_FILE`) of a run
-    into ``out_dir`` (which must exist) and return its path.
+              geometry=None, status: str | None = None, summary: dict | None = None,
+              phi_max_deg: float | None = None, keep_out: float | None = None) -> Path:
+    """Write the standard file ``name`` (one of :data:`PNG_FILES`, :data:`GIF_FILE` or
+    :data:`HTML_FILE`) of a run into ``out_dir`` (which must exist) and return its path.
 
     ``data`` and ``n`` as in :func:`plot_map`; ``world``, ``path_xy``, ``footprints`` and
     ``geometry`` as there (the plots over time ignore them); ``status`` (e.g. ``goal_reached``)
-    goes into the map's title.
+    goes into the map's title. ``summary`` (the run's ``summary.json``), ``phi_max_deg`` (the
+    joint limit) and ``keep_out`` (the clearance [m] whose band is drawn) are for the page and
+    the joint plot.
     """
     out = Path(out_dir)
+    if name == HTML_FILE:
+        from pushtrain.report.html import plot_report
+
+        return plot_report(data, n, out / name, world=world, path_xy=path_xy,
+                           footprints=footprints, status=status, summary=summary,
+                           phi_max_deg=phi_max_deg, keep_out=keep_out)
     if name == "map.png":
         return plot_map(data, n, out / name, world=world, path_xy=path_xy, footprints=footprints,
                         title=_title(n, status), geometry=geometry)
     if name == "inputs_joints.png":
-        return plot_inputs_and_joints(data, n, out / name)
+        return plot_inputs_and_joints(data, n, out / name, phi_max_deg=phi_max_deg)
     if name == "tracking_error.png":
         return plot_tracking_error(data, n, out / name)
     if name == "lateral_forces.png":
@@ -138,7 +147,7 @@ def plot_file(name: str, data, n: int, out_dir, *, world=None, path_xy=None, foo
         return animate(data, n, out / name, world=world, footprints=footprints, path_xy=path_xy,
                        geometry=geometry)
     raise PlotError(f"file {name!r}: the standard files are "
-                    f"{', '.join(PNG_FILES + (GIF_FILE,))}")
+                    f"{', '.join(PNG_FILES + (GIF_FILE, HTML_FILE))}")
 
 
 def plot_all(result_or_data, n: int, out_dir, *, world=None, path_xy=None, footprints=None,

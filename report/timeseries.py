@@ -49,11 +49,12 @@ def _time_limits(ax, t: np.ndarray) -> None:
 # ---------------------------------------------------------------------------------------------
 # inputs and joint angles
 # ---------------------------------------------------------------------------------------------
-def inputs_and_joints_figure(data, n: int) -> Figure:
+def inputs_and_joints_figure(data, n: int, phi_max_deg: float | None = None) -> Figure:
     """The figure of :func:`plot_inputs_and_joints`, unsaved.
 
     Line gids: ``v_cmd``, ``v0``, ``w_cmd``, ``w0``, ``phi{i}`` and ``phi_meas{i}`` (only where the
-    measurement differs from the true angle).
+    measurement differs from the true angle), ``phi_max`` (the joint limit, with
+    ``phi_max_deg``).
     """
     cols = ["t", "v0", "w0", "v_cmd", "w_cmd"] + [f"phi{i}" for i in range(1, n + 1)]
     n = check_data(data, n, cols)
@@ -66,32 +67,40 @@ def inputs_and_joints_figure(data, n: int) -> Figure:
         ax.axhline(0.0, color="0.3", lw=0.6)
         ax.grid(True, lw=0.4, alpha=0.5)
     _robot_inputs(axes[0], axes[1], data, t)
-    _joint_angles(fig, axes[2], data, t, n)
+    _joint_angles(fig, axes[2], data, t, n, phi_max_deg)
     _time_limits(axes[0], t)
     fig.suptitle(f"Robot inputs and joint angles ({n} trailer{'s' if n > 1 else ''})")
     return fig
 
 
 def _robot_inputs(ax_v, ax_w, data, t: np.ndarray) -> None:
-    """Commanded and actual robot speed [m/s] and yaw rate [deg/s]."""
-    ax_v.plot(t, col(data, "v_cmd"), "--", color="tab:gray", lw=1.3, label="command v_cmd",
-              gid="v_cmd")
-    ax_v.plot(t, col(data, "v0"), "-", color=C_ROBOT, lw=1.4, label="actual v0", gid="v0")
+    """Commanded and actual robot speed [m/s] and yaw rate [deg/s]: the actual value wide and
+    pale, the command thin, dashed and on top (they mostly coincide)."""
+    ax_v.plot(t, col(data, "v0"), "-", color=C_ROBOT, lw=3.0, alpha=0.45, label="actual v0",
+              gid="v0", zorder=2)
+    ax_v.plot(t, col(data, "v_cmd"), "--", color="black", lw=1.0, label="command v_cmd",
+              gid="v_cmd", zorder=3)
     ax_v.set_ylabel("v0 [m/s]")
     ax_v.set_title("Robot longitudinal speed (negative: pushing)", fontsize=10)
     ax_v.legend(loc="best", fontsize=8)
 
-    ax_w.plot(t, np.degrees(col(data, "w_cmd")), "--", color="tab:gray", lw=1.3,
-              label="command w_cmd", gid="w_cmd")
-    ax_w.plot(t, np.degrees(col(data, "w0")), "-", color=C_ROBOT, lw=1.4, label="actual w0",
-              gid="w0")
+    ax_w.plot(t, np.degrees(col(data, "w0")), "-", color=C_ROBOT, lw=3.0, alpha=0.45,
+              label="actual w0", gid="w0", zorder=2)
+    ax_w.plot(t, np.degrees(col(data, "w_cmd")), "--", color="black", lw=1.0,
+              label="command w_cmd", gid="w_cmd", zorder=3)
     ax_w.set_ylabel("w0 [deg/s]")
     ax_w.set_title("Robot yaw rate", fontsize=10)
     ax_w.legend(loc="best", fontsize=8)
 
 
-def _joint_angles(fig, ax, data, t: np.ndarray, n: int) -> None:
-    """True joint angles (solid) and, where they differ, the measured ones (dotted) [deg]."""
+def _joint_angles(fig, ax, data, t: np.ndarray, n: int, phi_max_deg: float | None) -> None:
+    """True joint angles (solid) and, where they differ, the measured ones (dotted) [deg], and
+    the joint limit +-``phi_max_deg`` (dashed red) where given."""
+    if phi_max_deg:
+        for sign in (1.0, -1.0):
+            ax.axhline(sign * phi_max_deg, color="tab:red", ls="--", lw=1.0,
+                       label=f"joint limit ±{phi_max_deg:g} deg" if sign > 0 else None,
+                       gid="phi_max" if sign > 0 else None)
     colors = series_colors(n, categorical=n <= 12)
     names = data.dtype.names
     any_meas = False
@@ -117,15 +126,15 @@ def _joint_angles(fig, ax, data, t: np.ndarray, n: int) -> None:
         index_colorbar(fig, ax, colors, "joint index i")
 
 
-def plot_inputs_and_joints(data, n: int, out_path) -> Path:
+def plot_inputs_and_joints(data, n: int, out_path, phi_max_deg: float | None = None) -> Path:
     """Robot speed and yaw rate (command and actual) and the joint angles over time (Fig. 10/12).
 
     Speeds in m/s, yaw rates in deg/s, joint angles in degrees (true solid, measured dotted when
-    the sensors differ); disturbance intervals (push force, imposed slide) are shaded.
-    Returns the written path.
+    the sensors differ), with the joint limit +-``phi_max_deg`` where given; disturbance
+    intervals (push force, imposed slide) are shaded. Returns the written path.
     """
     path = output_path(out_path)
-    return save(inputs_and_joints_figure(data, n), path)
+    return save(inputs_and_joints_figure(data, n, phi_max_deg), path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -171,8 +180,10 @@ def tracking_error_figure(data, n: int) -> Figure:
         ax.legend(handles=[ax.get_lines()[0]], loc="best", fontsize=8)
     axes[-1].set_xlabel("time t [s]")
     _time_limits(axes[0], t)
+    # only the bands that are drawn: a direction held for no time (the last sample's rest)
+    # shades nothing and is not in the legend
     present = [(Patch(color=band), label) for value, band, label in DIRECTION_BANDS
-               if np.any(direction == value)]
+               if sum(b - a for a, b in intervals(t, direction == value)) > 0.0]
     if disturbance:
         present.append((Patch(color=C_DIST, alpha=0.25), "disturbance (push/slide)"))
     if present:

@@ -131,10 +131,10 @@ def test_map_snapshots_are_drawn_at_the_bodies_poses(run3):
     data, n, count = run3.data, 3, 5
     fig = plots.map_figure(data, n, snapshots=count)
     patches = {p.get_gid(): p for p in fig.axes[0].patches if p.get_gid()}
-    t = data["t"]
-    rows = [int(np.argmin(np.abs(t - tk))) for tk in np.linspace(t[0], t[-1], count)]
+    rows = list(fig.snapshot_rows)
     sizes = [(0.6, 0.5)] + [(0.8, 0.6)] * n
-    assert len(patches) == count * (n + 1)
+    assert 2 <= len(rows) <= count and rows[0] == 0 and rows[-1] == len(data) - 1
+    assert len(patches) == len(rows) * (n + 1)
     for k, r in enumerate(rows):
         for i in range(n + 1):
             xy = patches[f"snapshot{k}:body{i}"].get_xy()[:4]
@@ -153,7 +153,7 @@ def test_map_train_line_goes_through_the_hitch_points(run3):
     data, n = run3.data, 3
     fig = plots.map_figure(data, n, snapshots=4)
     lines = {ln.get_gid(): ln for ln in fig.axes[0].lines if ln.get_gid()}
-    rows = plots.snapshot_indices(data["t"], 4)
+    rows = fig.snapshot_rows
     for k, r in enumerate(rows):
         px, py = lines[f"snapshot{k}:train"].get_data()
         assert len(px) == 2 * n + 1
@@ -189,7 +189,7 @@ def test_map_with_world_path_and_custom_footprints(run3, tmp_path):
     planned = [ln for ln in ax.lines if ln.get_label().startswith("planned path")]
     assert len(planned) == 1 and np.allclose(planned[0].get_xydata(), path_xy)
     # trailer 2's rectangle is offset 0.1 m ahead of its axle midpoint
-    r = plots.snapshot_indices(run3.data["t"], 2)[1]
+    r = fig.snapshot_rows[1]
     xy = next(p for p in ax.patches if p.get_gid() == "snapshot1:body2").get_xy()[:4]
     th = run3.data["theta2"][r]
     expect = (run3.data["x2"][r] + 0.1 * math.cos(th), run3.data["y2"][r] + 0.1 * math.sin(th))
@@ -549,3 +549,72 @@ def test_module_imports_neither_pyplot_nor_fmpy():
             "print(sorted(m for m in ('matplotlib.pyplot', 'fmpy') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+# ------------------------------------------------------------------- what the pictures show
+def test_map_snapshots_can_be_told_apart_and_the_robot_is_marked():
+    from shapely import Polygon, union_all
+
+    n = 3  # 12 m, a gentle turn then mostly straight: time-spaced snapshots would overlap
+    data = synthetic(n, ChainGeometry(np.full(n, D), np.full(n, D)), t_end=120.0, h=0.05,
+                     w0=0.0)
+    fig = plots.map_figure(data, n, snapshots=8)
+    rows = list(fig.snapshot_rows)
+    sizes = [(0.6, 0.5)] + [(0.8, 0.6)] * n
+
+    def train(r):  # the snapshot's bodies, computed here from the data
+        out = []
+        for i in range(n + 1):
+            c, s = math.cos(data[f"theta{i}"][r]), math.sin(data[f"theta{i}"][r])
+            L, W = sizes[i]
+            pts = [(data[f"x{i}"][r] + a * L / 2 * c - b * W / 2 * s,
+                    data[f"y{i}"][r] + a * L / 2 * s + b * W / 2 * c)
+                   for a, b in ((1, 1), (-1, 1), (-1, -1), (1, -1))]
+            out.append(Polygon(pts))
+        return union_all(out)
+
+    shapes = [train(r) for r in rows]
+    assert rows[0] == 0 and rows[-1] == len(data) - 1 and len(rows) >= 3
+    for a in range(len(shapes)):
+        for b in range(a + 1, len(shapes)):
+            overlap = shapes[a].intersection(shapes[b]).area
+            assert overlap <= 0.25 * min(shapes[a].area, shapes[b].area) + 1e-9
+    ax = fig.axes[0]
+    fills = {p.get_gid(): p for p in ax.patches if p.get_gid()}
+    # every body of a snapshot is filled alike (the robot no darker than its trailers)
+    assert {round(fills[f"snapshot0:body{i}"].get_alpha(), 6) for i in range(n + 1)} == {0.45}
+    labels = ax.get_legend().get_texts()
+    assert any("robot" in t.get_text() for t in labels)
+    assert any("trailers" in t.get_text() for t in labels)
+
+
+def test_planned_path_is_a_band_wider_than_the_lines_on_it(run3):
+    path_xy = np.column_stack([run3.data["x_d"], run3.data["y_d"]])
+    fig = plots.map_figure(run3.data, 3, path_xy=path_xy[::50], snapshots=2)
+    lines = {ln.get_label(): ln for ln in fig.axes[0].lines}
+    band = lines["planned path (last trailer)"]
+    assert band.get_linewidth() > 3 * lines["reference (last trailer)"].get_linewidth()
+    assert band.get_zorder() < lines["reference (last trailer)"].get_zorder()
+
+
+def test_inputs_show_the_command_on_top_and_the_joint_limit(run3):
+    fig = plots.inputs_and_joints_figure(run3.data, 3, phi_max_deg=80.0)
+    lines = {ln.get_gid(): ln for ax in fig.axes for ln in ax.lines if ln.get_gid()}
+    for cmd, actual in (("v_cmd", "v0"), ("w_cmd", "w0")):
+        assert lines[cmd].get_zorder() > lines[actual].get_zorder()
+        assert lines[cmd].get_linewidth() < lines[actual].get_linewidth()
+    limit = [ln for ln in fig.axes[2].lines if ln.get_linestyle() == "--"]
+    assert sorted(float(ln.get_ydata()[0]) for ln in limit) == [-80.0, 80.0]
+    assert "joint limit ±80 deg" in [t.get_text() for t in fig.axes[2].get_legend().get_texts()]
+
+
+def test_tracking_error_legend_names_only_the_bands_drawn(run3):
+    data = run3.data.copy()
+    data["direction"] = 1.0
+    data["direction"][-1] = 0.0  # a rest of no duration: nothing is shaded for it
+    fig = plots.tracking_error_figure(data, 3)
+    names = [t.get_text() for lg in fig.legends for t in lg.get_texts()]
+    assert "push (trailer first)" in names and "rest" not in names
+    data["direction"][-200:] = 0.0
+    fig = plots.tracking_error_figure(data, 3)
+    assert "rest" in [t.get_text() for lg in fig.legends for t in lg.get_texts()]
