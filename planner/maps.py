@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -57,6 +58,8 @@ import shapely
 from shapely.geometry import Polygon, box
 
 from pushtrain.errors import MapError
+from pushtrain.limits import MAP_BOUNDS, MAP_YAML_BYTES, SCENARIO_BOUNDS
+from pushtrain.validation import clip_text, clipped
 
 from .distance_field import MAX_CELLS
 
@@ -403,43 +406,81 @@ def _number(data: dict, key: str, problems: list, allowed: str, lo=None, hi=None
     return float(value)
 
 
+def _yaml_loader():
+    """A safe YAML loader that refuses aliases (``*name``): a map_server file needs none, and
+    nested aliases expand exponentially (a "billion laughs" of a few hundred bytes)."""
+    import yaml
+
+    class NoAliasLoader(yaml.SafeLoader):
+        def compose_node(self, parent, index):
+            if self.check_event(yaml.AliasEvent):
+                event = self.peek_event()
+                raise yaml.composer.ComposerError(
+                    None, None, f"an alias (*{clip_text(event.anchor, 40)}): aliases are not "
+                    "allowed in a map file", event.start_mark)
+            return super().compose_node(parent, index)
+
+    return NoAliasLoader
+
+
 def read_map_yaml(path) -> dict:
     """The validated fields of a map_server YAML file: ``image`` (a Path, resolved against the
     YAML's folder), ``resolution`` [m], ``origin`` (x, y, yaw) [m, m, rad], ``negate`` (bool),
     ``occupied_thresh``, ``free_thresh`` and ``mode``. Raises :class:`MapError` naming every
-    bad field. Keys the format does not define are ignored (tools add their own)."""
+    bad field. Keys the format does not define are ignored (tools add their own).
+
+    Bounds: the file at most :data:`~pushtrain.limits.MAP_YAML_BYTES`, no YAML aliases,
+    ``resolution`` within ``MAP_BOUNDS["resolution"]``, the origin's x and y within
+    ``SCENARIO_BOUNDS["map.coordinate"]``; values quoted in messages are clipped."""
     import yaml
 
     path = Path(path)
+    source = str(path)
+
+    def fail(problems):
+        return MapError(source, [(where, clipped(value), allowed)
+                                 for where, value, allowed in problems])
+
     try:
+        size = path.stat().st_size
+        if size > MAP_YAML_BYTES:
+            raise fail([("(file)", source, f"{size} bytes: a map_server YAML file has at most "
+                                           f"{MAP_YAML_BYTES} (map_saver writes about 150)")])
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise MapError(str(path), [("(file)", str(path),
-                                    f"cannot be read: {exc.strerror or exc}")]) from None
+        raise fail([("(file)", source, f"cannot be read: {exc.strerror or exc}")]) from None
     except UnicodeDecodeError:
-        raise MapError(str(path), [("(file)", str(path), "must be UTF-8 YAML text")]) from None
+        raise fail([("(file)", source, "must be UTF-8 YAML text")]) from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_yaml_loader())  # a SafeLoader without aliases
     except yaml.YAMLError as exc:
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise MapError(str(path), [("(syntax)", None, f"not valid YAML: {problem}")]) from None
+        mark = getattr(exc, "problem_mark", None)
+        where = f"(syntax) line {mark.line + 1}" if mark is not None else "(syntax)"
+        raise fail([(where, None, f"not valid YAML: {clip_text(problem)}")]) from None
+    except RecursionError:
+        raise fail([("(syntax)", None, "not valid YAML: nested too deeply")]) from None
     if not isinstance(data, dict):
-        raise MapError(str(path), [("(top level)", data, "a YAML mapping with image, "
-                                    "resolution, origin, occupied_thresh and free_thresh")])
+        raise fail([("(top level)", data, "a YAML mapping with image, resolution, origin, "
+                                          "occupied_thresh and free_thresh")])
     problems = []
     image = data.get("image")
     if not isinstance(image, str) or not image.strip():
         problems.append(("image", image, "the image file (PGM, PNG, ...), absolute or relative "
                                          "to the YAML file"))
-    resolution = _number(data, "resolution", problems, "a number > 0 (metres per pixel)")
-    if resolution is not None and resolution <= 0.0:
-        problems.append(("resolution", resolution, "a number > 0 (metres per pixel)"))
+    res = MAP_BOUNDS["resolution"]
+    resolution = _number(data, "resolution", problems, f"a number from {res.lo:g} to {res.hi:g} "
+                         f"{res.unit} per pixel ({res.reason})", res.lo, res.hi)
     origin = data.get("origin")
+    coordinate = SCENARIO_BOUNDS["map.coordinate"]
     if (not isinstance(origin, (list, tuple)) or len(origin) != 3
             or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                        and math.isfinite(v) for v in origin)):
         problems.append(("origin", origin, "[x, y, yaw]: the pose of the lower-left pixel "
                                            "(m, m, rad)"))
+    elif not all(coordinate.contains(v) for v in origin[:2]):
+        problems.append(("origin", origin, f"[x, y, yaw] with x and y from {coordinate.lo:g} to "
+                                           f"{coordinate.hi:g} m ({coordinate.reason})"))
     occupied = _number(data, "occupied_thresh", problems, "a number from 0 to 1", 0.0, 1.0)
     free = _number(data, "free_thresh", problems, "a number from 0 to 1", 0.0, 1.0)
     if occupied is not None and free is not None and free >= occupied:
@@ -449,10 +490,10 @@ def read_map_yaml(path) -> dict:
     if negate not in (0, 1) or isinstance(negate, float):
         problems.append(("negate", negate, "0 or 1 (true or false)"))
     mode = data.get("mode", "trinary")
-    if mode not in MAP_MODES:
+    if not isinstance(mode, str) or mode not in MAP_MODES:
         problems.append(("mode", mode, f"one of {', '.join(MAP_MODES)}"))
     if problems:
-        raise MapError(str(path), problems)
+        raise fail(problems)
     image_path = Path(image.strip()).expanduser()
     if not image_path.is_absolute():
         image_path = path.parent / image_path
@@ -463,16 +504,25 @@ def read_map_yaml(path) -> dict:
 
 def _read_pixels(image_path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None]:
     """Grey levels (H, W) in 0..255 (colour channels averaged) and the alpha channel (or None)
-    of an image file; MapError ``image`` if it is missing or cannot be decoded."""
+    of an image file; MapError ``image`` if it is missing, cannot be decoded, or has more than
+    :data:`~pushtrain.planner.distance_field.MAX_CELLS` pixels (read from its header, before
+    any pixel is decoded)."""
+    import warnings
+
     from PIL import Image, UnidentifiedImageError
 
     name = str(image_path)
+    too_many = f"at most {MAX_CELLS} pixels (5000 x 5000: the distance field's cell limit)"
     try:
-        with Image.open(image_path) as im:
+        with warnings.catch_warnings():
+            # Pillow's own limit (89 M pixels, 179 M refused) is above ours, checked below
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im = Image.open(image_path)
+        with im:
             width, height = im.size
             if width * height > MAX_CELLS:
-                raise MapError(source, [("image", name, f"{width} x {height} pixels: at most "
-                                                        f"{MAX_CELLS} are supported")])
+                raise MapError(source, [("image", name, f"{width} x {height} pixels (its "
+                                                        f"header says): {too_many}")])
             im.load()
             mode = im.mode
             if mode in ("P", "PA"):
@@ -482,11 +532,18 @@ def _read_pixels(image_path: Path, source: str) -> tuple[np.ndarray, np.ndarray 
                 im = im.convert("L")
                 mode = "L"
             pixels = np.asarray(im)
+    except MapError:
+        raise
+    except Image.DecompressionBombError as exc:  # its header: more than 179 M pixels
+        size = re.search(r"\((\d+) pixels\)", str(exc))
+        size = f"{size.group(1)} pixels" if size else "more than 179 M pixels"
+        raise MapError(source, [("image", name, f"{size} (its header says): "
+                                                f"{too_many}")]) from None
     except FileNotFoundError:
         raise MapError(source, [("image", name, "no such file (a relative image path is "
                                                 "relative to the YAML file)")]) from None
-    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
-        why = getattr(exc, "strerror", None) or exc
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError) as exc:
+        why = clip_text(getattr(exc, "strerror", None) or exc)
         raise MapError(source, [("image", name, f"cannot be read as an image: {why}")]) from None
     pixels = np.asarray(pixels, dtype=float)
     if mode in ("I;16", "I;16B", "I;16L", "I"):

@@ -5,7 +5,8 @@ with the reason for its range. The FMU's ``min``/``max`` attributes and the C co
 ``fmi2ExitInitializationMode`` are generated from this table (``fmu/variables.py``,
 ``fmu/build.py``), and the scenario model (``mission/scenario.py``) checks the same ranges.
 :data:`SCENARIO_BOUNDS` adds the scenario settings that are not FMU parameters (the step,
-the horizon, body sizes, speed limits, gains, map coordinates).
+the horizon, body sizes, speed limits, gains, map coordinates); :data:`MAP_BOUNDS` and
+:data:`MAP_YAML_BYTES` bound what a map file may hold.
 Per-trailer parameters (``front``, ``mass``, ...) have one bound for every element.
 
 A bound says what is physically plausible for this model, not what the numerics can handle; the
@@ -17,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["BOUNDS", "Bound", "check"]
+__all__ = ["BOUNDS", "Bound", "check", "MAP_BOUNDS", "MAP_YAML_BYTES"]
 
 
 @dataclass(frozen=True)
@@ -116,6 +117,23 @@ SCENARIO_BOUNDS: dict[str, Bound] = {
 }
 """Scenario settings that are not FMU parameters; the scenario model checks them with
 :data:`BOUNDS`."""
+
+MAP_BOUNDS: dict[str, Bound] = {
+    bound.name: bound
+    for bound in (
+        # Fields of map files (a map_server YAML, a DXF floor plan); the scenario's own map
+        # coordinates are bounded by SCENARIO_BOUNDS["map.coordinate"], and so are the origin
+        # of a map_server map and every coordinate of a floor plan.
+        Bound("resolution", 1e-3, 10.0, "m",
+              "no floor scan or drawing is finer than 1 mm a pixel, and at over 10 m one pixel "
+              "swallows a room"),
+    )
+}
+"""Fields of map files, named as the file names them."""
+
+MAP_YAML_BYTES = 1 << 20
+"""Largest map_server YAML file read [bytes] (1 MiB): map_saver writes about 150 bytes, and a
+larger file is refused before it is parsed."""
 
 
 def check(name: str, value) -> str | None:

@@ -10,7 +10,42 @@ from __future__ import annotations
 
 from pushtrain.errors import FieldErrors
 
-__all__ = ["field_errors", "read_toml", "validate_model"]
+__all__ = ["field_errors", "read_toml", "validate_model", "clipped", "clip_text",
+           "MAX_SHOWN_CHARS"]
+
+MAX_SHOWN_CHARS = 200
+"""Longest value or quoted text [characters] a message shows; the rest is counted, not shown."""
+
+
+class _Clipped:
+    """Stands for a value whose repr is too long to show: its repr is the clipped text."""
+
+    __slots__ = ("text",)
+
+    def __init__(self, text: str):
+        self.text = text
+
+    def __repr__(self) -> str:
+        return self.text
+
+
+def clip_text(text: str, limit: int = MAX_SHOWN_CHARS) -> str:
+    """``text`` cut to ``limit`` characters, saying how many were left out."""
+    text = str(text)
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text) - limit} more characters)"
+
+
+def clipped(value, limit: int = MAX_SHOWN_CHARS):
+    """``value`` itself if its repr has at most ``limit`` characters, else a stand-in whose repr
+    is the first ``limit`` of them and how many were left out (for (where, value, allowed)
+    problems: a message stays a few lines however large the bad value is)."""
+    try:
+        text = repr(value)
+    except RecursionError:
+        return _Clipped(f"<a {type(value).__name__} nested too deeply to show>")
+    return value if len(text) <= limit else _Clipped(clip_text(text, limit))
 
 
 def _is_branch(part) -> bool:

@@ -217,9 +217,9 @@ def test_warehouse_files_are_what_the_script_writes(tmp_path):
 
 # ------------------------------------------------------------------------------ bad files
 BAD_YAML = {
-    "resolution_zero": ({"resolution": 0}, "resolution", "> 0"),
-    "resolution_negative": ({"resolution": -0.05}, "resolution", "> 0"),
-    "resolution_text": ({"resolution": "fine"}, "resolution", "> 0"),
+    "resolution_zero": ({"resolution": 0}, "resolution", "from 0.001 to 10 m"),
+    "resolution_negative": ({"resolution": -0.05}, "resolution", "from 0.001 to 10 m"),
+    "resolution_text": ({"resolution": "fine"}, "resolution", "from 0.001 to 10 m"),
     "occupied_above_1": ({"occupied_thresh": 1.5}, "occupied_thresh", "from 0 to 1"),
     "free_below_0": ({"free_thresh": -0.1}, "free_thresh", "from 0 to 1"),
     "free_not_below_occupied": ({"free_thresh": 0.7}, "free_thresh", "less than occupied_thresh"),

@@ -166,7 +166,7 @@ BAD_MAPS = {
     "missing_image": ({"image": "nothere.pgm"}, None, None,
                       ["map.grid (room.yaml) image", "nothere.pgm", "no such file"]),
     "resolution_zero": ({"resolution": 0}, None, None,
-                        ["map.grid (room.yaml) resolution", "0", "> 0"]),
+                        ["map.grid (room.yaml) resolution", "0", "from 0.001 to 10 m"]),
     "resolution_negative": ({"resolution": -0.05}, None, None, ["resolution", "-0.05"]),
     "occupied_thresh": ({"occupied_thresh": 1.2}, None, None,
                         ["occupied_thresh", "1.2", "from 0 to 1"]),
