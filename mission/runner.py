@@ -445,7 +445,8 @@ def check_start_in_map(sc: Scenario) -> None:
             if why is not None:
                 problems.append((name, f"({pose.x}, {pose.y})",
                                  f"must lie on a free cell of the map: {why}"))
-        elif not world.contains_point(pose.x, pose.y):
-            problems.append((name, f"({pose.x}, {pose.y})", "must lie in the map's free space"))
+        elif (why := world.why_not_free(pose.x, pose.y)) is not None:
+            problems.append((name, f"({pose.x}, {pose.y})",
+                             f"must lie in the map's free space: {why}"))
     if problems:
         raise ScenarioError(sc.name, problems)

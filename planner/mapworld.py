@@ -94,23 +94,35 @@ def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=
     """
     from .world import World, _polygon
 
-    outline = None
-    if free is not None or bounds is not None:
-        spec = {"free": free} if free is not None else {"bounds": bounds}
-        outline = World.from_dict(spec).outline
-    extra = [_polygon(p, f"map.{name}[{k}]") for name, items in (("obstacles", obstacles),
-                                                                   ("walls", walls))
-             for k, p in enumerate(items)]
+    outline, outline_label = None, ""
+    if free is not None:
+        outline, outline_label = _polygon(free, "map.free", outline=True), "map.free"
+    elif bounds is not None:
+        outline, outline_label = World.from_dict({"bounds": bounds}).outline, "map.bounds"
+    extra, labels = [], []
+    for name, items in (("obstacles", obstacles), ("walls", walls)):
+        for k, p in enumerate(items):
+            extra.append(_polygon(p, f"map.{name}[{k}]"))
+            labels.append(f"map.{name}[{k}]")
     if dxf is not None:
         from .dxf import DEFAULT_LINE_THICKNESS, read_dxf
 
+        thickness = line_thickness or DEFAULT_LINE_THICKNESS
         try:
-            plan = read_dxf(dxf, layers, line_thickness or DEFAULT_LINE_THICKNESS, dxf_units)
+            plan = read_dxf(dxf, layers, thickness, dxf_units)
         except MapError as exc:
             raise _prefixed(exc, "dxf", ("layers", "line_thickness", "dxf_units")) from None
         extra += plan.obstacles
+        name = Path(dxf).name
         if outline is None and grid is None:
-            outline = box(*plan.bounds)
+            outline, outline_label = box(*plan.bounds), f"the extent of {name}"
+        how = (f"free space is {outline_label or 'the map'} minus what layers "
+               f"{', '.join(plan.counts)} hold: closed shapes (polylines, circles, ...) are "
+               f"solid, lines and open polylines walls {thickness:g} m thick")
+        room = ("; draw a room's walls as lines or an open polyline, or put its outline on a "
+                "layer map.layers does not name")
+        labels += [f"{source} of {name} ({how}{room if source.startswith('the closed') else ''})"
+                   for source in plan.sources]
     if grid is not None:
         try:
             occupancy = load_map(grid)
@@ -120,4 +132,4 @@ def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=
     if outline is None:
         raise MapError("<map>", [("map", None, "give free (an outline), bounds, grid (a "
                                                "map_server YAML) or dxf (a floor plan)")])
-    return World(outline, tuple(extra))
+    return World(outline, tuple(extra), labels=tuple(labels), outline_label=outline_label)

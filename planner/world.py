@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import threading
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
@@ -22,6 +23,7 @@ import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
+from shapely.validation import explain_validity
 
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.errors import PlanningInputError
@@ -36,8 +38,12 @@ log = logging.getLogger(__name__)
 _WORLD_KEYS = ("free", "obstacles", "walls", "bounds")
 
 
-def _polygon(points: Any, field_name: str) -> Polygon:
-    """A valid shapely polygon from a list of [x, y] points [m]; PlanningInputError otherwise."""
+def _polygon(points: Any, field_name: str, outline: bool = False) -> Polygon:
+    """A valid shapely polygon from a list of [x, y] points [m]; PlanningInputError otherwise.
+
+    A polygon that crosses or touches itself is an error if it is the free space's ``outline``
+    (the message says where, by shapely's ``explain_validity``); an obstacle is repaired with
+    ``make_valid`` (the areas it encloses) and a warning."""
     try:
         arr = np.asarray(points, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -51,6 +57,14 @@ def _polygon(points: Any, field_name: str) -> Polygon:
     if not np.all(np.isfinite(arr)):
         raise PlanningInputError(f"{field_name} contains non-finite coordinates")
     poly = Polygon(arr)
+    if not poly.is_valid and outline:
+        reason = explain_validity(poly)  # e.g. "Self-intersection[7 0]"
+        place = re.fullmatch(r"(.*)\[(\S+) (\S+)\]", reason)
+        if place:
+            reason = f"{place[1].lower()} at ({float(place[2]):g}, {float(place[3]):g}) m"
+        raise PlanningInputError(
+            f"{field_name} is not a simple polygon ({reason}): the outline of the free space "
+            "must not cross or touch itself")
     if not poly.is_valid:
         fixed = shapely.make_valid(poly)
         polys = [
@@ -84,6 +98,11 @@ class World:
     free: Any = field(default=None, repr=False)
     """The free space: ``outline`` minus ``obstacles``, computed unless given (a caller that has
     it cheaper, e.g. a traced occupancy grid whose thousands of disjoint pieces need no union)."""
+    labels: tuple = field(default=(), repr=False)
+    """What each obstacle is, for messages (``"map.obstacles[2]"``, ``"the closed LWPOLYLINE
+    (handle 2F) on layer WALLS of floor.dxf"``), in the order of ``obstacles``; may be shorter."""
+    outline_label: str = field(default="", repr=False)
+    """What the outline is, for messages (``"map.free"``, ``"the drawing's extent"``)."""
     _fields: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self):
@@ -134,7 +153,7 @@ class World:
         if unknown:
             raise PlanningInputError(f"world has unknown keys {unknown}: allowed are {_WORLD_KEYS}")
         if "free" in data:
-            outline = _polygon(data["free"], "world.free")
+            outline = _polygon(data["free"], "world.free", outline=True)
         elif "bounds" in data:
             b = np.asarray(data["bounds"], dtype=float).reshape(-1)
             if b.size != 4 or not np.all(np.isfinite(b)) or b[2] <= b[0] or b[3] <= b[1]:
@@ -239,14 +258,33 @@ class World:
         any other is dropped, and the copy's distance field comes from its polygons."""
         grid = self.occupancy
         if grid is None or not hasattr(grid, "burn"):
-            return World(self.outline, tuple(self.obstacles) + tuple(extra))
+            return World(self.outline, tuple(self.obstacles) + tuple(extra),
+                         labels=self.labels, outline_label=self.outline_label)
         free = self.free.difference(unary_union(list(extra))) if extra else self.free
         return World(self.outline, tuple(self.obstacles) + tuple(extra),
-                     occupancy=grid.burn(tuple(extra)), free=free)
+                     occupancy=grid.burn(tuple(extra)), free=free, labels=self.labels,
+                     outline_label=self.outline_label)
 
     def contains_point(self, x: float, y: float) -> bool:
         """Whether (x, y) [m] lies in the free space."""
         return bool(self.free.contains(Point(float(x), float(y))))
+
+    def why_not_free(self, x: float, y: float) -> str | None:
+        """None if (x, y) [m] lies in the free space, else why not: outside the outline, or
+        inside an obstacle, named by :attr:`labels` (the first that holds the point)."""
+        point = Point(float(x), float(y))
+        if self.free.contains(point):
+            return None
+        where = f"({x:g}, {y:g}) m"
+        if not self.outline.contains(point):
+            xmin, ymin, xmax, ymax = self.outline.bounds
+            return (f"{where} lies outside {self.outline_label or 'the outline'} (x from "
+                    f"{xmin:g} to {xmax:g} m, y from {ymin:g} to {ymax:g} m)")
+        for k, obstacle in enumerate(self.obstacles):
+            if obstacle.intersects(point):
+                label = self.labels[k] if k < len(self.labels) else f"obstacle {k}"
+                return f"{where} lies inside {label}"
+        return f"{where} lies on the edge of the free space"
 
     # ------------------------------------------------------------------ drawing
     def plot(self, ax, free_color: str = "#f4f4f4", obstacle_color: str = "#606060"):
