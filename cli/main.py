@@ -21,6 +21,7 @@ from .commands.plan_and_run import plan_and_run
 from .commands.run import run_cmd
 from .commands.slip_study import slip_study_cmd
 from .commands.validate import validate_cmd
+from .commands.view import view_cmd
 from .logs import to_stderr
 from .sweep import sweep_cmd
 
@@ -43,7 +44,7 @@ def cli(ctx: click.Context, verbose: int):
 
 
 for _command in (plan_and_run, plan_cmd, run_cmd, build_fmu_cmd, analyze_cmd, validate_cmd,
-                 slip_study_cmd, export_ssp_cmd):
+                 slip_study_cmd, export_ssp_cmd, view_cmd):
     cli.add_command(_command)
 cli.add_command(sweep_cmd)
 

@@ -39,14 +39,16 @@ from pathlib import Path
 
 import numpy as np
 
-from pushtrain.report import GIF_FILE, PNG_FILES  # names only: no matplotlib here
+from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES  # names only: no matplotlib here
 
-__all__ = ["PNG_FILES", "GIF_FILE", "PlotProblem", "PlotWorkers", "InlinePlotter", "plotter",
+__all__ = ["PNG_FILES", "GIF_FILE", "HTML_FILE", "footprints_of", "keep_out_of", "PlotProblem",
+           "PlotWorkers", "InlinePlotter", "plotter",
            "SILENCE_LIMIT_S"]
 
 log = logging.getLogger(__name__)
 
-_ORDER = (GIF_FILE, "inputs_joints.png", "tracking_error.png", "map.png", "lateral_forces.png")
+_ORDER = (GIF_FILE, "inputs_joints.png", "tracking_error.png", "map.png", "lateral_forces.png",
+          HTML_FILE)
 """The order in which the files are handed out: the slowest first, so that two processes end
 at about the same time."""
 
@@ -79,24 +81,42 @@ class _Run:
     footprints: dict
     path_xy: np.ndarray | None  # the planned path of the last trailer [m]
     status: str | None
+    summary: dict | None = None  # the run's summary (for report.html)
+    phi_max_deg: float | None = None  # the joint limit drawn on the joint plots [deg]
+    keep_out: float | None = None  # the clearance whose band report.html draws [m]
 
 
 def _run_of(sc, out_dir, result, path) -> _Run:
     from pushtrain.mission.runner import geometry_of, world_of
 
     t = sc.train
-    return _Run(Path(out_dir), t.n, world_of(sc), geometry_of(sc),
-                {"robot": (t.robot_size.length, t.robot_size.width),
-                 "trailer": (t.trailer_size.length, t.trailer_size.width)},
+    return _Run(Path(out_dir), t.n, world_of(sc), geometry_of(sc), footprints_of(sc),
                 None if path is None else np.ascontiguousarray(path.poses[:, :2]),
-                getattr(result, "status", None))
+                getattr(result, "status", None), getattr(result, "summary", None),
+                t.phi_max_deg, keep_out_of(sc))
+
+
+def footprints_of(sc) -> dict:
+    """The body rectangles (length, width) [m] of ``sc``'s train, as the pictures take them."""
+    t = sc.train
+    return {"robot": (t.robot_size.length, t.robot_size.width),
+            "trailer": (t.trailer_size.length, t.trailer_size.width)}
+
+
+def keep_out_of(sc) -> float | None:
+    """The clearance [m] the planner kept from the walls (the largest, if per body)."""
+    clearance = getattr(getattr(sc, "planner", None), "clearance", None)
+    if sc.map is None or clearance is None:
+        return None
+    return float(max(clearance)) if isinstance(clearance, list) else float(clearance)
 
 
 def _draw(name: str, data, run: _Run) -> Path:
     from pushtrain.report.plots import plot_file
 
     return plot_file(name, data, run.n, run.out_dir, world=run.world, path_xy=run.path_xy,
-                     footprints=run.footprints, geometry=run.geometry, status=run.status)
+                     footprints=run.footprints, geometry=run.geometry, status=run.status,
+                     summary=run.summary, phi_max_deg=run.phi_max_deg, keep_out=run.keep_out)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -469,7 +489,7 @@ def plotter(sc, *, plots: bool = True, gif: bool = True, processes: int | None =
     if not plots:
         yield None
         return
-    files = PNG_FILES + ((GIF_FILE,) if gif else ())
+    files = PNG_FILES + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)
     if processes is None:
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
         processes = max(1, min(MAX_PROCESSES, cores))

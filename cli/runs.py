@@ -25,7 +25,7 @@ log = logging.getLogger(__name__)
 
 def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = None):
     """Plan ``sc``'s path (as phase ``plan`` of ``phases``, if given); on a PlanningError save
-    ``planning_failure.png`` in ``out_dir`` (if given) and re-raise it."""
+    ``planning_failure.png`` and ``report.html`` in ``out_dir`` (if given) and re-raise it."""
     from pushtrain.errors import PlanningError
     from pushtrain.mission.runner import plan_path
 
@@ -36,6 +36,7 @@ def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = Non
     except PlanningError as exc:
         if out_dir is not None:
             _save_diagnostic(sc, out_dir / "planning_failure.png", exc)
+            _save_failure_page(sc, out_dir / "report.html", exc)
         raise
     log.info("planned %d segments, %.2f m, %d cusps in %.2f s", len(path.segments), path.length,
              path.n_cusps, time.perf_counter() - t0)
@@ -56,6 +57,26 @@ def _save_diagnostic(sc: Scenario, png: Path, exc=None) -> None:
                         failure=getattr(exc, "details", None))
     except Exception as err:  # the diagnosis must not hide the planning error
         log.warning("could not save the diagnostic picture: %s", err)
+
+
+def _save_failure_page(sc: Scenario, page: Path, exc) -> None:
+    """``report.html`` of a failed plan: the search tree, the best partial plan, the route and
+    its bottleneck (:func:`pushtrain.report.html.plot_failure_report`)."""
+    from pushtrain.mission.runner import world_of
+    from pushtrain.report.html import plot_failure_report
+
+    from .plotting import footprints_of, keep_out_of
+
+    try:
+        plot_failure_report(
+            sc.train.n, getattr(exc, "details", None) or {}, page, world=world_of(sc),
+            footprints=footprints_of(sc),
+            start=(sc.start.x, sc.start.y, math.radians(sc.start.theta_deg)),
+            goal=(sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg)),
+            message=str(exc), reason=getattr(exc, "reason", None),
+            keep_out=keep_out_of(sc))
+    except Exception as err:  # the page must not hide the planning error
+        log.warning("could not save the failure page: %s", err)
 
 
 def write_path(path, target: Path) -> None:
@@ -141,7 +162,7 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
     """
     from pushtrain.mission.runner import run_scenario, save_results
 
-    from .plotting import GIF_FILE, PNG_FILES
+    from .plotting import GIF_FILE, HTML_FILE, PNG_FILES
     from .plotting import plotter as start_plotter
 
     with contextlib.ExitStack() as stack:
@@ -156,9 +177,10 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
             save_results(result, out_dir, csv=csv)
         problems = []
         if plots:  # one phase: the plot processes draw the GIF beside the plots
-            what = f"plotting {', '.join(PNG_FILES)}" + (f" and {GIF_FILE}" if gif else "")
+            files = PNG_FILES + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)
+            what = f"plotting {', '.join(files[:-1])} and {files[-1]}"
             with _phase(phases, "plots", what):
-                problems += plotter.wait(PNG_FILES + ((GIF_FILE,) if gif else ()))
+                problems += plotter.wait(files)
             plotter.close()  # the plot processes end (and log their peak memory in run.log)
     if phases is not None:
         phases.done()

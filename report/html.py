@@ -1,0 +1,273 @@
+"""``report.html``: one self-contained page of a run (or of a failed plan) to open in a browser.
+
+The page shows the map (walls, keep-out band, planned path, reference, traces) with the train
+drawn at its real size at the time a slider picks (play/pause, 0.25x-8x), zoom and pan on the
+map, the time series with a cursor that follows the slider (a click on a plot moves the train to
+that time) and the summary as a table. For a failed plan it shows the search tree, the best
+partial plan, the failure points and the bottleneck instead of a run.
+
+Why a small canvas renderer of our own (``web/report.js``) rather than a plotting library:
+the page must hold a run in at most 5 MB with no network; Plotly's offline bundle alone is
+about 3.5 MB, and drawing a few rectangles and polylines per frame needs nothing it offers.
+The renderer is about 500 lines of plain JavaScript with no dependencies.
+
+The map is embedded as a PNG picture of the free space (drawn by the map's own
+:meth:`~pushtrain.planner.world.World.plot`, so occupancy grids and polygons look as in
+``map.png``) with its extent in metres; everything else is vector data. The time series are
+decimated for the view to at most ``max_rows`` rows (every k-th row of the results, so each
+drawn pose is a row of ``results.npz`` exactly); ``results.npz`` itself is never decimated.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from pushtrain.files import atomic_write_text
+from pushtrain.report.common import check_n
+from pushtrain.report.geometry import DEFAULT_FOOTPRINTS
+
+__all__ = ["HTML_FILE", "MAX_ROWS", "run_payload", "failure_payload", "write_html",
+           "plot_report", "plot_failure_report"]
+
+HTML_FILE = "report.html"
+MAX_ROWS = 4000
+"""Most rows of the results the page carries (the view's decimation)."""
+MAP_PIXELS = 2400
+"""Longest side of the map's picture [px] (cells of real maps stay visible up to 1/20 m)."""
+MAX_OUTLINE_POINTS = 60_000
+"""Most points of the keep-out band drawn (a band of more points is left out, and said so)."""
+
+
+def _rounded(a, digits: int = 4) -> list:
+    """``a`` as a JSON-ready list, rounded, with non-finite values as None."""
+    a = np.round(np.asarray(a, dtype=float), digits)
+    return [None if not math.isfinite(v) else v for v in a.tolist()]
+
+
+def _map_picture(world, pixels: int = MAP_PIXELS) -> dict:
+    """The map drawn by its own ``plot`` into a PNG (base64) with its extent [m]."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    xmin, ymin, xmax, ymax = world.outline.bounds
+    if world.occupancy is not None and hasattr(world.occupancy, "plot"):
+        xmin, ymin, xmax, ymax = world.bounds
+    pad = 0.05 * max(xmax - xmin, ymax - ymin, 1e-9)
+    extent = [xmin - pad, xmax + pad, ymin - pad, ymax + pad]
+    w_m, h_m = extent[1] - extent[0], extent[3] - extent[2]
+    scale = pixels / max(w_m, h_m)
+    width, height = max(1, round(w_m * scale)), max(1, round(h_m * scale))
+    fig = Figure(figsize=(width / 100.0, height / 100.0), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    world.plot(ax)
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("auto")
+    ax.set_axis_off()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    return {"png": base64.b64encode(buf.getvalue()).decode("ascii"), "extent": extent}
+
+
+def _keep_out(world, margin: float | None) -> dict | None:
+    """The free space shrunk by ``margin`` [m] as rings of points, or None."""
+    if world is None or not margin or margin <= 0.0:
+        return None
+    band = world.eroded(margin).simplify(0.01)
+    rings = []
+    for poly in getattr(band, "geoms", [band]):
+        if poly.is_empty or not hasattr(poly, "exterior"):
+            continue
+        for ring in [poly.exterior, *poly.interiors]:
+            rings.append(np.asarray(ring.coords))
+    total = sum(len(r) for r in rings)
+    if total > MAX_OUTLINE_POINTS:
+        return {"margin": margin, "rings": [], "omitted": total}
+    return {"margin": margin, "rings": [[_rounded(r[:, 0], 3), _rounded(r[:, 1], 3)]
+                                        for r in rings]}
+
+
+def _base(n: int, world, footprints, keep_out, title: str) -> dict:
+    fp = dict(DEFAULT_FOOTPRINTS)
+    fp.update(footprints or {})
+    return {"format": "pushtrain-report", "version": 1, "title": title, "n": n,
+            "footprints": {k: [float(v[0]), float(v[1])] for k, v in fp.items()},
+            "map": None if world is None else _map_picture(world),
+            "keep_out": _keep_out(world, keep_out)}
+
+
+def _rows(length: int, max_rows: int) -> np.ndarray:
+    """Every k-th row (k the smallest that keeps at most ``max_rows``) and the last one."""
+    step = max(1, math.ceil(length / max(2, max_rows - 1)))
+    rows = np.arange(0, length, step)
+    if rows[-1] != length - 1:
+        rows = np.append(rows, length - 1)
+    return rows
+
+
+def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, status=None,
+                summary: dict | None = None, phi_max_deg: float | None = None,
+                keep_out: float | None = None, max_rows: int = MAX_ROWS,
+                title: str | None = None) -> dict:
+    """What the page of a co-simulation run shows, as plain data.
+
+    ``data`` is ``Result.data`` (columns as in ``master._columns(n)``); ``world`` the map or
+    None; ``path_xy`` (N, 2) the planned path of the last trailer [m]; ``footprints`` as in
+    :func:`~pushtrain.report.plots.plot_map`; ``phi_max_deg`` the joint limit drawn on the
+    joint plot; ``keep_out`` the clearance [m] whose band is drawn.
+    """
+    n = check_n(n)
+    names = set(data.dtype.names)
+    rows = _rows(len(data), max_rows)
+
+    def col(name):
+        return _rounded(np.asarray(data[name], dtype=float)[rows])
+
+    t = col("t")
+    bodies = [{"x": col(f"x{i}"), "y": col(f"y{i}"), "theta": col(f"theta{i}")}
+              for i in range(n + 1)]
+    series = []
+
+    def panel(key, title, unit, lines, limits=()):
+        series.append({"key": key, "title": title, "unit": unit, "lines": lines,
+                       "limits": list(limits)})
+
+    def line(name, values, style="solid", color=None):
+        return {"name": name, "y": values, "style": style, "color": color}
+
+    deg = 180.0 / math.pi
+    if {"v0", "v_cmd"} <= names:
+        panel("speed", "Robot speed", "m/s",
+              [line("v robot", col("v0"), color="#d62728"),
+               line("v commanded", col("v_cmd"), "dashed", "#111111")])
+    if {"w0", "w_cmd"} <= names:
+        panel("yaw_rate", "Robot yaw rate", "rad/s",
+              [line("w robot", col("w0"), color="#d62728"),
+               line("w commanded", col("w_cmd"), "dashed", "#111111")])
+    phis = [line(f"phi{i}", _rounded(np.asarray(data[f"phi{i}"], float)[rows] * deg, 3))
+            for i in range(1, n + 1) if f"phi{i}" in names]
+    if phis:
+        limits = []
+        if phi_max_deg:
+            limits = [{"name": f"joint limit ±{phi_max_deg:g} deg", "y": float(phi_max_deg)},
+                      {"name": None, "y": -float(phi_max_deg)}]
+        panel("joints", "Joint angles", "deg", phis, limits)
+    if "e_lat" in names:
+        panel("lateral", "Lateral tracking error (last trailer)", "cm",
+              [line("lateral error", _rounded(np.asarray(data["e_lat"], float)[rows] * 100, 3))])
+    if "e_theta" in names:
+        panel("heading", "Heading tracking error (last trailer)", "deg",
+              [line("heading error",
+                    _rounded(np.asarray(data["e_theta"], float)[rows] * deg, 3))])
+    ratios = []
+    for i in range(1, n + 1):
+        if {f"F_lat{i}", f"F_lat_max{i}"} <= names:
+            f = np.abs(np.asarray(data[f"F_lat{i}"], float)[rows])
+            fmax = np.asarray(data[f"F_lat_max{i}"], float)[rows]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratios.append(line(f"trailer {i}", _rounded(np.where(fmax > 0, f / fmax,
+                                                                     np.nan), 4)))
+    if ratios:
+        panel("force", "Lateral wheel force / friction limit", "-", ratios,
+              [{"name": "friction limit (slip above)", "y": 1.0}])
+    out = _base(n, world, footprints, keep_out,
+                title or f"Robot with {n} trailer{'s' if n > 1 else ''}"
+                + (f": {status.replace('_', ' ')}" if status else ""))
+    out.update({
+        "kind": "run", "status": status, "rows": rows.tolist(), "t": t, "bodies": bodies,
+        "reference": ({"x": col("x_d"), "y": col("y_d")} if {"x_d", "y_d"} <= names
+                      else None),
+        "path": None if path_xy is None else [_rounded(np.asarray(path_xy)[:, 0]),
+                                              _rounded(np.asarray(path_xy)[:, 1])],
+        "series": series, "summary": summary or {},
+    })
+    return out
+
+
+def failure_payload(n: int, details: dict, *, world=None, footprints=None, start=None,
+                    goal=None, message: str = "", reason: str | None = None,
+                    keep_out: float | None = None) -> dict:
+    """What the page of a failed plan shows: ``details`` is a PlanningError's ``details``
+    (``tree``, ``closest``, ``failure_points``, ``bottleneck``, ``route``); ``start`` and
+    ``goal`` are the last trailer's poses (x, y, theta); ``message`` and ``reason`` the
+    error's."""
+    n = check_n(n)
+    details = details or {}
+    tree = []
+    for trace in details.get("tree") or []:
+        xy = np.asarray(trace, dtype=float)
+        if xy.ndim == 2 and xy.shape[0] > 1:
+            tree.append([_rounded(xy[:, 0], 3), _rounded(xy[:, 1], 3)])
+    partial = None
+    closest = details.get("closest") or {}
+    if closest.get("segments") and start is not None:
+        from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+
+        segs = [Segment(g["kind"], g["length"], g["curvature"],
+                        PULL if g["direction"] == "pull" else PUSH)
+                for g in closest["segments"]]
+        ref = Reference.from_segments(tuple(start[:3]), segs, speed=1.0, cusp_dwell=0.0)
+        s = np.linspace(0.0, ref.t_end, max(2, int(ref.t_end / 0.02)))
+        x, y, _, _, _ = ref.sample(s)
+        partial = [_rounded(x), _rounded(y)]
+    train = None
+    if closest.get("x") is not None:
+        train = {"x": _rounded(closest["x"]), "y": _rounded(closest["y"]),
+                 "theta": _rounded(closest["headings"])}
+    route = details.get("route") or {}
+    bottleneck = details.get("bottleneck") or route.get("bottleneck")
+    out = _base(n, world, footprints, keep_out, f"Planning failed with {n} trailer"
+                f"{'s' if n > 1 else ''}")
+    out.update({
+        "kind": "failure", "status": "no_plan", "message": message,
+        "tree": tree, "partial": partial, "train": train,
+        "route": ([_rounded(np.asarray(route["points"])[:, 0]),
+                   _rounded(np.asarray(route["points"])[:, 1])]
+                  if route.get("points") else None),
+        "bottleneck": bottleneck,
+        "failure_points": [{"x": p["x"], "y": p["y"], "kind": p.get("kind", "collision"),
+                            "body": p.get("body")}
+                           for p in (details.get("failure_points") or [])],
+        "start": None if start is None else [float(v) for v in start[:3]],
+        "goal": None if goal is None else [float(v) for v in goal[:3]],
+        "summary": {"status": "no_plan", "reason": reason or details.get("reason"),
+                    "impossible here": bool(details.get("impossible")),
+                    "message": message},
+    })
+    return out
+
+
+def _asset(name: str) -> str:
+    return resources.files("pushtrain.report").joinpath("web", name).read_text("utf-8")
+
+
+def write_html(path, payload: dict) -> Path:
+    """Write the page of ``payload`` to ``path`` atomically: one file, scripts, styles and
+    data inlined (no network)."""
+    data = json.dumps(payload, separators=(",", ":"), allow_nan=False)
+    data = data.replace("</", "<\\/")  # the JSON cannot end its <script> element
+    title = payload.get("title", "pushtrain run").replace("&", "&amp;").replace("<", "&lt;")
+    page = (_asset("report.html")
+            .replace("{{TITLE}}", title)
+            .replace("{{CSS}}", _asset("report.css"))
+            .replace("{{DATA}}", data)
+            .replace("{{JS}}", _asset("report.js")))
+    return atomic_write_text(Path(path), page)
+
+
+def plot_report(data, n: int, out_path, **kwargs) -> Path:
+    """:func:`run_payload` of ``data`` written to ``out_path`` (see :func:`write_html`)."""
+    return write_html(out_path, run_payload(data, n, **kwargs))
+
+
+def plot_failure_report(n: int, details: dict, out_path, **kwargs) -> Path:
+    """:func:`failure_payload` written to ``out_path``."""
+    return write_html(out_path, failure_payload(n, details, **kwargs))

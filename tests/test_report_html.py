@@ -1,0 +1,261 @@
+"""report.html: the run's page, in a real browser (headless Debian chromium via selenium).
+
+The browser tests are marked ``browser``; where no browser or driver can be started they are
+skipped, and the skip says why (``.ci/run`` installs chromium and chromium-driver).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pushtrain.report.html import MAX_ROWS, run_payload
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SLIT = """
+name = "slit"
+[mission]
+kind = "plan"
+[train]
+n = 2
+[map]   # two rooms joined by a 0.5 m slit: a 0.6 m trailer cannot pass
+free = [[0, 0], [5, 0], [5, 1.75], [6, 1.75], [6, 0], [11, 0], [11, 4], [6, 4], [6, 2.25],
+        [5, 2.25], [5, 4], [0, 4]]
+[start]
+x = 3.0
+y = 2.0
+theta_deg = 180.0
+[goal]
+x = 9.0
+y = 2.0
+theta_deg = 180.0
+"""
+
+
+def _cli(*args, cwd=None):
+    exe = Path(sys.executable).with_name("pushtrain")
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, cwd=cwd,
+                          timeout=600)
+
+
+@pytest.fixture(scope="module")
+def corridor_run(tmp_path_factory):
+    """plan-and-run of the bundled L corridor: its run folder."""
+    out = tmp_path_factory.mktemp("report") / "l_corridor"
+    proc = _cli("plan-and-run", str(ROOT / "examples" / "l_corridor.toml"), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def failed_plan(tmp_path_factory):
+    """plan-and-run of a mission through a slit narrower than the trailer: its run folder."""
+    base = tmp_path_factory.mktemp("slit")
+    (base / "slit.toml").write_text(SLIT)
+    proc = _cli("plan-and-run", str(base / "slit.toml"), "--out", str(base / "run"))
+    assert proc.returncode == 1, proc.stdout + proc.stderr  # no plan: exit 1 (README)
+    return base / "run"
+
+
+def _payload(page: Path) -> dict:
+    text = page.read_text(encoding="utf-8")
+    m = re.search(r'<script type="application/json" id="report-data">(.*?)</script>', text, re.S)
+    return json.loads(m.group(1).replace("<\\/", "</"))
+
+
+# ---------------------------------------------------------------------- the file
+def test_every_run_folder_has_one_self_contained_page(corridor_run):
+    from pushtrain.mission.runner import load_results
+
+    page = corridor_run / "report.html"
+    text = page.read_text(encoding="utf-8")
+    assert page.stat().st_size <= 5_000_000  # the issue's limit for l_corridor
+    # nothing from the network: no http(s) source, link or import
+    assert not re.search(r"""(src|href)\s*=\s*["']?https?:""", text)
+    assert "@import" not in text and "fetch(" not in text
+    data = load_results(corridor_run)
+    payload = _payload(page)
+    rows = payload["rows"]
+    # the view is decimated, every shown sample is a row of results.npz, the last included
+    assert len(rows) <= MAX_ROWS and rows[0] == 0 and rows[-1] == len(data) - 1
+    assert np.allclose(payload["t"], data["t"][rows], atol=1e-4)
+    for i in range(4):
+        assert np.allclose(payload["bodies"][i]["x"], data[f"x{i}"][rows], atol=1e-4)
+    # results.npz itself is whole
+    assert len(data) > len(rows)
+    assert payload["summary"]["status"] == "goal_reached" == payload["status"]
+
+
+def test_the_joint_panel_carries_the_joint_limit_and_the_force_panel_the_friction_limit():
+    dtype = [(c, "f8") for c in ("t", "x0", "y0", "theta0", "x1", "y1", "theta1", "phi1",
+                                 "F_lat1", "F_lat_max1")]
+    data = np.zeros(50, dtype=dtype)
+    data["t"] = np.arange(50) * 0.1
+    data["phi1"] = np.radians(30.0)
+    data["F_lat1"] = -20.0
+    data["F_lat_max1"] = 40.0
+    payload = run_payload(data, 1, phi_max_deg=80.0)
+    panels = {p["key"]: p for p in payload["series"]}
+    assert [lm["y"] for lm in panels["joints"]["limits"]] == [80.0, -80.0]
+    assert panels["joints"]["lines"][0]["y"][0] == pytest.approx(30.0)
+    assert panels["force"]["lines"][0]["y"][0] == pytest.approx(0.5)  # |F| / limit
+    assert [lm["y"] for lm in panels["force"]["limits"]] == [1.0]
+
+
+def test_view_prints_the_page_where_no_browser_is_known(corridor_run, monkeypatch):
+    from click.testing import CliRunner
+
+    from pushtrain.cli.main import cli
+
+    monkeypatch.setenv("BROWSER", "")
+    monkeypatch.setattr("webbrowser._tryorder", [], raising=False)
+    monkeypatch.setattr("webbrowser._browsers", {}, raising=False)
+    monkeypatch.setattr("webbrowser.register_standard_browsers", lambda: None)
+    result = CliRunner().invoke(cli, ["view", str(corridor_run)])
+    assert result.exit_code == 0
+    assert result.output.strip() == str((corridor_run / "report.html").resolve())
+    bad = CliRunner().invoke(cli, ["view", str(corridor_run / "nothing")])
+    assert bad.exit_code == 2 and "RUN_DIR" in bad.output and "not a folder" in bad.output
+
+
+def test_a_failed_plan_leaves_a_page_with_its_bottleneck(failed_plan):
+    payload = _payload(failed_plan / "report.html")
+    assert payload["kind"] == "failure" and payload["summary"]["reason"] == "unreachable"
+    b = payload["bottleneck"]
+    assert 5.0 <= b["x"] <= 6.0 and b["width"] == pytest.approx(0.5, abs=0.1)
+
+
+# ---------------------------------------------------------------------- in a browser
+def _chromium():
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        if shutil.which(name):
+            return shutil.which(name)
+    return None
+
+
+@pytest.fixture(scope="module")
+def browser():
+    binary, driver = _chromium(), shutil.which("chromedriver")
+    if binary is None or driver is None:
+        pytest.skip("no browser: install Debian's chromium and chromium-driver "
+                    "(.ci/run does) to run the report's browser tests")
+    webdriver = pytest.importorskip("selenium.webdriver",
+                                    reason="selenium is missing (pip install -e '.[test]')")
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = binary
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1400,1000",
+                "--disable-dev-shm-usage"):
+        options.add_argument(arg)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    try:
+        drv = webdriver.Chrome(service=Service(driver), options=options)
+    except Exception as exc:  # a browser that cannot start here is a skip that says why
+        pytest.skip(f"chromium did not start: {str(exc).splitlines()[0]}")
+    drv.set_script_timeout(30)
+    yield drv
+    drv.quit()
+
+
+def _open(drv, page: Path) -> float:
+    """Load ``page`` and wait until the train is drawn; the seconds it took."""
+    t0 = time.perf_counter()
+    drv.get(page.resolve().as_uri())
+    deadline = time.monotonic() + 30
+    while not drv.execute_script("return !!(window.pushtrainReport && "
+                                 "window.pushtrainReport.ready)"):
+        assert time.monotonic() < deadline, drv.get_log("browser")
+        time.sleep(0.02)
+    return time.perf_counter() - t0
+
+
+def _errors(drv) -> list:
+    return [e for e in drv.get_log("browser") if e["level"] == "SEVERE"]
+
+
+def _slide_to(drv, k: int) -> dict:
+    """Move the page's slider to view row ``k`` as a user does (an input event)."""
+    return drv.execute_script(
+        "const s = document.getElementById('slider'); s.value = String(arguments[0]);"
+        "s.dispatchEvent(new Event('input')); return window.pushtrainReport.state();", k)
+
+
+@pytest.mark.browser
+def test_the_page_loads_without_errors_and_the_slider_moves_the_train(browser, corridor_run):
+    from pushtrain.mission.runner import load_results
+
+    _open(browser, corridor_run / "report.html")
+    assert _errors(browser) == []
+    data = load_results(corridor_run)
+    rows = _payload(corridor_run / "report.html")["rows"]
+    seen = []
+    for k in (len(rows) // 3, (3 * len(rows)) // 4):
+        state = _slide_to(browser, k)
+        r = state["resultRow"]
+        assert r == rows[k] and state["t"] == pytest.approx(data["t"][r], abs=1e-4)
+        # the bodies drawn (read back from the canvas) are the recorded poses at that time
+        assert len(state["bodies"]) == 4
+        for i, (x, y, th) in enumerate(state["bodies"]):
+            assert x == pytest.approx(data[f"x{i}"][r], abs=2e-3)
+            assert y == pytest.approx(data[f"y{i}"][r], abs=2e-3)
+            assert math.remainder(th - data[f"theta{i}"][r], 2 * math.pi) == pytest.approx(
+                0.0, abs=2e-3)
+        # every plot's cursor stands at that time
+        assert state["cursors"] and all(c == pytest.approx(state["t"], abs=1e-6)
+                                        for c in state["cursors"])
+        seen.append(state["bodies"][0])
+    assert math.dist(seen[0][:2], seen[1][:2]) > 1.0  # the train moved
+    assert _errors(browser) == []
+
+
+@pytest.mark.browser
+def test_a_click_on_a_plot_moves_the_train_to_that_time(browser, corridor_run):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    _open(browser, corridor_run / "report.html")
+    plot = browser.find_elements("css selector", ".plot canvas")[2]
+    width = plot.size["width"]
+    times = []
+    for fraction in (0.3, 0.8):
+        ActionChains(browser).move_to_element_with_offset(
+            plot, int((fraction - 0.5) * width), 0).click().perform()
+        state = browser.execute_script("return window.pushtrainReport.state()")
+        slider = int(browser.find_element("id", "slider").get_attribute("value"))
+        assert slider == state["row"]
+        times.append(state["t"])
+    assert times[1] > times[0] + 20.0  # half the plot's width apart, of a 126 s run
+    assert _errors(browser) == []
+
+
+@pytest.mark.browser
+def test_play_advances_the_train(browser, corridor_run):
+    _open(browser, corridor_run / "report.html")
+    browser.execute_script("window.pushtrainReport.setRow(0);")
+    browser.find_element("id", "play").click()
+    time.sleep(0.5)
+    state = browser.execute_script("return window.pushtrainReport.state()")
+    browser.find_element("id", "play").click()
+    assert state["playing"] and state["row"] > 0 and state["t"] > 0.0
+
+
+@pytest.mark.browser
+def test_a_failed_plan_page_shows_the_bottleneck(browser, failed_plan):
+    _open(browser, failed_plan / "report.html")
+    assert _errors(browser) == []
+    state = browser.execute_script("return window.pushtrainReport.state()")
+    b = _payload(failed_plan / "report.html")["bottleneck"]
+    assert state["kind"] == "failure"
+    assert state["bottleneck"] == pytest.approx([b["x"], b["y"]], abs=1e-6)
+    legend = browser.find_element("id", "legend").text
+    assert f"bottleneck at ({b['x']:.2f}, {b['y']:.2f})" in legend and "m needed" in legend
