@@ -24,6 +24,7 @@ import base64
 import io
 import json
 import math
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 
@@ -34,7 +35,7 @@ from pushtrain.report.common import check_n
 from pushtrain.report.geometry import DEFAULT_FOOTPRINTS
 
 __all__ = ["HTML_FILE", "MAX_ROWS", "run_payload", "failure_payload", "write_html",
-           "plot_report", "plot_failure_report"]
+           "plot_report", "plot_failure_report", "write_table_page"]
 
 HTML_FILE = "report.html"
 MAX_ROWS = 4000
@@ -249,17 +250,42 @@ def _asset(name: str) -> str:
     return resources.files("pushtrain.report").joinpath("web", name).read_text("utf-8")
 
 
+def write_table_page(path, title: str, summary: dict, columns: Sequence[str],
+                     rows: Sequence[Sequence], *, images: Sequence[Path] = (),
+                     fail_column: str | None = None, message: str = "") -> Path:
+    """A page of many runs (a sweep, an atlas): ``summary`` as a table, the PNG ``images``
+    inlined, and the runs as a table of ``columns`` x ``rows`` that sorts by a column and shows
+    one run when its row is clicked (cells of ``fail_column`` that are not empty in red).
+    Written atomically, self-contained like :func:`write_html`."""
+    def cell(v):
+        if isinstance(v, float):
+            return v if math.isfinite(v) else None
+        return v if v is None or isinstance(v, (int, str, bool)) else str(v)
+
+    payload = {"title": title, "message": message, "summary": summary,
+               "columns": list(columns), "rows": [[cell(v) for v in r] for r in rows],
+               "fail_column": fail_column,
+               "images": [{"name": Path(p).name,
+                           "png": base64.b64encode(Path(p).read_bytes()).decode("ascii")}
+                          for p in images if Path(p).is_file()]}
+    return _page(path, payload, "table.html", "table.js")
+
+
 def write_html(path, payload: dict) -> Path:
     """Write the page of ``payload`` to ``path`` atomically: one file, scripts, styles and
     data inlined (no network)."""
-    data = json.dumps(payload, separators=(",", ":"), allow_nan=False)
+    return _page(path, payload, "report.html", "report.js")
+
+
+def _page(path, payload: dict, template: str, script: str) -> Path:
+    data = json.dumps(payload, separators=(",", ":"), allow_nan=False, default=str)
     data = data.replace("</", "<\\/")  # the JSON cannot end its <script> element
-    title = payload.get("title", "pushtrain run").replace("&", "&amp;").replace("<", "&lt;")
-    page = (_asset("report.html")
+    title = payload.get("title", "pushtrain").replace("&", "&amp;").replace("<", "&lt;")
+    page = (_asset(template)
             .replace("{{TITLE}}", title)
             .replace("{{CSS}}", _asset("report.css"))
-            .replace("{{DATA}}", data)
-            .replace("{{JS}}", _asset("report.js")))
+            .replace("{{JS}}", _asset(script))
+            .replace("{{DATA}}", data))  # last: the data may hold any text
     return atomic_write_text(Path(path), page)
 
 

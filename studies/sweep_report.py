@@ -349,7 +349,8 @@ def _save(fig: Figure, path: Path) -> Path:
 def write_report(out_dir, rows: Sequence[dict], parameters: Sequence[dict], *,
                  n_runs: int | None = None, name: str = "sweep", description: str = "",
                  plots: bool = True, extra: dict | None = None) -> dict:
-    """Write ``report.json`` and (``plots``) ``sweep_<parameter>.png`` and ``bias_offset.png``.
+    """Write ``report.json``, ``report.html`` (the summary, the plots and the runs' table: click
+    a row to see that run) and (``plots``) ``sweep_<parameter>.png`` and ``bias_offset.png``.
 
     Returns the report (with ``files`` listing what was written). A failing plot is logged and
     skipped; it never loses the report.
@@ -376,4 +377,16 @@ def write_report(out_dir, rows: Sequence[dict], parameters: Sequence[dict], *,
     report["files"] = files
     text = json.dumps(report, indent=2, default=lambda v: None)
     atomic_write_text(out / "report.json", text)
+    try:
+        from pushtrain.report.html import write_table_page
+
+        columns = list(rows[0]) if rows else []
+        page = write_table_page(
+            out / "report.html", f"Sweep {name}", {k: v for k, v in report.items()
+                                                  if k not in ("files", "parameters")},
+            columns, [[r.get(c) for c in columns] for r in rows], images=files["plots"],
+            fail_column="error" if "error" in columns else None, message=description)
+        files["page"] = str(page)
+    except Exception:  # the page must never lose the results
+        log.exception("writing report.html failed")
     return report

@@ -259,3 +259,30 @@ def test_a_failed_plan_page_shows_the_bottleneck(browser, failed_plan):
     assert state["bottleneck"] == pytest.approx([b["x"], b["y"]], abs=1e-6)
     legend = browser.find_element("id", "legend").text
     assert f"bottleneck at ({b['x']:.2f}, {b['y']:.2f})" in legend and "m needed" in legend
+
+
+@pytest.mark.browser
+def test_a_sweep_page_shows_the_run_whose_row_is_clicked(browser, tmp_path):
+    from pushtrain.studies.sweep_report import write_report
+
+    rows = [{"index": k, "sensors.joint_bias_deg[2]": float(k), "status": "goal_reached",
+             "ok": True, "error": "", "steady_lat_m": 0.01 * k} for k in range(6)]
+    rows[4].update(status="jackknifed", ok=False, error="jackknife at t = 3 s")
+    parameters = [{"path": "sensors.joint_bias_deg[2]", "label": "bias [deg]"}]
+    report = write_report(tmp_path, rows, parameters, name="bias", plots=True)
+    page = Path(report["files"]["page"])
+    assert page == tmp_path / "report.html"
+    _open(browser, page)
+    assert _errors(browser) == []
+    assert browser.find_elements("css selector", "#images-panel img")  # the sweep's plots
+    browser.find_elements("css selector", "#runs tr.row")[4].click()
+    shown = dict(browser.execute_script("return window.pushtrainReport.state().shown"))
+    assert shown["index"] == "4" and shown["status"] == "jackknifed"
+    assert shown["error"] == "jackknife at t = 3 s"
+    # sorting by a column keeps each row whole
+    browser.find_elements("css selector", "#runs th")[-1].click()  # steady_lat_m, ascending
+    browser.find_elements("css selector", "#runs th")[-1].click()  # descending
+    first = browser.find_elements("css selector", "#runs tr.row")[0]
+    first.click()
+    shown = dict(browser.execute_script("return window.pushtrainReport.state().shown"))
+    assert shown["index"] == "5" and shown["steady_lat_m"] == "0.05000"
