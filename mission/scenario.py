@@ -26,8 +26,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from pushtrain.errors import FieldErrors, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
-from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS
-from pushtrain.validation import read_toml, validate_model
+from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
+from pushtrain.validation import Integer, no_bool, read_toml, validate_model
 
 __all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
 
@@ -38,7 +38,8 @@ Point = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # strict: a TOML boolean or string is not a number (n = true is not 1, n = "3" is not 3)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class Size(_Section):
@@ -50,7 +51,7 @@ class Size(_Section):
 class TrainSection(_Section):
     """The robot's trailers: links, masses and footprints (per trailer lists or one value)."""
 
-    n: Annotated[int, Field(ge=1, le=MAX_TRAILERS)] = 3
+    n: Annotated[Integer, Field(ge=1, le=MAX_TRAILERS)] = 3
     link: PositiveFloat = 0.52
     front: list[PositiveFloat] | None = None
     rear: list[PositiveFloat] | None = None
@@ -201,8 +202,8 @@ class EventSpec(_Section):
     fx: FiniteFloat = 0.0
     fy: FiniteFloat = 0.0
     distance: FiniteFloat | None = None
-    trailer: Annotated[int, Field(ge=1)] | None = None
-    joint: Annotated[int, Field(ge=1)] | None = None
+    trailer: Annotated[Integer, Field(ge=1)] | None = None
+    joint: Annotated[Integer, Field(ge=1)] | None = None
     bias_deg: FiniteFloat | None = None
 
     @model_validator(mode="after")
@@ -224,10 +225,10 @@ class RotationSection(_Section):
 
 
 class FmuSection(_Section):
-    slip_mode: Literal[0, 1] = 0
+    slip_mode: Annotated[Literal[0, 1], no_bool("0 or 1")] = 0
     max_substep: PositiveFloat = 0.005
     # 2: an FMI 2.0 FMU built for train.n (cached per n); 3: the one FMI 3.0 FMU, n set at start
-    fmi_version: Literal[2, 3] = 2
+    fmi_version: Annotated[Literal[2, 3], no_bool("2 or 3")] = 2
 
 
 class SimSection(_Section):
@@ -251,7 +252,7 @@ class Scenario(_Section):
 
     name: str = "scenario"
     description: str = ""
-    seed: Annotated[int, Field(ge=1)] = 1
+    seed: Annotated[Integer, Field(ge=1)] = 1
     mission: MissionSection = MissionSection()
     train: TrainSection = TrainSection()
     robot: RobotSection = RobotSection()
@@ -290,6 +291,8 @@ class Scenario(_Section):
             if len(self.start.joint_angles_deg) != n:
                 problems.append(("start.joint_angles_deg", self.start.joint_angles_deg,
                                  f"a list of n = {n} angles"))
+            else:
+                problems += _start_joints(self)
         for k, ev in enumerate(self.events):
             if ev.trailer is not None and ev.trailer > n:
                 problems.append((f"events[{k}].trailer", ev.trailer, f"1..{n}"))
@@ -297,6 +300,8 @@ class Scenario(_Section):
                 problems.append((f"events[{k}].joint", ev.joint, f"1..{n}"))
         problems += _implausible(self)
         problems += _inconsistent_run(self)
+        problems += _turning_radius(self)
+        problems += _run_length(self)
         kind = self.mission.kind
         if kind == "plan":
             for name in ("map", "start", "goal"):
@@ -421,6 +426,120 @@ def _inconsistent_run(sc: "Scenario") -> list[tuple[str, object, str]]:
         problems.append(("sim.horizon", horizon,
                          f"a whole number of steps of sim.step = {step:g} s "
                          f"(e.g. {step * max(1, round(horizon / step)):g} s)"))
+    return problems
+
+
+def _start_joints(sc: "Scenario") -> list[tuple[str, object, str]]:
+    """Start joint angles beyond the joint limit: the FMU reports a jackknife at t = 0."""
+    limit = sc.train.phi_max_deg
+    return [(f"start.joint_angles_deg[{k}]", a,
+             f"within -{limit:g} to {limit:g} deg (train.phi_max_deg): a joint bent further "
+             "is jackknifed before the run starts")
+            for k, a in enumerate(sc.start.joint_angles_deg) if abs(a) > limit]
+
+
+def _links(sc: "Scenario") -> tuple[list[float], list[float]] | None:
+    """The train's F_1..F_n and R_0..R_{n-1} [m], None if their lists do not fit n."""
+    t = sc.train
+    front = t.front if t.front is not None else [t.link] * t.n
+    rear = t.rear if t.rear is not None else [t.link] * t.n
+    return (front, rear) if len(front) == len(rear) == t.n else None
+
+
+def _turning_radius(sc: "Scenario") -> list[tuple[str, object, str]]:
+    """A planner turning radius the train cannot drive: on a tighter arc than
+    :func:`pushtrain.limits.min_turning_radius` a joint bends past train.phi_max_deg."""
+    radius, links = sc.planner.turning_radius, _links(sc)
+    if radius is None or links is None:
+        return []
+    phi_max = math.radians(sc.train.phi_max_deg)
+    smallest = min_turning_radius(*links, phi_max)
+    if radius >= smallest * (1.0 - 1e-9):
+        return []
+    longest = max(max(links[0]), max(links[1]))
+    rule = longest / math.tan(phi_max / (2.0 * (1.0 + sc.planner.transient_margin)))
+    return [("planner.turning_radius", radius,
+             f"at least {smallest:.4g} m for this train: on a tighter arc a joint bends past "
+             f"train.phi_max_deg = {sc.train.phi_max_deg:g} deg (the steady turn of its links "
+             f"train.front/rear/link); leave it out for the planner's rule, {rule:.4g} m")]
+
+
+def _reference_times(ref: "ReferenceSection") -> list[tuple[float, float, float]]:
+    """(speed [m/s], duration [s], end time [s]) of each scripted segment: the times of
+    :class:`~pushtrain.core.reference.Reference` (a cusp dwell at each direction change)."""
+    out, t, previous = [], 0.0, None
+    for seg in ref.segments:
+        if previous is not None and seg.direction != previous:
+            t += ref.cusp_dwell
+        speed = seg.speed if seg.speed is not None else ref.speed
+        t += seg.length / speed
+        out.append((speed, seg.length / speed, t))
+        previous = seg.direction
+    return out
+
+
+def _run_length(sc: "Scenario") -> list[tuple[str, object, str]]:
+    """A run longer than a day, from the fields that make its length when ``sim.horizon`` is
+    not set (a scripted reference's segments, sim.settle_time, rotation.duration), and events
+    at or after the latest end the run can have.
+
+    That end is the mission's own (the reference's end plus sim.settle_time, the rotation's
+    duration; a planned path's is known only after planning: a day at most), or sim.horizon
+    if that is later. A sim.horizon that ends the run before an event (a quick look at the
+    start of a run) is allowed: the co-simulation logs that the event never comes."""
+    limit = SCENARIO_BOUNDS["sim.horizon"].hi
+    problems = []
+    kind, settle, horizon = sc.mission.kind, sc.sim.settle_time, sc.sim.horizon
+    if kind == "rotation":
+        end, why = sc.rotation.duration, f"rotation.duration = {sc.rotation.duration:g} s"
+        if horizon is None and end > limit:
+            problems.append(("rotation.duration", end,
+                             f"at most {limit:g} s, the longest a run may last (a rotation runs "
+                             "for rotation.duration when sim.horizon is not set)"))
+    elif kind == "scripted" and sc.reference is not None:
+        times = _reference_times(sc.reference)
+        reference_end = times[-1][2]
+        end = reference_end + settle
+        why = f"the reference's {reference_end:.6g} s plus sim.settle_time = {settle:g} s"
+        if horizon is None:
+            problems += _long_reference(sc, times, limit)
+    else:  # a planned path sets the run's length
+        end, why = limit, "the longest a run may last; the planned path sets the run's length"
+    if horizon is not None and horizon > end:
+        end, why = horizon, f"sim.horizon = {horizon:g} s"
+    if end > limit:
+        end, why = limit, "the longest a run may last"
+    for k, ev in enumerate(sc.events):
+        if ev.t >= end:
+            problems.append((f"events[{k}].t", ev.t,
+                             f"before the run ends at {end:.6g} s ({why}): an event then or "
+                             "later never happens"))
+    return problems
+
+
+def _long_reference(sc: "Scenario", times, limit: float) -> list[tuple[str, object, str]]:
+    """The segment, or sim.settle_time, that makes a scripted run longer than ``limit`` [s]
+    (its horizon when sim.horizon is not set: the reference's end plus the settling)."""
+    problems = []
+    segments, settle = sc.reference.segments, sc.sim.settle_time
+    reference_end = times[-1][2]
+    long_ones = [k for k, (_, d, _) in enumerate(times) if d > limit]
+    for k in long_ones:
+        speed, duration, _ = times[k]
+        problems.append((f"reference.segments[{k}].length", segments[k].length,
+                         f"at {speed:g} m/s it takes {duration:.6g} s, more than the "
+                         f"{limit:g} s a run may last"))
+    if not long_ones and reference_end > limit:
+        k = next(k for k, (_, _, t) in enumerate(times) if t > limit)
+        problems.append((f"reference.segments[{k}].length", segments[k].length,
+                         f"the reference reaches {times[k][2]:.6g} s by the end of this "
+                         "segment (each at its speed, with the cusp dwells), more than the "
+                         f"{limit:g} s a run may last"))
+    elif reference_end <= limit < reference_end + settle:
+        problems.append(("sim.settle_time", settle,
+                         f"the reference takes {reference_end:.6g} s; with {settle:g} s to "
+                         f"settle the run would last {reference_end + settle:.6g} s, more than "
+                         f"the {limit:g} s a run may last"))
     return problems
 
 

@@ -159,3 +159,53 @@ def check(name: str, value) -> str | None:
     if not bound.contains(value):
         return bound.message(name, value)
     return None
+
+
+def steady_joint_angles(radius: float, front, rear) -> list[float] | None:
+    """Joint angles [rad] of a train turning steadily with its last trailer's axle on a circle of
+    ``radius`` [m], or None if no steady turn of that radius exists.
+
+    ``front`` are F_1..F_n (trailer i's axle forward to its hitch), ``rear`` R_0..R_{n-1} (body
+    i-1's axle, the robot's centre for i = 1, back to the hitch). In a steady turn every axle
+    moves on a circle about one centre, square to its radius (no wheel slides sideways): from
+    trailer i's axle radius r_i, its hitch lies at sqrt(r_i^2 + F_i^2) from the centre, body
+    i-1's axle at r_{i-1} = sqrt(r_i^2 + F_i^2 - R_{i-1}^2), and joint i is bent by
+    atan(F_i / r_i) + asin(R_{i-1} / sqrt(r_i^2 + F_i^2)) (2 atan(D / r) when F = R = D).
+    When r_i^2 + F_i^2 < R_{i-1}^2 body i-1 cannot keep its axle square to the centre: no
+    steady turn. Angles are returned for joints n..1 (last trailer first).
+    """
+    r = float(radius)
+    angles = []
+    for f, b in zip(reversed(list(front)), reversed(list(rear)), strict=True):
+        hitch2 = r * r + f * f
+        if hitch2 < b * b:
+            return None
+        angles.append(math.atan2(f, r) + math.asin(min(1.0, b / math.sqrt(hitch2))))
+        r = math.sqrt(hitch2 - b * b)
+    return angles
+
+
+def min_turning_radius(front, rear, phi_max: float) -> float:
+    """The smallest radius [m] of the last trailer's path that the train can drive steadily
+    with every joint within ``phi_max`` [rad] (see :func:`steady_joint_angles`); on a tighter
+    arc a joint bends past the limit (the train jackknifes) or no steady turn exists.
+
+    ``F = R = D`` for every link gives ``D / tan(phi_max / 2)`` (0.52 m for D = 0.52 m,
+    phi_max = 90 deg). Found by bisection (the angles grow as the radius shrinks) to 1e-12 of
+    the radius.
+    """
+    def fits(r: float) -> bool:
+        angles = steady_joint_angles(r, front, rear)
+        return angles is not None and max(angles) <= phi_max
+
+    hi = max(max(front), max(rear))
+    while not fits(hi):
+        hi *= 2.0
+    lo = 0.0
+    while hi - lo > 1e-12 * hi:
+        mid = 0.5 * (lo + hi)
+        if fits(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi

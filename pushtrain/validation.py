@@ -4,14 +4,65 @@ Scenario files and sweep specs share this: every problem is reported at once wit
 (``train.mass[1]``), union branches that were not meant are dropped (a per-trailer field that
 takes a number or a list reports only the branch matching what was written), and a value that
 fits no branch gets one line.
+
+Numbers are strict: a TOML boolean (``n = true``) or string (``n = "3"``) is not a number and is
+refused, naming the field (models set ``strict=True``; :data:`Integer` and :func:`no_bool` are
+the two places where strict pydantic needs help).
 """
 
 from __future__ import annotations
 
+from typing import Annotated
+
+from pydantic import BeforeValidator
+
 from pushtrain.errors import FieldErrors
 
 __all__ = ["field_errors", "read_toml", "validate_model", "clipped", "clip_text",
-           "MAX_SHOWN_CHARS"]
+           "MAX_SHOWN_CHARS", "Integer", "no_bool"]
+
+
+def _whole(value):
+    """A float that is a whole number (a sweep's ``range`` makes 3.0) as that int; anything
+    else unchanged for the strict int check (which refuses booleans, strings, 2.5)."""
+    if type(value) is float and value.is_integer():
+        return int(value)
+    return value
+
+
+Integer = Annotated[int, BeforeValidator(_whole)]
+"""An integer field of a strict model: ints and whole floats (3.0), never a bool or a string."""
+
+
+def no_bool(allowed: str) -> BeforeValidator:
+    """Before-validator for a ``Literal`` of integers (``allowed`` says which, e.g. "0 or 1"):
+    strict pydantic still takes ``true`` for 1 there (``True == 1`` in Python); refuse it."""
+
+    def check(value):
+        if isinstance(value, bool):
+            raise ValueError(f"{allowed}, not the boolean {str(value).lower()}")
+        return value
+
+    return BeforeValidator(check)
+
+
+def _type_message(err) -> str | None:
+    """What is allowed, for a number or boolean field given the wrong TOML type."""
+    value, kind = err.get("input"), err["type"]
+    if kind not in ("int_type", "float_type", "bool_type"):
+        return None
+    want = {"int_type": "an integer", "float_type": "a number",
+            "bool_type": "true or false"}[kind]
+    if isinstance(value, bool):
+        return f"{want}, not the boolean {str(value).lower()}"
+    if isinstance(value, str):
+        return f"{want}, not a string: write it without quotes"
+    if kind == "int_type" and isinstance(value, float):
+        return f"{want} (a whole number), not {value!r}"
+    if kind == "bool_type" and isinstance(value, (int, float)):
+        return f"{want}, not the number {value!r}"
+    return None
+
 
 MAX_SHOWN_CHARS = 200
 """Longest value or quoted text [characters] a message shows; the rest is counted, not shown."""
@@ -96,7 +147,7 @@ def field_errors(exc) -> list[tuple[str, object, str]]:
         if err["type"] == "extra_forbidden":
             allowed = "unknown key (check the spelling)"
         else:
-            allowed = err["msg"].removeprefix("Value error, ")
+            allowed = _type_message(err) or err["msg"].removeprefix("Value error, ")
         if where in index:  # the same value failed several branches: one line
             k = index[where]
             if allowed not in lines[k][2]:

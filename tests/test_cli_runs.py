@@ -85,7 +85,9 @@ def test_a_failed_plan_after_a_successful_run_leaves_only_the_failed_run(tmp_pat
     out = tmp_path / "out"
     ok = _scenario(tmp_path, "straight_push", "first_run",
                    replace=[("length = 11.0", "length = 0.5"),
-                            ("settle_time = 5.0", "settle_time = 2.0")])
+                            ("settle_time = 5.0", "settle_time = 2.0"),
+                            # the slide within the 8.25 s run, and of nothing
+                            ("t = 40.0", "t = 4.0"), ("distance = -0.15", "distance = 0.0")])
     first = _invoke(["plan-and-run", ok, "--no-plots", "--out", str(out)])
     assert first.exit_code == 0, first.output
     assert (out / "results.npz").is_file()

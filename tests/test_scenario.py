@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -179,3 +180,194 @@ def test_event_trailers_and_joints_are_numbered_1_to_n():
         parse_scenario(events(**fields))
     for fields, where in (({"trailer": 4}, "events[0].trailer"), ({"joint": 4}, "events[0].joint")):
         assert [p[0] for p in _problems(events(**fields))] == [where]
+
+
+# ---------------------------------------------------------------- issue #29, hardening round 3
+def _validate(tmp_path, text: str):
+    """``pushtrain validate`` of a scenario file with ``text``."""
+    path = tmp_path / "case.toml"
+    path.write_text(text)
+    return CliRunner().invoke(cli, ["validate", str(path)])
+
+
+SCRIPTED_TOML = ("[mission]\nkind = 'scripted'\n[start]\nx = 0.0\ny = 0.0\n"
+                 "[reference]\nspeed = 0.08\n")
+
+
+def test_a_scripted_line_longer_than_a_day_is_refused_naming_the_segment(tmp_path):
+    """1e5 m at 0.08 m/s is 1.25e6 s, more than the 86 400 s a run may last: it passed
+    validation and the run died with a 32 GiB ArrayMemoryError (1e9 m blamed 'horizon')."""
+    for length in (1e5, 1e9):
+        done = _validate(tmp_path, SCRIPTED_TOML
+                         + f"segments = [{{kind = 'line', length = 1.0}}, "
+                           f"{{kind = 'line', length = {length!r}}}]\n")
+        assert done.exit_code == 2, done.output
+        assert f"reference.segments[1].length = {length!r}" in done.output, done.output
+        assert f"{length / 0.08:.6g} s" in done.output and "86400 s" in done.output
+        assert "horizon" not in done.output and "Traceback" not in done.output
+    # a segment's own speed is the one used: 1e4 m at 0.01 m/s is 1e6 s
+    problems = _problems({**SCRIPTED, "reference": {"segments": [
+        {"kind": "line", "length": 1e4, "speed": 0.01}]}})
+    assert [p[0] for p in problems] == ["reference.segments[0].length"]
+    assert "at 0.01 m/s it takes 1e+06 s" in problems[0][2]
+
+
+def test_a_run_made_longer_than_a_day_by_many_segments_or_the_settling_is_refused():
+    limit = SCENARIO_BOUNDS["sim.horizon"].hi
+    # three segments of 0.4 day each (at 0.08 m/s): the run passes a day in the third
+    length = 0.4 * limit * 0.08
+    segs = [{"kind": "line", "length": length}] * 3
+    problems = _problems({**SCRIPTED, "reference": {"segments": segs}})
+    assert [p[0] for p in problems] == ["reference.segments[2].length"], problems
+    # 0.9 day of reference plus 0.2 day of settling: the settling time is named
+    problems = _problems({**SCRIPTED, "reference": {"segments": [
+        {"kind": "line", "length": 0.9 * limit * 0.08}]}, "sim": {"settle_time": 0.2 * limit}})
+    assert [p[0] for p in problems] == ["sim.settle_time"], problems
+    # the same reference with a horizon of its own is a run of that horizon: accepted
+    parse_scenario({**SCRIPTED, "reference": {"segments": [{"kind": "line", "length": 1e5}]},
+                    "sim": {"horizon": 100.0}})
+    # a rotation of 1e6 s is refused naming its duration
+    problems = _problems({"mission": {"kind": "rotation"}, "rotation": {"duration": 1e6}})
+    assert [p[0] for p in problems] == ["rotation.duration"], problems
+
+
+def test_a_run_of_just_under_a_day_is_accepted():
+    limit = SCENARIO_BOUNDS["sim.horizon"].hi
+    parse_scenario({**SCRIPTED, "reference": {"segments": [
+        {"kind": "line", "length": 0.99 * limit * 0.08 - 20.0 * 0.08}]}})
+
+
+@pytest.mark.parametrize("text, where, shown", [
+    ("[train]\nn = true\n", "train.n", "True"),
+    ("[train]\nn = \"3\"\n", "train.n", "'3'"),
+    ("[train]\nmass = true\n", "train.mass", "True"),
+    ("[train]\nmass = [42.1, \"40\", 42.1]\n", "train.mass[1]", "'40'"),
+    ("[sim]\nstep = \"0.005\"\n", "sim.step", "'0.005'"),
+    ("seed = false\n", "seed", "False"),
+    ("[fmu]\nslip_mode = true\n", "fmu.slip_mode", "True"),
+    ("[planner]\nsmooth = 1\n", "planner.smooth", "1"),
+    ("[[events]]\ntype = 'bias'\nt = 1.0\njoint = true\nbias_deg = 2.0\n", "events[0].joint",
+     "True"),
+])
+def test_toml_booleans_and_strings_are_not_numbers(tmp_path, text, where, shown):
+    """``n = true`` was read as 1 and ``n = "3"`` as 3 (and ``smooth = 1`` as true)."""
+    done = _validate(tmp_path, SCRIPTED_TOML + "segments = [{kind = 'line', length = 1.0}]\n"
+                     + text)
+    assert done.exit_code == 2, done.output
+    assert f"{where} = {shown}:" in done.output, done.output
+    assert "Traceback" not in done.output
+
+
+def test_whole_numbers_stay_numbers():
+    """What strictness must not refuse: an int for a float, a whole float for an integer (a
+    sweep's range gives 3.0 for train.n)."""
+    sc = parse_scenario(_with("train.n", 3.0))
+    assert sc.train.n == 3 and type(sc.train.n) is int
+    assert parse_scenario(_with("train.mass", 42)).train.mass == 42.0
+    assert parse_scenario(_with("sim.horizon", 10)).sim.horizon == 10.0
+    assert [p[0] for p in _problems(_with("train.n", 2.5))] == ["train.n"]
+
+
+def test_start_joint_angles_beyond_the_joint_limit_are_refused(tmp_path):
+    """200 deg with phi_max = 90 deg passed validation and the run jackknifed at t = 0."""
+    done = _validate(tmp_path, "[mission]\nkind = 'scripted'\n[train]\nn = 3\n[start]\n"
+                     "x = 0.0\ny = 0.0\njoint_angles_deg = [0.0, 200.0, -10.0]\n"
+                     "[reference]\nsegments = [{kind = 'line', length = 1.0}]\n")
+    assert done.exit_code == 2, done.output
+    assert "start.joint_angles_deg[1] = 200.0" in done.output and "90" in done.output
+    start = {"x": 0.0, "y": 0.0}
+    at_limit = {**SCRIPTED, "start": {**start, "joint_angles_deg": [90.0, -90.0, 0.0]}}
+    parse_scenario(at_limit)  # the FMU's jackknife is |phi| > phi_max
+    beyond = {**SCRIPTED, "train": {"phi_max_deg": 60.0},
+              "start": {**start, "joint_angles_deg": [0.0, -61.0, 0.0]}}
+    assert [p[0] for p in _problems(beyond)] == ["start.joint_angles_deg[1]"]
+
+
+def test_events_after_the_end_of_the_run_are_refused(tmp_path):
+    """An event at 1e6 s passed validation: it never happens."""
+    event = "[[events]]\ntype = 'push'\nt = 1e6\nduration = 1.0\nlateral = 5.0\n"
+    done = _validate(tmp_path, SCRIPTED_TOML + "segments = [{kind = 'line', length = 1.0}]\n"
+                     + event)
+    assert done.exit_code == 2, done.output
+    # 1 m at 0.08 m/s plus the default 20 s of settling
+    assert "events[0].t = 1000000.0" in done.output and "32.5 s" in done.output, done.output
+
+    def push_at(t, **extra):
+        return {**SCRIPTED, **extra, "events": [{"type": "push", "t": t, "duration": 1.0}]}
+
+    parse_scenario(push_at(32.0))
+    assert [p[0] for p in _problems(push_at(32.5))] == ["events[0].t"]
+    # a longer sim.horizon lets the run go on (when the goal is late): the run may last that long
+    parse_scenario(push_at(99.0, sim={"horizon": 100.0}))
+    problems = _problems(push_at(150.0, sim={"horizon": 100.0}))
+    assert [p[0] for p in problems] == ["events[0].t"] and "100 s" in problems[0][2]
+    # a shorter one cuts the run on purpose (a look at its first seconds): allowed
+    parse_scenario(push_at(20.0, sim={"horizon": 1.0}))
+    assert [p[0] for p in _problems(push_at(40.0, sim={"horizon": 1.0}))] == ["events[0].t"]
+    # a rotation lasts rotation.duration
+    rotation = {"mission": {"kind": "rotation"}, "rotation": {"duration": 30.0}}
+    parse_scenario({**rotation, "events": [{"type": "push", "t": 29.0, "duration": 1.0}]})
+    problems = _problems({**rotation, "events": [{"type": "push", "t": 31.0, "duration": 1.0}]})
+    assert [p[0] for p in problems] == ["events[0].t"] and "30 s" in problems[0][2]
+    # a planned run's length is known only after planning: a day at most
+    plan = {"map": {"bounds": [0.0, 0.0, 10.0, 10.0]}, "start": {"x": 1.0, "y": 1.0},
+            "goal": {"x": 5.0, "y": 5.0}}
+    parse_scenario({**plan, "events": [{"type": "push", "t": 3600.0, "duration": 1.0}]})
+    problems = _problems({**plan, "events": [{"type": "push", "t": 1e6, "duration": 1.0}]})
+    assert [p[0] for p in problems] == ["events[0].t"] and "86400 s" in problems[0][2]
+
+
+def test_a_turning_radius_the_train_cannot_drive_is_refused(tmp_path):
+    """turning_radius = 1e-6 m planned for 262 s. The smallest radius is where the steady
+    joint angle 2 atan(D / r) (F = R = D) reaches phi_max: D / tan(phi_max / 2)."""
+    base = ("[map]\nbounds = [0.0, 0.0, 10.0, 10.0]\n[start]\nx = 2.0\ny = 2.0\n"
+            "[goal]\nx = 6.0\ny = 2.0\n")
+    done = _validate(tmp_path, base + "[planner]\nturning_radius = 1e-6\n")
+    assert done.exit_code == 2, done.output
+    assert "planner.turning_radius = 1e-06" in done.output
+    assert "0.52 m" in done.output and "phi_max_deg = 90" in done.output, done.output
+    plan = {"map": {"bounds": [0.0, 0.0, 10.0, 10.0]}, "start": {"x": 2.0, "y": 2.0},
+            "goal": {"x": 6.0, "y": 2.0}}
+    for link, phi_max_deg in ((0.52, 90.0), (0.3, 120.0), (1.0, 40.0)):
+        smallest = link / math.tan(math.radians(phi_max_deg) / 2.0)
+        train = {"link": link, "phi_max_deg": phi_max_deg}
+        parse_scenario({**plan, "train": train, "planner": {"turning_radius": 1.001 * smallest}})
+        problems = _problems({**plan, "train": train,
+                              "planner": {"turning_radius": 0.999 * smallest}})
+        assert [p[0] for p in problems] == ["planner.turning_radius"]
+        assert f"{smallest:.4g} m" in problems[0][2]
+
+
+def _steady_angles_by_vectors(radius, front, rear):
+    """Joint angles [rad] of the steady left turn with the last trailer's axle at (radius, 0)
+    heading +y, built point by point: each body's heading e is square to its axle's position
+    p = hitch + R e (a rigid rotation about the origin moves p along e), so
+    hitch . e = -R: e at acos(-R / |hitch|) from the hitch's direction."""
+    p, heading, angles = np.array([radius, 0.0]), math.pi / 2, []
+    for f, r in zip(reversed(front), reversed(rear), strict=True):
+        hitch = p + f * np.array([math.cos(heading), math.sin(heading)])
+        if np.linalg.norm(hitch) < r:  # no heading keeps this body's axle square: no turn
+            return [math.pi]
+        psi = math.atan2(hitch[1], hitch[0]) + math.acos(-r / np.linalg.norm(hitch))
+        e = np.array([math.cos(psi), math.sin(psi)])
+        assert abs(np.dot(hitch + r * e, e)) < 1e-12
+        angles.append(psi - heading)
+        p, heading = hitch + r * e, psi
+    return angles
+
+
+def test_the_smallest_turning_radius_of_unequal_links_matches_the_geometry():
+    from scipy.optimize import brentq
+
+    from pushtrain.limits import min_turning_radius
+
+    front, rear, phi_max = [0.3, 0.6, 0.2], [0.5, 0.4, 0.7], math.radians(80.0)
+    expected = brentq(lambda r: max(_steady_angles_by_vectors(r, front, rear)) - phi_max,
+                      0.6, 20.0, xtol=1e-12)
+    assert min_turning_radius(front, rear, phi_max) == pytest.approx(expected, rel=1e-9)
+    plan = {"map": {"bounds": [0.0, 0.0, 10.0, 10.0]}, "start": {"x": 2.0, "y": 2.0},
+            "goal": {"x": 6.0, "y": 2.0},
+            "train": {"front": front, "rear": rear, "phi_max_deg": 80.0}}
+    parse_scenario({**plan, "planner": {"turning_radius": 1.001 * expected}})
+    problems = _problems({**plan, "planner": {"turning_radius": 0.999 * expected}})
+    assert [p[0] for p in problems] == ["planner.turning_radius"]
