@@ -14,6 +14,7 @@ import sys
 import click
 
 from .commands.analyze import analyze_cmd
+from .commands.atlas import atlas_cmd
 from .commands.build_fmu import build_fmu_cmd
 from .commands.export_ssp import export_ssp_cmd
 from .commands.plan import plan_cmd
@@ -44,7 +45,7 @@ def cli(ctx: click.Context, verbose: int):
 
 
 for _command in (plan_and_run, plan_cmd, run_cmd, build_fmu_cmd, analyze_cmd, validate_cmd,
-                 slip_study_cmd, export_ssp_cmd, view_cmd):
+                 slip_study_cmd, export_ssp_cmd, view_cmd, atlas_cmd):
     cli.add_command(_command)
 cli.add_command(sweep_cmd)
 

@@ -17,7 +17,7 @@ from pushtrain.mission.scenario import ScenarioError
 from pushtrain.studies import sweep as sweep_lib
 from pushtrain.studies.sweep import SweepError, SweepOutcome, SweepSpec
 
-__all__ = ["sweep_cmd"]
+__all__ = ["sweep_cmd", "check_scheduler"]
 
 _MOVED = {"sweep", "prepare_runs", "run_task", "FmuRef"}
 
@@ -33,6 +33,42 @@ def __getattr__(name: str):
 
 
 # ------------------------------------------------------------------------------------------ CLI
+SCHEDULER_TIMEOUT_S = 10.0
+"""Seconds ``--scheduler``'s host may take to accept a connection before it is refused."""
+
+
+def check_scheduler(address: str) -> None:
+    """Raise BadInput naming ``--scheduler`` unless ``address`` is a Dask address whose host
+    accepts connections (Dask's own errors were tracebacks: a ValueError for ``foo``, an
+    OSError after 30 s for a port nobody listens on)."""
+    import socket
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import backends
+
+    from .common import BadInput
+
+    allowed = "the address of a running Dask scheduler, e.g. tcp://host:8786"
+    try:
+        protocol, location = parse_address(address)
+        if protocol not in backends:
+            raise ValueError(f"unknown protocol {protocol!r} (known: {', '.join(backends)})")
+        if protocol not in ("tcp", "tls"):
+            return
+        host, port = parse_host_port(location)
+        if not host or not 0 < port < 65536:
+            raise ValueError("a host name and a port 1..65535 are needed")
+    except ValueError as exc:
+        raise BadInput(f"--scheduler = {address!r}: {allowed}; {exc}") from None
+    try:
+        socket.create_connection((host, port), timeout=SCHEDULER_TIMEOUT_S).close()
+    except OSError as exc:
+        raise BadInput(f"--scheduler = {address!r}: {allowed}; nothing accepts connections at "
+                       f"{host}:{port} ({exc.strerror or exc}): start the scheduler there "
+                       "(dask scheduler) or leave --scheduler out to run on a local "
+                       "cluster") from None
+
+
 PIPE_INTERVAL_S = 10.0
 """Seconds between progress lines when stderr is not a terminal (a pipe, a log file)."""
 
@@ -131,6 +167,8 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
         raise BadInput(str(exc)) from None
     if scheduler is not None and workers is not None and workers > 0:
         raise BadInput("--workers N starts a local cluster; it cannot be combined with --scheduler")
+    if scheduler is not None and workers != 0:
+        check_scheduler(scheduler)
     out_dir = Path(out) if out else Path("runs") / f"{spec.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     click.echo(f"sweep {spec.name}: {sweep_lib.count_runs(spec)} runs ({spec.size_text}) "
                f"-> {out_dir}")

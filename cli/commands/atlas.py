@@ -1,0 +1,86 @@
+"""``pushtrain atlas FACILITY``: which stations a train reaches, with how many trailers."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ..common import click_errors
+
+__all__ = ["atlas_cmd"]
+
+
+def _progress(done: int, total: int, elapsed: float) -> None:
+    """One line on stderr per finished pair, with the estimate of the time left."""
+    if done == 0 or elapsed <= 0.0:
+        click.echo(f"atlas: {done}/{total} pairs", err=True)
+        return
+    left = elapsed / max(done - _progress.resumed, 1) * (total - done)
+    click.echo(f"atlas: {done}/{total} pairs, {elapsed:.0f} s, about {left:.0f} s left",
+               err=True)
+
+
+_progress.resumed = 0
+
+
+@click.command("atlas", short_help="Which stations a train reaches, with how many trailers.")
+@click.argument("facility", type=click.Path(exists=True, dir_okay=False))
+@click.option("--trailers", default="1-5", show_default=True, metavar="RANGE",
+              help="Trailer counts to try: a range (1-5), a count, or counts (1,3,5).")
+@click.option("--out", "-o", "out", required=True, type=click.Path(), metavar="DIR",
+              help="Output folder: new, empty, or an earlier atlas of the same facility and "
+                   "--trailers (resumed).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="A running Dask scheduler (default: a LocalCluster on this machine).")
+@click.option("--workers", type=click.IntRange(1, 256), default=None, metavar="K",
+              help="Worker processes of the LocalCluster (default: the number of cores).")
+@click.option("--serial", is_flag=True, help="Run in this process, without Dask.")
+@click.option("--stations", "only", default=None, metavar="A,B,...",
+              help="Only the pairs among these stations.")
+def atlas_cmd(facility, trailers, out, scheduler, workers, serial, only):
+    """For every ordered pair of FACILITY's stations and each trailer count, plan and
+    co-simulate the mission as plan-and-run does; the answer of a pair is the most trailers
+    that reach the goal. Writes atlas.json, atlas.csv, missions/FROM-TO-nK.toml (each replays
+    with plan-and-run), atlas.png, matrix.png and report.html into DIR.
+
+    \b
+    Example:
+      pushtrain atlas examples/atlas/facility.toml --trailers 1-5 --out runs/atlas
+    """
+    from pushtrain.studies.atlas import AtlasError, atlas, load_facility, parse_trailers
+
+    from ..common import BadInput
+    from ..sweep import check_scheduler
+
+    if not str(out).strip():
+        raise BadInput("--out = '': give the atlas's output folder")
+    with click_errors():
+        counts = parse_trailers(trailers)
+        fac = load_facility(facility)
+        chosen = None
+        if only is not None:
+            chosen = tuple(s.strip() for s in only.split(",") if s.strip())
+            known = {s[0] for s in fac.stations}
+            unknown = [s for s in chosen if s not in known]
+            if len(chosen) < 2 or unknown:
+                raise AtlasError(f"--stations = {only!r}: two or more of the facility's "
+                                 f"stations ({', '.join(sorted(known))})")
+        if scheduler:
+            check_scheduler(scheduler)
+        done_before = len(list((Path(out) / "pairs").glob("*.json"))) if Path(
+            out).is_dir() else 0
+        _progress.resumed = done_before
+        doc = atlas(fac, counts, out, serial=serial, scheduler=scheduler, workers=workers,
+                    progress=_progress, only=chosen)
+    names = [s["name"] for s in doc["stations"]]
+    width = max(len(n) for n in names)
+    answers = {(p["from"], p["to"]): p["max_trailers"] for p in doc["pairs"]}
+    click.echo(f"most trailers from (rows) to (columns), trying {trailers}:")
+    click.echo(" " * (width + 2) + " ".join(f"{n[:6]:>6}" for n in names))
+    for a in names:
+        cells = ["     -" if a == b else f"{answers[(a, b)]:>6}" for b in names]
+        click.echo(f"{a:<{width}}  " + " ".join(cells))
+    click.echo(f"atlas: {out}")
+    sys.stdout.flush()

@@ -1,0 +1,126 @@
+"""pushtrain atlas: every answer replays with plan-and-run; the same answers serially and on
+Dask; resumed after an interruption; bad facility files and options are exit 2."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+FACILITY = ROOT / "examples" / "atlas" / "facility.toml"
+SUBSET = "hall,recess,corridor"  # answers 0, 2, 4 and 5 among them
+
+
+def _cli(*args):
+    exe = Path(sys.executable).with_name("pushtrain")
+    return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True,
+                          timeout=1800)
+
+
+@pytest.fixture(scope="module")
+def subset_atlas(tmp_path_factory):
+    out = tmp_path_factory.mktemp("atlas") / "subset"
+    proc = _cli("atlas", FACILITY, "--trailers", "1-5", "--stations", SUBSET, "--out", out,
+                "--serial")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return out, proc
+
+
+@pytest.mark.slow
+def test_every_answer_replays_with_plan_and_run(subset_atlas, tmp_path):
+    out, proc = subset_atlas
+    doc = json.loads((out / "atlas.json").read_text())
+    answers = {(p["from"], p["to"]): p["max_trailers"] for p in doc["pairs"]}
+    assert len(answers) == 6
+    assert set(answers.values()) >= {0, 2, 5}  # the example's limits: a slit-free dead end,
+    # an L corridor 1.1 m wide, the open hall
+    assert "most trailers from (rows) to (columns)" in proc.stdout
+    assert "about" in proc.stderr and "s left" in proc.stderr  # progress with an estimate
+    for (a, b), k in answers.items():
+        for n, must_reach in ((k, True), (k + 1, False)):
+            if n < 1 or n > 5:
+                continue
+            mission = out / "missions" / f"{a}-{b}-n{n}.toml"
+            assert mission.is_file()
+            run = _cli("plan-and-run", mission, "--out", tmp_path / f"{a}-{b}-n{n}",
+                       "--no-plots")
+            assert (run.returncode == 0) == must_reach, (mission.name, run.stdout[-800:],
+                                                         run.stderr[-800:])
+    rows = (out / "atlas.csv").read_text().splitlines()
+    assert rows[0].startswith("from,to,max_trailers,n,status")
+    assert len(rows) - 1 == sum(len(p["by_n"]) for p in doc["pairs"])
+    for name in ("atlas.png", "matrix.png", "report.html"):
+        assert (out / name).stat().st_size > 1000
+
+
+@pytest.mark.slow
+def test_dask_gives_the_serial_answers_and_a_rerun_resumes(subset_atlas, tmp_path):
+    serial, _ = subset_atlas
+    out = tmp_path / "dask"
+    proc = _cli("atlas", FACILITY, "--trailers", "1-5", "--stations", "hall,recess",
+                "--out", out, "--workers", "2")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+
+    def answers(folder):
+        doc = json.loads((folder / "atlas.json").read_text())
+        return {(p["from"], p["to"]): (p["max_trailers"], {n: (r["status"], r["length_m"])
+                                                            for n, r in p["by_n"].items()})
+                for p in doc["pairs"]}
+
+    got, want = answers(out), answers(serial)
+    assert got == {k: v for k, v in want.items() if k in got}
+    # an interrupted atlas: one pair's answer lost; the rerun computes only that pair
+    (out / "pairs" / "recess-hall.json").unlink()
+    kept = (out / "pairs" / "hall-recess.json").stat().st_mtime_ns
+    again = _cli("atlas", FACILITY, "--trailers", "1-5", "--stations", "hall,recess",
+                 "--out", out, "--serial")
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert (out / "pairs" / "hall-recess.json").stat().st_mtime_ns == kept
+    assert "atlas: 1/2 pairs" in again.stderr
+    assert answers(out) == got
+
+
+@pytest.mark.parametrize("edit, where", [
+    (lambda t: t.replace('name = "bay_b"', 'name = "bay_a"'), "stations[1].name"),
+    (lambda t: t.replace("x = 8.0", "x = nan"), "stations[2].x"),
+    (lambda t: t.replace("x = 8.0", 'x = "8"'), "stations[2].x"),
+    (lambda t: t.replace('name = "hall"', 'name = "../hall"'), "stations[2].name"),
+    (lambda t: t.replace("[planner]", "[planer]"), "planer"),
+    (lambda t: t.replace("time_budget = 4.0", "time_budget = -1"), "planner.time_budget"),
+    (lambda t: t.replace("x = 8.0\ny = 4.5", "x = 80.0\ny = 4.5"), "hall"),
+])
+def test_a_bad_facility_is_exit_2_naming_the_field(tmp_path, edit, where):
+    bad = tmp_path / "facility.toml"
+    bad.write_text(edit(FACILITY.read_text()))
+    proc = _cli("atlas", bad, "--out", tmp_path / "out", "--serial")
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert where in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "out" / "atlas.json").exists()
+
+
+@pytest.mark.parametrize("args, where", [
+    (["--trailers", "0-3"], "--trailers"),
+    (["--trailers", "a"], "--trailers"),
+    (["--stations", "hall"], "--stations"),
+    (["--stations", "hall,nowhere"], "--stations"),
+    (["--scheduler", "nonsense"], "--scheduler"),
+])
+def test_bad_options_are_exit_2(tmp_path, args, where):
+    proc = _cli("atlas", FACILITY, "--out", tmp_path / "out", "--serial", *args)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert where in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_an_out_folder_of_something_else_is_refused(tmp_path):
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    proc = _cli("atlas", FACILITY, "--out", other, "--stations", "hall,store", "--serial")
+    assert proc.returncode == 2 and "--out" in proc.stderr
+    assert (other / "notes.txt").read_text() == "mine"
+    shutil.rmtree(other)
