@@ -355,8 +355,8 @@ def _write_outputs(out: Path, facility: Facility, trailers, answers: list, names
                         *("" if r.get(k) is None else r[k] for k in RESULT_FIELDS)])
     atomic_write_text(out / "atlas.csv", buf.getvalue())
     try:
-        from pushtrain.mission.scenario import parse_scenario as _parse
         from pushtrain.mission.runner import world_of
+        from pushtrain.mission.scenario import parse_scenario as _parse
         from pushtrain.report.atlas import atlas_figure, matrix_figure, save_figure
         from pushtrain.report.html import write_table_page
 
