@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 
 import click
@@ -9,16 +10,50 @@ import click
 from ..common import BadInput, out_dir_option
 from ..rundir import run_folder
 
+_MAX_TRAILERS = 50  # SlipStudyConfig's range of n
 
-def _int_list(text: str) -> tuple[int, ...]:
-    """``'1-3,7'`` -> ``(1, 2, 3, 7)``."""
+
+def _bad(option: str, text: str, allowed: str) -> BadInput:
+    return BadInput(f"{option} = {text!r}: {allowed}")
+
+
+def _trailer_list(text: str) -> tuple[int, ...]:
+    """``--trailers``: ``'1-3,7'`` -> ``(1, 2, 3, 7)``; each number 1..50, checked before a
+    range is expanded (``1-1000000000`` is refused, not listed)."""
+    allowed = (f"a comma-separated list of trailer counts 1..{_MAX_TRAILERS} and ranges "
+               "LOW-HIGH, e.g. '1-10' or '1,3,7'")
     out = []
     for part in text.split(","):
-        if "-" in part:
-            lo, hi = part.split("-", 1)
-            out += list(range(int(lo), int(hi) + 1))
-        else:
-            out.append(int(part))
+        ends = part.split("-", 1)
+        try:
+            numbers = [int(e.strip()) for e in ends]
+        except ValueError:
+            raise _bad("--trailers", text, f"{allowed}; {part.strip()!r} is not "
+                       f"{'a range of whole numbers' if len(ends) == 2 else 'a whole number'}"
+                       ) from None
+        if any(not 1 <= k <= _MAX_TRAILERS for k in numbers):
+            raise _bad("--trailers", text, f"{allowed}; {part.strip()!r} is outside "
+                       f"1..{_MAX_TRAILERS}")
+        if len(numbers) == 2 and numbers[0] > numbers[1]:
+            raise _bad("--trailers", text, f"{allowed}; {part.strip()!r} is an empty range "
+                       "(LOW > HIGH)")
+        out += list(range(numbers[0], numbers[-1] + 1))
+    return tuple(out)
+
+
+def _alpha_list(text: str) -> tuple[float, ...]:
+    """``--alphas``: ``'5,10,30'`` -> ``(5.0, 10.0, 30.0)``, each finite and > 0."""
+    allowed = ("a comma-separated list of angular accelerations in deg/s^2, each a finite "
+               "number > 0, e.g. '5,10,30'")
+    out = []
+    for part in text.split(","):
+        try:
+            value = float(part)
+        except ValueError:
+            raise _bad("--alphas", text, f"{allowed}; {part.strip()!r} is not a number") from None
+        if not (math.isfinite(value) and value > 0.0):
+            raise _bad("--alphas", text, f"{allowed}; {part.strip()!r} is not finite and > 0")
+        out.append(value)
     return tuple(out)
 
 
@@ -26,8 +61,7 @@ def _config(trailers: str, alphas: str, w_max: float, payload: float):
     from pushtrain.studies.slipstudy import SlipStudyConfig
 
     try:
-        return SlipStudyConfig(trailers=_int_list(trailers),
-                               alphas_deg=tuple(float(a) for a in alphas.split(",")),
+        return SlipStudyConfig(trailers=_trailer_list(trailers), alphas_deg=_alpha_list(alphas),
                                w_max_deg=w_max, payload=payload)
     except ValueError as exc:
         raise BadInput(f"slip-study: {exc}") from None

@@ -1,0 +1,78 @@
+"""Command-line options whose values are parsed by pushtrain, not click (issue #29, case 19):
+a bad value exits 2 naming the option, the value and what is allowed, never a traceback."""
+
+from __future__ import annotations
+
+import socket
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from pushtrain.cli.main import cli
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _invoke(args):
+    return CliRunner().invoke(cli, args)
+
+
+@pytest.mark.parametrize("value, why", [
+    ("abc", "'abc' is not a number"),  # was "could not convert string to float: 'abc'"
+    ("5,,10", "'' is not a number"),
+    ("5,nan", "'nan' is not finite and > 0"),
+    ("-5", "'-5' is not finite and > 0"),
+])
+def test_slip_study_alphas_name_the_option(tmp_path, value, why):
+    done = _invoke(["slip-study", "--alphas", value, "--out", str(tmp_path / "out")])
+    assert done.exit_code == 2, done.output
+    assert f"--alphas = {value!r}" in done.output and why in done.output, done.output
+    assert "deg/s^2" in done.output
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("value, why", [
+    ("x", "'x' is not a whole number"),
+    ("1-x", "'1-x' is not a range of whole numbers"),
+    ("0", "'0' is outside 1..50"),
+    ("1-100000", "'1-100000' is outside 1..50"),  # was listed, then refused as 100000 numbers
+    ("5-2", "'5-2' is an empty range"),
+])
+def test_slip_study_trailers_name_the_option(tmp_path, value, why):
+    done = _invoke(["slip-study", "--trailers", value, "--out", str(tmp_path / "out")])
+    assert done.exit_code == 2, done.output
+    assert f"--trailers = {value!r}" in done.output and why in done.output, done.output
+    assert len(done.output) < 400, done.output  # not a list of every number asked for
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.parametrize("address, why", [
+    ("foo", "missing port number"),
+    ("xyz://host:1", "unknown protocol 'xyz'"),
+    ("tcp://host:abc", "'abc'"),
+    (None, "nothing accepts connections"),  # a port nobody listens on (Dask waited 30 s)
+])
+def test_sweep_scheduler_names_the_option(tmp_path, address, why):
+    address = address or f"tcp://127.0.0.1:{_free_port()}"
+    done = _invoke(["sweep", str(EXAMPLES / "joint_bias_5deg.toml"), "--spec",
+                    str(EXAMPLES / "sweeps" / "joint_bias.toml"), "--scheduler", address,
+                    "--out", str(tmp_path / "out")])
+    assert done.exit_code == 2, (done.output, done.exception)
+    assert f"--scheduler = {address!r}" in done.output and why in done.output, done.output
+    assert "tcp://host:8786" in done.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_listening_scheduler_address_passes_the_check():
+    from pushtrain.cli.sweep import check_scheduler
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        check_scheduler(f"tcp://127.0.0.1:{server.getsockname()[1]}")
