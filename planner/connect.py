@@ -29,7 +29,8 @@ MAX_SAMPLES = 2_000_000
 
 
 def corner_segments(pose, goal, direction: int, radius: float | None = None,
-                    max_radius: float = math.inf) -> list[Segment] | None:
+                    max_radius: float = math.inf,
+                    max_reach: float = MAX_CORNER_REACH) -> list[Segment] | None:
     """Straight, arc, straight from ``pose`` to ``goal`` (chain convention) in one
     ``direction`` (PUSH or PULL): the path a driver takes round a corner.
 
@@ -38,7 +39,8 @@ def corner_segments(pose, goal, direction: int, radius: float | None = None,
     Collinear poses give one straight line. Returns None where no such path exists (the lines
     do not meet ahead, the radius does not fit between the corner and the poses, or the travel
     turns by half a turn: parallel lines of opposite directions meet nowhere, and nearly so
-    meet farther than :data:`MAX_CORNER_REACH` away).
+    meet farther than ``max_reach`` [m] away: a caller that knows its map passes the map's
+    diagonal, since no longer leg fits in it; :data:`MAX_CORNER_REACH` otherwise).
     """
     sigma = -1.0 if direction == PUSH else 1.0
     ax, ay = sigma * math.cos(pose[2]), sigma * math.sin(pose[2])
@@ -57,7 +59,7 @@ def corner_segments(pose, goal, direction: int, radius: float | None = None,
     # pose + s a = goal - t b
     s = float((dx * by - dy * bx) / cross)
     t = float((dy * ax - dx * ay) / cross)
-    if s <= 0.0 or t <= 0.0 or max(s, t) > MAX_CORNER_REACH:
+    if s <= 0.0 or t <= 0.0 or max(s, t) > min(max_reach, MAX_CORNER_REACH):
         return None
     half = math.tan(0.5 * abs(alpha))
     fits = min(s, t) / half

@@ -275,6 +275,10 @@ class Search:
         self.prop = propagator
         self.heuristic = heuristic
         self.goal = tuple(float(a) for a in goal)
+        # the longest straight a connection may have [m]: the map's diagonal (a near U-turn's
+        # corner lies far outside the map, and its reference took gigabytes to check)
+        ny, nx = propagator.field.values.shape
+        self.reach = math.hypot(nx, ny) * propagator.field.resolution
         self.s = settings
         self.kappa = 1.0 / settings.radius
         self.stats = Stats()
@@ -444,7 +448,8 @@ class Search:
                 return  # a corner or a junction: the primitives and connections take it
             x, y, travel = route.pose_at(along + ahead)
             target = (x, y, travel + math.pi)
-            path = corner_segments(pose, target, PUSH, None, max_radius=4.0 * s.radius)
+            path = corner_segments(pose, target, PUSH, None, max_radius=4.0 * s.radius,
+                                   max_reach=self.reach)
             if path and all(abs(g.curvature) <= self.kappa + 1e-9 for g in path):
                 yield path
                 continue
@@ -562,7 +567,8 @@ class Search:
             if direction == PULL and bent:
                 continue
             for factor in s.corner_radii:
-                path = corner_segments(pose, self.goal, direction, s.radius * factor)
+                path = corner_segments(pose, self.goal, direction, s.radius * factor,
+                                       max_reach=self.reach)
                 if path:
                     yield ("corner", direction, factor), path
         if bent:
@@ -570,7 +576,8 @@ class Search:
                 push = Segment("line", d, 0.0, PUSH)
                 ahead = sample_reference(pose, [push], d)[-1]
                 for factor in s.corner_radii:
-                    path = corner_segments(ahead, self.goal, PULL, s.radius * factor)
+                    path = corner_segments(ahead, self.goal, PULL, s.radius * factor,
+                                           max_reach=self.reach)
                     if path:
                         yield ("straighten", d, factor), [push] + path
         gx, gy, gth = self.goal

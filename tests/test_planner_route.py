@@ -178,3 +178,36 @@ def test_pushes_along_the_route_leave_the_corner_of_a_narrow_l_to_the_search():
     path = runner.plan_path(sc)
     assert path.n_cusps == 0
     assert path.info["expansions"] <= 12
+
+
+def test_a_near_u_turn_goal_plans_in_bounded_memory(tmp_path):
+    """l_corridor with its goal turned to -0.04 deg (found by the CLI fuzz): the corner
+    connections' legs met 10 km away and their references were checked in one array
+    (2.5 GB, 47 s). A leg longer than the map's diagonal is no connection."""
+    import subprocess
+    import sys
+
+    from pushtrain.core.reference import PUSH
+    from pushtrain.planner.connect import corner_segments
+
+    # nearly opposite travel directions: the lines meet about 14 km ahead
+    far = corner_segments((0.0, 0.0, 0.0), (0.0, 1.0, math.radians(179.996)), PUSH, 1.0)
+    assert far is None or sum(s.length for s in far) < 2e4
+    assert corner_segments((0.0, 0.0, 0.0), (0.0, 1.0, math.radians(179.996)), PUSH, 1.0,
+                           max_reach=50.0) is None
+    text = (Path(__file__).resolve().parents[1] / "examples" / "l_corridor.toml").read_text()
+    scenario = tmp_path / "uturn.toml"
+    scenario.write_text(text.replace("theta_deg = -90.0", "theta_deg = -0.04"))
+    # the plan in a child of its own, which reports its own peak memory
+    code = ("import resource, sys\n"
+            "from pushtrain.cli.main import cli\n"
+            "try:\n"
+            "    cli.main(['plan', sys.argv[1]], standalone_mode=False)\n"
+            "except Exception as exc:\n"
+            "    print('ERROR', type(exc).__name__)\n"
+            "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(scenario)], capture_output=True,
+                          text=True, timeout=600)
+    peak_mib = int(proc.stdout.split("PEAK")[-1]) / 1024
+    assert "Traceback" not in proc.stderr, proc.stderr[-500:]
+    assert peak_mib < 600, f"peak {peak_mib:.0f} MiB"
