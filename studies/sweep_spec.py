@@ -28,7 +28,7 @@ from pydantic import (
 )
 
 from pushtrain.errors import FieldErrors, SweepError
-from pushtrain.validation import read_toml, validate_model
+from pushtrain.validation import Integer, read_toml, validate_model
 
 __all__ = [
     "SweepError",
@@ -184,7 +184,8 @@ def plain_value(value):
 
 # ----------------------------------------------------------------------------------------- spec
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # strict: a TOML boolean or string is not a number (num = true is not 1, num = "3" not 3)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class RangeSpec(_Section):
@@ -192,7 +193,7 @@ class RangeSpec(_Section):
 
     start: FiniteFloat
     stop: FiniteFloat
-    num: Annotated[int, Field(ge=1, le=100_000)]
+    num: Annotated[Integer, Field(ge=1, le=100_000)]
 
 
 class ParameterSpec(_Section):
@@ -271,13 +272,13 @@ class SweepSpec(_Section):
     name: str = "sweep"
     description: str = ""
     mode: Literal["grid", "monte_carlo"] = "grid"
-    samples: Annotated[int, Field(ge=1, le=1_000_000)] | None = None
-    seed: Annotated[int, Field(ge=1)] = 1  # Monte Carlo draws; base of seed_per_run
+    samples: Annotated[Integer, Field(ge=1, le=1_000_000)] | None = None
+    seed: Annotated[Integer, Field(ge=1)] = 1  # Monte Carlo draws; base of seed_per_run
     seed_per_run: bool = False  # set the scenario's seed (noise, planner) to seed + run index
     parameters: Annotated[list[ParameterSpec], Field(min_length=1)]
     metrics: list[Literal[tuple(METRICS)]] | None = None  # type: ignore[valid-type]
     steady_window: PositiveFloat = 10.0
-    chunk_size: Annotated[int, Field(ge=1, le=10_000)] = 8
+    chunk_size: Annotated[Integer, Field(ge=1, le=10_000)] = 8
     overrides: dict[str, Value | None] = {}
 
     @model_validator(mode="after")
