@@ -13,16 +13,24 @@ each run and as medians:
 * the peak resident memory (RSS) of each process: the command's own (main) process and each
   of the two plot processes that draw the PNGs and the GIF (as the command logs them in
   ``run.log``); ``wait4`` gives the largest of them,
-* the peak of the summed proportional memory (PSS, shared pages split between the processes
-  that share them) of the whole process tree, sampled every 20 ms from
-  ``/proc/PID/smaps_rollup``: what the command as a whole holds (the plot processes are forked,
-  so most of their RSS is shared with the main process and counted in each RSS),
+* in separate, untimed runs (``--pss-runs``, default 1): the peak of the summed proportional
+  memory (PSS, shared pages split between the processes that share them) of the whole process
+  tree, sampled every 20 ms from ``/proc/PID/smaps_rollup``: what the command as a whole holds
+  (the plot processes are forked, so most of their RSS is shared with the main process and
+  counted in each RSS). The sampler is never on while a run is timed: reading
+  ``smaps_rollup`` walks the measured process's page tables under its memory-map lock, and
+  on 2 cores it made l_corridor's runs 26 % slower (medians of 5 alternating pairs, 6.25 s
+  without, 7.90 s with, load 5.3-6.7; issue #29 saw 25-30 %),
 
 and prints the ratios to the targets: wall time / 4 s and peak memory / 150 MiB (<= 1 meets
 them), the memory judged on the largest single process's peak RSS (each process's peak is
 printed, and the sum of the RSS peaks and the PSS peak of the tree for comparison).
 
-Run: python benchmarks/bench_plan_and_run.py [--scenario examples/l_corridor.toml] [--repeats 3]
+Every figure is printed with the load average (1 min) it was measured at: the wall time grows
+with the load (the CPU time less), so a figure without its load cannot be compared.
+
+Run: python benchmarks/bench_plan_and_run.py [--scenario examples/l_corridor.toml] [--repeats 5]
+                                             [--pss-runs 1]
 """
 
 from __future__ import annotations
@@ -90,16 +98,19 @@ class _TreePss:
         return self.peak / 1024.0
 
 
-def run_once(scenario: str, out_dir: str, extra: list[str]) -> dict:
+def run_once(scenario: str, out_dir: str, extra: list[str], sample_pss: bool = False) -> dict:
     """One ``plan-and-run`` in a new process: wall and CPU time [s] (CPU of the whole tree),
     peak RSS [MiB] of the largest process and of each (main first), the peak PSS of the tree
-    [MiB], the phase times [s] it printed, and its exit code."""
+    [MiB] (with ``sample_pss`` only, else NaN: the sampler slows the run), the phase times [s]
+    it printed, its exit code, and the load average (1 min) when it started."""
     code = "from pushtrain.cli.main import plan_and_run_main; plan_and_run_main()"
     args = [sys.executable, "-c", code, str(Path(scenario).resolve()), "--out", out_dir, *extra]
+    load = os.getloadavg()[0]
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         t0 = time.perf_counter()
         proc = subprocess.Popen(args, stdout=out, stderr=err, cwd=Path(out_dir).parent)
-        pss = _TreePss(proc.pid) if os.path.exists(f"/proc/{proc.pid}/smaps_rollup") else None
+        pss = (_TreePss(proc.pid) if sample_pss and os.path.exists(f"/proc/{proc.pid}/smaps_rollup")
+               else None)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         pss_mib = pss.end() if pss is not None else float("nan")
@@ -124,20 +135,28 @@ def run_once(scenario: str, out_dir: str, extra: list[str]) -> dict:
             peaks = [float(match.group(1))] + [float(v) for v in match.group(2).split(", ")]
     return {"wall": wall, "cpu": usage.ru_utime + usage.ru_stime,
             "rss_mib": usage.ru_maxrss / 1024.0, "peaks": peaks, "pss_mib": pss_mib,
-            "phases": phases, "exit": proc.returncode}
+            "phases": phases, "exit": proc.returncode, "load": load}
+
+
+def _loads(runs) -> str:
+    """``load a-b`` (1-minute load averages at the starts of ``runs``)."""
+    lo, hi = min(r["load"] for r in runs), max(r["load"] for r in runs)
+    return f"load {lo:.2f}" if f"{lo:.2f}" == f"{hi:.2f}" else f"load {lo:.2f}-{hi:.2f}"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenario", default="examples/l_corridor.toml")
-    parser.add_argument("--repeats", type=int, default=3, help="measured runs (after a warm-up)")
+    parser.add_argument("--repeats", type=int, default=5, help="timed runs (after a warm-up)")
+    parser.add_argument("--pss-runs", type=int, default=1,
+                        help="untimed runs with the 20 ms PSS sampler, after the timed ones")
     parser.add_argument("extra", nargs="*", help="more plan-and-run options (after --)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         out = str(Path(tmp) / "run")
         print(f"plan-and-run {args.scenario} {' '.join(args.extra)}".rstrip())
-        print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores "
-              "(other processes share the cores: compare with the load)")
+        print(f"{os.cpu_count()} cores; load average (1 min) {os.getloadavg()[0]:.2f} before "
+              "(other processes share the cores: compare the loads printed)")
         run_once(args.scenario, out, args.extra)  # warm-up
         runs = []
         for k in range(args.repeats):
@@ -146,9 +165,15 @@ def main() -> None:
             phases = ", ".join(f"{name} {s:.2f}" for name, s in run["phases"].items())
             peaks = (f" (main {run['peaks'][0]:.0f}, plot processes "
                      f"{', '.join(f'{v:.0f}' for v in run['peaks'][1:])})" if run["peaks"] else "")
-            print(f"run {k + 1}: wall {run['wall']:.2f} s, CPU {run['cpu']:.2f} s, peak RSS "
-                  f"{run['rss_mib']:.0f} MiB{peaks}, tree PSS {run['pss_mib']:.0f} MiB, "
-                  f"exit {run['exit']} | {phases}")
+            print(f"run {k + 1} (load {run['load']:.2f}): wall {run['wall']:.2f} s, CPU "
+                  f"{run['cpu']:.2f} s, peak RSS {run['rss_mib']:.0f} MiB{peaks}, exit "
+                  f"{run['exit']} | {phases}")
+        pss_runs = []
+        for k in range(args.pss_runs):
+            run = run_once(args.scenario, out, args.extra, sample_pss=True)
+            pss_runs.append(run)
+            print(f"PSS run {k + 1} (load {run['load']:.2f}, sampler on, not timed): tree PSS "
+                  f"peak {run['pss_mib']:.0f} MiB (wall {run['wall']:.2f} s with the sampler)")
         size = sum(p.stat().st_size for p in Path(out).iterdir()) / 1e6
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     wall = statistics.median(r["wall"] for r in runs)
@@ -156,12 +181,13 @@ def main() -> None:
     rss = max(r["rss_mib"] for r in runs)
     print("median phase times [s]: " + ", ".join(
         f"{name} {statistics.median(r['phases'][name] for r in runs):.2f}"
-        for name in runs[0]["phases"]))
+        for name in runs[0]["phases"]) + f" ({_loads(runs)})")
     print(f"run folder: {size:.1f} MB")
-    print(f"wall time (median of {len(runs)}): {wall:.2f} s = {wall / TARGET_WALL_S:.2f} x the "
-          f"{TARGET_WALL_S:g} s target (CPU time {cpu:.2f} s = {cpu / TARGET_WALL_S:.2f} x)")
-    print(f"peak RSS of the largest process (largest of {len(runs)} runs): {rss:.0f} MiB = "
-          f"{rss / TARGET_RSS_MIB:.2f} x the {TARGET_RSS_MIB:g} MiB target")
+    print(f"wall time (median of {len(runs)}, sampler off): {wall:.2f} s = "
+          f"{wall / TARGET_WALL_S:.2f} x the {TARGET_WALL_S:g} s target (CPU time {cpu:.2f} s = "
+          f"{cpu / TARGET_WALL_S:.2f} x); {_loads(runs)} on {os.cpu_count()} cores")
+    print(f"peak RSS of the largest process (largest of {len(runs)} runs, from wait4): "
+          f"{rss:.0f} MiB = {rss / TARGET_RSS_MIB:.2f} x the {TARGET_RSS_MIB:g} MiB target")
     if all(r["peaks"] for r in runs):
         main_peak = max(r["peaks"][0] for r in runs)
         plot_peak = max(max(r["peaks"][1:], default=0.0) for r in runs)
@@ -169,9 +195,11 @@ def main() -> None:
         print(f"  main process {main_peak:.0f} MiB = {main_peak / TARGET_RSS_MIB:.2f} x, largest "
               f"plot process {plot_peak:.0f} MiB = {plot_peak / TARGET_RSS_MIB:.2f} x; sum of the "
               f"processes' peaks {total:.0f} MiB (shared pages counted in each)")
-    pss = max(r["pss_mib"] for r in runs)
-    print(f"  peak PSS of the process tree (shared pages split, sampled every 20 ms): "
-          f"{pss:.0f} MiB = {pss / TARGET_RSS_MIB:.2f} x")
+    if pss_runs:
+        pss = max(r["pss_mib"] for r in pss_runs)
+        print(f"  peak PSS of the process tree (shared pages split, sampled every 20 ms in "
+              f"{len(pss_runs)} untimed run(s)): {pss:.0f} MiB = {pss / TARGET_RSS_MIB:.2f} x; "
+              f"{_loads(pss_runs)}")
 
 
 if __name__ == "__main__":

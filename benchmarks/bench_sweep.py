@@ -25,6 +25,10 @@ and prints for each worker count
 Targets (issue 14): efficiency >= 90 % at 2 workers; >= 10,000 runs of this 60 s scenario per
 hour on 2 cores. The ratios to both are printed last.
 
+Every figure is printed with the load averages (1 min) seen while it was measured (at the
+start and the end of each round): other processes on the cores lower both the efficiency and
+the runs per hour, so a figure without its load cannot be compared.
+
 Run: python benchmarks/bench_sweep.py [--runs 400] [--repeats 3]
 """
 
@@ -95,6 +99,12 @@ def _load() -> str:
     return f"load {os.getloadavg()[0]:.2f}"
 
 
+def _span(loads) -> str:
+    """``load a-b``: the range of the load averages ``loads``."""
+    lo, hi = min(loads), max(loads)
+    return f"load {lo:.2f}" if f"{lo:.2f}" == f"{hi:.2f}" else f"load {lo:.2f}-{hi:.2f}"
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--runs", type=int, default=400, help="runs per measurement")
@@ -113,6 +123,7 @@ def main():
             _timed(runs[:2 * workers], shared, spec, client=client)  # warm-up on every worker
             for r in range(args.repeats):
                 # serial before and after each parallel run: the machine's speed drifts
+                load0 = os.getloadavg()[0]
                 before = _serial(runs, shared, spec)
                 print(f"[{_load()}] {workers} worker(s), round {r + 1} ...")
                 cpu0 = sum(client.run(_cpu_self).values())
@@ -129,13 +140,16 @@ def main():
                     "serial": serial_wall, "per_run": per_run,
                     "efficiency": serial_wall / (workers * per_run),
                     "cpu_ratio": cpu / len(runs) / serial_cpu,
-                    "busy": in_worker / (workers * per_run), "client": here / len(runs)})
+                    "busy": in_worker / (workers * per_run), "client": here / len(runs),
+                    "loads": (load0, os.getloadavg()[0])})
                 print(f"  serial {before[0] * 1000:.1f} / {after[0] * 1000:.1f} ms per run, "
                       f"parallel {per_run * 1000:.1f} ms wall per run: efficiency "
-                      f"{rounds[-1]['efficiency'] * 100:.0f} %")
+                      f"{rounds[-1]['efficiency'] * 100:.0f} %, "
+                      f"{3600 / per_run:,.0f} runs per hour ({_span(rounds[-1]['loads'])})")
         results[workers] = rounds
     for workers, rounds in results.items():
-        med = {k: statistics.median(r[k] for r in rounds) for k in rounds[0]}
+        med = {k: statistics.median(r[k] for r in rounds) for k in rounds[0] if k != "loads"}
+        loads = _span([x for r in rounds for x in r["loads"]])
         print(f"{workers} worker(s), medians of {len(rounds)} rounds: serial "
               f"{med['serial'] * 1000:.1f} ms per run, {med['per_run'] * 1000:.1f} ms wall per "
               f"run = {3600 / med['per_run']:,.0f} runs per hour; efficiency = serial / (workers"
@@ -143,13 +157,14 @@ def main():
               f"{rounds_text(rounds)}); worker "
               f"CPU per run {med['cpu_ratio']:.2f} x serial; workers busy {med['busy'] * 100:.0f}"
               f" % of the wall time; the client's CPU (submitting, collecting, writing rows) "
-              f"{med['client'] * 1000:.2f} ms per run")
+              f"{med['client'] * 1000:.2f} ms per run; {loads}")
     best = min(2, max(results))
     efficiency = statistics.median(r["efficiency"] for r in results[best])
     per_run = statistics.median(r["per_run"] for r in results[best])
-    print(f"at {best} workers: efficiency {efficiency * 100:.0f} % = "
-          f"{efficiency / TARGET_EFFICIENCY:.2f} x the {TARGET_EFFICIENCY * 100:.0f} % target; "
-          f"{3600 / per_run:,.0f} runs per hour = "
+    loads = _span([x for r in results[best] for x in r["loads"]])
+    print(f"at {best} workers ({loads} on {os.cpu_count()} cores): efficiency "
+          f"{efficiency * 100:.0f} % = {efficiency / TARGET_EFFICIENCY:.2f} x the "
+          f"{TARGET_EFFICIENCY * 100:.0f} % target; {3600 / per_run:,.0f} runs per hour = "
           f"{3600 / per_run / TARGET_RUNS_PER_HOUR:.2f} x the {TARGET_RUNS_PER_HOUR:,} target")
 
 
