@@ -131,14 +131,18 @@ def _phase(phases: Phases | None, name: str, what: str):
 
 def _build_fmu_once(sc: Scenario, phases: Phases | None) -> None:
     """The scenario's FMU compiled as a phase of its own on first use (a few seconds; cached
-    for every later run), so that the co-simulation's time is the co-simulation's."""
-    from pushtrain.fmu.build import build_fmu, is_built
+    for every later run) or when the cached copy is damaged, so that the co-simulation's time
+    is the co-simulation's."""
+    from pushtrain.fmu.build import build_fmu, cache_damage, cached_path, is_built
     from pushtrain.mission.runner import fmu_build_args
 
     args = fmu_build_args(sc)
     if not is_built(**args):
-        with _phase(phases, "build FMU", f"building the FMU (FMI {args['fmi_version']}.0; first "
-                                         "use, cached for later runs)"):
+        version = args["fmi_version"]
+        what = (f"rebuilding the FMU (FMI {version}.0; the cached copy is damaged)"
+                if cache_damage(cached_path(**args)) else
+                f"building the FMU (FMI {version}.0; first use, cached for later runs)")
+        with _phase(phases, "build FMU", what):
             build_fmu(**args)
 
 

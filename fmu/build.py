@@ -7,7 +7,10 @@ retypes the variable table), lets fmpy's build helper write the CMake cache for 
 ``CMakeLists.txt`` (the FMI headers come from the installed fmpy), compiles, and zips a
 self-contained ``.fmu`` with the binary (``binaries/linux64/`` for FMI 2.0,
 ``binaries/x86_64-linux/`` for FMI 3.0) and ``sources/`` so other tools can rebuild it. Builds
-are cached by a hash of the sources, the FMI version, n and the build options.
+are cached by a hash of the sources, the FMI version, n and the build options; a cached FMU
+that is not a whole zip (a copy cut short, a full disk) is found when the cache is asked
+(:func:`cache_damage`) and rebuilt. A cache folder that cannot be made (``PUSHTRAIN_CACHE``
+naming a file) is bad input that names ``PUSHTRAIN_CACHE``.
 
 :func:`package_fmu` (compile and zip any model's files) also builds the second model, the
 BackwardController FMU (:mod:`.controller`).
@@ -48,7 +51,11 @@ __all__ = [
     "FmuBuildError",
     "MODEL_IDENTIFIER",
     "build_fmu",
+    "cache_damage",
+    "cached_path",
     "cache_dir",
+    "ready_cache_dir",
+    "usable_cached",
     "package_fmu",
     "render_model_description",
     "render_model_description3",
@@ -66,6 +73,58 @@ def cache_dir() -> Path:
     root = os.environ.get("PUSHTRAIN_CACHE")
     base = Path(root) if root else Path.home() / ".cache" / "pushtrain"
     return base / "fmu"
+
+
+def ready_cache_dir() -> Path:
+    """:func:`cache_dir`, made if missing. Raises FmuInputError naming ``PUSHTRAIN_CACHE`` (and
+    what stands in the way) when it cannot be made or written."""
+    folder = cache_dir()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        reason = None if os.access(folder, os.W_OK | os.X_OK) else "it is not writable"
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        blocker = next((p for p in (folder, *folder.parents) if p.exists() and not p.is_dir()),
+                       None)
+        if blocker is not None:
+            reason = f"{str(blocker)!r} is a file"
+    if reason is None:
+        return folder
+    root = os.environ.get("PUSHTRAIN_CACHE")
+    where = f"PUSHTRAIN_CACHE = {root!r}" if root else "the default FMU cache"
+    raise FmuInputError(f"{where}: the FMU cache {str(folder)!r} cannot be made: {reason}; "
+                        "allowed: PUSHTRAIN_CACHE naming a folder (made if missing) where files "
+                        "can be written")
+
+
+def cache_damage(path) -> str | None:
+    """Why the cached FMU at ``path`` cannot be used (None if it is whole or missing): not a
+    zip (cut short), a member that fails its CRC check, no model description or binary."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    try:
+        with zipfile.ZipFile(path) as zf:
+            bad = zf.testzip()
+            names = zf.namelist()
+    except Exception as exc:  # BadZipFile, zlib.error, EOFError, OSError, ...: damaged
+        return f"{type(exc).__name__}: {exc}"
+    if bad is not None:
+        return f"{bad} fails its CRC check"
+    if "modelDescription.xml" not in names or not any(n.startswith("binaries/") for n in names):
+        return "it holds no model description or no binary"
+    return None
+
+
+def usable_cached(path) -> bool:
+    """Whether the cached FMU at ``path`` is there and whole; a damaged one is logged (as a
+    warning: it is rebuilt) and is not."""
+    path = Path(path)
+    damage = cache_damage(path)
+    if damage is not None:
+        log.warning("the cached FMU %s is damaged (%s); rebuilding it", path, damage)
+        return False
+    return path.is_file()
 
 
 def _source_dir():
@@ -210,10 +269,18 @@ def _cache_entry(n_trailers, fmi_version, strict: bool):
     return n, what, fingerprint, cache_dir() / f"{name}-{fingerprint[:16]}.fmu"
 
 
+def cached_path(n_trailers: int | None = None, *, fmi_version: int = 2,
+                strict: bool = False) -> Path:
+    """Where :func:`build_fmu` caches this build (whether or not it is there)."""
+    return _cache_entry(n_trailers, fmi_version, strict)[3]
+
+
 def is_built(n_trailers: int | None = None, *, fmi_version: int = 2,
              strict: bool = False) -> bool:
-    """Whether :func:`build_fmu` has this build in its cache (it then costs no compilation)."""
-    return _cache_entry(n_trailers, fmi_version, strict)[3].is_file()
+    """Whether :func:`build_fmu` has this build, whole, in its cache (it then costs no
+    compilation)."""
+    cached = cached_path(n_trailers, fmi_version=fmi_version, strict=strict)
+    return cached.is_file() and cache_damage(cached) is None
 
 
 def build_fmu(n_trailers: int | None = None, output_path=None, *, fmi_version: int = 2,
@@ -242,14 +309,14 @@ def build_fmu(n_trailers: int | None = None, output_path=None, *, fmi_version: i
     Raises
     ------
     FmuInputError
-        ``n_trailers`` out of range or missing (FMI 2.0) or given (FMI 3.0), or an unknown
-        ``fmi_version``.
+        ``n_trailers`` out of range or missing (FMI 2.0) or given (FMI 3.0), an unknown
+        ``fmi_version``, or a cache folder that cannot be made (:func:`ready_cache_dir`).
     FmuBuildError
         cmake missing, or the compiler failed.
     """
     n, what, fingerprint, cached = _cache_entry(n_trailers, fmi_version, strict)
-    if force or not cached.is_file():
-        cached.parent.mkdir(parents=True, exist_ok=True)
+    if force or not usable_cached(cached):
+        ready_cache_dir()
         guid = "{" + str(uuid.UUID(fingerprint[:32])) + "}"
         log.info("building %s (%s) into %s", MODEL_IDENTIFIER, what, cached)
         _build_into(fmi_version, n, cached, strict, guid)

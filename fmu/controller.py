@@ -31,7 +31,7 @@ import numpy as np
 from pushtrain.errors import FmuInputError
 from pushtrain.files import atomic_write
 
-from .build import cache_dir, package_fmu
+from .build import cache_dir, package_fmu, ready_cache_dir, usable_cached
 from .controller_variables import (
     CONTROLLER_HEADERS,
     CONTROLLER_IDENTIFIER,
@@ -169,8 +169,8 @@ def _cached_build(n: int, strict: bool, force: bool) -> Path:
         digest.update(data)
     fingerprint = digest.hexdigest()
     cached = cache_dir() / f"{CONTROLLER_IDENTIFIER}-n{n}-{fingerprint[:16]}.fmu"
-    if force or not cached.is_file():
-        cached.parent.mkdir(parents=True, exist_ok=True)
+    if force or not usable_cached(cached):
+        ready_cache_dir()
         guid = "{" + str(uuid.UUID(fingerprint[:32])) + "}"
         log.info("building %s (FMI 2.0, n = %d) into %s", CONTROLLER_IDENTIFIER, n, cached)
         package_fmu(_files(n, guid), CONTROLLER_IDENTIFIER, 2, cached, strict,
