@@ -73,13 +73,17 @@ def run_folder(out: str | None, name: str, sc=None):
     of the block and removes that handler afterwards. If the block fails, the failure goes to
     ``run.log`` and into ``summary.json`` (status ``invalid``, ``planning_failed``, ``failed``,
     ``error`` or, on Ctrl-C, ``interrupted`` with exit code 130), and pushtrain's errors become
-    click exceptions with the right exit code.
+    click exceptions with the right exit code. ``--out ""`` is refused, not taken for the
+    default.
     """
-    path = Path(out) if out else default_folder(name)
+    if out is not None and not out.strip():
+        raise BadInput(f"--out {out!r}: an empty folder name; allowed: a folder path, or no "
+                       "--out for runs/<name>-<timestamp>")
+    path = Path(out) if out is not None else default_folder(name)
     try:
         fresh_run_folder(path)
     except InputError as exc:
-        raise BadInput(f"--out: {exc}" if out else str(exc)) from None
+        raise BadInput(f"--out: {exc}" if out is not None else str(exc)) from None
     with to_run_log(path):
         log.info("run folder %s", path.resolve())
         try:

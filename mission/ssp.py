@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import logging
 import math
+import stat
 import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
@@ -47,6 +48,7 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.pulling import PullGuide
 from pushtrain.core.reference import Reference
 from pushtrain.cosim.master import InitialState
+from pushtrain.errors import InputError
 from pushtrain.files import atomic_write
 from pushtrain.fmu import build_fmu
 from pushtrain.fmu.controller import (
@@ -60,8 +62,9 @@ from pushtrain.fmu.render import MODEL_IDENTIFIER
 from .runner import controller_of, geometry_of, initial_of, plant_of, sensors_of
 from .scenario import Scenario, ScenarioError
 
-__all__ = ["CONTROLLER", "PARAMETER_SET", "PLANT", "SspExport", "controller_parameters",
-           "controller_table", "export_ssp", "horizon_of", "plant_parameters"]
+__all__ = ["CONTROLLER", "PARAMETER_SET", "PLANT", "SSP_TARGETS", "SspExport",
+           "check_ssp_target", "controller_parameters", "controller_table", "export_ssp",
+           "horizon_of", "plant_parameters", "ssp_target_problem"]
 
 log = logging.getLogger(__name__)
 
@@ -301,14 +304,61 @@ def _check_exportable(sc: Scenario) -> None:
                                        "governor)")])
 
 
+SSP_TARGETS = ("a new path or an earlier .ssp package (a regular file: a zip holding "
+               "SystemStructure.ssd), which is replaced")
+"""What :func:`export_ssp` may write to (the text of the refusals' "allowed")."""
+
+
+def ssp_target_problem(out) -> str | None:
+    """Why ``out`` must not be replaced by an SSP package (None: it may): anything but a new
+    path or an earlier package, e.g. a file of another kind, a link, a FIFO or a device (as
+    root, ``-o /dev/full`` replaced the device with a regular file)."""
+    target = Path(out)
+    try:
+        mode = target.lstat().st_mode
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        return f"cannot be looked at: {exc.strerror or exc}"
+    if stat.S_ISLNK(mode):
+        return f"is a symbolic link (to {str(target.readlink())!r})"
+    if stat.S_ISDIR(mode):
+        return "is a folder"
+    if not stat.S_ISREG(mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a character device" if stat.S_ISCHR(mode)
+                else "a block device" if stat.S_ISBLK(mode) else "a socket"
+                if stat.S_ISSOCK(mode) else "a special file")
+        return f"is not a regular file ({kind})"
+    try:
+        with zipfile.ZipFile(target) as zf:
+            names = zf.namelist()
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError):
+        return "is a file but not an SSP package (not a zip)"
+    if "SystemStructure.ssd" not in names:
+        return "is a zip without SystemStructure.ssd: not an SSP package"
+    return None
+
+
+def check_ssp_target(out) -> Path:
+    """``out`` as a Path; raises InputError when it must not be replaced
+    (:func:`ssp_target_problem`)."""
+    problem = ssp_target_problem(out)
+    if problem is not None:
+        raise InputError(f"{str(out)!r} {problem}; allowed: {SSP_TARGETS}")
+    return Path(out)
+
+
 def export_ssp(sc: Scenario, reference: Reference, out, *, ospconfig: bool = False,
                initial: InitialState | None = None) -> SspExport:
-    """Write the SSP 1.0 package of ``sc`` tracking ``reference`` to ``out`` (atomically).
+    """Write the SSP 1.0 package of ``sc`` tracking ``reference`` to ``out`` (atomically: a
+    new path or an earlier package, :func:`check_ssp_target`, which is replaced by a rename).
 
     ``initial`` defaults to the scenario's initial state behind the reference (as
     ``run_scenario``). Raises :class:`ScenarioError` for what the package cannot express (the
-    slip governor) and :class:`~pushtrain.errors.FmuBuildError` if a build fails.
+    slip governor), InputError for an ``out`` that must not be replaced, and
+    :class:`~pushtrain.errors.FmuBuildError` if a build fails.
     """
+    check_ssp_target(out)
     _check_exportable(sc)
     n = sc.train.n
     step = float(sc.sim.step)
@@ -339,6 +389,7 @@ def export_ssp(sc: Scenario, reference: Reference, out, *, ospconfig: bool = Fal
                 zf.write(plant_fmu, f"resources/{MODEL_IDENTIFIER}.fmu")
                 zf.write(controller_fmu, f"resources/{CONTROLLER_IDENTIFIER}.fmu")
 
+        check_ssp_target(out)  # what stands there now, after the builds
         atomic_write(out, write)
     connections = [(f"{a}.{b}", f"{c}.{d}") for a, b, c, d in _connections(n)]
     log.info("wrote %s: %d connections, stop time %.3f s, step %g s", out, len(connections),

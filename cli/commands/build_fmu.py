@@ -11,7 +11,11 @@ from ..common import MAX_TRAILERS, BadInput, click_errors
 
 
 def _check_out(out: str) -> None:
-    """Raise BadInput unless ``out``'s folder exists (or can be made) and is writable."""
+    """Raise BadInput unless ``out`` is a file name whose folder exists (or can be made) and
+    is writable."""
+    if not out.strip():
+        raise BadInput(f"--out {out!r}: an empty file name; allowed: a file path such as "
+                       "TrailerTrain.fmu")
     folder = Path(out).parent
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -19,6 +19,13 @@ from .run import _load_path
 
 
 def _check_target(out: str) -> Path:
+    """``out`` as a Path, or BadInput: an empty name, a folder, a missing folder, or anything
+    there that is not an earlier SSP package (a file of another kind, a link, a device)."""
+    from pushtrain.mission.ssp import SSP_TARGETS, ssp_target_problem
+
+    if not out.strip():
+        raise BadInput(f"-o {out!r}: an empty file name; allowed: a file path such as "
+                       "mission.ssp in an existing, writable folder")
     target = Path(out)
     folder = target.parent if str(target.parent) else Path(".")
     if target.is_dir():
@@ -27,13 +34,18 @@ def _check_target(out: str) -> Path:
     if not folder.is_dir():
         raise BadInput(f"-o {out}: the folder {folder} does not exist; allowed: a file path in "
                        "an existing, writable folder")
+    problem = ssp_target_problem(target)
+    if problem is not None:
+        raise BadInput(f"-o {out}: {problem}; allowed: {SSP_TARGETS}")
     return target
 
 
 @click.command("export-ssp")
 @scenario_argument
 @click.option("--out", "-o", "out", required=True, type=click.Path(dir_okay=False),
-              metavar="MISSION.ssp", help="The SSP package to write (replaced atomically).")
+              metavar="MISSION.ssp",
+              help="The SSP package to write: a new path, or an earlier package (replaced "
+                   "atomically); nothing else is replaced.")
 @click.option("--path", "path_file", type=click.Path(exists=True, dir_okay=False),
               metavar="PATH.json",
               help="A saved path (from `plan --out`) instead of planning or the scripted "

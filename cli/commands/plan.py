@@ -61,6 +61,10 @@ def plan_cmd(scenario, out, seed, plot_path):
     Example:
       pushtrain plan examples/bay.toml --out bay_path.json --plot bay_path.png
     """
+    for option, value in (("--out", out), ("--plot", plot_path)):
+        if value is not None and not value.strip():
+            raise BadInput(f"{option} {value!r}: an empty file name; allowed: a file path, or "
+                           f"no {option}")
     sc = _scenario(scenario, seed=seed)
     if sc.mission.kind != "plan":
         raise BadInput(f"{scenario}: mission.kind = {sc.mission.kind!r}: 'plan' needs "
