@@ -40,7 +40,8 @@ from pathlib import Path
 from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
-from pushtrain.errors import MapError
+from pushtrain.errors import MapError, PlanningInputError
+from pushtrain.validation import clipped
 
 from .maps import OccupancyGrid, load_map
 from .raster import blocked_polygons
@@ -88,7 +89,8 @@ def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=
     Raises
     ------
     MapError
-        A file that cannot be used; each problem's field starts with ``grid`` or ``dxf``.
+        A file that cannot be used (each problem's field starts with ``grid`` or ``dxf``), or
+        a ``free`` outline that crosses or touches itself (field ``free``).
     PlanningInputError
         A malformed polygon.
     """
@@ -96,7 +98,13 @@ def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=
 
     outline, outline_label = None, ""
     if free is not None:
-        outline, outline_label = _polygon(free, "map.free", outline=True), "map.free"
+        try:
+            outline, outline_label = _polygon(free, "map.free", outline=True), "map.free"
+        except PlanningInputError as exc:
+            if "outline_problem" not in exc.details:
+                raise
+            raise MapError("<map>", [("free", clipped(free),
+                                      exc.details["outline_problem"])]) from None
     elif bounds is not None:
         outline, outline_label = World.from_dict({"bounds": bounds}).outline, "map.bounds"
     extra, labels = [], []

@@ -38,12 +38,27 @@ log = logging.getLogger(__name__)
 _WORLD_KEYS = ("free", "obstacles", "walls", "bounds")
 
 
+def outline_problem(poly: Polygon) -> str | None:
+    """None if ``poly`` is a simple polygon, else what is wrong and where, e.g. ``"not a simple
+    polygon (self-intersection at (7, 0) m): the outline of the free space must not cross or
+    touch itself"`` (shapely's ``explain_validity``)."""
+    if poly.is_valid:
+        return None
+    reason = explain_validity(poly)  # e.g. "Self-intersection[7 0]"
+    place = re.fullmatch(r"(.*)\[(\S+) (\S+)\]", reason)
+    if place:
+        reason = f"{place[1].lower()} at ({float(place[2]):g}, {float(place[3]):g}) m"
+    return (f"not a simple polygon ({reason}): the outline of the free space must not cross or "
+            "touch itself")
+
+
 def _polygon(points: Any, field_name: str, outline: bool = False) -> Polygon:
     """A valid shapely polygon from a list of [x, y] points [m]; PlanningInputError otherwise.
 
     A polygon that crosses or touches itself is an error if it is the free space's ``outline``
-    (the message says where, by shapely's ``explain_validity``); an obstacle is repaired with
-    ``make_valid`` (the areas it encloses) and a warning."""
+    (the message says where, by :func:`outline_problem`, also in the error's
+    ``details["outline_problem"]``); an obstacle is repaired with ``make_valid`` (the areas it
+    encloses) and a warning."""
     try:
         arr = np.asarray(points, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -57,14 +72,8 @@ def _polygon(points: Any, field_name: str, outline: bool = False) -> Polygon:
     if not np.all(np.isfinite(arr)):
         raise PlanningInputError(f"{field_name} contains non-finite coordinates")
     poly = Polygon(arr)
-    if not poly.is_valid and outline:
-        reason = explain_validity(poly)  # e.g. "Self-intersection[7 0]"
-        place = re.fullmatch(r"(.*)\[(\S+) (\S+)\]", reason)
-        if place:
-            reason = f"{place[1].lower()} at ({float(place[2]):g}, {float(place[3]):g}) m"
-        raise PlanningInputError(
-            f"{field_name} is not a simple polygon ({reason}): the outline of the free space "
-            "must not cross or touch itself")
+    if outline and (why := outline_problem(poly)) is not None:
+        raise PlanningInputError(f"{field_name} is {why}", details={"outline_problem": why})
     if not poly.is_valid:
         fixed = shapely.make_valid(poly)
         polys = [

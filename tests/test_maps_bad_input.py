@@ -246,8 +246,9 @@ def test_a_self_crossing_free_outline_is_refused_saying_where(tmp_path):
     for command in (["validate", str(path)], ["plan", str(path)]):
         code, output = _invoke(command)
         assert code == 2, output
-        assert "map.free is not a simple polygon (self-intersection at (7, 0) m)" in output, \
-            output
+        assert "map.free = [[0.0, 0.0], [12.0, 0.0]," in output, output
+        assert ": not a simple polygon (self-intersection at (7, 0) m): the outline of the free " \
+               "space must not cross or touch itself" in output, output
     with pytest.raises(PlanningInputError, match=r"world.free .*self-intersection at \(7, 0\)"):
         World.from_dict({"free": BOWTIE})
     # an obstacle that crosses itself is still taken as the areas it encloses
