@@ -3,24 +3,27 @@
 They load the CLI (:mod:`pushtrain.cli.main`) inside a guard, so that Ctrl-C at any moment,
 while the modules load included, ends the command with one line on stderr and exit code 130
 (as a shell reports an interrupted program), never a traceback or click's "Aborted!" with the
-exit code 1 that means "the run did not reach its goal".
+exit code 1 that means "the run did not reach its goal". SIGTERM (``kill``, ``docker stop``, a
+batch scheduler) is handled as Ctrl-C is, with exit code 143.
 """
 
 from __future__ import annotations
 
 import sys
 
-from .exits import EXIT_INTERRUPTED
+from .exits import interruption, terminate_as_interrupt
 
 
-def _interrupted() -> None:
-    sys.stderr.write("\ninterrupted (Ctrl-C)\n")
-    sys.exit(EXIT_INTERRUPTED)
+def _interrupted(exc: BaseException | None) -> None:
+    code, what = interruption(exc)
+    sys.stderr.write(f"\n{what}\n")
+    sys.exit(code)
 
 
 def _run(name: str) -> None:
     """Load ``pushtrain.cli.main.<name>`` and run it as click's standalone mode would, with
-    Ctrl-C as exit 130."""
+    Ctrl-C as exit 130 and SIGTERM as exit 143."""
+    terminate_as_interrupt()
     try:
         import click
 
@@ -28,13 +31,13 @@ def _run(name: str) -> None:
 
         try:
             code = getattr(main, name)(standalone_mode=False)
-        except click.exceptions.Abort:
-            _interrupted()
+        except click.exceptions.Abort as exc:  # click's word for a KeyboardInterrupt
+            _interrupted(exc.__context__)
         except click.ClickException as exc:
             exc.show()
             sys.exit(exc.exit_code)
-    except KeyboardInterrupt:
-        _interrupted()
+    except KeyboardInterrupt as exc:
+        _interrupted(exc)
     sys.exit(code if isinstance(code, int) else 0)
 
 

@@ -1,5 +1,5 @@
-"""The command line's exit codes (no imports: the console scripts' guard uses them before any
-other module has loaded)."""
+"""The command line's exit codes and the interruptions that end a command (no imports: the
+console scripts' guard uses them before any other module has loaded)."""
 
 EXIT_OK = 0
 """The goal was reached, or a fixed-horizon run completed."""
@@ -9,3 +9,54 @@ EXIT_BAD_INPUT = 2
 """Bad input: a scenario field, a file, an option, an output folder."""
 EXIT_INTERRUPTED = 130
 """Ctrl-C (128 + SIGINT, as a shell reports it); what was written so far is kept."""
+EXIT_TERMINATED = 143
+"""SIGTERM (128 + SIGTERM: ``kill``, ``docker stop``, a batch scheduler), handled as Ctrl-C is:
+what was written so far is kept."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread by :func:`terminate_as_interrupt`'s handler. A
+    KeyboardInterrupt, so that whatever ends a command cleanly on Ctrl-C (the run folder's
+    summary, the plot processes stopped, partial files removed) does so on SIGTERM too."""
+
+
+def interruption(exc: BaseException) -> tuple[int, str]:
+    """(exit code, what happened) of an interruption: SIGTERM (:class:`Terminated`) or Ctrl-C."""
+    if isinstance(exc, Terminated):
+        return EXIT_TERMINATED, "terminated (SIGTERM)"
+    return EXIT_INTERRUPTED, "interrupted (Ctrl-C)"
+
+
+def _raise_terminated(signum, frame):
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise Terminated()
+
+
+def _default_in_child() -> None:
+    """In a forked child (a plot process, until it sets its own handler): SIGTERM ends it as by
+    default, not as the command's Terminated (a traceback from the child)."""
+    import signal
+
+    try:
+        if signal.getsignal(signal.SIGTERM) is _raise_terminated:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    except ValueError:  # forked from another thread than the main one: it cannot be set
+        pass
+
+
+_FORK_HOOK = []
+
+
+def terminate_as_interrupt() -> None:
+    """From now on SIGTERM raises :class:`Terminated` in the main thread (once: a second SIGTERM
+    while the command ends is ignored, so the clean-up is not cut short; SIGKILL still ends it).
+    Forked children get the default back. Call from the main thread."""
+    import os
+    import signal
+
+    signal.signal(signal.SIGTERM, _raise_terminated)
+    if not _FORK_HOOK and hasattr(os, "register_at_fork"):
+        os.register_at_fork(after_in_child=_default_in_child)
+        _FORK_HOOK.append(True)

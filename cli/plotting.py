@@ -28,7 +28,6 @@ import logging
 import multiprocessing
 import os
 import signal
-import sys
 import threading
 import time
 import traceback
@@ -39,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pushtrain.files import remove_partials
 from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES  # names only: no matplotlib here
 
 __all__ = ["PNG_FILES", "GIF_FILE", "HTML_FILE", "footprints_of", "keep_out_of", "PlotProblem",
@@ -193,10 +193,10 @@ def _first_process(conns, counter, with_map: bool, inherited) -> None:
     process's ends of them, closed here."""
     for other in inherited:
         other.close()
-    # Ctrl-C is the main process's to handle; it stops us with SIGTERM, which ends us through
-    # the ``finally`` blocks (no partial file is left)
+    # Ctrl-C is the main process's to handle; it stops us with SIGTERM (as may a scheduler
+    # that signals the whole process group), which ends us at once (_end_on_sigterm)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    signal.signal(signal.SIGTERM, _end_on_sigterm)
     gc.freeze()  # the inherited objects are never collected here: their pages stay shared
     try:
         _warm_up(with_map)
@@ -224,12 +224,34 @@ def _first_process(conns, counter, with_map: bool, inherited) -> None:
                     _draw_files(conns[1], counter, header, data, hello=True)
                 finally:
                     os._exit(0)
+            global _SECOND
+            _SECOND = second
             conns[1].close()
     try:
         _draw_files(conns[0], counter, header, data)
     finally:
         if second > 0:
             os.waitpid(second, 0)
+
+
+_SECOND = 0
+"""In the first plot process: the pid of the second (its child), once forked."""
+
+
+def _end_on_sigterm(signum, frame) -> None:
+    """A plot process's SIGTERM: remove the file it is writing, stop and reap the second plot
+    process (from the first), and end at once with ``os._exit`` (128 + SIGTERM). Not an
+    exception: raised inside matplotlib's or Pillow's finalizers, SystemExit was printed as
+    "Exception ignored ..." and did not end the process."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    remove_partials()
+    if _SECOND > 0:
+        try:
+            os.kill(_SECOND, signal.SIGTERM)
+            os.waitpid(_SECOND, 0)
+        except OSError:
+            pass
+    os._exit(128 + signum)
 
 
 def _last_word(conn, message) -> None:
@@ -331,6 +353,7 @@ class PlotWorkers:
         self.finished: dict[str, PlotProblem | None] = {}
         self.last_word = "no answer"
         self.sender: threading.Thread | None = None
+        self.out_dir: Path | None = None
         self.closed = False
         pipes = [context.Pipe(duplex=True)
                  for _ in range(max(1, min(processes, MAX_PROCESSES, len(self.files))))]
@@ -355,6 +378,7 @@ class PlotWorkers:
         ``result`` to the first plot process, which forks the second; they start drawing.
         Returns at once (a thread sends)."""
         data = np.ascontiguousarray(result.data)
+        self.out_dir = Path(out_dir)
         header = {"run": _run_of(self.sc, out_dir, result, path), "files": self.files,
                   "rows": len(data), "dtype": data.dtype}
         self.sender = threading.Thread(target=_send, args=([self.procs[0].conn], header, data),
@@ -459,6 +483,10 @@ class PlotWorkers:
                     except OSError:
                         pass
             first.join(timeout=5.0)
+        if not done and self.out_dir is not None:  # the files of a process killed mid-write
+            for p in self.procs:
+                if p.pid is not None:
+                    remove_partials(self.out_dir, p.pid)
         peaks = [f"{p.peak_mib:.1f}" for p in self.procs if p.peak_mib is not None]
         if peaks:
             log.info("peak resident memory [MiB]: main process %.1f, plot processes %s",

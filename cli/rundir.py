@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import re
@@ -12,9 +13,10 @@ from pathlib import Path
 import click
 
 from pushtrain.errors import InputError, PlanningError, PushtrainError
-from pushtrain.files import atomic_write_text, fresh_run_folder
+from pushtrain.files import atomic_write_text, claim_run_folder, remove_partials
 
-from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_REACHED, BadInput, click_error
+from .common import EXIT_BAD_INPUT, EXIT_NOT_REACHED, BadInput, click_error
+from .exits import interruption
 from .logs import to_run_log
 
 __all__ = ["run_folder", "default_folder", "STATUS_INVALID", "STATUS_PLANNING_FAILED",
@@ -27,7 +29,7 @@ STATUS_INVALID = "invalid"                  # bad input found late (exit 2)
 STATUS_PLANNING_FAILED = "planning_failed"  # no plan found (exit 1)
 STATUS_FAILED = "failed"                    # another run-time failure, e.g. an FMU build (exit 1)
 STATUS_ERROR = "error"                      # an unexpected exception (a bug; traceback, exit 1)
-STATUS_INTERRUPTED = "interrupted"          # Ctrl-C (exit 130)
+STATUS_INTERRUPTED = "interrupted"          # Ctrl-C (exit 130) or SIGTERM (exit 143)
 
 
 def default_folder(name: str) -> Path:
@@ -64,27 +66,35 @@ def _record_failure(out_dir: Path, sc, status: str, message: str, exit_code: int
 
 
 @contextmanager
+def _claimed(path: Path, out: str | None):
+    """:func:`~pushtrain.files.claim_run_folder`, its refusals as BadInput (naming --out)."""
+    held = contextlib.ExitStack()
+    try:
+        held.enter_context(claim_run_folder(path))
+    except InputError as exc:
+        raise BadInput(f"--out: {exc}" if out is not None else str(exc)) from None
+    with held:
+        yield path
+
+
+@contextmanager
 def run_folder(out: str | None, name: str, sc=None):
     """The folder of one run, holding that run's files only.
 
-    Makes ``out`` (default :func:`default_folder`) a fresh run folder
-    (:func:`pushtrain.files.fresh_run_folder`: a previous run there is replaced, a folder of
-    other files or an impossible path is bad input), logs into its ``run.log`` for the duration
-    of the block and removes that handler afterwards. If the block fails, the failure goes to
-    ``run.log`` and into ``summary.json`` (status ``invalid``, ``planning_failed``, ``failed``,
-    ``error`` or, on Ctrl-C, ``interrupted`` with exit code 130), and pushtrain's errors become
-    click exceptions with the right exit code. ``--out ""`` is refused, not taken for the
-    default.
+    Makes ``out`` (default :func:`default_folder`) a fresh run folder, held for the block
+    (:func:`pushtrain.files.claim_run_folder`: a previous run there is replaced; a folder
+    another run is writing, a folder of other files or an impossible path is bad input), logs
+    into its ``run.log`` for the duration of the block and removes that handler afterwards. If
+    the block fails, the failure goes to ``run.log`` and into ``summary.json`` (status
+    ``invalid``, ``planning_failed``, ``failed``, ``error`` or, on Ctrl-C or SIGTERM,
+    ``interrupted`` with exit code 130 or 143), and pushtrain's errors become click exceptions
+    with the right exit code. ``--out ""`` is refused, not taken for the default.
     """
     if out is not None and not out.strip():
         raise BadInput(f"--out {out!r}: an empty folder name; allowed: a folder path, or no "
                        "--out for runs/<name>-<timestamp>")
     path = Path(out) if out is not None else default_folder(name)
-    try:
-        fresh_run_folder(path)
-    except InputError as exc:
-        raise BadInput(f"--out: {exc}" if out is not None else str(exc)) from None
-    with to_run_log(path):
+    with _claimed(path, out), to_run_log(path):
         log.info("run folder %s", path.resolve())
         try:
             yield path
@@ -97,11 +107,13 @@ def run_folder(out: str | None, name: str, sc=None):
             status = STATUS_INVALID if exc.exit_code == EXIT_BAD_INPUT else STATUS_FAILED
             _record_failure(path, sc, status, exc.format_message(), exc.exit_code)
             raise
-        except KeyboardInterrupt:
-            message = "interrupted (Ctrl-C): the files written so far are kept"
-            _record_failure(path, sc, STATUS_INTERRUPTED, message, EXIT_INTERRUPTED)
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (cli.exits.Terminated)
+            remove_partials()
+            code, what = interruption(exc)
+            message = f"{what}: the files written so far are kept"
+            _record_failure(path, sc, STATUS_INTERRUPTED, message, code)
             click.echo(f"{message} in {path}", err=True)
-            raise click.exceptions.Exit(EXIT_INTERRUPTED) from None
+            raise click.exceptions.Exit(code) from None
         except Exception as exc:
             log.info("unexpected error", exc_info=True)
             _record_failure(path, sc, STATUS_ERROR, f"{type(exc).__name__}: {exc}",

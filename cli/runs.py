@@ -4,6 +4,7 @@ failure, running a scenario into its folder, and the text they print."""
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import math
 import time
@@ -15,7 +16,9 @@ from pushtrain.files import atomic_write_text
 from pushtrain.mission.scenario import Scenario
 
 from .common import EXIT_NOT_REACHED, EXIT_OK
+from .exits import interruption
 from .progress import Phases
+from .rundir import STATUS_INTERRUPTED
 
 __all__ = ["plan_or_fail", "write_path", "write_scenario", "describe_path", "summary_text",
            "run_and_report", "PlotFailure"]
@@ -146,6 +149,29 @@ def _build_fmu_once(sc: Scenario, phases: Phases | None) -> None:
             build_fmu(**args)
 
 
+def _summary_on_interrupt(result, out_dir: Path):
+    """An exit callback: on Ctrl-C or SIGTERM once the run is co-simulated, ``summary.json``
+    says ``interrupted`` (its exit code, 130 or 143), with the run's numbers and its own end as
+    ``run_status`` and ``run_message``. It must not say ``goal_reached`` while the pictures (or
+    the results) are missing."""
+
+    def on_exit(kind, exc, trace) -> bool:
+        if kind is not None and issubclass(kind, KeyboardInterrupt):
+            code, what = interruption(exc)
+            summary = {"status": STATUS_INTERRUPTED,
+                       "message": f"{what}: the files written so far are kept",
+                       "exit_code": code, "run_status": result.status,
+                       "run_message": result.message}
+            summary.update((k, v) for k, v in result.summary.items() if k not in summary)
+            try:
+                atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2))
+            except OSError as err:  # must not hide the interruption
+                log.warning("could not write %s: %s", out_dir / "summary.json", err)
+        return False
+
+    return on_exit
+
+
 class PlotFailure(click.ClickException):
     """Some pictures could not be drawn (exit 1); the results are saved."""
 
@@ -175,6 +201,7 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
         _build_fmu_once(sc, phases)
         with _phase(phases, "co-simulate", "co-simulating"):
             result = run_scenario(sc, None, reference=reference)
+        stack.push(_summary_on_interrupt(result, out_dir))
         if plots:
             plotter.submit(out_dir, result, path)
         with _phase(phases, "save", "saving the results"):
