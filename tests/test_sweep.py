@@ -638,14 +638,36 @@ values = [3.0, 4.0, 5.0, 6.0]
 """
 
 
+HOLD_AFTER_THE_FIRST_CHUNK = """
+import sys, time
+from pushtrain.studies import sweep_results
+flush = sweep_results.ChunkWriter.flush
+def flush_then_hold(self):
+    flush(self)
+    if self.written and not getattr(sweep_results, "held", False):
+        sweep_results.held = True
+        print("holding after " + self.written[0].name, file=sys.stderr, flush=True)
+        while True:
+            time.sleep(1.0)
+sweep_results.ChunkWriter.flush = flush_then_hold
+from pushtrain.cli.entry import pushtrain
+sys.argv = ["pushtrain", *sys.argv[1:]]
+pushtrain()
+"""
+"""The ``pushtrain`` console script, held (in the sweep's main process) once the first chunk
+of rows is written, until a signal ends it: the Ctrl-C cannot come after the sweep's end."""
+
+
 @pytest.mark.slow
 def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
-    """Ctrl-C as a terminal sends it: SIGINT to the process group, the workers included."""
-    import os
+    """Ctrl-C as a terminal sends it: SIGINT to the process group, the workers included.
+
+    It is sent once the first chunk of rows is written (the process says so and holds there),
+    not after a time: on a loaded machine the sweep finished before a timed Ctrl-C arrived."""
     import signal
     import subprocess
     import sys
-    import time
+    import threading
 
     from pushtrain.cli.main import cli
 
@@ -654,17 +676,25 @@ def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
     out = tmp_path / "out"
     args = ["sweep", str(tmp_path / "base.toml"), "--spec", str(tmp_path / "spec.toml"),
             "--out", str(out), "--no-plots"]
-    exe = str(Path(sys.executable).parent / "pushtrain")
-    proc = subprocess.Popen([exe, *args, "--workers", "2"], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
-    deadline = time.monotonic() + 600
-    while not list(out.glob("chunks/chunk-*.csv")) and proc.poll() is None:
-        assert time.monotonic() < deadline, "no run finished in 600 s"
-        time.sleep(0.1)
-    os.killpg(proc.pid, signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=300)
-    assert proc.returncode == 130, stdout + stderr
-    assert "Traceback" not in stderr, stderr
+    proc = subprocess.Popen([sys.executable, "-c", HOLD_AFTER_THE_FIRST_CHUNK, *args,
+                             "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    watchdog = threading.Timer(600.0, os.killpg, (proc.pid, signal.SIGKILL))  # a hang only
+    watchdog.start()
+    try:
+        said = []
+        for line in proc.stderr:  # until the process says it holds after the first chunk
+            said.append(line)
+            if line.startswith("holding after chunk-"):
+                break
+        assert said and said[-1].startswith("holding after chunk-"), "".join(said)
+        assert list(out.glob("chunks/chunk-*.csv"))
+        os.killpg(proc.pid, signal.SIGINT)
+        stdout, stderr = proc.communicate()
+    finally:
+        watchdog.cancel()
+    assert proc.returncode == 130, stdout + "".join(said) + stderr
+    assert "Traceback" not in "".join(said) + stderr, stderr
     others = [line for line in stderr.splitlines() if not line.startswith("sweep: ")]
     assert len(others) == 1 and others[0].startswith("interrupted: "), stderr
     assert "run the same command with the same --out to resume" in others[0]
