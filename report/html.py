@@ -277,8 +277,21 @@ def write_html(path, payload: dict) -> Path:
     return _page(path, payload, "report.html", "report.js")
 
 
+def _finite(obj):
+    """``obj`` with every non-finite float (NaN, inf) as None: JSON has no such numbers."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return _finite(obj.item())
+    return obj
+
+
 def _page(path, payload: dict, template: str, script: str) -> Path:
-    data = json.dumps(payload, separators=(",", ":"), allow_nan=False, default=str)
+    data = json.dumps(_finite(payload), separators=(",", ":"), allow_nan=False, default=str)
     data = data.replace("</", "<\\/")  # the JSON cannot end its <script> element
     title = payload.get("title", "pushtrain").replace("&", "&amp;").replace("<", "&lt;")
     page = (_asset(template)

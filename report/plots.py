@@ -151,7 +151,7 @@ def plot_file(name: str, data, n: int, out_dir, *, world=None, path_xy=None, foo
 
 
 def plot_all(result_or_data, n: int, out_dir, *, world=None, path_xy=None, footprints=None,
-             gif: bool = True, geometry=None) -> list[Path]:
+             gif: bool = True, geometry=None, phi_max_deg: float | None = None) -> list[Path]:
     """Write ``map.png``, ``inputs_joints.png``, ``tracking_error.png``, ``lateral_forces.png``
     and (if ``gif``) ``train.gif`` into ``out_dir``.
 
@@ -168,6 +168,8 @@ def plot_all(result_or_data, n: int, out_dir, *, world=None, path_xy=None, footp
         As in :func:`plot_map`.
     gif : bool
         Also write the animation.
+    phi_max_deg : float, optional
+        The joint limit drawn on the joint angles [deg].
 
     Returns
     -------
@@ -183,7 +185,8 @@ def plot_all(result_or_data, n: int, out_dir, *, world=None, path_xy=None, footp
     with _collecting() as collect:
         for name in PNG_FILES + ((GIF_FILE,) if gif else ()):
             written.append(plot_file(name, data, n, out, world=world, path_xy=path_xy,
-                                     footprints=footprints, geometry=geometry, status=status))
+                                     footprints=footprints, geometry=geometry, status=status,
+                                     phi_max_deg=phi_max_deg))
             collect()
     log.info("wrote %d plot files to %s in %.1f s", len(written), out, _time.perf_counter() - start)
     return written

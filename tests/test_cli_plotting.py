@@ -110,7 +110,8 @@ def test_the_plot_processes_write_the_same_files_as_the_main_process(tmp_path):
     t = sc.train
     plots.plot_all(saved, sc.train.n, here, world=world_of(sc), geometry=geometry_of(sc),
                    footprints={"robot": (t.robot_size.length, t.robot_size.width),
-                               "trailer": (t.trailer_size.length, t.trailer_size.width)})
+                               "trailer": (t.trailer_size.length, t.trailer_size.width)},
+                   phi_max_deg=t.phi_max_deg)
     for name in ALL:
         assert (out / name).read_bytes() == (here / name).read_bytes(), name
 
@@ -206,7 +207,8 @@ def test_plot_processes_that_cannot_start_drawing_say_why(tmp_path, monkeypatch)
     out = tmp_path / "out"
     result = _invoke(["run", _quick(tmp_path), "--no-gif", "--out", str(out)])
     assert result.exit_code == 1, result.output
-    assert (f"could not draw {', '.join(PNGS)}: no plot process left (cannot draw: ImportError: "
+    assert (f"could not draw {', '.join(PNGS)}, report.html: no plot process left (cannot draw: "
+            "ImportError: "
             "No module named 'matplotlib')") in result.output
     assert (out / "results.npz").is_file()
     _no_plot_process_left()

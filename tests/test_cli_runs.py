@@ -98,7 +98,8 @@ def test_a_failed_plan_after_a_successful_run_leaves_only_the_failed_run(tmp_pat
     assert second.exit_code == 1, second.output
     assert "planning failed" in second.output
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        [RUN_MARKER, "planning_failure.png", "run.log", "scenario.json", "summary.json"])
+        [RUN_MARKER, "planning_failure.png", "report.html", "run.log", "scenario.json",
+         "summary.json"])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "planning_failed" and summary["scenario"] == "second_run"
     assert summary["exit_code"] == 1 and summary["message"].startswith("planning failed")
@@ -309,7 +310,8 @@ def test_progress_goes_to_a_pipe_one_line_per_phase(tmp_path):
     lines = [line for line in done.stderr.splitlines() if line.startswith("[")]
     assert [line.split("] ", 1)[1] for line in lines[:-1]] == [
         "co-simulating ...", "saving the results ...",
-        "plotting map.png, inputs_joints.png, tracking_error.png, lateral_forces.png ..."]
+        "plotting map.png, inputs_joints.png, tracking_error.png, lateral_forces.png and "
+        "report.html ..."]
     stamps = [float(line[1:].split("s]")[0]) for line in lines]
     assert stamps == sorted(stamps)
     phases = lines[-1].split("] done: ", 1)[1].split(", ")
