@@ -358,13 +358,13 @@ def _check_caps(args, outcome: Outcome, scenario: str) -> None:
 
     The scenario found to need GiBs (issue #29): a goal heading a few hundredths of a degree
     from a U-turn of the search's nodes (l_corridor with ``goal.theta_deg`` -90 -> -0.04:
-    2.4 GiB and 19 s; -0.09, a mutation this test draws, 1.2 GiB) makes the search's
+    2.4 GiB and 19 s; -0.09, a mutation this test draws, 1.2 GiB) made the search's
     straight-arc-straight connection to the goal (``planner.connect.corner_segments``) turn
     up to ``MAX_CORNER_REACH`` (10 km) away, and ``planner.lattice.Search.reference_clear``
-    samples that 20 km reference every 5 cm and measures the distance field at each of the
-    last trailer's 90 sample points in one array (memory in proportion to the reach and to
-    the trailer's outline; no step budget counts it, and the clock is looked at only between
-    motions)."""
+    sampled that 20 km reference every 5 cm and measured the distance field at each of the
+    last trailer's 90 sample points in one array. Since 69ee43d a connection's straight is no
+    longer than the map's diagonal (the same scenario: 79 MiB, 2 s); 200 plan-and-runs drawn
+    by this test's strategy then took at most 641 MiB (a map stretched to 800 m) and 9 s."""
     command = " ".join(args[:1])
     if outcome.died is not None:
         pytest.fail(f"{command} {outcome.died}, after {outcome.seconds:.1f} s: {scenario}",
