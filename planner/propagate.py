@@ -549,5 +549,5 @@ def make_propagator(*args, native: bool | None = None, **kwargs) -> Propagator:
         if native:
             raise
         log.warning("the compiled closed loop is not available (%s): planning with the Python "
-                    "one, 50 to 100 times slower", exc)
+                    "one, about 12 times slower", exc)
         return Propagator(*args, **kwargs)
