@@ -14,7 +14,9 @@ and returns what went wrong with them.
 What can go wrong becomes a :class:`PlotProblem` naming the file: the drawing raised (its
 message; the traceback goes to ``run.log``), the process died (its pipe closed), or no word came
 from the processes for :data:`SILENCE_LIMIT_S` (they are stopped). Files already written stay:
-each is written atomically. Where processes cannot be forked, :class:`InlinePlotter` draws the
+each is written atomically. A plot process told to stop (SIGTERM, from the main process when the
+run fails or is interrupted, or from a scheduler signalling the whole group) removes the file it
+is writing and ends at once. Where processes cannot be forked, :class:`InlinePlotter` draws the
 same files in the main process, behind the same methods.
 
 The main process never imports matplotlib on this route, so its peak memory is that of planning
