@@ -160,6 +160,9 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
 
     from .common import EXIT_INTERRUPTED, EXIT_OK, BadInput, _scenario
 
+    if out is not None and not out.strip():
+        raise BadInput(f"--out {out!r}: an empty folder name; allowed: a folder path, or no "
+                       "--out for runs/<name>-<timestamp>")
     sc = _scenario(scenario)
     try:
         spec = sweep_lib.load_sweep_spec(spec_path)

@@ -44,6 +44,8 @@ def _short(tmp_path, n=3, horizon=0.3):
     (["plan", str(EXAMPLES / "l_corridor.toml"), "--plot", ""], "--plot"),
     (["build-fmu", "-n", "1", "-o", ""], "--out"),
     (["export-ssp", str(EXAMPLES / "circle.toml"), "-o", ""], "-o"),
+    (["sweep", str(EXAMPLES / "joint_bias_5deg.toml"), "--spec",
+      str(EXAMPLES / "sweeps" / "joint_bias.toml"), "--workers", "0", "--out", ""], "--out"),
 ])
 def test_an_empty_output_path_is_refused(tmp_path, monkeypatch, args, option):
     """``--out ""`` is not "no --out": it used to fall back to runs/<name>-<timestamp> (or to
