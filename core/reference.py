@@ -38,6 +38,7 @@ __all__ = [
     "ReferenceSample",
     "SampledReference",
     "Segment",
+    "path_points",
 ]
 
 PUSH = +1
@@ -115,6 +116,26 @@ class Segment:
             )
         if self.speed is not None and not (np.isfinite(self.speed) and self.speed > 0.0):
             raise ReferencePathError(f"segment speed = {self.speed!r} m/s: must be finite and > 0")
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Segment:
+        """The segment of its plain form (``path.json``, a planning failure's ``closest``):
+        ``kind``, ``length``, ``curvature``, ``direction`` ('push' or 'pull'), ``speed``."""
+        direction = {"push": PUSH, "pull": PULL}.get(data.get("direction"))
+        if direction is None:
+            raise ReferencePathError(f"segment direction = {data.get('direction')!r}: allowed "
+                                     "are 'push' and 'pull'")
+        return cls(data["kind"], float(data["length"]), float(data.get("curvature", 0.0)),
+                   direction, data.get("speed"))
+
+
+def path_points(start, segments, spacing: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (x, y) [m] every ``spacing`` metres along ``segments`` from ``start``
+    (x, y, theta), both ends included."""
+    ref = Reference.from_segments(tuple(start[:3]), list(segments), speed=1.0, cusp_dwell=0.0)
+    s = np.linspace(0.0, ref.t_end, max(2, int(ref.t_end / spacing) + 1))
+    x, y, _, _, _ = ref.sample(s)
+    return np.asarray(x), np.asarray(y)
 
 
 def _advance(x, y, theta, sigma, kappa, s, sin=math.sin, cos=math.cos):

@@ -564,14 +564,9 @@ def _draw_failure(ax, world: World, details: dict, start) -> None:
         ax.plot([p["x"]], [p["y"]], marker, color=color, ms=5, mfc="none", label=label)
     closest = details.get("closest")
     if closest and closest.get("segments") and start is not None:
-        from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+        from pushtrain.core.reference import Segment, path_points
 
-        segs = [Segment(g["kind"], g["length"], g["curvature"],
-                        PULL if g["direction"] == "pull" else PUSH)
-                for g in closest["segments"]]
-        ref = Reference.from_segments(tuple(start[:3]), segs, speed=1.0, cusp_dwell=0.0)
-        s = np.linspace(0.0, ref.t_end, max(2, int(ref.t_end / 0.02)))
-        x, y, _, _, _ = ref.sample(s)
+        x, y = path_points(start, [Segment.from_dict(g) for g in closest["segments"]])
         ax.plot(x, y, "-", color="tab:blue", lw=2, label="best partial plan")
     if details.get("failure_points"):
         worst = {}

@@ -210,14 +210,9 @@ def failure_payload(n: int, details: dict, *, world=None, footprints=None, start
     partial = None
     closest = details.get("closest") or {}
     if closest.get("segments") and start is not None:
-        from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+        from pushtrain.core.reference import Segment, path_points
 
-        segs = [Segment(g["kind"], g["length"], g["curvature"],
-                        PULL if g["direction"] == "pull" else PUSH)
-                for g in closest["segments"]]
-        ref = Reference.from_segments(tuple(start[:3]), segs, speed=1.0, cusp_dwell=0.0)
-        s = np.linspace(0.0, ref.t_end, max(2, int(ref.t_end / 0.02)))
-        x, y, _, _, _ = ref.sample(s)
+        x, y = path_points(start, [Segment.from_dict(g) for g in closest["segments"]])
         partial = [_rounded(x), _rounded(y)]
     train = None
     if closest.get("x") is not None:
@@ -268,13 +263,13 @@ def write_table_page(path, title: str, summary: dict, columns: Sequence[str],
                "images": [{"name": Path(p).name,
                            "png": base64.b64encode(Path(p).read_bytes()).decode("ascii")}
                           for p in images if Path(p).is_file()]}
-    return _page(path, payload, "table.html", "table.js")
+    return _page(path, payload, "table.html", "table.js", "table.css")
 
 
 def write_html(path, payload: dict) -> Path:
     """Write the page of ``payload`` to ``path`` atomically: one file, scripts, styles and
     data inlined (no network)."""
-    return _page(path, payload, "report.html", "report.js")
+    return _page(path, payload, "run.html", "report.js")
 
 
 def _finite(obj):
@@ -290,13 +285,17 @@ def _finite(obj):
     return obj
 
 
-def _page(path, payload: dict, template: str, script: str) -> Path:
+def _page(path, payload: dict, body: str, script: str, css: str | None = None) -> Path:
+    """Write the page: ``web/page.html`` around the ``body`` part, with the shared styles
+    (``report.css``), the part's own (``css``), its ``script`` and the ``payload``."""
     data = json.dumps(_finite(payload), separators=(",", ":"), allow_nan=False, default=str)
     data = data.replace("</", "<\\/")  # the JSON cannot end its <script> element
     title = payload.get("title", "pushtrain").replace("&", "&amp;").replace("<", "&lt;")
-    page = (_asset(template)
+    styles = _asset("report.css") + (_asset(css) if css else "")
+    page = (_asset("page.html")
+            .replace("{{BODY}}", _asset(body))
             .replace("{{TITLE}}", title)
-            .replace("{{CSS}}", _asset("report.css"))
+            .replace("{{CSS}}", styles)
             .replace("{{JS}}", _asset(script))
             .replace("{{DATA}}", data))  # last: the data may hold any text
     return atomic_write_text(Path(path), page)
