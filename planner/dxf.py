@@ -277,8 +277,9 @@ def read_dxf(path, layers, line_thickness: float = DEFAULT_LINE_THICKNESS,
                 bad.append((name, *problem))
                 continue
             shape, closed = _shape(entity, curve, scale, line_thickness, name)
-        except (TypeError, ValueError, ArithmeticError) as exc:
-            # e.g. a polyface mesh (no outline to take), an arc of zero sweep
+        except (ezdxf.DXFError, TypeError, ValueError, ArithmeticError, IndexError) as exc:
+            # e.g. a polyface mesh (no outline to take), an arc of zero sweep, a spline through
+            # fewer fit points than its degree needs
             log.warning("%s skipped: %s", name, clip_text(exc))
             continue
         if shape is None:

@@ -261,3 +261,12 @@ def test_load_map_still_reads_a_good_grid(tmp_path):
     Image.fromarray(pixels).save(tmp_path / "room.pgm")
     (tmp_path / "room.yaml").write_text("image: room.pgm\n" + MAP_FIELDS)
     assert load_map(tmp_path / "room.yaml").shape == (40, 80)
+
+
+def test_a_spline_through_one_repeated_point_is_skipped_with_a_warning(tmp_path, caplog):
+    """Found by tests/test_maps_fuzz.py: ezdxf's path of such a spline raised IndexError."""
+    path = _dxf_scenario(tmp_path, lambda msp: msp.add_spline([(5, 3)] * 4, dxfattribs={
+        "layer": "WALLS"}))
+    code, output = _invoke(["validate", str(path)])
+    assert code == 0, output
+    assert "SPLINE (handle" in caplog.text and "on layer WALLS skipped" in caplog.text
