@@ -47,7 +47,7 @@ from shapely.validation import explain_validity
 
 from pushtrain.errors import MapError
 from pushtrain.limits import SCENARIO_BOUNDS
-from pushtrain.validation import clip_text
+from pushtrain.validation import clip_text, clipped
 
 __all__ = ["UNITS", "DEFAULT_LINE_THICKNESS", "MAX_ENTITIES", "FloorPlan", "read_dxf"]
 
@@ -258,8 +258,8 @@ def read_dxf(path, layers, line_thickness: float = DEFAULT_LINE_THICKNESS,
         present.setdefault(name.casefold(), name)
     missing = [n for n in names if n.casefold() not in present]
     if missing:
-        raise MapError(str(path), [("layers", missing, "layers the drawing has: "
-                                    + ", ".join(sorted(present.values())))])
+        raise MapError(str(path), [("layers", clipped(missing), "layers the drawing has: "
+                                    + clip_text(", ".join(sorted(present.values())), 1000))])
     from ezdxf import path as dxf_path
 
     obstacles, sources, counts = [], [], {present[n.casefold()]: 0 for n in names}

@@ -270,3 +270,15 @@ def test_a_spline_through_one_repeated_point_is_skipped_with_a_warning(tmp_path,
     code, output = _invoke(["validate", str(path)])
     assert code == 0, output
     assert "SPLINE (handle" in caplog.text and "on layer WALLS skipped" in caplog.text
+
+
+def test_a_drawing_with_thousands_of_layers_gives_a_short_message(tmp_path):
+    def layers(msp):
+        for k in range(3000):
+            msp.doc.layers.add(f"LAYER_WITH_A_LONG_NAME_{k:05d}")
+
+    path = _dxf_scenario(tmp_path, layers)
+    path.write_text(path.read_text().replace('["WALLS"]', '["DOORS"]'))
+    code, output = _invoke(["validate", str(path)])
+    assert code == 2 and "map.layers = ['DOORS']: layers the drawing has: " in output, output
+    assert "more characters)" in output
