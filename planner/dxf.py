@@ -237,6 +237,8 @@ def read_dxf(path, layers, line_thickness: float = DEFAULT_LINE_THICKNESS,
     names = [str(name) for name in layers]
     if not names:
         raise MapError(str(path), [("layers", [], "at least one layer name")])
+    if path.exists() and not path.is_file():  # a folder, a FIFO, a device
+        raise MapError(str(path), [("dxf", str(path), "not a regular file")])
     try:
         doc = ezdxf.readfile(path)
     except OSError as exc:

@@ -50,6 +50,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+import stat
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -442,7 +443,10 @@ def read_map_yaml(path) -> dict:
                                  for where, value, allowed in problems])
 
     try:
-        size = path.stat().st_size
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):   # a FIFO or a device would block or never end
+            raise fail([("(file)", source, "not a regular file")])
+        size = info.st_size
         if size > MAP_YAML_BYTES:
             raise fail([("(file)", source, f"{size} bytes: a map_server YAML file has at most "
                                            f"{MAP_YAML_BYTES} (map_saver writes about 150)")])
@@ -513,6 +517,8 @@ def _read_pixels(image_path: Path, source: str) -> tuple[np.ndarray, np.ndarray 
 
     name = str(image_path)
     too_many = f"at most {MAX_CELLS} pixels (5000 x 5000: the distance field's cell limit)"
+    if image_path.exists() and not image_path.is_file():  # a folder, a FIFO, a device
+        raise MapError(source, [("image", name, "not a regular file")])
     try:
         with warnings.catch_warnings():
             # Pillow's own limit (89 M pixels, 179 M refused) is above ours, checked below

@@ -282,3 +282,32 @@ def test_a_drawing_with_thousands_of_layers_gives_a_short_message(tmp_path):
     code, output = _invoke(["validate", str(path)])
     assert code == 2 and "map.layers = ['DOORS']: layers the drawing has: " in output, output
     assert "more characters)" in output
+
+
+@pytest.mark.parametrize("which", ["yaml", "image", "dxf"])
+def test_a_fifo_in_place_of_a_map_file_is_refused_not_waited_on(tmp_path, which):
+    import os
+    import signal
+
+    def too_long(signum, frame):
+        raise TimeoutError("waited on the FIFO")
+
+    if which == "dxf":
+        path = _dxf_scenario(tmp_path, lambda msp: None)
+        (tmp_path / "plan.dxf").unlink()
+        os.mkfifo(tmp_path / "plan.dxf")
+    else:
+        path = _grid_scenario(tmp_path, "image: room.pgm\n" + MAP_FIELDS)
+        if which == "yaml":
+            (tmp_path / "site.yaml").unlink()
+            os.mkfifo(tmp_path / "site.yaml")
+        else:
+            os.mkfifo(tmp_path / "room.pgm")
+    old = signal.signal(signal.SIGALRM, too_long)
+    signal.alarm(5)
+    try:
+        code, output = _invoke(["validate", str(path)])
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    assert code == 2 and "not a regular file" in output, output
