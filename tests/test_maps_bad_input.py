@@ -109,6 +109,14 @@ def test_yaml_aliases_are_refused_fast(tmp_path):
     assert code == 2 and "map.grid (site.yaml) (syntax) line 2" in output, output
 
 
+def test_yaml_nested_too_deeply_is_refused(tmp_path):
+    """Found by tests/test_maps_fuzz.py: PyYAML's composer recursed into a RecursionError."""
+    path = tmp_path / "deep.yaml"
+    path.write_text("image: " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(MapError, match="not valid YAML: nested too deeply"):
+        read_map_yaml(path)
+
+
 def test_large_yaml_files_and_values_give_short_messages(tmp_path):
     path = tmp_path / "large.yaml"
     path.write_text("image: map.pgm\n" + MAP_FIELDS + "comment: " + "x" * (1 << 20) + "\n")
