@@ -33,40 +33,14 @@ def __getattr__(name: str):
 
 
 # ------------------------------------------------------------------------------------------ CLI
-SCHEDULER_TIMEOUT_S = 10.0
-"""Seconds ``--scheduler``'s host may take to accept a connection before it is refused."""
-
-
 def check_scheduler(address: str) -> None:
     """Raise BadInput naming ``--scheduler`` unless ``address`` is a Dask address whose host
-    accepts connections (Dask's own errors were tracebacks: a ValueError for ``foo``, an
-    OSError after 30 s for a port nobody listens on)."""
-    import socket
-
-    from distributed.comm.addressing import parse_address, parse_host_port
-    from distributed.comm.registry import backends
-
+    accepts connections (:func:`pushtrain.studies.sweep.scheduler_problem`)."""
     from .common import BadInput
 
-    allowed = "the address of a running Dask scheduler, e.g. tcp://host:8786"
-    try:
-        protocol, location = parse_address(address)
-        if protocol not in backends:
-            raise ValueError(f"unknown protocol {protocol!r} (known: {', '.join(backends)})")
-        if protocol not in ("tcp", "tls"):
-            return
-        host, port = parse_host_port(location)
-        if not host or not 0 < port < 65536:
-            raise ValueError("a host name and a port 1..65535 are needed")
-    except ValueError as exc:
-        raise BadInput(f"--scheduler = {address!r}: {allowed}; {exc}") from None
-    try:
-        socket.create_connection((host, port), timeout=SCHEDULER_TIMEOUT_S).close()
-    except OSError as exc:
-        raise BadInput(f"--scheduler = {address!r}: {allowed}; nothing accepts connections at "
-                       f"{host}:{port} ({exc.strerror or exc}): start the scheduler there "
-                       "(dask scheduler) or leave --scheduler out to run on a local "
-                       "cluster") from None
+    problem = sweep_lib.scheduler_problem(address)
+    if problem:
+        raise BadInput(f"--scheduler = {address!r}: {problem}")
 
 
 PIPE_INTERVAL_S = 10.0

@@ -316,23 +316,16 @@ def atlas(facility: Facility, trailers, out_dir, *, serial: bool = False, client
 
 
 def _on_dask(todo, facility, trailers, record, *, client, scheduler, workers) -> None:
-    from distributed import Client, as_completed
-
-    from .sweep import local_client
+    from .sweep import completed, dask_client
 
     with contextlib.ExitStack() as stack:
-        if client is None and scheduler:
-            client = stack.enter_context(Client(scheduler))
-        elif client is None:
-            import os
-
-            cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
-            client = stack.enter_context(local_client(workers or max(1, cores)))
+        if client is None:
+            client = stack.enter_context(dask_client(scheduler, workers))
         shared = client.scatter(facility, broadcast=True)
         futures = [client.submit(_pair_task, shared, a, b, trailers, pure=False)
                    for a, b in todo]
         try:
-            for future in as_completed(futures):
+            for future in completed(futures):
                 record(future.result())
         finally:
             for f in futures:

@@ -75,6 +75,9 @@ from .sweep_task import FmuRef, execute, execute_batch, failure_row, metrics_of,
 
 __all__ = [
     "SweepError",
+    "scheduler_problem",
+    "dask_client",
+    "completed",
     "RangeSpec",
     "ParameterSpec",
     "SweepSpec",
@@ -335,6 +338,63 @@ def local_client(n_workers: int):
     with cluster, Client(cluster) as client:
         client.register_plugin(_quiet_worker_plugin())
         yield client
+
+
+SCHEDULER_TIMEOUT_S = 10.0
+"""Seconds a scheduler's host may take to accept a connection before it is refused."""
+
+
+def scheduler_problem(address: str) -> str | None:
+    """What is wrong with a Dask scheduler ``address`` (its form, or nothing accepting
+    connections there), or None (Dask's own errors were tracebacks: a ValueError for ``foo``,
+    an OSError after 30 s for a port nobody listens on)."""
+    import socket
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import backends
+
+    allowed = "the address of a running Dask scheduler, e.g. tcp://host:8786"
+    try:
+        protocol, location = parse_address(address)
+        if protocol not in backends:
+            raise ValueError(f"unknown protocol {protocol!r} (known: {', '.join(backends)})")
+        if protocol not in ("tcp", "tls"):
+            return None
+        host, port = parse_host_port(location)
+        if not host or not 0 < port < 65536:
+            raise ValueError("a host name and a port 1..65535 are needed")
+    except ValueError as exc:
+        return f"{allowed}; {exc}"
+    try:
+        socket.create_connection((host, port), timeout=SCHEDULER_TIMEOUT_S).close()
+    except OSError as exc:
+        return (f"{allowed}; nothing accepts connections at {host}:{port} "
+                f"({exc.strerror or exc}): start the scheduler there (dask scheduler) or leave "
+                "--scheduler out to run on a local cluster")
+    return None
+
+
+@contextlib.contextmanager
+def dask_client(scheduler: str | None = None, workers: int | None = None):
+    """A Dask client: of the scheduler at ``scheduler``, else of our own LocalCluster
+    (:func:`local_client`) of ``workers`` processes (default: the cores this process may
+    use). For the studies beside the sweep (the atlas), which so share its Dask settings."""
+    if scheduler:
+        from distributed import Client
+
+        with Client(scheduler) as client:
+            yield client
+        return
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    with local_client(workers or max(1, cores or 1)) as client:
+        yield client
+
+
+def completed(futures):
+    """The ``futures`` as they complete (distributed's ``as_completed``)."""
+    from distributed import as_completed
+
+    yield from as_completed(futures)
 
 
 def _run_on_dask(runs, out_dir, kwargs, *, client, scheduler, workers) -> SweepOutcome:
