@@ -26,8 +26,10 @@ Targets (issue 14): efficiency >= 90 % at 2 workers; >= 10,000 runs of this 60 s
 hour on 2 cores. The ratios to both are printed last.
 
 Every figure is printed with the load averages (1 min) seen while it was measured (at the
-start and the end of each round): other processes on the cores lower both the efficiency and
-the runs per hour, so a figure without its load cannot be compared.
+start and the end of each round), and the load before the benchmark starts: other processes on
+the cores lower both the efficiency and the runs per hour, so a figure without its load cannot
+be compared. The loads during the rounds count this benchmark's own processes too (up to one
+per worker); the load before the start is the other processes' alone.
 
 Run: python benchmarks/bench_sweep.py [--runs 400] [--repeats 3]
 """
@@ -113,7 +115,9 @@ def main():
     args = parser.parse_args()
     spec, runs, shared = _runs(args.runs)
     print(f"{len(runs)} runs of a 60 s scenario per measurement, {args.repeats} rounds; "
-          f"{os.cpu_count()} cores; other processes share them: compare the load averages")
+          f"{os.cpu_count()} cores; load average {os.getloadavg()[0]:.2f} before the start "
+          "(other processes on the cores; the loads printed later include this benchmark's own "
+          "processes)")
     _timed(runs[:2], shared, spec, serial=True)  # warm-up: imports, FMU extraction paths
     counts = [1, 2] + [w for w in (4, 8) if w <= (os.cpu_count() or 1)]
     results = {}
