@@ -80,7 +80,8 @@ def _polygon(points: Any, field_name: str, outline: bool = False) -> Polygon:
             g for g in getattr(fixed, "geoms", [fixed]) if isinstance(g, (Polygon, MultiPolygon))
         ]
         poly = unary_union(polys) if polys else Polygon()
-        log.warning("%s was not a valid (simple) polygon; repaired with make_valid", field_name)
+        log.warning("%s was not a valid (simple) polygon (%s); repaired with make_valid",
+                    field_name, explain_validity(Polygon(arr)))
     return poly
 
 
@@ -147,7 +148,10 @@ class World:
         Accepted keys:
 
         ``free``
-            ``[[x, y], ...]``: outline of the free space (a simple polygon, either orientation).
+            ``[[x, y], ...]``: outline of the free space (a simple polygon, either orientation;
+            one that crosses or touches itself is repaired by ``make_valid``, with a warning:
+            two rooms touching along a wall become two parts. A scenario's ``map.free`` is
+            refused instead, by :func:`~pushtrain.planner.mapworld.map_world`).
         ``obstacles``, ``walls``
             ``[[[x, y], ...], ...]``: polygons removed from the free space (synonyms; both may
             be given, they are combined).
@@ -162,7 +166,7 @@ class World:
         if unknown:
             raise PlanningInputError(f"world has unknown keys {unknown}: allowed are {_WORLD_KEYS}")
         if "free" in data:
-            outline = _polygon(data["free"], "world.free", outline=True)
+            outline = _polygon(data["free"], "world.free")
         elif "bounds" in data:
             b = np.asarray(data["bounds"], dtype=float).reshape(-1)
             if b.size != 4 or not np.all(np.isfinite(b)) or b[2] <= b[0] or b[3] <= b[1]:

@@ -23,7 +23,7 @@ from PIL import Image
 from pushtrain.cli.main import cli
 from pushtrain.errors import MapError, PlanningInputError
 from pushtrain.planner.maps import load_map, read_map_yaml
-from pushtrain.planner.world import World
+from pushtrain.planner.world import World, _polygon
 
 MAX_MESSAGE = 4000
 """Longest error output [characters] a bad map may give ("a few kB")."""
@@ -257,11 +257,13 @@ def test_a_self_crossing_free_outline_is_refused_saying_where(tmp_path):
         assert "map.free = [[0.0, 0.0], [12.0, 0.0]," in output, output
         assert ": not a simple polygon (self-intersection at (7, 0) m): the outline of the free " \
                "space must not cross or touch itself" in output, output
-    with pytest.raises(PlanningInputError, match=r"world.free .*self-intersection at \(7, 0\)"):
-        World.from_dict({"free": BOWTIE})
-    # an obstacle that crosses itself is still taken as the areas it encloses
+    with pytest.raises(PlanningInputError, match=r"map.free is not a simple polygon "
+                                                 r"\(self-intersection at \(7, 0\) m\)"):
+        _polygon(BOWTIE, "map.free", outline=True)
+    # the planner's own worlds (World.from_dict) and obstacles are still repaired, with a warning
     world = World.from_dict({"bounds": [-1, -2, 13, 4], "obstacles": [BOWTIE]})
     assert world.free_area < 14 * 6
+    assert World.from_dict({"free": BOWTIE}).free_area == pytest.approx(34.0)   # 3 parts
 
 
 def test_load_map_still_reads_a_good_grid(tmp_path):
