@@ -48,7 +48,8 @@ STEPS_PER_SECOND = 150_000
 about what the search does per CPU second with the compiled closed loop
 (:class:`~pushtrain.planner.propagate.NativePropagator`: about 2 us per step with its checks,
 plus the search's own work) for three trailers (three-point turn: 150 000 steps in 1.1 s of
-CPU). The Python loop is about 20 times slower: there the wall clock stops the search first."""
+CPU). The Python loop is about 12 times slower (benchmarks/bench_fallback.py): there the wall
+clock stops the search first."""
 
 
 def steps_for(seconds: float) -> int:

@@ -84,6 +84,10 @@ __all__ = ["SearchSettings", "Node", "Search", "Solution", "segments_cost"]
 
 log = logging.getLogger(__name__)
 
+REFERENCE_CHUNK = 200_000
+"""Most footprint points :meth:`Search.reference_clear` tests at once (about 10 arrays of this
+many floats: 16 MB)."""
+
 
 @dataclass(frozen=True)
 class SearchSettings:
@@ -519,10 +523,18 @@ class Search:
         if not near.size:
             return True
         sel = smp.body == n
-        c, s = np.cos(near[:, 2])[:, None], np.sin(near[:, 2])[:, None]
-        px = near[:, :1] + smp.u[sel][None, :] * c - smp.v[sel][None, :] * s
-        py = near[:, 1:2] + smp.u[sel][None, :] * s + smp.v[sel][None, :] * c
-        return bool((field.at(px, py) >= smp.threshold[sel][None, :]).all())
+        u, v, threshold = smp.u[sel][None, :], smp.v[sel][None, :], smp.threshold[sel][None, :]
+        # in chunks, stopping at the first that misses: memory stays bounded whatever the
+        # reference's length and the body's outline
+        rows = max(1, REFERENCE_CHUNK // max(1, u.size))
+        for k in range(0, len(near), rows):
+            chunk = near[k:k + rows]
+            c, s = np.cos(chunk[:, 2])[:, None], np.sin(chunk[:, 2])[:, None]
+            px = chunk[:, :1] + u * c - v * s
+            py = chunk[:, 1:2] + u * s + v * c
+            if not (field.at(px, py) >= threshold).all():
+                return False
+        return True
 
     # ------------------------------------------------------------------ goal
     def _analytic(self, node: Node) -> Solution | None:

@@ -383,7 +383,8 @@ class NativePropagator(Propagator):
     """:class:`Propagator` on the compiled closed loop (:class:`pushtrain.core.rollout.ClosedLoop`).
 
     The same rollouts (the same reference, controller, integrator and checks; a test holds the
-    two equal), 50 to 100 times faster. The compiled loop checks every state it visits: the
+    two equal), about 29 times faster (its rollouts; whole plans about 12 times:
+    ``benchmarks/bench_fallback.py``). The compiled loop checks every state it visits: the
     joint limit, self-collision and the walls, the walls in two tiers at each state:
 
     coarse
