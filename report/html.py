@@ -145,14 +145,17 @@ def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, stat
         return {"name": name, "y": values, "style": style, "color": color}
 
     deg = 180.0 / math.pi
+
     if {"v0", "v_cmd"} <= names:
         panel("speed", "Robot speed", "m/s",
               [line("v robot", col("v0"), color="#d62728"),
                line("v commanded", col("v_cmd"), "dashed", "#111111")])
-    if {"w0", "w_cmd"} <= names:
-        panel("yaw_rate", "Robot yaw rate", "rad/s",
-              [line("w robot", col("w0"), color="#d62728"),
-               line("w commanded", col("w_cmd"), "dashed", "#111111")])
+    if {"w0", "w_cmd"} <= names:  # deg/s, as in inputs_joints.png
+        panel("yaw_rate", "Robot yaw rate", "deg/s",
+              [line("w robot", _rounded(np.asarray(data["w0"], float)[rows] * deg, 3),
+                    color="#d62728"),
+               line("w commanded", _rounded(np.asarray(data["w_cmd"], float)[rows] * deg, 3),
+                    "dashed", "#111111")])
     phis = [line(f"phi{i}", _rounded(np.asarray(data[f"phi{i}"], float)[rows] * deg, 3))
             for i in range(1, n + 1) if f"phi{i}" in names]
     if phis:
@@ -219,11 +222,15 @@ def failure_payload(n: int, details: dict, *, world=None, footprints=None, start
         train = {"x": _rounded(closest["x"]), "y": _rounded(closest["y"]),
                  "theta": _rounded(closest["headings"])}
     route = details.get("route") or {}
-    bottleneck = details.get("bottleneck") or route.get("bottleneck")
+    bottleneck = details.get("bottleneck")
+    if bottleneck:
+        bottleneck = {**bottleneck, "what": "bottleneck"}
+    elif route.get("bottleneck"):  # the route's narrowest place, wide enough: not the cause
+        bottleneck = {**route["bottleneck"], "what": "narrowest place on the route"}
     out = _base(n, world, footprints, keep_out, f"Planning failed with {n} trailer"
                 f"{'s' if n > 1 else ''}")
     out.update({
-        "kind": "failure", "status": "no_plan", "message": message,
+        "kind": "failure", "status": "planning_failed", "message": message,
         "tree": tree, "partial": partial, "train": train,
         "route": ([_rounded(np.asarray(route["points"])[:, 0]),
                    _rounded(np.asarray(route["points"])[:, 1])]
@@ -234,7 +241,7 @@ def failure_payload(n: int, details: dict, *, world=None, footprints=None, start
                            for p in (details.get("failure_points") or [])],
         "start": None if start is None else [float(v) for v in start[:3]],
         "goal": None if goal is None else [float(v) for v in goal[:3]],
-        "summary": {"status": "no_plan", "reason": reason or details.get("reason"),
+        "summary": {"status": "planning_failed", "reason": reason or details.get("reason"),
                     "impossible here": bool(details.get("impossible")),
                     "message": message},
     })

@@ -131,15 +131,23 @@ def parse_facility(data: dict, source: str = "<facility>") -> Facility:
     # checked once, with n = 1 (a longer train that does not fit there fails its missions)
     from pushtrain.mission.runner import check_start_in_map
 
-    first, second = out[0], out[1]
-    for a, b in ((first, second), *((s, first) for s in out[1:])):
+    problems = []
+    for k, station in enumerate(out):
+        other = out[1] if k == 0 else out[0]
         try:
-            check_start_in_map(parse_scenario(mission_dict(facility, a[0], b[0], 1), source))
-        except (ScenarioError, ValueError) as exc:
-            text = str(exc)
-            for key, name in (("start", a[0]), ("goal", b[0])):
-                text = re.sub(rf"\b{key}\b", f"station {name}", text)
-            raise AtlasError(text) from None
+            check_start_in_map(parse_scenario(mission_dict(facility, station[0], other[0], 1),
+                                              source))
+        except ScenarioError as exc:
+            problems += [text.strip().replace("start", f"stations[{k}] ({station[0]})", 1)
+                         for text in str(exc).splitlines()[1:]
+                         if text.strip().startswith("start")]
+            problems += [text.strip() for text in str(exc).splitlines()[1:]
+                         if not text.strip().startswith(("start", "goal"))]
+        except ValueError as exc:
+            problems.append(f"map: {exc}")
+    if problems:
+        unique = list(dict.fromkeys(problems))
+        raise AtlasError(f"{source}: {len(unique)} problem(s)\n  " + "\n  ".join(unique))
     return facility
 
 
@@ -260,8 +268,9 @@ def _prepare_folder(out: Path, facility: Facility, trailers) -> dict:
         except (OSError, ValueError):
             old = None
         if old != manifest:
-            raise _bad("--out", str(out), "an atlas of another facility or --trailers is "
-                       "there; give a new folder")
+            what = ("of another facility" if (old or {}).get("facility") != manifest["facility"]
+                    else f"with --trailers {(old or {}).get('trailers')}")
+            raise _bad("--out", str(out), f"an atlas {what} is there; give a new folder")
     (out / "pairs").mkdir(parents=True, exist_ok=True)
     (out / "missions").mkdir(exist_ok=True)
     atomic_write_text(marker, json.dumps(manifest))
@@ -273,10 +282,12 @@ def _prepare_folder(out: Path, facility: Facility, trailers) -> dict:
     return done
 
 
-def _write_missions(out: Path, facility: Facility, answer: dict) -> None:
+def _write_missions(out: Path, facility: Facility, answer: dict, trailers) -> None:
+    """Every mission of the pair as a scenario file: the n it ran, and the larger n it did not
+    try (a replay of those fails too)."""
     import tomli_w
 
-    for n in answer["by_n"]:
+    for n in trailers:
         data = mission_dict(facility, answer["from"], answer["to"], int(n))
         atomic_write_text(out / "missions" / f"{answer['from']}-{answer['to']}-n{n}.toml",
                           tomli_w.dumps(data))
@@ -299,7 +310,7 @@ def atlas(facility: Facility, trailers, out_dir, *, serial: bool = False, client
 
     def record(answer: dict) -> None:
         done[(answer["from"], answer["to"])] = answer
-        _write_missions(out, facility, answer)
+        _write_missions(out, facility, answer, trailers)
         atomic_write_text(_pair_file(out, answer["from"], answer["to"]), json.dumps(answer))
         if progress:
             progress(sum(p in done for p in pairs), len(pairs), time.perf_counter() - t0)
@@ -359,7 +370,9 @@ def _write_outputs(out: Path, facility: Facility, trailers, answers: list, names
                               out / "atlas.png"),
                   save_figure(matrix_figure(names, answers, max(trailers)), out / "matrix.png")]
         rows = [[a["from"], a["to"], a["max_trailers"], int(n), *(r.get(k) for k in
-                                                                   RESULT_FIELDS)]
+                                                                   RESULT_FIELDS),
+                 (a.get("failure") or {}).get("message") if r["status"] != "goal_reached"
+                 else None, f"missions/{a['from']}-{a['to']}-n{n}.toml"]
                 for a in answers for n, r in a["by_n"].items()]
         write_table_page(out / "report.html", f"Atlas of {facility.name}",
                          {"facility": facility.name, "stations": len(names),
@@ -368,7 +381,8 @@ def _write_outputs(out: Path, facility: Facility, trailers, answers: list, names
                                                             for a in answers),
                           "pairs reached with no n": sum(a["max_trailers"] == 0
                                                          for a in answers)},
-                         ["from", "to", "max_trailers", "n", *RESULT_FIELDS], rows,
+                         ["from", "to", "max_trailers", "n", *RESULT_FIELDS, "message",
+                          "mission file (plan-and-run replays it)"], rows,
                          images=images, fail_column="reason",
                          message="Each row is one mission (missions/FROM-TO-nK.toml replays "
                                  "it with plan-and-run). Click a row to see it.")

@@ -42,6 +42,8 @@ def test_every_answer_replays_with_plan_and_run(subset_atlas, tmp_path):
     assert "most trailers from (rows) to (columns)" in proc.stdout
     assert "about" in proc.stderr and "s left" in proc.stderr  # progress with an estimate
     for (a, b), k in answers.items():
+        # a scenario file for every n, also those not tried after the first failure
+        assert all((out / "missions" / f"{a}-{b}-n{n}.toml").is_file() for n in range(1, 6))
         for n, must_reach in ((k, True), (k + 1, False)):
             if n < 1 or n > 5:
                 continue

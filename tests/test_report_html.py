@@ -123,7 +123,9 @@ def test_view_prints_the_page_where_no_browser_is_known(corridor_run, monkeypatc
     monkeypatch.setattr("webbrowser.register_standard_browsers", lambda: None)
     result = CliRunner().invoke(cli, ["view", str(corridor_run)])
     assert result.exit_code == 0
-    assert result.output.strip() == str((corridor_run / "report.html").resolve())
+    page = (corridor_run / "report.html").resolve()
+    assert result.output.strip().splitlines()[-1] == str(page)
+    assert f"no browser found here; open {page.as_uri()}" in result.output
     bad = CliRunner().invoke(cli, ["view", str(corridor_run / "nothing")])
     assert bad.exit_code == 2 and "RUN_DIR" in bad.output and "not a folder" in bad.output
 
@@ -217,6 +219,22 @@ def test_the_page_loads_without_errors_and_the_slider_moves_the_train(browser, c
         seen.append(state["bodies"][0])
     assert math.dist(seen[0][:2], seen[1][:2]) > 1.0  # the train moved
     assert _errors(browser) == []
+
+
+@pytest.mark.browser
+def test_the_plots_stay_drawn_when_the_window_is_resized(browser, corridor_run):
+    _open(browser, corridor_run / "report.html")
+    count = ("const c = document.querySelectorAll('.plot canvas')[arguments[0]];"
+             "const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;"
+             "let n = 0; for (let i = 0; i < d.length; i += 4) {"
+             "  if (d[i + 3] > 0 && (d[i] < 200 || d[i + 1] < 200 || d[i + 2] < 200)) n++; }"
+             "return n;")
+    before = browser.execute_script(count, 2)
+    browser.set_window_size(1200, 900)
+    time.sleep(0.3)  # the resize event is handled asynchronously
+    after = browser.execute_script(count, 2)
+    browser.set_window_size(1400, 1000)
+    assert before > 1000 and after > 1000  # lines, labels and the cursor, not a blank canvas
 
 
 @pytest.mark.browser

@@ -72,8 +72,16 @@ def atlas_cmd(facility, trailers, out, scheduler, workers, serial, only):
         done_before = len(list((Path(out) / "pairs").glob("*.json"))) if Path(
             out).is_dir() else 0
         _progress.resumed = done_before
-        doc = atlas(fac, counts, out, serial=serial, scheduler=scheduler, workers=workers,
-                    progress=_progress, only=chosen)
+        if done_before:
+            click.echo(f"atlas: resuming in {out}: {done_before} pair(s) answered before are "
+                       "kept", err=True)
+        try:
+            doc = atlas(fac, counts, out, serial=serial, scheduler=scheduler, workers=workers,
+                        progress=_progress, only=chosen)
+        except KeyboardInterrupt:
+            click.echo(f"atlas: the answers so far are kept in {out}; the same command goes "
+                       "on from there", err=True)
+            raise
     names = [s["name"] for s in doc["stations"]]
     width = max(len(n) for n in names)
     answers = {(p["from"], p["to"]): p["max_trailers"] for p in doc["pairs"]}

@@ -26,7 +26,8 @@ from ..runs import describe_path, plan_or_fail, run_and_report, write_path, writ
 @out_dir_option
 @trailers_option
 @click.option("--seed", type=click.IntRange(min=1), metavar="S", help="Override the scenario seed.")
-@click.option("--no-plots", is_flag=True, help="Skip the PNG plots and the GIF.")
+@click.option("--no-plots", is_flag=True,
+              help="Skip the PNG plots, the GIF and report.html.")
 @click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
 @csv_option
 @plot_processes_option

@@ -61,7 +61,8 @@ def _check_path_fits(sc, path, path_file) -> None:
               metavar="PATH.json",
               help="A saved path (from `plan --out`); default: the scenario's scripted reference.")
 @out_dir_option
-@click.option("--no-plots", is_flag=True, help="Skip the PNG plots and the GIF.")
+@click.option("--no-plots", is_flag=True,
+              help="Skip the PNG plots, the GIF and report.html.")
 @click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
 @csv_option
 @plot_processes_option

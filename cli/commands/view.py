@@ -33,21 +33,22 @@ def view_cmd(run_dir, print_only):
       pushtrain view runs/l_corridor
     """
     path = Path(run_dir)
-    page = path / "report.html" if path.is_dir() or not path.suffix else path
+    page = path / "report.html" if path.is_dir() or path.suffix != ".html" else path
     if not page.is_file():
         what = ("is not a folder" if not path.exists() else
-                "has no report.html (runs before pushtrain wrote one, or a run stopped "
-                "before its plots)")
+                "has no report.html (a run with --no-plots, a run stopped before its plots, "
+                "or one from before pushtrain wrote it)")
         click.echo(f"Error: RUN_DIR = {run_dir!r} {what}; give a run folder written by "
                    "plan-and-run or run", err=True)
         raise SystemExit(EXIT_BAD_INPUT)
     uri = page.resolve().as_uri()
-    if print_only or not _has_browser():
+    if print_only:
         click.echo(page.resolve())
         return
     import webbrowser
 
-    if not webbrowser.open(uri):
+    if not _has_browser() or not webbrowser.open(uri):
+        click.echo(f"no browser found here; open {uri} in one", err=True)
         click.echo(page.resolve())
         return
     click.echo(f"opened {page.resolve()}")

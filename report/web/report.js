@@ -56,7 +56,7 @@
     canvas.width = w; canvas.height = h; layer.width = w; layer.height = h;
     if (first) fit();
     redrawLayer();
-    plots.forEach((p) => p.resize());
+    plots.forEach((p) => { p.resize(); p.draw(row); });
     draw();
   }
 
@@ -237,7 +237,7 @@
             ["trailers", `background:${COLORS.trailer}`],
             ["motion failures", "border:2px solid #e00000;width:6px;height:6px"],
             ["start", "background:#2ca02c;opacity:.5"], ["goal", "background:#d62728;opacity:.5"]]
-           .concat(b ? [[`bottleneck at (${b.x.toFixed(2)}, ${b.y.toFixed(2)}): ` +
+           .concat(b ? [[`${b.what || "bottleneck"} at (${b.x.toFixed(2)}, ${b.y.toFixed(2)}): ` +
                          `${b.width.toFixed(2)} m wide, ${b.needed.toFixed(2)} m needed`,
                          `border:2px solid ${COLORS.bottleneck};border-radius:50%;width:8px`]]
                       : []));
@@ -248,6 +248,16 @@
     `border-top:2px dashed ${COLORS.keepOut};height:0`]]);
 
   // ---------------------------------------------------------------- plots
+  function niceTicks(lo, hi) {  // 3 to 6 round values within [lo, hi], 0 among them if inside
+    const raw = (hi - lo) / 4, mag = Math.pow(10, Math.floor(Math.log10(raw)));
+    const step = [1, 2, 2.5, 5, 10].map((f) => f * mag).find((v) => v >= raw) || 10 * mag;
+    const out = [];
+    for (let v = Math.ceil(lo / step) * step; v <= hi + 1e-12; v += step) {
+      out.push(Math.abs(v) < 1e-12 * step ? 0 : v);
+    }
+    return out;
+  }
+
   function Plot(spec) {
     const box = document.createElement("div"); box.className = "plot";
     const c = document.createElement("canvas");
@@ -279,8 +289,10 @@
       b.strokeRect(M.l * dpr, M.t * dpr, c.width - (M.l + M.r) * dpr,
                    c.height - (M.t + M.b) * dpr);
       b.fillStyle = "#444";
-      [lo + padY, 0.5 * (lo + hi), hi - padY].forEach((v) => {
-        b.fillText(v.toPrecision(3), 2 * dpr, Y(v) + 4 * dpr);
+      niceTicks(lo, hi).forEach((v) => {
+        b.strokeStyle = "#eee"; b.beginPath(); b.moveTo(X(t0), Y(v)); b.lineTo(X(t1), Y(v));
+        b.stroke();
+        b.fillText(String(+v.toPrecision(6)), 2 * dpr, Y(v) + 4 * dpr);
       });
       b.fillText(`${t0.toFixed(0)} s`, M.l * dpr, c.height - 5 * dpr);
       b.fillText(`${t1.toFixed(0)} s`, c.width - (M.r + 36) * dpr, c.height - 5 * dpr);
@@ -291,8 +303,11 @@
       spec.limits.forEach((lm) => {
         b.strokeStyle = "#d62728"; b.setLineDash([6 * dpr, 4 * dpr]); b.beginPath();
         b.moveTo(X(t0), Y(lm.y)); b.lineTo(X(t1), Y(lm.y)); b.stroke(); b.setLineDash([]);
-        if (lm.name) { b.fillStyle = "#d62728"; b.fillText(lm.name, X(t0) + 4 * dpr,
-                                                            Y(lm.y) - 3 * dpr); }
+        if (lm.name) {
+          b.fillStyle = "#d62728";
+          const w = b.measureText(lm.name).width;
+          b.fillText(lm.name, X(t1) - w - 4 * dpr, Y(lm.y) + 12 * dpr);
+        }
       });
       spec.lines.forEach((ln, k) => {
         b.strokeStyle = ln.color || LINE_COLORS[k % LINE_COLORS.length];
