@@ -250,12 +250,13 @@ def _exact_gap(world: World, poly) -> float:
     """Distance [m] from ``poly`` to the walls: positive inside the free space, minus the
     depth of the overlap's farthest point if it leaves it (approximate), -inf if wholly out."""
     poly = shapely.geometry.Polygon(poly) if not hasattr(poly, "geom_type") else poly
-    if world.free.covers(poly):
+    free = world.eroded(0.0)  # this thread's prepared copy
+    if free.covers(poly):
         return float(world.wall_distance([poly])[0])
-    outside = poly.difference(world.free)
+    outside = poly.difference(free)
     if outside.is_empty:
         return 0.0
-    depth = max(world.free.distance(Point(p)) for p in np.asarray(
+    depth = max(free.distance(Point(p)) for p in np.asarray(
         shapely.get_coordinates(outside)))
     return -float(depth)
 

@@ -384,7 +384,7 @@ def _footprints(world: World, train: Train, corners, x, y, margins, regions, mea
         # a body's distance beyond its margin is its distance to the walls minus the margin
         # (the distance to the level set {d = m} of the distance to the walls is d - m)
         gap = world.wall_distance(polys[measured])
-        covered = shapely.covers(world.free, polys[measured])
+        covered = shapely.covers(world.eroded(0.0), polys[measured])  # this thread's copy
         gap = np.where(covered, gap, -gap)
         clear[measured] = gap - np.broadcast_to(margins[None, :], x.shape)[measured]
         walls = float(np.min(gap))

@@ -244,15 +244,17 @@ class World:
         field), within the free space.
 
         Computed once per margin; each thread gets its own prepared copy (GEOS builds a prepared
-        geometry's index lazily, so one must not be shared between threads)."""
-        margin = float(margin)
-        if margin <= 0.0:
-            return self.free
+        geometry's index lazily, so one must not be shared between threads: two threads
+        querying one ``free`` crashed the interpreter now and then). A margin of 0 or less is
+        the free space itself, in this thread's copy."""
+        margin = max(float(margin), 0.0)
         own = ("eroded", margin, threading.get_ident())
         geom = self._fields.get(own)
         if geom is None:
             shared = self._fields.get(("eroded", margin))
-            if shared is None:
+            if shared is None and margin == 0.0:
+                shared = self.free
+            elif shared is None:
                 if self.occupancy is not None:
                     from .raster import clear_region
 
