@@ -220,3 +220,28 @@ def built_fmu_sim(built_fmu_unzipped):
 def fmu3(built_fmu):
     """The TrailerTrain FMU for 3 trailers (the paper's train)."""
     return built_fmu(3)
+
+
+# --------------------------------------------------------------- the CLI, for the tests of it
+EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
+
+
+def invoke_cli(args):
+    """``pushtrain ARGS`` through click's runner; never a traceback (asserted)."""
+    from click.testing import CliRunner
+
+    from pushtrain.cli.main import cli
+
+    result = CliRunner().invoke(cli, [str(a) for a in args])
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.output
+    assert "Traceback" not in result.output, result.output
+    return result
+
+
+def short_run(tmp_path, n=3, horizon=0.3):
+    """straight_push with ``n`` trailers, without its shove, and a horizon far too short for
+    the goal (exit 1)."""
+    text = (EXAMPLES / "straight_push.toml").read_text().replace("n = 3", f"n = {n}")
+    path = tmp_path / f"short{n}.toml"
+    path.write_text(text[:text.index("[[events]]")] + f"[sim]\nhorizon = {horizon}\n")
+    return path

@@ -8,9 +8,9 @@ import os
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
+from conftest import invoke_cli as _invoke
+from conftest import short_run as _short
 
-from pushtrain.cli.main import cli
 from pushtrain.errors import InputError
 from pushtrain.files import (
     RUN_MARKER,
@@ -19,24 +19,6 @@ from pushtrain.files import (
     claim_run_folder,
     fresh_run_folder,
 )
-
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
-
-def _invoke(args):
-    result = CliRunner().invoke(cli, [str(a) for a in args])
-    assert result.exception is None or isinstance(result.exception, SystemExit), result.output
-    assert "Traceback" not in result.output, result.output
-    return result
-
-
-def _short(tmp_path, n=3, horizon=0.3):
-    """straight_push with ``n`` trailers, without its shove, and a horizon far too short for
-    the goal (exit 1)."""
-    text = (EXAMPLES / "straight_push.toml").read_text().replace("n = 3", f"n = {n}")
-    path = tmp_path / f"short{n}.toml"
-    path.write_text(text[:text.index("[[events]]")] + f"[sim]\nhorizon = {horizon}\n")
-    return path
 
 
 # ----------------------------------------------------------------------- run folders in use
