@@ -8,7 +8,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from conftest import EXAMPLES  # noqa: E402
+from conftest import EXAMPLES
 from conftest import invoke_cli as _invoke
 from conftest import short_run as _short
 
