@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from pushtrain.errors import InputError, PlanningError
+from pushtrain.errors import InputError, PlanningError, PushtrainError
 from pushtrain.files import atomic_write_text
 from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.mission.scenario import ScenarioError, parse_scenario
@@ -208,7 +208,11 @@ def _one_mission(data: dict) -> dict:
     out["plan_s"] = round(time.perf_counter() - t0, 3)
     out["length_m"] = round(path.length, 3)
     reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
-    result = runner.run_scenario(sc, None, reference=reference, progress=False)
+    try:
+        result = runner.run_scenario(sc, None, reference=reference, progress=False)
+    except PushtrainError as exc:  # a co-simulation that could not run is this mission's end
+        out.update(status="error", reason=type(exc).__name__, message=str(exc)[:400])
+        return out
     summary = result.summary
     phis = summary.get("max_abs_phi_deg") or [math.nan]
     clearance = (summary.get("map_check") or {}).get("min_clearance_m")

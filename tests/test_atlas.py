@@ -126,3 +126,19 @@ def test_an_out_folder_of_something_else_is_refused(tmp_path):
     assert proc.returncode == 2 and "--out" in proc.stderr
     assert (other / "notes.txt").read_text() == "mine"
     shutil.rmtree(other)
+
+
+def test_a_mission_whose_co_simulation_fails_is_a_row_not_a_lost_atlas(monkeypatch):
+    import pushtrain.mission.runner as runner
+    from pushtrain.errors import CosimError
+    from pushtrain.studies.atlas import load_facility, run_pair
+
+    def broken(*args, **kwargs):
+        raise CosimError("the FMU could not be loaded")
+
+    monkeypatch.setattr(runner, "run_scenario", broken)
+    answer = run_pair(load_facility(FACILITY), "hall", "recess", (1, 2))
+    assert answer["max_trailers"] == 0 and list(answer["by_n"]) == ["1"]
+    assert answer["by_n"]["1"]["status"] == "error"
+    assert answer["by_n"]["1"]["reason"] == "CosimError"
+    assert "could not be loaded" in answer["failure"]["message"]
