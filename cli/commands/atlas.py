@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import click
 
@@ -12,17 +11,26 @@ from ..common import click_errors
 __all__ = ["atlas_cmd"]
 
 
-def _progress(done: int, total: int, elapsed: float) -> None:
-    """One line on stderr per finished pair, with the estimate of the time left."""
-    if done == 0 or elapsed <= 0.0:
-        click.echo(f"atlas: {done}/{total} pairs", err=True)
-        return
-    left = elapsed / max(done - _progress.resumed, 1) * (total - done)
-    click.echo(f"atlas: {done}/{total} pairs, {elapsed:.0f} s, about {left:.0f} s left",
-               err=True)
+class _Progress:
+    """One line on stderr per finished pair, with the estimate of the time left. The atlas's
+    first call (before any work) says how many pairs an earlier run had answered already."""
 
+    def __init__(self, out):
+        self.out = out
+        self.resumed = None
 
-_progress.resumed = 0
+    def __call__(self, done: int, total: int, elapsed: float) -> None:
+        if self.resumed is None:
+            self.resumed = done
+            if done:
+                click.echo(f"atlas: resuming in {self.out}: {done} pair(s) answered before are "
+                           "kept", err=True)
+        if done == self.resumed or elapsed <= 0.0:
+            click.echo(f"atlas: {done}/{total} pairs", err=True)
+            return
+        left = elapsed / (done - self.resumed) * (total - done)
+        click.echo(f"atlas: {done}/{total} pairs, {elapsed:.0f} s, about {left:.0f} s left",
+                   err=True)
 
 
 @click.command("atlas", short_help="Which stations a train reaches, with how many trailers.")
@@ -69,15 +77,9 @@ def atlas_cmd(facility, trailers, out, scheduler, workers, serial, only):
                                  f"stations ({', '.join(sorted(known))})")
         if scheduler:
             check_scheduler(scheduler)
-        done_before = len(list((Path(out) / "pairs").glob("*.json"))) if Path(
-            out).is_dir() else 0
-        _progress.resumed = done_before
-        if done_before:
-            click.echo(f"atlas: resuming in {out}: {done_before} pair(s) answered before are "
-                       "kept", err=True)
         try:
             doc = atlas(fac, counts, out, serial=serial, scheduler=scheduler, workers=workers,
-                        progress=_progress, only=chosen)
+                        progress=_Progress(out), only=chosen)
         except KeyboardInterrupt:
             click.echo(f"atlas: the answers so far are kept in {out}; the same command goes "
                        "on from there", err=True)
