@@ -364,12 +364,11 @@ def _write_outputs(out: Path, facility: Facility, trailers, answers: list, names
     atomic_write_text(out / "atlas.csv", buf.getvalue())
     try:
         from pushtrain.mission.runner import world_of
-        from pushtrain.mission.scenario import parse_scenario as _parse
         from pushtrain.report.atlas import atlas_figure, matrix_figure, save_figure
         from pushtrain.report.html import write_table_page
 
         first = mission_dict(facility, names[0], names[1], 1)
-        world = world_of(_parse(first, facility.name))
+        world = world_of(parse_scenario(first, facility.name))
         images = [save_figure(atlas_figure(world, stations, answers, max(trailers)),
                               out / "atlas.png"),
                   save_figure(matrix_figure(names, answers, max(trailers)), out / "matrix.png")]
