@@ -57,9 +57,8 @@ def _map_picture(world, pixels: int = MAP_PIXELS) -> dict:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    xmin, ymin, xmax, ymax = world.outline.bounds
-    if world.occupancy is not None and hasattr(world.occupancy, "plot"):
-        xmin, ymin, xmax, ymax = world.bounds
+    grid = world.occupancy is not None and hasattr(world.occupancy, "plot")
+    xmin, ymin, xmax, ymax = world.bounds if grid else world.outline.bounds
     pad = 0.05 * max(xmax - xmin, ymax - ymin, 1e-9)
     extent = [xmin - pad, xmax + pad, ymin - pad, ymax + pad]
     w_m, h_m = extent[1] - extent[0], extent[3] - extent[2]
