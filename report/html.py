@@ -14,8 +14,9 @@ The renderer is about 500 lines of plain JavaScript with no dependencies.
 The map is embedded as a PNG picture of the free space (drawn by the map's own
 :meth:`~pushtrain.planner.world.World.plot`, so occupancy grids and polygons look as in
 ``map.png``) with its extent in metres; everything else is vector data. The time series are
-decimated for the view to at most ``max_rows`` rows (every k-th row of the results, so each
-drawn pose is a row of ``results.npz`` exactly); ``results.npz`` itself is never decimated.
+decimated for the view to at most ``max_rows`` rows spread evenly over the results, first and
+last included (:func:`~pushtrain.report.geometry.frame_indices`, as the GIF's frames; each drawn
+pose is a row of ``results.npz`` exactly); ``results.npz`` itself is never decimated.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ import numpy as np
 
 from pushtrain.files import atomic_write_text
 from pushtrain.report.common import check_n
-from pushtrain.report.geometry import DEFAULT_FOOTPRINTS
+from pushtrain.report.geometry import DEFAULT_FOOTPRINTS, frame_indices
 
 __all__ = ["HTML_FILE", "MAX_ROWS", "run_payload", "failure_payload", "write_html",
            "plot_report", "plot_failure_report", "write_table_page"]
@@ -104,15 +105,6 @@ def _base(n: int, world, footprints, keep_out, title: str) -> dict:
             "keep_out": _keep_out(world, keep_out)}
 
 
-def _rows(length: int, max_rows: int) -> np.ndarray:
-    """Every k-th row (k the smallest that keeps at most ``max_rows``) and the last one."""
-    step = max(1, math.ceil(length / max(2, max_rows - 1)))
-    rows = np.arange(0, length, step)
-    if rows[-1] != length - 1:
-        rows = np.append(rows, length - 1)
-    return rows
-
-
 def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, status=None,
                 summary: dict | None = None, phi_max_deg: float | None = None,
                 keep_out: float | None = None, max_rows: int = MAX_ROWS,
@@ -126,7 +118,7 @@ def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, stat
     """
     n = check_n(n)
     names = set(data.dtype.names)
-    rows = _rows(len(data), max_rows)
+    rows = frame_indices(len(data), max_rows)
 
     def col(name):
         return _rounded(np.asarray(data[name], dtype=float)[rows])
@@ -258,13 +250,8 @@ def write_table_page(path, title: str, summary: dict, columns: Sequence[str],
     inlined, and the runs as a table of ``columns`` x ``rows`` that sorts by a column and shows
     one run when its row is clicked (cells of ``fail_column`` that are not empty in red).
     Written atomically, self-contained like :func:`write_html`."""
-    def cell(v):
-        if isinstance(v, float):
-            return v if math.isfinite(v) else None
-        return v if v is None or isinstance(v, (int, str, bool)) else str(v)
-
     payload = {"title": title, "message": message, "summary": summary,
-               "columns": list(columns), "rows": [[cell(v) for v in r] for r in rows],
+               "columns": list(columns), "rows": [list(r) for r in rows],
                "fail_column": fail_column,
                "images": [{"name": Path(p).name,
                            "png": base64.b64encode(Path(p).read_bytes()).decode("ascii")}
