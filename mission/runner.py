@@ -30,6 +30,7 @@ from pushtrain.cosim.master import (
 from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.files import atomic_write, atomic_write_text
 from pushtrain.fmu import build_fmu
+from pushtrain.settings import config_values
 
 from .scenario import Scenario, ScenarioError
 
@@ -217,17 +218,8 @@ def plan_path(sc: Scenario):
     """
     from pushtrain.planner import PlannerConfig, plan
 
-    p = sc.planner
-    clearance = tuple(p.clearance) if isinstance(p.clearance, list) else p.clearance
     config = PlannerConfig(
-        planner=p.planner, time_budget=p.time_budget, anytime_time=p.anytime_time,
-        pull_start_tolerance=p.pull_start_tolerance, turning_radius=p.turning_radius,
-        transient_margin=p.transient_margin, inflation=p.inflation, seed=sc.seed,
-        controller=controller_of(sc), speed=p.speed, cusp_dwell=p.cusp_dwell,
-        clearance=clearance, joint_margin=math.radians(p.joint_margin_deg),
-        pull_phi=math.radians(p.pull_max_phi_deg), step_length=p.step_length,
-        search_weight=p.search_weight, smooth=p.smooth,
-        goal_phi=None if p.goal_max_phi_deg is None else math.radians(p.goal_max_phi_deg),
+        **config_values(PlannerConfig, sc.planner), seed=sc.seed, controller=controller_of(sc),
         goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
     )
     goal = (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg))

@@ -27,13 +27,20 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from pushtrain.errors import FieldErrors, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
-from pushtrain.validation import Integer, no_bool, read_toml, validate_model
+from pushtrain.planner.config import PlannerConfig
+from pushtrain.settings import file_section
+from pushtrain.validation import (
+    FiniteFloat,
+    Integer,
+    NonNegFloat,
+    PositiveFloat,
+    no_bool,
+    read_toml,
+    validate_model,
+)
 
 __all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
 
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 Point = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 
 
@@ -118,28 +125,10 @@ class MapSection(_Section):
         return self
 
 
-class PlannerSection(_Section):
-    # "lattice": the whole-train closed-loop search; the others: OMPL on the last trailer
-    planner: Literal["lattice", "rrtconnect", "restarts", "rrtstar", "bitstar",
-                     "prmstar"] = "lattice"
-    time_budget: PositiveFloat = 1.0
-    turning_radius: PositiveFloat | None = None  # None: from train.phi_max_deg and the margin
-    transient_margin: NonNegFloat = 0.6
-    speed: PositiveFloat = 0.08  # below the robot's 0.1 m/s so along-track lag can be made up
-    cusp_dwell: NonNegFloat = 1.0
-    # lattice: per-body clearance from the walls (one value, or n + 1: robot, trailers 1..n)
-    clearance: NonNegFloat | list[NonNegFloat] = 0.05
-    joint_margin_deg: NonNegFloat = 5.0  # kept below train.phi_max_deg while planning
-    pull_max_phi_deg: PositiveFloat = 15.0  # a pull starts only with every |phi| below this
-    step_length: PositiveFloat = 0.5  # m, one search primitive
-    search_weight: Annotated[float, Field(ge=1, allow_inf_nan=False)] = 2.0
-    smooth: bool = True
-    # the whole train straight (every joint within this) when the last trailer reaches the goal
-    goal_max_phi_deg: Annotated[float, Field(gt=0, lt=90, allow_inf_nan=False)] | None = None
-    # the OMPL planners only
-    anytime_time: PositiveFloat = 0.5  # per attempt, for restarts/rrtstar/bitstar/prmstar
-    pull_start_tolerance: NonNegFloat | None = 0.4  # m; None: off (see PlannerConfig)
-    inflation: NonNegFloat = 0.05
+PlannerSection = file_section(PlannerConfig, "PlannerSection", _Section)
+"""``[planner]``: the file settings of :class:`~pushtrain.planner.config.PlannerConfig`, with its
+defaults (``planner``: "lattice", the whole-train closed-loop search; the others: OMPL on the
+last trailer)."""
 
 
 class SegmentSpec(_Section):

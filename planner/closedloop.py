@@ -88,7 +88,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     samples = body_samples(train, margins, spacing=config.sample_spacing)
     phi_limit = train.phi_max - config.joint_margin
     prop = make_propagator(train, controller, tracker, field, samples, phi_limit,
-                           goal_phi=config.goal_phi)
+                           goal_phi=config.goal_max_phi)
     headings = (np.full(train.n + 1, float(start[2])) if start_headings is None
                 else np.asarray(start_headings, dtype=float))
     state0 = prop.initial_state(start, headings)
@@ -116,10 +116,10 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
 
     # with a straight train asked for at the goal, the final straight approach is as long as
     # the train (the followers line up behind the last trailer on it)
-    approach = 1.5 if config.goal_phi is None else max(1.5, _train_length(train) + 0.5)
+    approach = 1.5 if config.goal_max_phi is None else max(1.5, _train_length(train) + 0.5)
     settings = SearchSettings(
         radius=radius, step_length=config.step_length, weight=config.search_weight,
-        pull_phi=config.pull_phi, budget_steps=config.budget_steps(), deadline=deadline,
+        pull_phi=config.pull_max_phi, budget_steps=config.budget_steps(), deadline=deadline,
         approach=approach)
     search = Search(train, prop, heuristic, state0, cursor0, goal, settings, route=route_of)
     rejected, best, found = 0, None, 0
@@ -402,10 +402,10 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
     if f["pull_rule"]:
         parts.append(f"{f['pull_rule']} pull{'s were' if f['pull_rule'] != 1 else ' was'} not "
                      "started because the chain was bent "
-                     f"more than {math.degrees(config.pull_phi):.1f} deg (pull rule)")
+                     f"more than {math.degrees(config.pull_max_phi):.1f} deg (pull rule)")
     if f["goal_missed"]:
-        straight = ("" if config.goal_phi is None else
-                    f", every joint within {math.degrees(config.goal_phi):.1f} deg")
+        straight = ("" if config.goal_max_phi is None else
+                    f", every joint within {math.degrees(config.goal_max_phi):.1f} deg")
         g = config.goal_fraction
         parts.append(f"{f['goal_missed']} connections to the goal ended outside {g:g} of its "
                      f"tolerance ({g * config.goal_tolerance[0]:.3f} m, "

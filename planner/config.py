@@ -15,11 +15,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.errors import PlanningInputError
+from pushtrain.settings import angle_setting, setting
+from pushtrain.validation import NonNegFloat, PositiveFloat
 
 from .budget import checks_for, steps_for
 from .kinematic_loop import TrackerConfig
@@ -59,6 +63,10 @@ def turning_radius_from_joint_limit(
 class PlannerConfig:
     """Planner settings (SI units).
 
+    The fields declared with :func:`~pushtrain.settings.setting` are the scenario's
+    ``[planner]`` section (an angle as ``NAME_deg``, in degrees), generated from these
+    declarations: the file's default is the field's default.
+
     Parameters
     ----------
     turning_radius : float or None
@@ -69,7 +77,7 @@ class PlannerConfig:
     planner : str
         One of :data:`PLANNERS`. ``lattice`` (default): the whole-train closed-loop search
         (:func:`~pushtrain.planner.closedloop.plan_lattice`); its settings are ``clearance``,
-        ``goal_tolerance``, ``joint_margin``, ``pull_phi``, ``step_length``,
+        ``goal_tolerance``, ``joint_margin``, ``pull_max_phi``, ``step_length``,
         ``search_weight``, ``sample_spacing``, ``smooth`` and ``time_budget``. The OMPL
         planners of the last trailer: ``rrtconnect`` returns its first solution fast,
         the others improve the path for ``anytime_time``: ``restarts`` repeats
@@ -168,8 +176,8 @@ class PlannerConfig:
     joint_margin : float
         ``lattice``: the search keeps every |phi_i| <= phi_max - joint_margin [rad] (the
         co-simulation's joints differ from the kinematic prediction by a few degrees).
-    pull_phi : float
-        ``lattice``: a pull may start only when every |phi_i| <= pull_phi [rad] (the chain
+    pull_max_phi : float
+        ``lattice``: a pull may start only when every |phi_i| <= pull_max_phi [rad] (the chain
         nearly straight, as a driver would pull).
     step_length : float
         ``lattice``: length [m] of one search primitive.
@@ -180,8 +188,8 @@ class PlannerConfig:
         the distance-field test (conservative by half of it).
     smooth : bool
         ``lattice``: try Reeds-Shepp shortcuts on the found path (fewer turns, shorter).
-    goal_phi : float or None
-        ``lattice``: the goal also needs every |phi_i| <= goal_phi [rad] when the last trailer
+    goal_max_phi : float or None
+        ``lattice``: the goal also needs every |phi_i| <= goal_max_phi [rad] when the last trailer
         arrives (the whole train straight behind it, e.g. parked in a slot); None: any chain.
     anytime : bool
         ``lattice``: search on after the first path until ``time_budget`` is spent and keep
@@ -194,14 +202,14 @@ class PlannerConfig:
         warning is logged, since the result then depends on the machine's speed.
     """
 
-    turning_radius: float | None = None
-    transient_margin: float = 0.6
-    planner: str = "lattice"
-    time_budget: float = 2.0
-    anytime_time: float = 0.5
+    turning_radius: float | None = setting(None, PositiveFloat | None)
+    transient_margin: float = setting(0.6, NonNegFloat)
+    planner: str = setting("lattice", Literal[PLANNERS])
+    time_budget: float = setting(1.0, PositiveFloat)
+    anytime_time: float = setting(0.5, PositiveFloat)
     seed: int | None = 1
     simplify: bool = True
-    inflation: float = 0.05
+    inflation: float = setting(0.05, NonNegFloat)
     offtrack_allowance: float = 0.1
     planning_resolution: float = 0.1
     check_resolution: float = 0.01
@@ -212,23 +220,24 @@ class PlannerConfig:
     check_train: bool = True
     allow_pull_arcs: bool = True
     controller: ControllerConfig | None = None
-    speed: float = 0.08
-    cusp_dwell: float = 1.0
+    speed: float = setting(0.08, PositiveFloat)
+    cusp_dwell: float = setting(1.0, NonNegFloat)
     straight_pull_ends: bool = True
-    pull_start_tolerance: float | None = 0.4
+    pull_start_tolerance: float | None = setting(0.4, NonNegFloat | None)
     rrt_range: float | None = None
     time_cap: float | None = None
-    clearance: float | tuple = 0.05
+    clearance: float | tuple = setting(0.05, NonNegFloat | list[NonNegFloat])
     goal_tolerance: tuple = (0.05, math.radians(5.0))
     goal_fraction: float = 0.5
-    joint_margin: float = math.radians(5.0)
-    pull_phi: float = math.radians(15.0)
-    step_length: float = 0.5
-    search_weight: float = 2.0
+    joint_margin: float = angle_setting(5.0, NonNegFloat)
+    pull_max_phi: float = angle_setting(15.0, PositiveFloat)
+    step_length: float = setting(0.5, PositiveFloat)
+    search_weight: float = setting(2.0, Annotated[float, Field(ge=1, allow_inf_nan=False)])
     sample_spacing: float = 0.04
-    smooth: bool = True
+    smooth: bool = setting(True, bool)
     anytime: bool = False
-    goal_phi: float | None = None
+    goal_max_phi: float | None = angle_setting(
+        None, Annotated[float, Field(gt=0, lt=90, allow_inf_nan=False)] | None)
 
     def __post_init__(self):
         name = str(self.planner).lower()
@@ -282,16 +291,17 @@ class PlannerConfig:
                 f"goal_tolerance = {self.goal_tolerance!r}: need (position [m], heading [rad]),"
                 " both finite and > 0")
         object.__setattr__(self, "goal_tolerance", (float(tol[0]), float(tol[1])))
-        for key, low, high in (("joint_margin", 0.0, math.pi), ("pull_phi", 0.0, math.pi),
+        for key, low, high in (("joint_margin", 0.0, math.pi), ("pull_max_phi", 0.0, math.pi),
                                ("goal_fraction", 1e-3, 1.0),
                                ("step_length", 1e-3, 100.0), ("search_weight", 1.0, 100.0),
                                ("sample_spacing", 1e-3, 1.0)):
             value = getattr(self, key)
             if not (isinstance(value, (int, float)) and low <= value <= high):
                 raise PlanningInputError(f"{key} = {value!r}: allowed {low:g} to {high:g}")
-        if self.goal_phi is not None and not (
-                isinstance(self.goal_phi, (int, float)) and 0.0 < self.goal_phi < math.pi):
-            raise PlanningInputError(f"goal_phi = {self.goal_phi!r} rad: None or in (0, pi)")
+        if self.goal_max_phi is not None and not (
+                isinstance(self.goal_max_phi, (int, float)) and 0.0 < self.goal_max_phi < math.pi):
+            raise PlanningInputError(
+                f"goal_max_phi = {self.goal_max_phi!r} rad: None or in (0, pi)")
         if self.seed is not None and int(self.seed) < 1:
             raise PlanningInputError(f"seed = {self.seed!r}: must be an integer >= 1 or None")
         if int(self.max_attempts) < 1:

@@ -73,6 +73,7 @@ import numpy as np
 
 from pushtrain.core.reference import PULL, PUSH, Segment
 
+from .config import PlannerConfig
 from .connect import corner_segments, rs_segments, sample_reference
 from .footprint import body_positions
 from .heuristic import Heuristic
@@ -152,20 +153,20 @@ class SearchSettings:
     radius: float
     curvatures: tuple = (0.0, 1.0, -1.0, 0.5, -0.5)
     pull_curvatures: tuple = (0.0, 0.5, -0.5)
-    step_length: float = 0.5
+    step_length: float = PlannerConfig.step_length
     pull_length: float = 1.0
     long_straight: float = 1.5
     approach: float = 1.5
     grid_xy: float = 0.15
     grid_theta: float = math.radians(7.5)
     grid_bend: float = 0.3
-    weight: float = 2.0
+    weight: float = PlannerConfig.search_weight
     turn_weight: float = 0.3
     pull_turn_weight: float = 1.0
     change_weight: float = 0.25
     cusp_cost: float = 2.0
     pull_factor: float = 1.2
-    pull_phi: float = math.radians(15.0)
+    pull_phi: float = PlannerConfig.pull_max_phi
     max_pull_run: float = 8.0
     analytic_radii: tuple = (1.6, 1.0)
     corner_radii: tuple = (1.0, 1.6, 3.0)

@@ -14,12 +14,19 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BeforeValidator
+from pydantic import BeforeValidator, Field
 
 from pushtrain.errors import FieldErrors
 
 __all__ = ["field_errors", "read_toml", "validate_model", "clipped", "clip_text",
-           "MAX_SHOWN_CHARS", "Integer", "no_bool"]
+           "MAX_SHOWN_CHARS", "Integer", "no_bool", "PositiveFloat", "NonNegFloat", "FiniteFloat"]
+
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+"""A finite number > 0."""
+NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+"""A finite number >= 0."""
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+"""A finite number."""
 
 
 def _whole(value):

@@ -28,7 +28,7 @@ from pydantic import (
 )
 
 from pushtrain.errors import FieldErrors, SweepError
-from pushtrain.validation import Integer, read_toml, validate_model
+from pushtrain.validation import FiniteFloat, Integer, PositiveFloat, read_toml, validate_model
 
 __all__ = [
     "SweepError",
@@ -53,8 +53,6 @@ __all__ = [
     "plain_value",
 ]
 
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 Value = Union[StrictBool, StrictInt, FiniteFloat, str, list[Union[StrictInt, FiniteFloat]]]
 
 OK_STATUSES = ("goal_reached", "completed")

@@ -229,7 +229,7 @@ def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
     cfg = seen["config"]
     assert (cfg.planner, cfg.anytime_time, cfg.pull_start_tolerance) == ("restarts", 0.25, 0.2)
     assert cfg.clearance == (0.1, 0.05, 0.05, 0.06) and cfg.smooth is False
-    assert cfg.pull_phi == pytest.approx(math.radians(20.0))
+    assert cfg.pull_max_phi == pytest.approx(math.radians(20.0))
     assert cfg.joint_margin == pytest.approx(math.radians(3.0))
     assert (cfg.step_length, cfg.search_weight) == (0.4, 1.5)
     # the co-simulation's goal test is the planner's

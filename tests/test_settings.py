@@ -1,0 +1,67 @@
+"""Settings written once: a scenario section is generated from its library config's fields."""
+
+import dataclasses
+import math
+
+import pytest
+
+from pushtrain.errors import ScenarioError
+from pushtrain.mission.scenario import PlannerSection, parse_scenario
+from pushtrain.planner.config import PlannerConfig
+from pushtrain.settings import config_values, file_keys
+
+SECTIONS = [(PlannerConfig, PlannerSection)]
+
+
+@pytest.mark.parametrize(("config", "section"), SECTIONS)
+def test_a_default_file_gives_the_library_defaults(config, section):
+    """No default can drift: the config made from an empty section equals the default config,
+    field by field."""
+    made = config(**config_values(config, section()))
+    default = config()
+    for name in file_keys(config):
+        assert getattr(made, name) == getattr(default, name), name
+
+
+@pytest.mark.parametrize(("config", "section"), SECTIONS)
+def test_the_section_has_exactly_the_file_settings(config, section):
+    keys = {k.key for k in file_keys(config).values()}
+    assert set(section.model_fields) == keys
+
+
+def test_angles_are_degrees_in_the_file_and_radians_in_the_library():
+    section = PlannerSection(pull_max_phi_deg=20.0, joint_margin_deg=3.0, goal_max_phi_deg=10.0,
+                             clearance=[0.1, 0.2])
+    config = PlannerConfig(**config_values(PlannerConfig, section))
+    assert config.pull_max_phi == math.radians(20.0)
+    assert config.joint_margin == math.radians(3.0)
+    assert config.goal_max_phi == math.radians(10.0)
+    assert config.clearance == (0.1, 0.2)
+
+
+def test_every_file_field_reaches_the_config():
+    """A value set in the file arrives in the planner's config (none is dropped on the way)."""
+    changed = {"time_budget": 3.5, "turning_radius": 1.7, "transient_margin": 0.3,
+               "anytime_time": 0.2, "inflation": 0.07, "speed": 0.06, "cusp_dwell": 2.0,
+               "pull_start_tolerance": 0.3, "clearance": 0.08, "joint_margin_deg": 4.0,
+               "pull_max_phi_deg": 12.0, "step_length": 0.4, "search_weight": 1.5,
+               "smooth": False, "goal_max_phi_deg": 7.0, "planner": "rrtconnect"}
+    assert set(changed) == set(PlannerSection.model_fields)
+    config = PlannerConfig(**config_values(PlannerConfig, PlannerSection(**changed)))
+    default = PlannerConfig()
+    for f in dataclasses.fields(PlannerConfig):
+        if f.name in file_keys(PlannerConfig):
+            assert getattr(config, f.name) != getattr(default, f.name), f.name
+
+
+def test_the_time_budget_default_is_one_value():
+    """The issue's example of a drifted default: 1.0 s in the file, 2.0 s in the library."""
+    assert PlannerSection().time_budget == PlannerConfig().time_budget == 1.0
+
+
+def test_a_bad_generated_field_still_names_the_field():
+    data = {"planner": {"pull_max_phi_deg": -1.0, "planner": "astar"}}
+    with pytest.raises(ScenarioError) as err:
+        parse_scenario(data)
+    text = str(err.value)
+    assert "planner.pull_max_phi_deg" in text and "planner.planner" in text
