@@ -52,6 +52,7 @@ from pushtrain.core.kinematics import wrap_scalar
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
+from pushtrain.table1 import SAMPLING_TIME
 
 from .events import EventSchedule, Push, SetBias, Slide, _positive
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
@@ -349,7 +350,7 @@ def simulate(
     *,
     plant: PlantConfig | None = None,
     initial: InitialState | None = None,
-    step: float = 0.005,
+    step: float = SAMPLING_TIME,
     horizon: float | None = None,
     settle_time: float = 20.0,
     goal_tolerance: tuple[float, float] = (0.05, math.radians(5.0)),

@@ -11,6 +11,7 @@ import numpy as np
 
 from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last
 from pushtrain.core.reference import Reference
+from pushtrain.table1 import LINK
 
 from .fmu_slave import CosimInputError
 
@@ -49,10 +50,10 @@ class PlantConfig:
         return {f"{name}[{first + k}]": float(arr[k]) for k in range(self.n_trailers)}
 
     def geometry(self) -> ChainGeometry:
-        """The plant's true hitch geometry (defaults 0.52 m)."""
+        """The plant's true hitch geometry (default: Table 1's link D)."""
         n = self.n_trailers
-        front = np.broadcast_to(np.asarray(0.52 if self.front is None else self.front, float), (n,))
-        rear = np.broadcast_to(np.asarray(0.52 if self.rear is None else self.rear, float), (n,))
+        front = np.broadcast_to(np.asarray(LINK if self.front is None else self.front, float), (n,))
+        rear = np.broadcast_to(np.asarray(LINK if self.rear is None else self.rear, float), (n,))
         return ChainGeometry(front.copy(), rear.copy())
 
     def start_values(self) -> dict:

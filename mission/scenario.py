@@ -1,8 +1,9 @@
 """Scenario files (TOML): what to plan and co-simulate, validated field by field.
 
-Every field has a default where the paper gives one (Table 1: 42.1 kg, D = 0.52 m, 0.6 m x 0.8 m,
-mu = 0.09, 0.005 s; robot limits 0.1 m/s and 0.1 rad/s). Unknown keys are errors, and all bad
-fields are reported at once with their path (``train.mass[2]``), the value and what is allowed.
+Every field has a default where the paper gives one (its Table 1, :mod:`pushtrain.table1`:
+42.1 kg, D = 0.52 m, 0.6 m x 0.8 m, mu = 0.09, 0.005 s; robot limits 0.1 m/s and 0.1 rad/s).
+Unknown keys are errors, and all bad fields are reported at once with their path
+(``train.mass[2]``), the value and what is allowed.
 Angles in files are in degrees (``*_deg``); everything inside is SI and radians.
 
 Three kinds of mission (``mission.kind``):
@@ -24,6 +25,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from pushtrain import table1
 from pushtrain.errors import FieldErrors, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
@@ -59,14 +61,14 @@ class TrainSection(_Section):
     """The robot's trailers: links, masses and footprints (per trailer lists or one value)."""
 
     n: Annotated[Integer, Field(ge=1, le=MAX_TRAILERS)] = 3
-    link: PositiveFloat = 0.52
+    link: PositiveFloat = table1.LINK
     front: list[PositiveFloat] | None = None
     rear: list[PositiveFloat] | None = None
-    mass: PositiveFloat | list[PositiveFloat] = 42.1
-    inertia: PositiveFloat | list[PositiveFloat] = 3.5083
+    mass: PositiveFloat | list[PositiveFloat] = table1.TRAILER_MASS
+    inertia: PositiveFloat | list[PositiveFloat] = table1.TRAILER_INERTIA
     payload: NonNegFloat | list[NonNegFloat] = 0.0
-    mu: NonNegFloat | list[NonNegFloat] = 0.09
-    trailer_size: Size = Size(length=0.8, width=0.6)
+    mu: NonNegFloat | list[NonNegFloat] = table1.MU
+    trailer_size: Size = Size(length=table1.TRAILER_LENGTH, width=table1.TRAILER_WIDTH)
     robot_size: Size = Size(length=0.6, width=0.5)
     phi_max_deg: Annotated[float, Field(gt=0, lt=180)] = 90.0
 
@@ -215,13 +217,13 @@ class RotationSection(_Section):
 
 class FmuSection(_Section):
     slip_mode: Annotated[Literal[0, 1], no_bool("0 or 1")] = 0
-    max_substep: PositiveFloat = 0.005
+    max_substep: PositiveFloat = table1.SAMPLING_TIME
     # 2: an FMI 2.0 FMU built for train.n (cached per n); 3: the one FMI 3.0 FMU, n set at start
     fmi_version: Annotated[Literal[2, 3], no_bool("2 or 3")] = 2
 
 
 class SimSection(_Section):
-    step: PositiveFloat = 0.005
+    step: PositiveFloat = table1.SAMPLING_TIME
     horizon: PositiveFloat | None = None
     settle_time: NonNegFloat = 20.0
     goal_tolerance: PositiveFloat = 0.05

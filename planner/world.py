@@ -27,6 +27,7 @@ from shapely.validation import explain_validity
 
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.errors import PlanningInputError
+from pushtrain.table1 import LINK, TRAILER_LENGTH, TRAILER_WIDTH
 
 from .distance_field import DEFAULT_RESOLUTION, DistanceField
 from .raster import polygon_path
@@ -342,8 +343,8 @@ class BodyFootprint:
         must keep the axle midpoint inside the rectangle (|offset| <= length / 2).
     """
 
-    length: float = 0.8
-    width: float = 0.6
+    length: float = TRAILER_LENGTH
+    width: float = TRAILER_WIDTH
     offset: float = 0.0
 
     def __post_init__(self):
@@ -423,12 +424,12 @@ class Train:
     def uniform(
         cls,
         n_trailers: int = 3,
-        link: float = 0.52,
+        link: float = LINK,
         robot: BodyFootprint | None = None,
         trailer: BodyFootprint | None = None,
         phi_max: float = 0.5 * np.pi,
     ) -> "Train":
-        """``n_trailers`` equal trailers (Table 1 defaults: 0.8 m x 0.6 m, D = 0.52 m)."""
+        """``n_trailers`` equal trailers (defaults: Table 1's 0.8 m x 0.6 m, D = 0.52 m)."""
         geometry = ChainGeometry.uniform(n_trailers, link)
         return cls(
             geometry,
@@ -445,7 +446,7 @@ class Train:
         if "front" in data or "rear" in data:
             geometry = ChainGeometry(np.asarray(data["front"]), np.asarray(data["rear"]))
         else:
-            geometry = ChainGeometry.uniform(int(data.get("n_trailers", 3)), data.get("link", 0.52))
+            geometry = ChainGeometry.uniform(int(data.get("n_trailers", 3)), data.get("link", LINK))
         robot = BodyFootprint(**data["robot"]) if "robot" in data else BodyFootprint(0.6, 0.5)
         if "trailers" in data:
             trailers = tuple(BodyFootprint(**t) for t in data["trailers"])

@@ -25,6 +25,7 @@ import numpy as np
 from pushtrain.core.openloop import RotationProfile
 from pushtrain.cosim.master import InitialState, PlantConfig, simulate
 from pushtrain.files import atomic_write
+from pushtrain.table1 import SAMPLING_TIME
 
 __all__ = ["SlipStudyConfig", "SlipRow", "run_slip_study", "plot_slip_study", "write_csv"]
 
@@ -40,7 +41,7 @@ class SlipStudyConfig:
     n_for_alpha: int = 3          # trailers in the alpha sweep
     n_for_payload: int = 3        # trailers in the payload sweep
     payload: float = 80.0         # kg, placed on one trailer at a time
-    step: float = 0.005
+    step: float = SAMPLING_TIME
 
     def __post_init__(self):
         if not self.trailers or any(not 1 <= n <= 50 for n in self.trailers):

@@ -65,3 +65,29 @@ def test_a_bad_generated_field_still_names_the_field():
         parse_scenario(data)
     text = str(err.value)
     assert "planner.pull_max_phi_deg" in text and "planner.planner" in text
+
+
+def test_the_docs_state_table_1_as_pushtrain_table1_holds_it():
+    """The README's scenario section quotes Table 1: the numbers are pushtrain.table1's."""
+    from pathlib import Path
+
+    from pushtrain import table1
+
+    readme = Path(__file__).resolve().parents[1].joinpath("README.md").read_text()
+    section = readme.split("## Scenario files", 1)[1].split("\n## ", 1)[0]
+    for text in (f"{table1.TRAILER_MASS:g} kg", f"D = {table1.LINK:g} m",
+                 f"{table1.TRAILER_LENGTH:g} m x {table1.TRAILER_WIDTH:g} m",
+                 f"mu = {table1.MU:g}", f"{table1.SAMPLING_TIME * 1000:g} ms step"):
+        assert text in section, text
+
+
+def test_the_scenario_defaults_are_table_1():
+    from pushtrain import table1
+    from pushtrain.mission.scenario import Scenario
+
+    sc = Scenario()
+    assert (sc.train.mass, sc.train.link, sc.train.inertia, sc.train.mu) == (
+        table1.TRAILER_MASS, table1.LINK, table1.TRAILER_INERTIA, table1.MU)
+    assert (sc.train.trailer_size.length, sc.train.trailer_size.width) == (
+        table1.TRAILER_LENGTH, table1.TRAILER_WIDTH)
+    assert sc.sim.step == sc.fmu.max_substep == table1.SAMPLING_TIME
