@@ -83,11 +83,11 @@ def test_the_docs_state_table_1_as_pushtrain_table1_holds_it():
 
 def test_the_scenario_defaults_are_table_1():
     from pushtrain import table1
-    from pushtrain.mission.scenario import Scenario
+    from pushtrain.mission.scenario import FmuSection, SimSection, TrainSection
 
-    sc = Scenario()
-    assert (sc.train.mass, sc.train.link, sc.train.inertia, sc.train.mu) == (
+    train = TrainSection()
+    assert (train.mass, train.link, train.inertia, train.mu) == (
         table1.TRAILER_MASS, table1.LINK, table1.TRAILER_INERTIA, table1.MU)
-    assert (sc.train.trailer_size.length, sc.train.trailer_size.width) == (
+    assert (train.trailer_size.length, train.trailer_size.width) == (
         table1.TRAILER_LENGTH, table1.TRAILER_WIDTH)
-    assert sc.sim.step == sc.fmu.max_substep == table1.SAMPLING_TIME
+    assert SimSection().step == FmuSection().max_substep == table1.SAMPLING_TIME
