@@ -190,7 +190,7 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
     A picture that cannot be drawn raises :class:`PlotFailure` (exit 1) once the summary is
     printed; the results and the other pictures stay written.
     """
-    from pushtrain.mission.runner import run_scenario, save_results
+    from pushtrain.mission.runner import run_scenario
 
     from .plotting import GIF_FILE, HTML_FILE, PNG_FILES
     from .plotting import plotter as start_plotter
@@ -205,7 +205,7 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
         if plots:
             plotter.submit(out_dir, result, path)
         with _phase(phases, "save", "saving the results"):
-            save_results(result, out_dir, csv=csv)
+            result.save(out_dir, csv=csv)
         problems = []
         if plots:  # one phase: the plot processes draw the GIF beside the plots
             files = PNG_FILES + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)

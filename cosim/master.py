@@ -392,7 +392,9 @@ def simulate(
     progress : bool or None
         Show a progress bar; None: only when stderr is a terminal and the run is long.
     out_dir : path-like, optional
-        Save the results there (also when the run ends in an error status).
+        Save the results there (also when the run ends in an error status): ``results.npz``
+        and ``summary.json`` (:meth:`~pushtrain.cosim.result.Result.save`; call it yourself
+        with ``csv=True`` for ``results.csv`` too).
     implementation : {"c", "python"}
         How a ``ControllerConfig`` is computed: ``"c"`` the compiled control law
         (:class:`~pushtrain.core.native_controller.NativeController`: reference sample, pull

@@ -5,10 +5,8 @@ Library code for the CLI: it raises typed errors and logs, it never prints or ex
 
 from __future__ import annotations
 
-import json
 import logging
 import math
-import zipfile
 from pathlib import Path
 from typing import NamedTuple
 
@@ -28,16 +26,13 @@ from pushtrain.cosim.master import (
     simulate,
 )
 from pushtrain.cosim.sensors import SensorConfig
-from pushtrain.files import atomic_write, atomic_write_text
 from pushtrain.fmu import build_fmu
 from pushtrain.settings import config_values
 
 from .scenario import Scenario, ScenarioError
 
 __all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "events_of",
-           "scripted_reference", "plan_path", "fmu_build_args", "run_scenario", "save_results",
-           "load_results",
-           "RESULTS_NPZ", "RESULTS_CSV", "SUMMARY_JSON"]
+           "scripted_reference", "plan_path", "fmu_build_args", "run_scenario"]
 
 log = logging.getLogger(__name__)
 
@@ -258,8 +253,8 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
 
     ``fmu`` is the TrailerTrain FMU to use (default: ``[fmu] fmi_version`` 2 builds one for
     ``train.n``, 3 takes the FMI 3.0 FMU that serves every n). With ``out_dir``, writes the
-    results there (:func:`save_results`: ``results.npz``, ``summary.json`` and, with ``csv``,
-    ``results.csv``); without, writes nothing. The recorded motion is checked against the map
+    results there (:meth:`~pushtrain.cosim.result.Result.save`: ``results.npz``,
+    ``summary.json`` and, with ``csv``, ``results.csv``); without, writes nothing. The recorded motion is checked against the map
     (status ``collision`` if a body leaves it).
     """
     if fmu is None:
@@ -299,80 +294,8 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
                               f"the run itself ended: {result.message}")
             result.summary["status"], result.summary["message"] = result.status, result.message
     if out_dir is not None:
-        save_results(result, out_dir, csv=csv)
+        result.save(out_dir, csv=csv)
     return result
-
-
-# ------------------------------------------------------------------------------ result files
-RESULTS_NPZ = "results.npz"
-"""The main table of a run folder: one float64 array per column (``np.load``), exact."""
-RESULTS_CSV = "results.csv"
-"""The same table as text (10 significant digits), written only on request."""
-SUMMARY_JSON = "summary.json"
-
-_NPZ_LEVEL = 1
-"""Deflate level of ``results.npz``: level 1 writes it in half the time of NumPy's default (6)
-for the same size (float64 samples hardly compress further: 5.54 against 5.55 MB for
-l_corridor)."""
-
-
-def _write_npz(partial: Path, data: np.ndarray) -> None:
-    """``data``'s columns into a compressed ``.npz`` at ``partial`` (the layout of
-    ``np.savez_compressed``: one ``NAME.npy`` member per column, in order)."""
-    with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED, compresslevel=_NPZ_LEVEL) as zf:
-        for name in data.dtype.names:
-            with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
-                np.lib.format.write_array(f, np.ascontiguousarray(data[name]),
-                                          allow_pickle=False)
-
-
-def _write_csv(partial: Path, data: np.ndarray) -> None:
-    names = data.dtype.names
-    with open(partial, "w", encoding="utf-8") as f:
-        f.write(",".join(names) + "\n")
-        np.savetxt(f, np.column_stack([data[k].astype(float) for k in names]), delimiter=",",
-                   fmt="%.10g")
-
-
-def save_results(result: Result, out_dir, *, csv: bool = False) -> dict:
-    """Write ``result`` into ``out_dir``: ``results.npz`` (the table), ``summary.json`` and,
-    with ``csv``, ``results.csv``; each atomically. Returns {kind: path} of the files written
-    (also set as ``result.files``)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    files = {"npz": out / RESULTS_NPZ}
-    atomic_write(files["npz"], lambda partial: _write_npz(partial, result.data))
-    if csv:
-        files["csv"] = out / RESULTS_CSV
-        atomic_write(files["csv"], lambda partial: _write_csv(partial, result.data))
-    files["summary"] = out / SUMMARY_JSON
-    atomic_write_text(files["summary"], json.dumps(result.summary, indent=2))
-    result.files = {kind: str(path) for kind, path in files.items()}
-    return result.files
-
-
-def load_results(run_dir) -> np.ndarray:
-    """The table of a run folder as a structured float64 array (columns as recorded).
-
-    Reads ``results.npz``; a folder that has only ``results.csv`` (written by hand or trimmed)
-    is read from the CSV. Raises FileNotFoundError when the folder has neither.
-    """
-    folder = Path(run_dir)
-    npz, csv = folder / RESULTS_NPZ, folder / RESULTS_CSV
-    if npz.is_file():
-        with np.load(npz) as z:
-            names = list(z.files)
-            columns = [z[name] for name in names]
-    elif csv.is_file():
-        table = np.genfromtxt(csv, delimiter=",", names=True, dtype=float, ndmin=1)
-        names = list(table.dtype.names)
-        columns = [table[name] for name in names]
-    else:
-        raise FileNotFoundError(f"{folder}: no {RESULTS_NPZ} or {RESULTS_CSV} in it")
-    data = np.empty(len(columns[0]) if columns else 0, dtype=[(k, "f8") for k in names])
-    for name, column in zip(names, columns, strict=True):
-        data[name] = column
-    return data
 
 
 def check_run_clearance(sc: Scenario, data, resolution: float = 0.01) -> dict | None:

@@ -91,7 +91,8 @@ def test_the_plot_processes_write_the_same_files_as_the_main_process(tmp_path):
     import json
     from types import SimpleNamespace
 
-    from pushtrain.mission.runner import geometry_of, load_results, world_of
+    from pushtrain.cosim.result import load_results
+    from pushtrain.mission.runner import geometry_of, world_of
     from pushtrain.mission.scenario import load_scenario
     from pushtrain.report import plots
 

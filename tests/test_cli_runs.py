@@ -277,7 +277,7 @@ def test_results_npz_is_the_table_and_csv_comes_only_with_the_option(tmp_path):
     import numpy as np
 
     from pushtrain.cosim.master import _columns
-    from pushtrain.mission.runner import load_results
+    from pushtrain.cosim.result import load_results
 
     plain, with_csv = tmp_path / "plain", tmp_path / "with_csv"
     scenario = _short(tmp_path, horizon=0.2)
@@ -325,7 +325,7 @@ def test_progress_goes_to_a_pipe_one_line_per_phase(tmp_path):
 def test_load_results_reads_a_folder_with_only_a_csv(tmp_path):
     import numpy as np
 
-    from pushtrain.mission.runner import load_results
+    from pushtrain.cosim.result import load_results
 
     (tmp_path / "results.csv").write_text("t,x0,e_lat\n0,1.5,nan\n0.005,1.25,-0.001\n")
     table = load_results(tmp_path)
@@ -339,11 +339,10 @@ def test_load_results_reads_a_folder_with_only_a_csv(tmp_path):
 
 
 def test_save_results_keeps_every_bit_and_writes_atomically(tmp_path, monkeypatch):
-    import types
-
     import numpy as np
 
-    from pushtrain.mission import runner
+    from pushtrain.cosim import result as results
+    from pushtrain.cosim.result import Result
 
     rng = np.random.default_rng(3)
     names = ["t", "x0", "phi1", "slipping1"]
@@ -351,8 +350,8 @@ def test_save_results_keeps_every_bit_and_writes_atomically(tmp_path, monkeypatc
     for k in names:
         data[k] = rng.normal(size=1000) * 10.0 ** rng.integers(-300, 300, size=1000)
     data["phi1"][:3] = [-0.0, np.nan, np.inf]
-    result = types.SimpleNamespace(data=data, summary={"status": "completed", "steps": 999})
-    files = runner.save_results(result, tmp_path / "run")
+    result = Result("completed", "", data, {"status": "completed", "steps": 999}, 1)
+    files = result.save(tmp_path / "run")
     assert sorted(files) == ["npz", "summary"] and result.files == files
     with np.load(files["npz"]) as z:
         assert list(z.files) == names
@@ -364,9 +363,9 @@ def test_save_results_keeps_every_bit_and_writes_atomically(tmp_path, monkeypatc
         Path(partial).write_bytes(b"PK partial")
         raise OSError("disk full")
 
-    monkeypatch.setattr(runner, "_write_npz", full_disk)
+    monkeypatch.setattr(results, "write_npz", full_disk)
     with pytest.raises(OSError, match="disk full"):
-        runner.save_results(result, tmp_path / "run", csv=True)
+        result.save(tmp_path / "run", csv=True)
     with np.load(files["npz"]) as z:  # the previous file is intact, no partial file is left
         assert z["t"].tobytes() == data["t"].tobytes()
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["results.npz",

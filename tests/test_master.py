@@ -61,6 +61,8 @@ def test_straight_corridor_disturbance_is_rejected_fig9(fmu3, tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert (summary["status"] == "goal_reached"
             and summary["lateral_error_m"]["max"] == pytest.approx(peak))
+    assert not (tmp_path / "results.csv").exists()  # the CSV only on request (Result.save)
+    result.save(tmp_path, csv=True)
     assert (tmp_path / "results.csv").read_text().splitlines()[0].startswith("t,x0,")
     npz = np.load(tmp_path / "results.npz")
     assert np.array_equal(npz["e_lat"], d["e_lat"])

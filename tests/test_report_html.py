@@ -75,7 +75,7 @@ def _payload(page: Path) -> dict:
 
 # ---------------------------------------------------------------------- the file
 def test_every_run_folder_has_one_self_contained_page(corridor_run):
-    from pushtrain.mission.runner import load_results
+    from pushtrain.cosim.result import load_results
 
     page = corridor_run / "report.html"
     text = page.read_text(encoding="utf-8")
@@ -195,7 +195,7 @@ def _slide_to(drv, k: int) -> dict:
 
 @pytest.mark.browser
 def test_the_page_loads_without_errors_and_the_slider_moves_the_train(browser, corridor_run):
-    from pushtrain.mission.runner import load_results
+    from pushtrain.cosim.result import load_results
 
     _open(browser, corridor_run / "report.html")
     assert _errors(browser) == []

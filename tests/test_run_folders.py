@@ -92,13 +92,13 @@ def test_a_full_disk_is_named_with_the_file_and_its_folder(tmp_path):
 
 
 def test_a_full_disk_while_saving_results_is_exit_1_naming_the_file(tmp_path, monkeypatch):
-    from pushtrain.mission import runner
+    from pushtrain.cosim import result as results
 
     def full(partial, data):
         Path(partial).write_bytes(b"PK half")
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(runner, "_write_npz", full)
+    monkeypatch.setattr(results, "write_npz", full)
     out = tmp_path / "out"
     result = _invoke(["run", _short(tmp_path), "--no-plots", "--out", out])
     assert result.exit_code == 1, result.output

@@ -36,12 +36,12 @@ def hold(what):
         time.sleep(1.0)
 """
 HOLD_IN_SAVE = HOLD + """
-from pushtrain.mission import runner
+from pushtrain.cosim import result as results
 def held_npz(partial, data):
     with open(partial, "wb") as f:  # half a file, as an interrupted write leaves it
         f.write(b"PK partial")
     hold("results.npz")
-runner._write_npz = held_npz
+results.write_npz = held_npz
 """
 HOLD_IN_PLOT = HOLD + """
 from pushtrain.cli import plotting
@@ -208,12 +208,12 @@ def test_disk_full_while_saving_is_one_line_exit_1_and_no_partial_file(tmp_path,
     out = tmp_path / "out"
     patch = """
 import errno, os
-from pushtrain.mission import runner
+from pushtrain.cosim import result as results
 def full_disk(partial, data):
     with open(partial, "wb") as f:
         f.write(b"PK partial")
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-runner._write_npz = full_disk
+results.write_npz = full_disk
 """
     proc = start(patch, [STRAIGHT, "--out", out, "--plot-processes", "2"])
     _, err = _finish(proc)
@@ -236,14 +236,14 @@ def test_a_second_run_into_a_folder_being_written_is_refused(tmp_path, start):
     patch = f"""
 import sys, time
 from pathlib import Path
-from pushtrain.mission import runner
-write = runner._write_npz
+from pushtrain.cosim import result as results
+write = results.write_npz
 def held_npz(partial, data):
     print("holding results.npz", file=sys.stderr, flush=True)
     while not Path({str(release)!r}).exists():
         time.sleep(0.05)
     write(partial, data)
-runner._write_npz = held_npz
+results.write_npz = held_npz
 """
     first = start(patch, [STRAIGHT, "--out", out, "--no-plots"])
     before = _wait_for(first, "holding results.npz")
