@@ -14,7 +14,8 @@ import numpy as np
 from pushtrain.files import atomic_write, atomic_write_text
 
 __all__ = ["Result", "summarize", "load_results", "write_npz", "write_csv", "RESULTS_NPZ",
-           "RESULTS_CSV", "SUMMARY_JSON", "NPZ_LEVEL", "STATUS_GOAL", "STATUS_NOT_REACHED", "STATUS_JACKKNIFE",
+           "RESULTS_CSV", "SUMMARY_JSON", "NPZ_LEVEL", "STATUS_GOAL", "STATUS_NOT_REACHED",
+           "STATUS_JACKKNIFE",
            "STATUS_FMU_ERROR", "STATUS_TIME_LIMIT", "STATUS_COMPLETED"]
 
 STATUS_GOAL = "goal_reached"

@@ -254,7 +254,8 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
     ``fmu`` is the TrailerTrain FMU to use (default: ``[fmu] fmi_version`` 2 builds one for
     ``train.n``, 3 takes the FMI 3.0 FMU that serves every n). With ``out_dir``, writes the
     results there (:meth:`~pushtrain.cosim.result.Result.save`: ``results.npz``,
-    ``summary.json`` and, with ``csv``, ``results.csv``); without, writes nothing. The recorded motion is checked against the map
+    ``summary.json`` and, with ``csv``, ``results.csv``); without, writes nothing. The
+    recorded motion is checked against the map
     (status ``collision`` if a body leaves it).
     """
     if fmu is None:
