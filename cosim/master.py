@@ -52,6 +52,7 @@ from pushtrain.core.kinematics import wrap_scalar
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
+from pushtrain.defaults import GOAL_TOLERANCE, SETTLE_TIME
 from pushtrain.table1 import SAMPLING_TIME
 
 from .events import EventSchedule, Push, SetBias, Slide, _positive
@@ -352,8 +353,8 @@ def simulate(
     initial: InitialState | None = None,
     step: float = SAMPLING_TIME,
     horizon: float | None = None,
-    settle_time: float = 20.0,
-    goal_tolerance: tuple[float, float] = (0.05, math.radians(5.0)),
+    settle_time: float = SETTLE_TIME,
+    goal_tolerance: tuple[float, float] = GOAL_TOLERANCE,
     check_goal: bool = True,
     progress: bool | None = None,
     out_dir=None,

@@ -25,7 +25,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from pushtrain import table1
+from pushtrain import defaults, table1
 from pushtrain.errors import FieldErrors, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
@@ -69,7 +69,7 @@ class TrainSection(_Section):
     payload: NonNegFloat | list[NonNegFloat] = 0.0
     mu: NonNegFloat | list[NonNegFloat] = table1.MU
     trailer_size: Size = Size(length=table1.TRAILER_LENGTH, width=table1.TRAILER_WIDTH)
-    robot_size: Size = Size(length=0.6, width=0.5)
+    robot_size: Size = Size(length=defaults.ROBOT_LENGTH, width=defaults.ROBOT_WIDTH)
     phi_max_deg: Annotated[float, Field(gt=0, lt=180)] = 90.0
 
 
@@ -151,8 +151,8 @@ class SegmentSpec(_Section):
 
 
 class ReferenceSection(_Section):
-    speed: PositiveFloat = 0.08
-    cusp_dwell: NonNegFloat = 1.0
+    speed: PositiveFloat = defaults.REFERENCE_SPEED
+    cusp_dwell: NonNegFloat = defaults.CUSP_DWELL
     segments: Annotated[list[SegmentSpec], Field(min_length=1)]
 
 
@@ -225,9 +225,9 @@ class FmuSection(_Section):
 class SimSection(_Section):
     step: PositiveFloat = table1.SAMPLING_TIME
     horizon: PositiveFloat | None = None
-    settle_time: NonNegFloat = 20.0
-    goal_tolerance: PositiveFloat = 0.05
-    goal_heading_tolerance_deg: PositiveFloat = 5.0
+    settle_time: NonNegFloat = defaults.SETTLE_TIME
+    goal_tolerance: PositiveFloat = defaults.GOAL_TOLERANCE[0]
+    goal_heading_tolerance_deg: PositiveFloat = defaults.GOAL_HEADING_TOLERANCE_DEG
     # which loop steps the co-simulation: "auto" the compiled step loop when the run allows it
     # (FMI 2.0, the compiled control law, no governor), else the Python loop; "c" the compiled
     # loop or an error; "python" the Python loop (both give the same results; for debugging)

@@ -21,6 +21,7 @@ import numpy as np
 from pydantic import Field
 
 from pushtrain.core.controller import ControllerConfig
+from pushtrain.defaults import CUSP_DWELL, GOAL_TOLERANCE, REFERENCE_SPEED
 from pushtrain.errors import PlanningInputError
 from pushtrain.settings import angle_setting, setting
 from pushtrain.validation import NonNegFloat, PositiveFloat
@@ -220,14 +221,14 @@ class PlannerConfig:
     check_train: bool = True
     allow_pull_arcs: bool = True
     controller: ControllerConfig | None = None
-    speed: float = setting(0.08, PositiveFloat)
-    cusp_dwell: float = setting(1.0, NonNegFloat)
+    speed: float = setting(REFERENCE_SPEED, PositiveFloat)
+    cusp_dwell: float = setting(CUSP_DWELL, NonNegFloat)
     straight_pull_ends: bool = True
     pull_start_tolerance: float | None = setting(0.4, NonNegFloat | None)
     rrt_range: float | None = None
     time_cap: float | None = None
     clearance: float | tuple = setting(0.05, NonNegFloat | list[NonNegFloat])
-    goal_tolerance: tuple = (0.05, math.radians(5.0))
+    goal_tolerance: tuple = GOAL_TOLERANCE
     goal_fraction: float = 0.5
     joint_margin: float = angle_setting(5.0, NonNegFloat)
     pull_max_phi: float = angle_setting(15.0, PositiveFloat)

@@ -26,6 +26,7 @@ from shapely.ops import unary_union
 from shapely.validation import explain_validity
 
 from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.defaults import ROBOT_LENGTH, ROBOT_WIDTH
 from pushtrain.errors import PlanningInputError
 from pushtrain.table1 import LINK, TRAILER_LENGTH, TRAILER_WIDTH
 
@@ -433,7 +434,7 @@ class Train:
         geometry = ChainGeometry.uniform(n_trailers, link)
         return cls(
             geometry,
-            robot or BodyFootprint(0.6, 0.5, 0.0),
+            robot or BodyFootprint(ROBOT_LENGTH, ROBOT_WIDTH, 0.0),
             (trailer or BodyFootprint(),) * geometry.n,
             phi_max,
         )
@@ -447,7 +448,8 @@ class Train:
             geometry = ChainGeometry(np.asarray(data["front"]), np.asarray(data["rear"]))
         else:
             geometry = ChainGeometry.uniform(int(data.get("n_trailers", 3)), data.get("link", LINK))
-        robot = BodyFootprint(**data["robot"]) if "robot" in data else BodyFootprint(0.6, 0.5)
+        robot = (BodyFootprint(**data["robot"]) if "robot" in data
+                 else BodyFootprint(ROBOT_LENGTH, ROBOT_WIDTH))
         if "trailers" in data:
             trailers = tuple(BodyFootprint(**t) for t in data["trailers"])
         else:

@@ -14,8 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from pushtrain.defaults import ROBOT_LENGTH, ROBOT_WIDTH
 from pushtrain.errors import PlotError
 from pushtrain.report.common import bodies, check_data, col, pose_columns
+from pushtrain.table1 import TRAILER_LENGTH, TRAILER_WIDTH
 
 __all__ = [
     "DEFAULT_FOOTPRINTS",
@@ -34,7 +36,8 @@ __all__ = [
     "equal_limits",
 ]
 
-DEFAULT_FOOTPRINTS = {"robot": (0.6, 0.5), "trailer": (0.8, 0.6)}
+DEFAULT_FOOTPRINTS = {"robot": (ROBOT_LENGTH, ROBOT_WIDTH),
+                      "trailer": (TRAILER_LENGTH, TRAILER_WIDTH)}
 """Body rectangles (length along the heading, width across it) [m], centred on the reference
 point of each body (robot centre, trailer axle midpoint); Table 1 of the paper for the trailer."""
 
