@@ -81,7 +81,7 @@ from .connect import corner_segments, rs_segments, sample_reference
 from .footprint import body_positions
 from .heuristic import Heuristic
 from .propagate import Cursor, Propagator, Rollout, TrainState
-from .route import Route
+from .route import Route, comes_in_across
 from .world import Train
 
 __all__ = ["SearchSettings", "Node", "Search", "Solution", "segments_cost"]
@@ -690,11 +690,7 @@ class Search:
         """Whether the route's direction of travel over its last metre differs from the
         direction the train is pushed at the goal by more than ``pullback_enter``."""
         route = self.route
-        if route is None or route.length < 1.0:
-            return False
-        travel_in = route.pose_at(route.length - 1.0)[2]
-        pushed = self.goal[2] + math.pi
-        return abs(math.remainder(pushed - travel_in, 2.0 * math.pi)) > self.s.pullback_enter
+        return route is not None and comes_in_across(route, self.goal, self.s.pullback_enter)
 
     def _straightens(self, node: Node, push: list[Segment]) -> bool:
         """Whether the push before a pull-back ends on a straight as long as the train (the

@@ -14,7 +14,15 @@ import pytest
 from pushtrain.core.reference import PULL, PUSH, Segment
 from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
 from pushtrain.planner.connect import MAX_SAMPLES, corner_segments, sample_reference
-from pushtrain.planner.route import MAX_ROUTE_NODES, MIN_CELL, _Grid, find_route, widest_gap
+from pushtrain.planner.route import (
+    MAX_ROUTE_NODES,
+    MIN_CELL,
+    Route,
+    _Grid,
+    comes_in_across,
+    find_route,
+    widest_gap,
+)
 
 PUBLIC = Path(__file__).resolve().parents[1] / "examples" / "maps" / "public"
 BOOKSTORE = PUBLIC / "aws_bookstore.yaml"
@@ -211,3 +219,17 @@ def test_a_near_u_turn_goal_plans_in_bounded_memory(tmp_path):
     peak_mib = int(proc.stdout.split("PEAK")[-1]) / 1024
     assert "Traceback" not in proc.stderr, proc.stderr[-500:]
     assert peak_mib < 600, f"peak {peak_mib:.0f} MiB"
+
+
+def test_a_route_up_a_corridor_comes_in_across_a_goal_facing_along_the_hall():
+    """The pull-back connections are tried only where the route's last metre runs across the
+    direction the train is pushed at the goal (chain convention: theta + pi)."""
+    y = np.linspace(-5.0, 1.0, 61)
+    points = np.column_stack([np.zeros_like(y), y])  # travelling north, along +y
+    route = Route(points, y - y[0], np.full(y.size, 0.5 * math.pi), np.ones(y.size), 0.35)
+    limit = math.radians(60.0)
+    assert comes_in_across(route, (0.0, 1.0, math.pi), limit)  # pushed east: across
+    assert comes_in_across(route, (0.0, 1.0, 0.0), limit)  # pushed west: across
+    assert not comes_in_across(route, (0.0, 1.0, -0.5 * math.pi), limit)  # pushed north
+    assert not comes_in_across(route, (0.0, 1.0, -0.5 * math.pi + math.radians(50.0)), limit)
+    assert comes_in_across(route, (0.0, 1.0, 0.5 * math.pi), limit)  # pulled in: pushed south
