@@ -664,7 +664,7 @@ class Search:
         s = self.s
         geometry = self.train.geometry
         train_length = float(np.sum(geometry.front) + np.sum(geometry.rear))
-        found = []
+        candidates = []
         for extra in s.pullback_extra:
             for turn in s.pullback_turns:
                 pull = [Segment("line", train_length + extra, 0.0, PULL)]
@@ -673,16 +673,18 @@ class Search:
                                         math.copysign(self.kappa, turn), PULL))
                     pull.append(Segment("line", s.pullback_settle, 0.0, PULL))
                 poses = sample_reference(self.goal, _reversed(pull), 0.05)
-                start = tuple(float(a) for a in poses[-1])
-                if not self.reference_clear(start, pull):
-                    continue
-                state = self.prop.initial_state(start, np.full(self.train.n + 1, start[2]))
-                failure, _ = self.prop.check(np.array([state.z]))
-                if failure is None:
-                    room = float(self.prop.field.at(poses[:, 0], poses[:, 1]).min())
-                    found.append((-room, len(found), start, pull))
-        self._pullback_starts = [(start, pull) for _, _, start, pull in
-                                 sorted(found)[:s.pullback_keep]]
+                room = float(self.prop.field.at(poses[:, 0], poses[:, 1]).min())
+                candidates.append((-room, len(candidates), tuple(map(float, poses[-1])), pull))
+        # the roomiest first, checked until enough pass (the checks cost a millisecond each)
+        for _, _, start, pull in sorted(candidates):
+            if len(self._pullback_starts) >= s.pullback_keep:
+                break
+            if not self.reference_clear(start, pull):
+                continue
+            state = self.prop.initial_state(start, np.full(self.train.n + 1, start[2]))
+            failure, _ = self.prop.check(np.array([state.z]))
+            if failure is None:
+                self._pullback_starts.append((start, pull))
         log.debug("pull-back connections from %s", [p for p, _ in self._pullback_starts])
         return self._pullback_starts
 
