@@ -114,6 +114,27 @@ def test_a_u_turn_across_a_real_bookstore_plans():
     assert goal_error[0] <= 0.05 and goal_error[1] <= math.radians(5.0)
 
 
+@pytest.mark.slow
+def test_the_office_t_junction_plans_by_pushing_past_and_pulling_back():
+    """Issue 28's office mission west_corridor_south -> north_hall_east with three trailers
+    (Willow Garage's floor, benchmarks/facility/missions.toml): up a corridor into the north
+    hall, to stop at the junction pushed east. Its 10 s budget found nothing before the
+    pull-back connection (719 expansions at the junction); now the train is pushed round into
+    the north-east diagonal and pulled back onto the goal, one cusp."""
+    from pushtrain.planner.mapworld import map_world
+
+    world = map_world(grid=str(PUBLIC / "willow_garage.yaml"))
+    goal = (15.0, 46.8, math.pi)
+    config = PlannerConfig(time_budget=10.0)
+    path = plan(world, (9.4, 21.0, math.radians(-85.0)), goal, Train.uniform(3), config)
+    assert path.n_cusps == 1 and path.segments[-1].direction == PULL
+    assert path.info["expansions"] <= 50
+    assert path.poses[:, 0].max() > goal[0] + 3.0  # pushed past the junction, north-east
+    check = path.info["train_check"]
+    assert check["goal_error"][0] <= 0.05 and check["goal_error"][1] <= math.radians(5.0)
+    assert check["wall_clearance"] >= 0.05 - 1e-9
+
+
 def test_pushes_along_the_route_carry_a_long_corridor():
     """A 16 m corridor with a corner: the route's pushes reach the goal in a handful of
     expansions (the primitives alone need dozens)."""
