@@ -651,10 +651,10 @@ class Search:
         pull, computed backward from the goal: a straight pull as long as the train plus
         ``pullback_extra`` (the whole train lies straight on it, as the pull rule asks),
         then an arc of the turning radius turning ``pullback_turns`` and a straight pull of
-        ``pullback_settle`` onto the goal. Kept where the last
-        trailer's footprint clears the pull and the straight train fits at its start; of
-        those, the ``pullback_keep`` whose reference keeps farthest from the walls (the
-        middle of the branch, where a driver straightens his train).
+        ``pullback_settle`` onto the goal. Of these, the ``pullback_keep`` whose reference
+        keeps farthest from the walls (the middle of the branch, where a driver straightens
+        his train) among those where the last trailer's footprint clears the pull and the
+        straight train fits at its start.
         """
         if self._pullback_starts is not None:
             return self._pullback_starts
