@@ -44,10 +44,14 @@ Heuristic
     (:class:`~pushtrain.planner.heuristic.Heuristic`), times ``weight`` (>= 1: a faster, less
     optimal search).
 Goal
-    Reached only by an analytic expansion: a Reeds-Shepp path from a node's reference pose to
-    the goal pose (radius ``turning radius * f`` for f in ``analytic_radii``), first checked
-    cheaply (the last trailer's own footprint along it), then tracked in closed loop until the
-    simulated last trailer rests within the goal tolerance (the co-simulation's goal test).
+    Reached only by a connection from a node (:meth:`Search._connections`): the driver's corner
+    (straight, arc, straight), the same after a straightening push, a pull-back where the route
+    comes in across the goal (pushed round into the far branch of the junction until the
+    train is straight, then pulled back onto the goal: :meth:`Search._pullbacks`), and
+    Reeds-Shepp paths (radius ``turning radius * f`` for f in ``analytic_radii``). Each is
+    first checked cheaply (the last trailer's own footprint along it), then tracked in closed
+    loop until the simulated last trailer rests within the goal tolerance (the co-simulation's
+    goal test).
 Duplicates
     Nodes fall into cells of the reference pose (``grid_xy``, ``grid_theta``), the direction of
     the last motion and the chain's bend (robot heading minus last trailer heading, in bins of
@@ -78,7 +82,7 @@ from .connect import corner_segments, rs_segments, sample_reference
 from .footprint import body_positions
 from .heuristic import Heuristic
 from .propagate import Cursor, Propagator, Rollout, TrainState
-from .route import Route
+from .route import Route, comes_in_across
 from .world import Train
 
 __all__ = ["SearchSettings", "Node", "Search", "Solution", "segments_cost"]
@@ -139,6 +143,19 @@ class SearchSettings:
     straighten : tuple of float
         Lengths [m] of the straight pushes tried before a pulled corner connection when the
         chain is too bent to pull.
+    pullback_enter : float
+        Angle [rad] between the route's direction of travel into the goal (over its last
+        metre) and the direction the train is pushed at the goal beyond which the search also
+        tries the pull-back connections (see :meth:`Search._pullbacks`): the route comes in
+        across the goal, as up a corridor into a T junction whose goal faces along the hall.
+    pullback_turns, pullback_extra : tuple of float
+        The pull-back's last pull: the heading it turns [rad] on an arc of the turning radius
+        after a straight pull as long as the train plus each of ``pullback_extra`` [m].
+    pullback_keep : int
+        How many of those pulls are kept: the ones farthest from the walls.
+    pullback_settle : float
+        Length [m] of the straight pull after the pull-back's arc: the last trailer, which
+        cuts the arc's inside while pulled, settles onto the goal's line on it.
     analytic_every, analytic_per_node : int
         Reeds-Shepp connections are tried every ``analytic_every`` expansions; at most
         ``analytic_per_node`` closed-loop connection attempts per node otherwise.
@@ -177,6 +194,11 @@ class SearchSettings:
     follow_angle: float = math.radians(45.0)
     follow_turn: float = math.radians(60.0)
     follow_turn_bent: float = math.radians(30.0)
+    pullback_enter: float = math.radians(60.0)
+    pullback_turns: tuple = tuple(math.radians(a) for a in range(-90, 91, 5))
+    pullback_extra: tuple = (0.5, 2.0)
+    pullback_keep: int = 3
+    pullback_settle: float = 1.0
     analytic_every: int = 4
     analytic_per_node: int = 2
     car_after: int = 20
@@ -293,6 +315,7 @@ class Search:
         self.nodes: list[Node] = []
         self._last_analytic = -10**9
         self._pending: Node | None = None
+        self._pullback_starts: list | None = None
         root = Node(start, start_cursor, 0.0, heuristic(start_cursor.pose))
         self.root = root
         self.closest = root
@@ -545,14 +568,14 @@ class Search:
                or node is self.root)
         attempts = 0
         for kind, segments in self._connections(node):
-            if kind[0] in ("approach", "direct") and not due:
+            if kind[0] in ("pullback", "approach", "direct") and not due:
                 break
             if attempts >= s.analytic_per_node and not due:
                 break
             if not segments or not self._reference_clear(node.cursor, segments):
                 continue
             attempts += 1
-            if kind[0] in ("approach", "direct"):
+            if kind[0] in ("pullback", "approach", "direct"):
                 self._last_analytic = self.stats.expansions
             self.stats.analytic_closed_loop += 1
             rollout, _, _ = self._roll(node, segments, goal=self.goal)
@@ -569,7 +592,9 @@ class Search:
         """Candidate ways to the goal from ``node``, the driver's first: straight, one arc,
         straight (:func:`corner_segments`, pushing or pulling, with the radii of
         ``corner_radii``), also after a straight push
-        of ``straighten`` metres where the chain is too bent to pull; then Reeds-Shepp paths
+        of ``straighten`` metres where the chain is too bent to pull; the pull-backs
+        (:meth:`_pullbacks`: a corner push to where the pull starts, its last straight as
+        long as the train, and the pull onto the goal); then Reeds-Shepp paths
         (radius ``turning radius * f`` for f in ``analytic_radii``) to a pose ``approach``
         metres before the goal followed by a straight push onto it (the followers line up
         behind the last trailer before it arrives), and straight to the goal."""
@@ -593,6 +618,14 @@ class Search:
                                            max_reach=self.reach)
                     if path:
                         yield ("straighten", d, factor), [push] + path
+        for start, pull in self._pullbacks():
+            for factor in s.corner_radii:  # the tightest corner whose reference is clear
+                push = corner_segments(pose, start, PUSH, s.radius * factor,
+                                       max_reach=self.reach)
+                if (push and self._straightens(node, push)
+                        and self._reference_clear(node.cursor, push)):
+                    yield ("pullback", factor), push + pull
+                    break
         gx, gy, gth = self.goal
         pre = (gx + s.approach * math.cos(gth), gy + s.approach * math.sin(gth), gth)
         for factor in s.analytic_radii:
@@ -604,6 +637,80 @@ class Search:
             direct = rs_segments(pose, self.goal, radius)
             if direct is not None:
                 yield ("direct", factor), direct
+
+
+    # ------------------------------------------------------------------ turning round
+    def _pullbacks(self) -> list:
+        """The pull-back connections' pulls onto the goal: (the pose the pull starts from, its
+        segments), made once; none unless the route comes in across the goal.
+
+        A tugger driver whose train comes up a corridor into a T junction, and must leave it
+        at the junction pushed along the hall, cannot push round onto it: the train behind
+        the last trailer would have to lie in the hall the other way. He pushes round the
+        corner into the hall's other branch until the train is straight there, then pulls it
+        back onto the junction, straight and turning at the end. Each pull here is such a
+        pull, computed backward from the goal: a straight pull as long as the train plus
+        ``pullback_extra`` (the whole train lies straight on it, as the pull rule asks),
+        then an arc of the turning radius turning ``pullback_turns`` and a straight pull of
+        ``pullback_settle`` onto the goal. Of these, the ``pullback_keep`` whose reference
+        keeps farthest from the walls (the middle of the branch, where a driver straightens
+        his train) among those where the last trailer's footprint clears the pull and the
+        straight train fits at its start.
+        """
+        if self._pullback_starts is not None:
+            return self._pullback_starts
+        self._pullback_starts = []
+        if not self._route_crosses_goal():
+            return self._pullback_starts
+        s = self.s
+        geometry = self.train.geometry
+        train_length = float(np.sum(geometry.front) + np.sum(geometry.rear))
+        candidates = []
+        for extra in s.pullback_extra:
+            for turn in s.pullback_turns:
+                pull = [Segment("line", train_length + extra, 0.0, PULL)]
+                if turn != 0.0:
+                    pull.append(Segment("arc", abs(turn) * s.radius,
+                                        math.copysign(self.kappa, turn), PULL))
+                    pull.append(Segment("line", s.pullback_settle, 0.0, PULL))
+                poses = sample_reference(self.goal, _reversed(pull), 0.05)
+                room = float(self.prop.field.at(poses[:, 0], poses[:, 1]).min())
+                candidates.append((-room, len(candidates), tuple(map(float, poses[-1])), pull))
+        # the roomiest first, checked until enough pass (the checks cost a millisecond each)
+        for _, _, start, pull in sorted(candidates):
+            if len(self._pullback_starts) >= s.pullback_keep:
+                break
+            if not self.reference_clear(start, pull):
+                continue
+            state = self.prop.initial_state(start, np.full(self.train.n + 1, start[2]))
+            failure, _ = self.prop.check(np.array([state.z]))
+            if failure is None:
+                self._pullback_starts.append((start, pull))
+        log.debug("pull-back connections from %s", [p for p, _ in self._pullback_starts])
+        return self._pullback_starts
+
+    def _route_crosses_goal(self) -> bool:
+        """Whether the route's direction of travel over its last metre differs from the
+        direction the train is pushed at the goal by more than ``pullback_enter``."""
+        route = self.route
+        return route is not None and comes_in_across(route, self.goal, self.s.pullback_enter)
+
+    def _straightens(self, node: Node, push: list[Segment]) -> bool:
+        """Whether the push before a pull-back ends on a straight as long as the train (the
+        chain straightens on it, so the pull may start), or is one straight push of a train
+        that is straight already."""
+        last = push[-1]
+        if last.kind != "line":
+            return False
+        geometry = self.train.geometry
+        if last.length >= float(np.sum(geometry.front) + np.sum(geometry.rear)):
+            return True
+        return len(push) == 1 and np.abs(node.state.phi()).max() <= self.s.pull_phi
+
+
+def _reversed(segments: list[Segment]) -> list[Segment]:
+    """The segments travelled backward: from their end to their start."""
+    return [Segment(g.kind, g.length, -g.curvature, -g.direction) for g in reversed(segments)]
 
 
 def segments_cost(segments, settings: SearchSettings, direction: int = 0,

@@ -41,7 +41,7 @@ from scipy.sparse.csgraph import dijkstra
 from .distance_field import DistanceField
 
 __all__ = ["Route", "Bottleneck", "MAX_ROUTE_NODES", "SPACING", "find_route", "widest_gap",
-           "grid_graph", "undirected_graph"]
+           "comes_in_across", "grid_graph", "undirected_graph"]
 
 MAX_ROUTE_NODES = 400_000
 """Most nodes of the route's grid (about 26 MB of graph): a 100 m x 100 m map gets 16 cm cells."""
@@ -238,6 +238,18 @@ def find_route(field: DistanceField, start, goal, half_width: float, *,
     xy[0] = start[:2]
     xy[-1] = goal[:2]
     return _route_from_polyline(xy, field, half_width, smooth)
+
+
+def comes_in_across(route: Route, goal, angle: float) -> bool:
+    """Whether ``route``'s direction of travel over its last metre differs from the direction
+    a train is pushed at ``goal`` (x, y, theta; chain convention: theta + pi) by more than
+    ``angle`` [rad]: the route comes in across the goal (up a corridor into a T junction whose
+    goal faces along the hall), so no push along it gets the train there."""
+    if route.length < 1.0:
+        return False
+    travel_in = route.pose_at(route.length - 1.0)[2]
+    pushed = float(goal[2]) + math.pi
+    return abs(math.remainder(pushed - travel_in, 2.0 * math.pi)) > angle
 
 
 def _route_from_polyline(xy: np.ndarray, field: DistanceField, needed: float,

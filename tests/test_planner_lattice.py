@@ -214,3 +214,56 @@ def test_an_exact_test_that_would_end_past_the_safety_cap_is_not_started(monkeyp
     assert not path.info["time_capped"]
     # the rate is measured again by every exact test
     assert closedloop._EXACT_RATE[0] > 1e-9
+
+
+def _corridor_into_a_hall(corridor: float = 2.0, hall: float = 2.0) -> dict:
+    """A corridor ``corridor`` wide going up +y into a hall ``hall`` wide along x (a T
+    junction, as the office floor's west corridor meets its north hall). The train comes up
+    the corridor pushed north and must stop at the junction pushed east along the hall, the
+    robot west of the last trailer: the route comes in across the goal."""
+    c, h = float(corridor), float(hall)
+    free = [[-0.5 * c, -12.0], [0.5 * c, -12.0], [0.5 * c, 0.0], [9.0, 0.0], [9.0, h],
+            [-9.0, h], [-9.0, 0.0], [-0.5 * c, 0.0]]
+    return {"world": {"free": free}, "start": (0.0, -8.0, -0.5 * math.pi),
+            "goal": (0.0, 0.5 * h, math.pi)}
+
+
+def test_the_pull_back_of_a_turn_round_lands_on_the_goal():
+    """The pull-back connections' pulls, computed backward from the goal, end on it."""
+    from pushtrain.core.reference import Segment
+    from pushtrain.planner.connect import sample_reference
+    from pushtrain.planner.lattice import _reversed
+
+    goal = (15.0, 46.8, math.pi)
+    pull = [Segment("line", 3.62, 0.0, PULL), Segment("arc", 0.6, -1.03, PULL),
+            Segment("line", 1.0, 0.0, PULL)]
+    start = sample_reference(goal, _reversed(pull), 0.05)[-1]
+    assert start[2] == pytest.approx(math.pi + 0.6 * 1.03)
+    end = sample_reference(tuple(start), pull, 0.05)[-1]
+    assert end == pytest.approx(goal, abs=1e-9)
+
+
+def test_a_train_coming_up_a_corridor_turns_round_at_the_t_junction():
+    """Up a corridor into a hall, to stop at the junction pushed along the hall: the train
+    is pushed round the corner into the hall's far branch until it is straight, then pulled
+    back onto the junction (one cusp), as a tugger driver does. Without the pull-back
+    connections the search used the whole 10 s budget here (716 expansions) and found no
+    plan; with them the first expansion connects."""
+    case = _corridor_into_a_hall()
+    world = World.from_dict(case["world"])
+    config = PlannerConfig(time_budget=10.0)
+    path = plan(world, case["start"], case["goal"], TRAIN, config)
+    assert path.info["expansions"] <= 20 and path.info["steps"] < config.budget_steps() // 10
+    assert path.n_cusps == 1
+    directions = [g.direction for g in path.segments]
+    assert directions == sorted(directions, reverse=True)  # pushes, then pulls
+    # pushed into the east branch beyond the whole train's length, then pulled back west
+    train_length = float(np.sum(TRAIN.geometry.front) + np.sum(TRAIN.geometry.rear))
+    assert path.poses[:, 0].max() >= case["goal"][0] + train_length
+    # the pull starts where the simulated chain is straight (the pull rule)
+    phi = path.joint_angles()
+    (cusp,) = path.cusps
+    assert np.abs(phi[cusp]).max() <= math.radians(15.0) + 0.02
+    check = path.info["train_check"]
+    assert check["goal_error"][0] <= 0.05 and check["goal_error"][1] <= math.radians(5.0)
+    assert check["wall_clearance"] >= 0.05 - 1e-9

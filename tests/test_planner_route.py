@@ -14,7 +14,15 @@ import pytest
 from pushtrain.core.reference import PULL, PUSH, Segment
 from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
 from pushtrain.planner.connect import MAX_SAMPLES, corner_segments, sample_reference
-from pushtrain.planner.route import MAX_ROUTE_NODES, MIN_CELL, _Grid, find_route, widest_gap
+from pushtrain.planner.route import (
+    MAX_ROUTE_NODES,
+    MIN_CELL,
+    Route,
+    _Grid,
+    comes_in_across,
+    find_route,
+    widest_gap,
+)
 
 PUBLIC = Path(__file__).resolve().parents[1] / "examples" / "maps" / "public"
 BOOKSTORE = PUBLIC / "aws_bookstore.yaml"
@@ -104,6 +112,27 @@ def test_a_u_turn_across_a_real_bookstore_plans():
     assert path.info["train_check"]["min_clearance"] >= 0.0
     goal_error = path.info["train_check"]["goal_error"]
     assert goal_error[0] <= 0.05 and goal_error[1] <= math.radians(5.0)
+
+
+@pytest.mark.slow
+def test_the_office_t_junction_plans_by_pushing_past_and_pulling_back():
+    """Issue 28's office mission west_corridor_south -> north_hall_east with three trailers
+    (Willow Garage's floor, benchmarks/facility/missions.toml): up a corridor into the north
+    hall, to stop at the junction pushed east. Its 10 s budget found nothing before the
+    pull-back connection (719 expansions at the junction); now the train is pushed round into
+    the north-east diagonal and pulled back onto the goal, one cusp."""
+    from pushtrain.planner.mapworld import map_world
+
+    world = map_world(grid=str(PUBLIC / "willow_garage.yaml"))
+    goal = (15.0, 46.8, math.pi)
+    config = PlannerConfig(time_budget=10.0)
+    path = plan(world, (9.4, 21.0, math.radians(-85.0)), goal, Train.uniform(3), config)
+    assert path.n_cusps == 1 and path.segments[-1].direction == PULL
+    assert path.info["expansions"] <= 50
+    assert path.poses[:, 0].max() > goal[0] + 3.0  # pushed past the junction, north-east
+    check = path.info["train_check"]
+    assert check["goal_error"][0] <= 0.05 and check["goal_error"][1] <= math.radians(5.0)
+    assert check["wall_clearance"] >= 0.05 - 1e-9
 
 
 def test_pushes_along_the_route_carry_a_long_corridor():
@@ -211,3 +240,17 @@ def test_a_near_u_turn_goal_plans_in_bounded_memory(tmp_path):
     peak_mib = int(proc.stdout.split("PEAK")[-1]) / 1024
     assert "Traceback" not in proc.stderr, proc.stderr[-500:]
     assert peak_mib < 600, f"peak {peak_mib:.0f} MiB"
+
+
+def test_a_route_up_a_corridor_comes_in_across_a_goal_facing_along_the_hall():
+    """The pull-back connections are tried only where the route's last metre runs across the
+    direction the train is pushed at the goal (chain convention: theta + pi)."""
+    y = np.linspace(-5.0, 1.0, 61)
+    points = np.column_stack([np.zeros_like(y), y])  # travelling north, along +y
+    route = Route(points, y - y[0], np.full(y.size, 0.5 * math.pi), np.ones(y.size), 0.35)
+    limit = math.radians(60.0)
+    assert comes_in_across(route, (0.0, 1.0, math.pi), limit)  # pushed east: across
+    assert comes_in_across(route, (0.0, 1.0, 0.0), limit)  # pushed west: across
+    assert not comes_in_across(route, (0.0, 1.0, -0.5 * math.pi), limit)  # pushed north
+    assert not comes_in_across(route, (0.0, 1.0, -0.5 * math.pi + math.radians(50.0)), limit)
+    assert comes_in_across(route, (0.0, 1.0, 0.5 * math.pi), limit)  # pulled in: pushed south
