@@ -43,7 +43,8 @@ __all__ = [
 ]
 
 MODEL_IDENTIFIER = "TrailerTrain"
-MODEL_SOURCES = ("model.c", "variables.c", "chain.c", "forces.c", "slip.c", "instance.c")
+MODEL_SOURCES = ("model.c", "variables.c", "chain.c", "forces.c", "slip.c", "slip_solver.c",
+                 "instance.c")
 HEADER_FILES = ("model.h", "instance.h")
 DEFAULT_STEP = 0.005
 

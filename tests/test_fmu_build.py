@@ -110,7 +110,8 @@ def test_strict_build_with_werror_packages_sources_and_binary(tmp_path, monkeypa
     assert "modelDescription.xml" in names
     assert "binaries/linux64/TrailerTrain.so" in names
     for src in ("sources/model.c", "sources/variables.c", "sources/chain.c", "sources/forces.c",
-                "sources/slip.c", "sources/fmi2.c", "sources/model.h", "sources/build_config.h",
+                "sources/slip.c", "sources/slip_solver.c", "sources/fmi2.c", "sources/model.h",
+                "sources/build_config.h",
                 "sources/variables.h"):
         assert src in names
     assert not any(n.startswith("sources/fmi2Function") for n in names), "FMI headers vendored"
@@ -128,3 +129,33 @@ def test_out_of_range_n_is_refused_with_the_value(bad):
              else str(bad))
     with pytest.raises(FmuBuildError, match=match):
         build_fmu(bad)
+
+
+
+FMU_ROOT = Path(__file__).resolve().parents[1] / "fmu"
+MAX_C_LINES = 800  # issue 25: a C file longer than this holds two things
+C_DEFINITION = re.compile(
+    r"^(?:static\s+)?(?:inline\s+)?[A-Za-z_][\w\s*]*?\b(\w+)\s*\([^;{]*\)\s*\{", re.MULTILINE)
+
+
+def test_no_c_file_of_the_fmus_is_over_800_lines():
+    files = sorted(FMU_ROOT.glob("*/*.[ch]"))
+    assert {path.parent.name for path in files} >= {"src", "controller_src"}, files
+    long = {path.name: n for path in files
+            if (n := len(path.read_text().splitlines())) > MAX_C_LINES}
+    assert not long, f"over {MAX_C_LINES} lines: {long}"
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_each_c_function_of_the_plant_is_defined_once(fmi_version):
+    """A function is defined (``type name(args) {`` at the start of a line) in one of the files
+    compiled into the FMU only: no second solver or glue under a compile-time switch."""
+    from pushtrain.fmu.render import HEADER_FILES, source_files
+
+    seen: dict[str, list[str]] = {}
+    for name in source_files(fmi_version) + HEADER_FILES:
+        for function in C_DEFINITION.findall((FMU_ROOT / "src" / name).read_text()):
+            seen.setdefault(function, []).append(name)
+    assert {"slip_dynamic_step", "model_set_defaults", "pt_clamp"} <= set(seen)  # found
+    twice = {function: where for function, where in seen.items() if len(where) > 1}
+    assert not twice, f"defined more than once: {twice}"

@@ -5,9 +5,10 @@
  * pointing toward the robot. The number of trailers n is data of the instance (ModelData.n):
  * fixed by the build for FMI 2.0 (MAX_TRAILERS = n), a structural parameter up to MAX_TRAILERS
  * for FMI 3.0. The physics (chain kinematics, accelerations, lateral wheel forces, integration)
- * lives in chain.c, forces.c, slip.c and model.c, access to the variables by value reference in
- * variables.c; none of them knows the FMI version. The glue is fmi2.c or fmi3.c over instance.c.
- * The derivations are in the comments of chain.c, forces.c and slip.c.
+ * lives in chain.c, forces.c, slip.c, slip_solver.c and model.c, access to the variables by value
+ * reference in variables.c; none of them knows the FMI version. The glue is fmi2.c or fmi3.c over
+ * instance.c.
+ * The derivations are in the comments of chain.c, forces.c, slip.c and slip_solver.c.
  */
 #ifndef TRAILERTRAIN_MODEL_H
 #define TRAILERTRAIN_MODEL_H
@@ -183,6 +184,20 @@ PT_INTERNAL double slip_advance(ModelData *m, double t_left, bool *rolls);
 /* Can every wheel roll at state q with the current inputs? (the force rolling needs is within
    friction) */
 PT_INTERNAL bool slip_wheels_roll(const ModelData *m, const double *q);
+/* Robot rear hitch: velocity vh and acceleration ah (world) at state q. */
+PT_INTERNAL void robot_hitch(const ModelData *m, const double *q, double *vh, double *ah);
+/* RK4 of the robot alone over dt [s] (its motion does not depend on the trailers). */
+PT_INTERNAL void robot_rk4(const ModelData *m, double *q, double dt);
+
+/* slip_solver.c (slip_mode 1): the friction solver of the dynamic regime, in linear time (the
+   tests build their dense reference, tests/csrc/slip_dense.c, in its place) */
+#define STICK_SPEED 1e-7 /* |u| below this counts as rolling when leaving the dynamic regime */
+#define CONFIG_ITERATIONS 8       /* fixed-point iterations on the end-of-substep headings */
+#define CONFIG_TOLERANCE 1e-12    /* [rad] end headings converged: |u| error <= speed * 1e-12 */
+/* One substep of dt [s] of the dynamic regime; the friction impulses make the lateral wheel
+   speeds consistent at the end of the substep. Leaves the regime when every wheel sticks and can
+   roll at the new state. */
+PT_INTERNAL void slip_dynamic_step(ModelData *m, double dt);
 /* Outputs of the dynamic regime: velocities, sliding speeds, wheel and hitch forces. */
 PT_INTERNAL void slip_outputs(ModelData *m);
 /* Force outputs at the onset of sliding: the state rolls but rolling would need more than
