@@ -146,16 +146,41 @@ def test_no_c_file_of_the_fmus_is_over_800_lines():
     assert not long, f"over {MAX_C_LINES} lines: {long}"
 
 
-@pytest.mark.parametrize("fmi_version", [2, 3])
-def test_each_c_function_of_the_plant_is_defined_once(fmi_version):
-    """A function is defined (``type name(args) {`` at the start of a line) in one of the files
-    compiled into the FMU only: no second solver or glue under a compile-time switch."""
+def _plant_files(fmi_version):
     from pushtrain.fmu.render import HEADER_FILES, source_files
 
+    return [FMU_ROOT / "src" / name for name in source_files(fmi_version) + HEADER_FILES]
+
+
+def _controller_files():
+    """The controller's C files under fmu/ (its control law is core's, not counted here)."""
+    from pushtrain.fmu.controller import GLUE_FILES, LAW_FILES
+    from pushtrain.fmu.controller_variables import CONTROLLER_HEADERS, CONTROLLER_SOURCES
+
+    return [FMU_ROOT / ("src" if name in GLUE_FILES else "controller_src") / name
+            for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS if name not in LAW_FILES]
+
+
+@pytest.mark.parametrize("build", ["plant FMI 2.0", "plant FMI 3.0", "controller"])
+def test_each_c_function_of_an_fmu_is_defined_once(build):
+    """A function is defined (``type name(args) {`` at the start of a line) in one of the files
+    compiled into the FMU only: no second solver or glue under a compile-time switch, no glue
+    of its own for the controller."""
+    files = {"plant FMI 2.0": lambda: _plant_files(2), "plant FMI 3.0": lambda: _plant_files(3),
+             "controller": _controller_files}[build]()
     seen: dict[str, list[str]] = {}
-    for name in source_files(fmi_version) + HEADER_FILES:
-        for function in C_DEFINITION.findall((FMU_ROOT / "src" / name).read_text()):
-            seen.setdefault(function, []).append(name)
-    assert {"slip_dynamic_step", "model_set_defaults", "pt_clamp"} <= set(seen)  # found
+    for path in files:
+        for function in C_DEFINITION.findall(path.read_text()):
+            seen.setdefault(function, []).append(path.name)
+    assert {"instance_new", "model_set_defaults", "model_do_step"} <= set(seen)  # found
     twice = {function: where for function, where in seen.items() if len(where) > 1}
     assert not twice, f"defined more than once: {twice}"
+
+
+def test_both_fmus_stand_on_one_glue():
+    """The controller compiles the plant's glue files, and no FMI function of its own."""
+    glue = {path.name for path in _plant_files(2)} & {path.name for path in _controller_files()}
+    assert {"instance.c", "fmi2.c", "fmu_model.h", "instance.h"} <= glue
+    own = [path for path in _controller_files() if path.parent.name == "controller_src"]
+    assert own and not any("fmi2" in name for path in own
+                           for name in C_DEFINITION.findall(path.read_text()))

@@ -104,8 +104,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                          fmi3IntermediateUpdateCallback intermediateUpdate) {
     char msg[MSG_LEN];
     Fmi3Instance *inst;
-    const char *name = instanceName ? instanceName : "TrailerTrain";
-    (void)resourcePath; /* no resources are needed */
+    const char *name = instanceName ? instanceName : MODEL_IDENTIFIER;
     (void)visible;
     (void)earlyReturnAllowed; /* fmi3DoStep never returns early */
     (void)requiredIntermediateVariables; /* providesIntermediateUpdate = false */
@@ -124,11 +123,12 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
         log_before_instance(instanceEnvironment, logMessage, msg);
         return NULL;
     }
-    inst = (Fmi3Instance *)instance_new(sizeof(Fmi3Instance), name, log_to_importer,
-                                        loggingOn);
+    inst = (Fmi3Instance *)instance_new(sizeof(Fmi3Instance), name, resourcePath,
+                                        log_to_importer, loggingOn, msg, sizeof(msg));
     if (inst == NULL) {
-        log_before_instance(instanceEnvironment, logMessage,
-                            "fmi3InstantiateCoSimulation: out of memory");
+        char refused[MSG_LEN + 40];
+        snprintf(refused, sizeof(refused), "fmi3InstantiateCoSimulation: %s", msg);
+        log_before_instance(instanceEnvironment, logMessage, refused);
         return NULL;
     }
     inst->environment = instanceEnvironment;
@@ -197,7 +197,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     if (instance_end_configuration(inst, __func__) != status_ok) {
         return fmi3Error;
     }
-    inst->data.time = startTime;
+    model_set_start_time(&inst->data, startTime);
     inst->stop_time_defined = stopTimeDefined;
     inst->stop_time = stopTime;
     inst->mode = mode_initialization;
@@ -665,7 +665,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     double before;
     BEGIN(mode_step);
     (void)noSetFMUStatePriorToCurrentPoint;
-    before = inst->data.time;
+    before = model_time(&inst->data);
     status = (fmi3Status)instance_do_step(inst, __func__, currentCommunicationPoint,
                                           communicationStepSize);
     if (eventHandlingNeeded != NULL) {
@@ -678,7 +678,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         *earlyReturn = false;
     }
     if (lastSuccessfulTime != NULL) {
-        *lastSuccessfulTime = (status == fmi3OK) ? inst->data.time : before;
+        *lastSuccessfulTime = (status == fmi3OK) ? model_time(&inst->data) : before;
     }
     END;
 }

@@ -1,5 +1,6 @@
 /*
- * Start values, combination checks, outputs and fixed-step RK4 integration of TrailerTrain.
+ * Start values, combination checks, outputs and fixed-step RK4 integration of TrailerTrain, and
+ * its side of the glue's model interface (fmu_model.h): initialization, outputs, the step.
  * Start values must equal the XML's (fmu/variables.py); a test checks them through the FMU.
  */
 #include <math.h>
@@ -210,4 +211,95 @@ void model_integrate(ModelData *m, double h, double t_end) {
     }
     m->time = t_end;
     m->outputs_valid = false;
+}
+
+/* ---------------------------------------------------------------- the glue's model interface */
+
+bool model_instantiate(ModelData *m, const char *resource_location, char *msg, size_t len) {
+    (void)m; /* model_set_defaults follows */
+    (void)resource_location; /* no resources are needed; any file: spelling is accepted */
+    (void)msg;
+    (void)len;
+    return true;
+}
+
+void model_free(ModelData *m) {
+    (void)m; /* plain data: nothing to release */
+}
+
+void model_set_start_time(ModelData *m, double start_time) {
+    m->time = start_time;
+}
+
+double model_time(const ModelData *m) {
+    return m->time;
+}
+
+/* The outputs are a cache: computed after each step, after the end of initialization and at the
+   first read after a set, and kept while outputs_valid, which every set clears (setting an input
+   changes F_lat; before initialization ends, setting a parameter or a start value changes every
+   output). outputs_valid implies a finite state and finite outputs, so a read of current outputs
+   costs O(1) here; a read after a set costs O(n) once. Before initialization ends the outputs
+   follow the (possibly changed) start parameters, which must then be valid; after an error with
+   a non-finite state there are none. */
+bool model_update_outputs(ModelData *m, ModelPhase phase, char *msg, size_t len) {
+    char why[512];
+    if (m->outputs_valid) {
+        return true;
+    }
+    if (phase <= phase_initialization) {
+        if (!model_check_parameters(m, why, sizeof(why))) {
+            snprintf(msg, len, "outputs cannot be computed: %s", why);
+            return false;
+        }
+        model_state_from_start(m);
+    }
+    if (!model_state_is_finite(m)) {
+        snprintf(msg, len, "the state is non-finite after an error: no outputs");
+        return false;
+    }
+    model_compute_outputs(m);
+    if (!model_outputs_are_finite(m)) {
+        m->outputs_valid = false;
+        snprintf(msg, len, "outputs became non-finite at t = %.9g (overflow of the forces: "
+                 "velocities %g m/s, %g rad/s of the robot)", m->time, m->q[IX_V0], m->q[IX_W0]);
+        return false;
+    }
+    return true;
+}
+
+bool model_exit_initialization(ModelData *m, char *msg, size_t len) {
+    if (!model_check_parameters(m, msg, len) || !model_check_combinations(m, msg, len)) {
+        return false;
+    }
+    model_state_from_start(m);
+    model_compute_outputs(m);
+    if (!model_outputs_are_finite(m)) {
+        m->outputs_valid = false;
+        snprintf(msg, len, "the start values give non-finite outputs (v_start = %g, w_start = %g, "
+                 "v_cmd = %g, w_cmd = %g)", m->v_start, m->w_start, m->v_cmd, m->w_cmd);
+        return false;
+    }
+    return true;
+}
+
+bool model_do_step(ModelData *m, double t, double h, double tolerance, char *msg, size_t len) {
+    (void)tolerance; /* fixed substeps to exactly t + h */
+    if (h / m->max_substep > 1e9) {
+        snprintf(msg, len, "communicationStepSize = %g s needs more than 1e9 substeps of "
+                 "max_substep = %g s", h, m->max_substep);
+        return false;
+    }
+    m->time = t;
+    model_integrate(m, h, t + h);
+    if (model_state_is_finite(m)) {
+        model_compute_outputs(m); /* outputs of the new point, checked once here */
+    }
+    if (!model_state_is_finite(m) || !model_outputs_are_finite(m)) {
+        m->outputs_valid = false; /* a later read fails instead of returning them */
+        snprintf(msg, len, "the state or outputs became non-finite in the step from t = %.9g to "
+                 "%.9g (inputs v_cmd = %g, w_cmd = %g)", t, t + h, m->v_cmd, m->w_cmd);
+        return false;
+    }
+    return true;
 }
