@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 from pushtrain import __version__
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS
+from pushtrain.table1 import LINK
 
 from .render import _BASE_UNITS, _fmt, _to_bytes, check_n, generation_time
 
@@ -119,9 +120,9 @@ ROWS: tuple[CtrlVar, ...] = (
     _nonneg(CtrlVar("rest_speed", "Real", "parameter", "|v_d| at or below which the reference "
                     "counts as resting (zero command)", 1e-9, "m/s"), "a speed is not negative"),
     _bound(CtrlVar("front", "Real", "parameter", "The controller's model of the front link "
-                   "F_{i} of trailer {i}", 0.52, "m", per="trailer"), "front"),
+                   "F_{i} of trailer {i}", LINK, "m", per="trailer"), "front"),
     _bound(CtrlVar("rear", "Real", "parameter", "The controller's model of the rear link R_{i} "
-                   "of {body}", 0.52, "m", per="link"), "rear"),
+                   "of {body}", LINK, "m", per="link"), "rear"),
     CtrlVar("measure_last_pose", "Boolean", "parameter", "true: track the measured last-trailer "
             "pose (x_last, y_last, theta_last); false: estimate it from the robot pose and the "
             "joint angles", False),

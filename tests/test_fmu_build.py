@@ -184,3 +184,29 @@ def test_both_fmus_stand_on_one_glue():
     own = [path for path in _controller_files() if path.parent.name == "controller_src"]
     assert own and not any("fmi2" in name for path in own
                            for name in C_DEFINITION.findall(path.read_text()))
+
+
+def test_the_c_start_values_are_rendered_from_the_variable_table_and_table_1():
+    """start_values.h holds every parameter's and input's start (Table 1's from
+    pushtrain.table1); no C file of the FMUs types a Table 1 number itself."""
+    from pushtrain import table1
+    from pushtrain.fmu.render import render_start_values_header
+    from pushtrain.fmu.variables import ARRAYS, SCALARS
+
+    header = render_start_values_header()
+    starts = dict(re.findall(r"#define START_(\w+) (\S+)", header))
+    assert starts["mass"] == repr(table1.TRAILER_MASS)
+    assert starts["inertia"] == repr(table1.TRAILER_INERTIA)
+    assert starts["mu"] == repr(table1.MU)
+    assert starts["front"] == starts["rear"] == repr(table1.LINK)
+    for row in (*SCALARS, *ARRAYS):
+        if row.causality in ("parameter", "input") and row.type in ("Real", "Integer"):
+            assert float(starts[row.name]) == row.start, row.name
+    literals = [repr(v) for v in (table1.TRAILER_MASS, table1.TRAILER_INERTIA, table1.MU,
+                                  table1.LINK)]
+    model_c = (FMU_ROOT / "src" / "model.c").read_text()
+    assert "START_mass" in model_c  # model.c reads the header
+    for path in sorted(FMU_ROOT.glob("*/*.[ch]")):
+        text = path.read_text()
+        assert not [v for v in literals if re.search(rf"(?<![\w.]){re.escape(v)}(?![\w.])",
+                                                     text)], path.name

@@ -1,13 +1,15 @@
 /*
  * Start values, combination checks, outputs and fixed-step RK4 integration of TrailerTrain, and
  * its side of the glue's model interface (fmu_model.h): initialization, outputs, the step.
- * Start values must equal the XML's (fmu/variables.py); a test checks them through the FMU.
+ * Start values come from start_values.h, which the builder renders from fmu/variables.py (the
+ * modelDescription.xml states the same; a test checks them through the FMU).
  */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "model.h"
+#include "start_values.h" /* START_<name>, generated from fmu/variables.py (Table 1 included) */
 
 #define PT_PI 3.14159265358979323846
 
@@ -16,14 +18,15 @@ static void set_array_defaults(ModelData *m) {
     const int n = m->n;
     int i;
     for (i = 0; i < MAX_BODIES; i++) {
-        m->front[i] = (i >= 1 && i <= n) ? 0.52 : 0.0;
-        m->rear[i] = (i < n) ? 0.52 : 0.0;
-        m->mass[i] = (i >= 1 && i <= n) ? 42.1 : 0.0;
-        m->inertia[i] = (i >= 1 && i <= n) ? 3.5083 : 0.0;
-        m->payload[i] = 0.0;
-        m->mu[i] = (i >= 1 && i <= n) ? 0.09 : 0.0;
-        m->theta_start[i] = 0.0;
-        m->slide[i] = 0.0;
+        const bool trailer = i >= 1 && i <= n;
+        m->front[i] = trailer ? START_front : 0.0;
+        m->rear[i] = (i < n) ? START_rear : 0.0;
+        m->mass[i] = trailer ? START_mass : 0.0;
+        m->inertia[i] = trailer ? START_inertia : 0.0;
+        m->payload[i] = trailer ? START_payload : 0.0;
+        m->mu[i] = trailer ? START_mu : 0.0;
+        m->theta_start[i] = (i <= n) ? START_theta_start : 0.0;
+        m->slide[i] = trailer ? START_slide : 0.0;
     }
 }
 
@@ -31,22 +34,22 @@ void model_set_defaults(ModelData *m) {
     memset(m, 0, sizeof(*m));
     m->n = DEFAULT_TRAILERS;
     set_array_defaults(m);
-    m->g = 9.81;
-    m->robot_tau = 0.05;
-    m->robot_acc_max = 1.0;
-    m->robot_alpha_max = 2.0;
-    m->slip_mode = 0;
-    m->phi_max = 1.5707963267948966;
-    m->x0_start = 0.0;
-    m->y0_start = 0.0;
-    m->v_start = 0.0;
-    m->w_start = 0.0;
-    m->max_substep = 0.005;
-    m->slip_substep = 0.0005;
-    m->v_cmd = 0.0;
-    m->w_cmd = 0.0;
-    m->push_x = 0.0;
-    m->push_y = 0.0;
+    m->g = START_g;
+    m->robot_tau = START_robot_tau;
+    m->robot_acc_max = START_robot_acc_max;
+    m->robot_alpha_max = START_robot_alpha_max;
+    m->slip_mode = START_slip_mode;
+    m->phi_max = START_phi_max;
+    m->x0_start = START_x0_start;
+    m->y0_start = START_y0_start;
+    m->v_start = START_v_start;
+    m->w_start = START_w_start;
+    m->max_substep = START_max_substep;
+    m->slip_substep = START_slip_substep;
+    m->v_cmd = START_v_cmd;
+    m->w_cmd = START_w_cmd;
+    m->push_x = START_push_x;
+    m->push_y = START_push_y;
     m->time = 0.0;
     model_state_from_start(m);
 }
