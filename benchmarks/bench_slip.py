@@ -15,8 +15,9 @@ doStep left out and no values moved) is printed for n = 50.
 
 Targets (issue 14): slip_mode 1 with every wheel sliding <= 100 us per step at n = 50, and linear
 in n from 10 to 50: the script prints cost(50) / cost(10) against 5 (linear) and 125 (cubic).
-With --dense it also runs the dense O(n^3) solver this FMU had before (compiled from the FMU's
-own sources with -DPT_SLIP_DENSE_REFERENCE) on the mixed and sliding scenarios, fewer steps.
+With --dense it also runs the dense O(n^3) solver this FMU had before (the tests' reference,
+tests/csrc/slip_dense.c, compiled with the FMU's own sources in place of slip_solver.c) on the
+mixed and sliding scenarios, fewer steps.
 
 Run: python benchmarks/bench_slip.py [--dense]
 """
@@ -38,6 +39,7 @@ from fmpy.fmi2 import FMU2Slave
 from pushtrain.fmu import build_fmu
 
 H = 0.005
+DENSE_SOLVER = Path(__file__).resolve().parents[1] / "tests" / "csrc" / "slip_dense.c"
 SIZES = (3, 10, 20, 30, 50)
 # scenario: (slip_mode, parameters(n), command(k) -> (v_cmd, w_cmd))
 SCENARIOS = {
@@ -59,9 +61,10 @@ def dense_reference(unzipdir: Path, target: Path) -> Path:
         raise SystemExit("--dense needs a C compiler (cc)")
     shutil.copytree(unzipdir, target)
     library = target / "binaries" / "linux64" / "TrailerTrain.so"
-    sources = sorted(str(path) for path in (target / "sources").glob("*.c"))
+    sources = [str(path) for path in sorted((target / "sources").glob("*.c"))
+               if path.name != "slip_solver.c"] + [str(DENSE_SOLVER)]
     subprocess.run([compiler, "-std=c99", "-O3", "-shared", "-fPIC", "-fvisibility=hidden",
-                    "-DPT_SLIP_DENSE_REFERENCE", f"-I{Path(fmpy.__file__).parent / 'c-code'}",
+                    f"-I{Path(fmpy.__file__).parent / 'c-code'}",
                     f"-I{target / 'sources'}", *sources, "-o", str(library), "-lm"], check=True)
     return target
 

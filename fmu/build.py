@@ -2,9 +2,10 @@
 for every n.
 
 The build renders the generated files (:mod:`.render`: ``modelDescription.xml``, FMI 3.0's
-``sources/buildDescription.xml``, ``build_config.h`` and ``variables.h``, so the C code never
-retypes the variable table), lets fmpy's build helper write the CMake cache for its own
-``CMakeLists.txt`` (the FMI headers come from the installed fmpy), compiles, and zips a
+``sources/buildDescription.xml``, ``build_config.h``, ``variables.h`` and ``start_values.h``, so
+the C code never retypes the variable table or its start values), lets fmpy's build helper
+write the CMake cache for its own ``CMakeLists.txt`` (the FMI headers come from the installed
+fmpy), compiles, and zips a
 self-contained ``.fmu`` with the binary (``binaries/linux64/`` for FMI 2.0,
 ``binaries/x86_64-linux/`` for FMI 3.0) and ``sources/`` so other tools can rebuild it. Builds
 are cached by a hash of the sources, the FMI version, n and the build options; a cached FMU
@@ -41,6 +42,7 @@ from .render import (
     render_build_description,
     render_model_description,
     render_model_description3,
+    render_start_values_header,
     render_variables_header,
     source_files,
 )
@@ -137,6 +139,7 @@ def _generated_files(fmi_version: int, n: int | None, guid: str,
     files = {
         "sources/build_config.h": render_build_config(fmi_version, n, guid).encode(),
         "sources/variables.h": render_variables_header(fmi_version).encode(),
+        "sources/start_values.h": render_start_values_header().encode(),
     }
     if fmi_version == 2:
         files["modelDescription.xml"] = render_model_description(n, guid, generated)

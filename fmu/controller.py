@@ -1,9 +1,10 @@
 """Build the BackwardController FMU: pushtrain's control law as an FMI 2.0 Co-Simulation FMU.
 
 The FMU compiles the project's one control law, ``core/csrc/control.c`` (the C twin of
-:class:`pushtrain.core.controller.BackwardController`, held equal to it by the tests), with its
-FMI glue in ``fmu/controller_src`` (mode guards, variables, the sensor model, the mission table)
-and the files rendered from :mod:`.controller_variables`. The mission is data: the last
+:class:`pushtrain.core.controller.BackwardController`, held equal to it by the tests), with the
+plant's FMI glue (``fmu/src``: ``instance.c`` under ``fmi2.c``, see ``fmu_model.h``), the
+controller's model in ``fmu/controller_src`` (its variables, the sensor model, the mission
+table) and the files rendered from :mod:`.controller_variables`. The mission is data: the last
 trailer's line/arc segments and the robot's pull-guide rows, written as a small text table into
 the FMU's ``resources/`` (:func:`render_table`), so one compiled binary (cached by a hash of its
 sources, like the plant) serves every mission with the same n.
@@ -37,6 +38,7 @@ from .controller_variables import (
     CONTROLLER_IDENTIFIER,
     CONTROLLER_SOURCES,
     TABLE_FILE,
+    render_controller_build_config,
     render_controller_description,
     render_controller_header,
 )
@@ -50,6 +52,7 @@ log = logging.getLogger(__name__)
 BUILD_FORMAT = "1"  # bump when the rendering or packaging of the controller changes
 TABLE_FORMAT = 1
 LAW_FILES = ("control.c", "control.h")  # the control law, from core/csrc
+GLUE_FILES = ("instance.c", "fmi2.c", "fmu_model.h", "instance.h")  # the FMI glue, from fmu/src
 EXPORTS_MAP = "ctrl_exports.map"
 EXPORTS = "{\n  global: fmi2*;\n  local: *;\n};\n"
 """Linker version script: the FMU exports its fmi2 functions only (control.h marks the law's
@@ -138,8 +141,12 @@ def render_table(table: ControllerTable) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _glue_dir():
+def _model_dir():
     return resources.files("pushtrain.fmu") / "controller_src"
+
+
+def _glue_dir():
+    return resources.files("pushtrain.fmu") / "src"
 
 
 def _law_dir():
@@ -150,13 +157,12 @@ def _law_dir():
 
 def _files(n: int, guid: str, generated: str | None = None) -> dict[str, bytes]:
     """The archive files of a controller build for ``n`` trailers (no resources yet)."""
-    glue = _glue_dir()
-    files = {f"sources/{name}": (glue / name).read_bytes()
-             for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS if name not in LAW_FILES}
-    law = _law_dir()
-    for name in LAW_FILES:
-        files[f"sources/{name}"] = (law / name).read_bytes()
+    folders = {**{name: _law_dir() for name in LAW_FILES},
+               **{name: _glue_dir() for name in GLUE_FILES}}
+    files = {f"sources/{name}": (folders.get(name) or _model_dir()).joinpath(name).read_bytes()
+             for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS}
     files["sources/ctrl_variables.h"] = render_controller_header(n, guid).encode()
+    files["sources/build_config.h"] = render_controller_build_config(guid).encode()
     files[f"sources/{EXPORTS_MAP}"] = EXPORTS.encode()
     files["modelDescription.xml"] = render_controller_description(n, guid, generated)
     return files

@@ -3,7 +3,9 @@
 The builder renders both model descriptions and the C header ``variables.h`` (value-reference
 enums, names, types, causalities) from it, so adding a variable means a row here plus its place in
 the C model (``src/variables.c``; the compiler names a missing one). Start values here must equal
-what the C code sets in ``model_set_defaults`` (tested through the built FMUs).
+what the C code sets in ``model_set_defaults``: the builder renders them into ``start_values.h``,
+which ``model.c`` reads (and a test checks them through the built FMUs). The trailers' start
+values are the paper's Table 1 (:mod:`pushtrain.table1`).
 
 - FMI 2.0 (one build per n): scalars have ``vr < 100``; element ``i`` of array block ``b`` is the
   scalar variable ``name[i]`` with ``vr = 100 * b + i``, ``i`` the body index (0 = robot, 1..n
@@ -21,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from pushtrain.limits import BOUNDS
+from pushtrain.table1 import LINK, MU, TRAILER_INERTIA, TRAILER_MASS
 
 __all__ = [
     "ARRAYS",
@@ -42,12 +45,6 @@ VR_STRIDE = 100
 MAX_TRAILERS = 50
 DEFAULT_TRAILERS = 3  # FMI 3.0: the start value of the structural parameter n
 FMI_VERSIONS = (2, 3)
-
-# Table 1 of the paper: 42.1 kg, 0.6 m x 0.8 m body -> centroidal inertia m (a^2 + b^2) / 12.
-TRAILER_MASS = 42.1
-TRAILER_INERTIA = round(TRAILER_MASS * (0.6**2 + 0.8**2) / 12.0, 4)  # 3.5083 kg m^2
-LINK = 0.52
-MU = 0.09
 
 
 # Direct feedthrough of an output (for element i of an array, n trailers): the inputs whose change

@@ -75,7 +75,8 @@ def test_fmpy_validates_the_controller_fmu(tmp_path, n):
     assert validate_fmu(str(path)) == []
     with zipfile.ZipFile(path) as zf:
         names = set(zf.namelist())
-    assert {"resources/reference.txt", "sources/control.c", "sources/ctrl_fmi2.c",
+    assert {"resources/reference.txt", "sources/control.c", "sources/ctrl_instance.c",
+            "sources/instance.c", "sources/fmi2.c", "sources/build_config.h",
             "binaries/linux64/BackwardController.so"} <= names
 
 

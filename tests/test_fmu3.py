@@ -410,3 +410,33 @@ def test_event_mode_and_model_exchange_are_refused_by_name(fmu3_unzipped):
     assert log == ["fmi3InstantiateCoSimulation: eventModeUsed = true, but hasEventMode = false "
                    "(TrailerTrain has no events)"]
     fmu.freeLibrary()
+
+
+# Exported functions of capabilities the FMU has not (fmi3.c's NOT_SUPPORTED) and the flag each
+# names: events, clocks, dependencies, derivatives, Model Exchange, Scheduled Execution.
+NOT_SUPPORTED = [
+    ("fmi3EnterEventMode", "hasEventMode = false"),
+    ("fmi3UpdateDiscreteStates", "hasEventMode = false"),
+    ("fmi3EvaluateDiscreteStates", "providesEvaluateDiscreteStates = false"),
+    ("fmi3EnterStepMode", "hasEventMode = false: fmi3ExitInitializationMode enters Step Mode"),
+    ("fmi3GetClock", "TrailerTrain has no clocks"),
+    ("fmi3SetShiftFraction", "TrailerTrain has no clocks"),
+    ("fmi3GetVariableDependencies", "providesPerElementDependencies = false"),
+    ("fmi3GetAdjointDerivative", "providesAdjointDerivatives = false"),
+    ("fmi3GetOutputDerivatives", "maxOutputDerivativeOrder = 0"),
+    ("fmi3SetTime", "Model Exchange: TrailerTrain is a Co-Simulation FMU only"),
+    ("fmi3GetNumberOfContinuousStates", "Model Exchange: TrailerTrain is a Co-Simulation FMU only"),
+    ("fmi3ActivateModelPartition", "TrailerTrain has no <ScheduledExecution>"),
+]
+
+
+@pytest.mark.parametrize("function, why", NOT_SUPPORTED)
+def test_a_capability_the_fmu_has_not_is_an_error_naming_function_and_flag(fmu3, function, why):
+    sim = fmu3()
+    sim.initialize()
+    call = getattr(sim.fmu.dll, function)
+    zeros = [kind() for kind in call.argtypes[1:]]  # NULL pointers, 0: the stubs read none
+    assert call(sim.fmu.component, *zeros) == STATUS_ERROR
+    assert sim.errors() == [f"{function}: not supported ({why})"]
+    with pytest.raises(FMICallException):  # the instance is in the error state
+        sim.step(0.005)

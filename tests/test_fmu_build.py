@@ -110,7 +110,8 @@ def test_strict_build_with_werror_packages_sources_and_binary(tmp_path, monkeypa
     assert "modelDescription.xml" in names
     assert "binaries/linux64/TrailerTrain.so" in names
     for src in ("sources/model.c", "sources/variables.c", "sources/chain.c", "sources/forces.c",
-                "sources/slip.c", "sources/fmi2.c", "sources/model.h", "sources/build_config.h",
+                "sources/slip.c", "sources/slip_solver.c", "sources/fmi2.c", "sources/model.h",
+                "sources/build_config.h",
                 "sources/variables.h"):
         assert src in names
     assert not any(n.startswith("sources/fmi2Function") for n in names), "FMI headers vendored"
@@ -128,3 +129,84 @@ def test_out_of_range_n_is_refused_with_the_value(bad):
              else str(bad))
     with pytest.raises(FmuBuildError, match=match):
         build_fmu(bad)
+
+
+
+FMU_ROOT = Path(__file__).resolve().parents[1] / "fmu"
+MAX_C_LINES = 800  # issue 25: a C file longer than this holds two things
+C_DEFINITION = re.compile(
+    r"^(?:static\s+)?(?:inline\s+)?[A-Za-z_][\w\s*]*?\b(\w+)\s*\([^;{]*\)\s*\{", re.MULTILINE)
+
+
+def test_no_c_file_of_the_fmus_is_over_800_lines():
+    files = sorted(FMU_ROOT.glob("*/*.[ch]"))
+    assert {path.parent.name for path in files} >= {"src", "controller_src"}, files
+    long = {path.name: n for path in files
+            if (n := len(path.read_text().splitlines())) > MAX_C_LINES}
+    assert not long, f"over {MAX_C_LINES} lines: {long}"
+
+
+def _plant_files(fmi_version):
+    from pushtrain.fmu.render import HEADER_FILES, source_files
+
+    return [FMU_ROOT / "src" / name for name in source_files(fmi_version) + HEADER_FILES]
+
+
+def _controller_files():
+    """The controller's C files under fmu/ (its control law is core's, not counted here)."""
+    from pushtrain.fmu.controller import GLUE_FILES, LAW_FILES
+    from pushtrain.fmu.controller_variables import CONTROLLER_HEADERS, CONTROLLER_SOURCES
+
+    return [FMU_ROOT / ("src" if name in GLUE_FILES else "controller_src") / name
+            for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS if name not in LAW_FILES]
+
+
+@pytest.mark.parametrize("build", ["plant FMI 2.0", "plant FMI 3.0", "controller"])
+def test_each_c_function_of_an_fmu_is_defined_once(build):
+    """A function is defined (``type name(args) {`` at the start of a line) in one of the files
+    compiled into the FMU only: no second solver or glue under a compile-time switch, no glue
+    of its own for the controller."""
+    files = {"plant FMI 2.0": lambda: _plant_files(2), "plant FMI 3.0": lambda: _plant_files(3),
+             "controller": _controller_files}[build]()
+    seen: dict[str, list[str]] = {}
+    for path in files:
+        for function in C_DEFINITION.findall(path.read_text()):
+            seen.setdefault(function, []).append(path.name)
+    assert {"instance_new", "model_set_defaults", "model_do_step"} <= set(seen)  # found
+    twice = {function: where for function, where in seen.items() if len(where) > 1}
+    assert not twice, f"defined more than once: {twice}"
+
+
+def test_both_fmus_stand_on_one_glue():
+    """The controller compiles the plant's glue files, and no FMI function of its own."""
+    glue = {path.name for path in _plant_files(2)} & {path.name for path in _controller_files()}
+    assert {"instance.c", "fmi2.c", "fmu_model.h", "instance.h"} <= glue
+    own = [path for path in _controller_files() if path.parent.name == "controller_src"]
+    assert own and not any("fmi2" in name for path in own
+                           for name in C_DEFINITION.findall(path.read_text()))
+
+
+def test_the_c_start_values_are_rendered_from_the_variable_table_and_table_1():
+    """start_values.h holds every parameter's and input's start (Table 1's from
+    pushtrain.table1); no C file of the FMUs types a Table 1 number itself."""
+    from pushtrain import table1
+    from pushtrain.fmu.render import render_start_values_header
+    from pushtrain.fmu.variables import ARRAYS, SCALARS
+
+    header = render_start_values_header()
+    starts = dict(re.findall(r"#define START_(\w+) (\S+)", header))
+    assert starts["mass"] == repr(table1.TRAILER_MASS)
+    assert starts["inertia"] == repr(table1.TRAILER_INERTIA)
+    assert starts["mu"] == repr(table1.MU)
+    assert starts["front"] == starts["rear"] == repr(table1.LINK)
+    for row in (*SCALARS, *ARRAYS):
+        if row.causality in ("parameter", "input") and row.type in ("Real", "Integer"):
+            assert float(starts[row.name]) == row.start, row.name
+    literals = [repr(v) for v in (table1.TRAILER_MASS, table1.TRAILER_INERTIA, table1.MU,
+                                  table1.LINK)]
+    model_c = (FMU_ROOT / "src" / "model.c").read_text()
+    assert "START_mass" in model_c  # model.c reads the header
+    for path in sorted(FMU_ROOT.glob("*/*.[ch]")):
+        text = path.read_text()
+        assert not [v for v in literals if re.search(rf"(?<![\w.]){re.escape(v)}(?![\w.])",
+                                                     text)], path.name

@@ -9,13 +9,13 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand, RotationProfile
 from pushtrain.core.reference import Reference, Segment
 from pushtrain.cosim.master import InitialState, PlantConfig, Push, simulate
+from pushtrain.table1 import LINK, TRAILER_INERTIA, TRAILER_MASS
 
-M, INERTIA = 42.1, 3.5083
+M, INERTIA = TRAILER_MASS, TRAILER_INERTIA  # the FMU's start values
 
 
 AT_REST = InitialState(0.0, 0.0, np.zeros(4))
 HOLD = ConstantCommand(3)  # the robot holds still
-LINK = 0.52
 
 
 def lateral_wheel_speeds(theta, w, v0, front=LINK, rear=LINK):

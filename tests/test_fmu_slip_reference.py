@@ -1,11 +1,12 @@
 """slip_mode 1's linear-time friction solver against the dense solver it replaced (issue 14).
 
-The FMU's ``slip.c`` keeps the dense O(n^3) solver (the LCP matrix formed and solved by projected
-Gauss-Seidel, finished by an exact solve on the sticking set) under the compile-time switch
-``PT_SLIP_DENSE_REFERENCE``. This test compiles the FMU's own ``sources/`` a second time with
-that switch and runs both libraries side by side through the same inputs on scenarios in which
-wheels stick, slide and switch: the trajectories must agree to round-off (both solve the same
-LCP, which has one solution) and the stick/slip flags must be identical.
+The dense O(n^3) solver (the LCP matrix formed and solved by projected Gauss-Seidel, finished by
+an exact solve on the sticking set) is the tests' own C file, ``tests/csrc/slip_dense.c``: it
+defines the same functions as the FMU's ``slip_solver.c``. This test compiles the FMU's own
+``sources/`` a second time with the dense file in place of ``slip_solver.c`` and runs both
+libraries side by side through the same inputs on scenarios in which wheels stick, slide and
+switch: the trajectories must agree to round-off (both solve the same LCP, which has one
+solution) and the stick/slip flags must be identical.
 """
 
 from __future__ import annotations
@@ -49,9 +50,13 @@ def _scenario(name, n):
     raise ValueError(name)
 
 
+DENSE_SOLVER = Path(__file__).parent / "csrc" / "slip_dense.c"
+PRODUCT_SOLVER = "slip_solver.c"  # the FMU's source file the dense solver stands in for
+
+
 def _reference_build(unzipdir, target):
     """A copy of the extracted FMU whose library is rebuilt from its sources with the dense
-    solver (``-DPT_SLIP_DENSE_REFERENCE``)."""
+    solver (:data:`DENSE_SOLVER`) in place of :data:`PRODUCT_SOLVER`."""
     import fmpy
 
     compiler = shutil.which("cc") or shutil.which("gcc")
@@ -60,12 +65,15 @@ def _reference_build(unzipdir, target):
     shutil.copytree(unzipdir, target)
     library = target / "binaries" / "linux64" / "TrailerTrain.so"
     library.unlink()
-    sources = sorted(str(path) for path in (target / "sources").glob("*.c"))
+    product = sorted((target / "sources").glob("*.c"))
+    assert PRODUCT_SOLVER in [path.name for path in product], "the FMU's solver file was renamed"
+    sources = [str(path) for path in product if path.name != PRODUCT_SOLVER] + [str(DENSE_SOLVER)]
     headers = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([compiler, "-std=c99", "-O2", "-shared", "-fPIC", "-fvisibility=hidden",
-                    "-DPT_SLIP_DENSE_REFERENCE", f"-I{headers}", f"-I{target / 'sources'}",
-                    *sources, "-o", str(library), "-lm"],
-                   check=True, capture_output=True, text=True)
+    done = subprocess.run([compiler, "-std=c99", "-O2", "-shared", "-fPIC", "-fvisibility=hidden",
+                           "-Wall", "-Wextra", "-Werror", f"-I{headers}",
+                           f"-I{target / 'sources'}", *sources, "-o", str(library), "-lm"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
     return target
 
 

@@ -1,9 +1,11 @@
 /*
- * FMI 2.0 Co-Simulation interface of TrailerTrain, written from the FMI 2.0.x specification.
+ * FMI 2.0 Co-Simulation interface, written from the FMI 2.0.x specification, of both FMUs of
+ * pushtrain: the plant TrailerTrain and the BackwardController (MODEL_IDENTIFIER of the build).
  *
  * A thin translation onto instance.c (names, types, statuses); the rules both standards share
- * live there. Only the fmi2* functions are exported (the headers come from the importing tool,
- * e.g. fmpy); everything else is static or hidden. No mutable static state.
+ * live there, the model behind fmu_model.h. Only the fmi2* functions are exported (the headers
+ * come from the importing tool, e.g. fmpy); everything else is static or hidden. No mutable
+ * static state.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -69,17 +71,18 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                               fmi2String fmuResourceLocation,
                               const fmi2CallbackFunctions *functions, fmi2Boolean visible,
                               fmi2Boolean loggingOn) {
+    char msg[MSG_LEN];
     Fmi2Instance *inst;
-    const char *name = instanceName ? instanceName : "TrailerTrain";
-    (void)fmuResourceLocation; /* no resources are needed; any file: spelling is accepted */
+    const char *name = instanceName ? instanceName : MODEL_IDENTIFIER;
     (void)visible;
     if (functions == NULL || functions->logger == NULL) {
         return NULL;
     }
     if (fmuType != fmi2CoSimulation) {
         functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
-                          "%s: fmuType = %d: TrailerTrain supports only fmi2CoSimulation (%d)",
-                          __func__, (int)fmuType, (int)fmi2CoSimulation);
+                          "%s: fmuType = %d: " MODEL_IDENTIFIER " supports only "
+                          "fmi2CoSimulation (%d)", __func__, (int)fmuType,
+                          (int)fmi2CoSimulation);
         return NULL;
     }
     if (fmuGUID == NULL || strcmp(fmuGUID, MODEL_GUID) != 0) {
@@ -89,11 +92,12 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                           fmuGUID ? fmuGUID : "(null)", MODEL_GUID);
         return NULL;
     }
-    inst = (Fmi2Instance *)instance_new(sizeof(Fmi2Instance), name, log_to_importer,
-                                        loggingOn != fmi2False);
+    inst = (Fmi2Instance *)instance_new(sizeof(Fmi2Instance), name, fmuResourceLocation,
+                                        log_to_importer, loggingOn != fmi2False, msg,
+                                        sizeof(msg));
     if (inst == NULL) {
         functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
-                          "%s: out of memory", __func__);
+                          "%s: %s", __func__, msg);
         return NULL;
     }
     memcpy(&inst->callbacks, functions, sizeof(fmi2CallbackFunctions));
@@ -116,7 +120,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
     if (stopTimeDefined && !(stopTime >= startTime)) {
         FAIL("stopTime = %g: must be >= startTime = %g", stopTime, startTime);
     }
-    inst->data.time = startTime;
+    model_set_start_time(&inst->data, startTime);
     inst->stop_time_defined = stopTimeDefined != fmi2False;
     inst->stop_time = stopTime;
     END;
@@ -190,7 +194,7 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     BEGIN(ERROR_MODES);
     (void)value;
     if (nvr > 0) {
-        FAIL("value reference %u: TrailerTrain has no String variables",
+        FAIL("value reference %u: " MODEL_IDENTIFIER " has no String variables",
              (unsigned)(vr ? vr[0] : 0));
     }
     END;
@@ -233,7 +237,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     BEGIN(ANY_MODE);
     (void)value;
     if (nvr > 0) {
-        FAIL("value reference %u: TrailerTrain has no String variables",
+        FAIL("value reference %u: " MODEL_IDENTIFIER " has no String variables",
              (unsigned)(vr ? vr[0] : 0));
     }
     END;
@@ -349,7 +353,7 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
         FAIL("value is NULL");
     }
     if (s == fmi2LastSuccessfulTime) {
-        *value = inst->data.time;
+        *value = model_time(&inst->data);
     } else {
         status = status_not_provided(inst, __func__, s);
     }
@@ -369,7 +373,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
         FAIL("value is NULL");
     }
     if (s == fmi2Terminated) {
-        *value = fmi2False; /* the model never asks the master to stop */
+        *value = fmi2False; /* the models never ask the master to stop */
     } else {
         status = status_not_provided(inst, __func__, s);
     }

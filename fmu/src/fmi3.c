@@ -104,8 +104,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                          fmi3IntermediateUpdateCallback intermediateUpdate) {
     char msg[MSG_LEN];
     Fmi3Instance *inst;
-    const char *name = instanceName ? instanceName : "TrailerTrain";
-    (void)resourcePath; /* no resources are needed */
+    const char *name = instanceName ? instanceName : MODEL_IDENTIFIER;
     (void)visible;
     (void)earlyReturnAllowed; /* fmi3DoStep never returns early */
     (void)requiredIntermediateVariables; /* providesIntermediateUpdate = false */
@@ -124,11 +123,12 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
         log_before_instance(instanceEnvironment, logMessage, msg);
         return NULL;
     }
-    inst = (Fmi3Instance *)instance_new(sizeof(Fmi3Instance), name, log_to_importer,
-                                        loggingOn);
+    inst = (Fmi3Instance *)instance_new(sizeof(Fmi3Instance), name, resourcePath,
+                                        log_to_importer, loggingOn, msg, sizeof(msg));
     if (inst == NULL) {
-        log_before_instance(instanceEnvironment, logMessage,
-                            "fmi3InstantiateCoSimulation: out of memory");
+        char refused[MSG_LEN + 40];
+        snprintf(refused, sizeof(refused), "fmi3InstantiateCoSimulation: %s", msg);
+        log_before_instance(instanceEnvironment, logMessage, refused);
         return NULL;
     }
     inst->environment = instanceEnvironment;
@@ -197,7 +197,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     if (instance_end_configuration(inst, __func__) != status_ok) {
         return fmi3Error;
     }
-    inst->data.time = startTime;
+    model_set_start_time(&inst->data, startTime);
     inst->stop_time_defined = stopTimeDefined;
     inst->stop_time = stopTime;
     inst->mode = mode_initialization;
@@ -208,10 +208,6 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     BEGIN(mode_initialization);
     status = (fmi3Status)instance_exit_initialization(inst, __func__); /* to Step Mode */
     END;
-}
-
-fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
-    return not_supported(instance, __func__, "hasEventMode = false");
 }
 
 fmi3Status fmi3Terminate(fmi3Instance instance) {
@@ -355,45 +351,6 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueRe
     END;
 }
 
-fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                        size_t nValueReferences, fmi3Clock values[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)values;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                        size_t nValueReferences, const fmi3Clock values[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)values;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance,
-                                               fmi3ValueReference valueReference,
-                                               size_t *nDependencies) {
-    (void)valueReference;
-    (void)nDependencies;
-    return not_supported(instance, __func__, "providesPerElementDependencies = false");
-}
-
-fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference dependent,
-                                       size_t elementIndicesOfDependent[],
-                                       fmi3ValueReference independents[],
-                                       size_t elementIndicesOfIndependents[],
-                                       fmi3DependencyKind dependencyKinds[],
-                                       size_t nDependencies) {
-    (void)dependent;
-    (void)elementIndicesOfDependent;
-    (void)independents;
-    (void)elementIndicesOfIndependents;
-    (void)dependencyKinds;
-    (void)nDependencies;
-    return not_supported(instance, __func__, "providesPerElementDependencies = false");
-}
-
 /* ---------------------------------------------------------------- FMU state */
 
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
@@ -438,224 +395,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
     END;
 }
 
-/* ---------------------------------------------------------------- partial derivatives */
-
-fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
-                                        size_t nUnknowns, const fmi3ValueReference knowns[],
-                                        size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
-                                        fmi3Float64 sensitivity[], size_t nSensitivity) {
-    (void)unknowns;
-    (void)nUnknowns;
-    (void)knowns;
-    (void)nKnowns;
-    (void)seed;
-    (void)nSeed;
-    (void)sensitivity;
-    (void)nSensitivity;
-    return not_supported(instance, __func__, "providesDirectionalDerivatives = false");
-}
-
-fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
-                                    size_t nUnknowns, const fmi3ValueReference knowns[],
-                                    size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
-                                    fmi3Float64 sensitivity[], size_t nSensitivity) {
-    (void)unknowns;
-    (void)nUnknowns;
-    (void)knowns;
-    (void)nKnowns;
-    (void)seed;
-    (void)nSeed;
-    (void)sensitivity;
-    (void)nSensitivity;
-    return not_supported(instance, __func__, "providesAdjointDerivatives = false");
-}
-
-/* ---------------------------------------------------------------- clocks and events */
-
-fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance,
-                                  const fmi3ValueReference valueReferences[],
-                                  size_t nValueReferences, fmi3Float64 intervals[],
-                                  fmi3IntervalQualifier qualifiers[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)intervals;
-    (void)qualifiers;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3GetIntervalFraction(fmi3Instance instance,
-                                   const fmi3ValueReference valueReferences[],
-                                   size_t nValueReferences, fmi3UInt64 counters[],
-                                   fmi3UInt64 resolutions[], fmi3IntervalQualifier qualifiers[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)counters;
-    (void)resolutions;
-    (void)qualifiers;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                               size_t nValueReferences, fmi3Float64 shifts[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)shifts;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                size_t nValueReferences, fmi3UInt64 counters[],
-                                fmi3UInt64 resolutions[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)counters;
-    (void)resolutions;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance,
-                                  const fmi3ValueReference valueReferences[],
-                                  size_t nValueReferences, const fmi3Float64 intervals[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)intervals;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3SetIntervalFraction(fmi3Instance instance,
-                                   const fmi3ValueReference valueReferences[],
-                                   size_t nValueReferences, const fmi3UInt64 counters[],
-                                   const fmi3UInt64 resolutions[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)counters;
-    (void)resolutions;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                               size_t nValueReferences, const fmi3Float64 shifts[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)shifts;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                size_t nValueReferences, const fmi3UInt64 counters[],
-                                const fmi3UInt64 resolutions[]) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)counters;
-    (void)resolutions;
-    return not_supported(instance, __func__, "TrailerTrain has no clocks");
-}
-
-fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
-    return not_supported(instance, __func__, "providesEvaluateDiscreteStates = false");
-}
-
-fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
-                                    fmi3Boolean *terminateSimulation,
-                                    fmi3Boolean *nominalsOfContinuousStatesChanged,
-                                    fmi3Boolean *valuesOfContinuousStatesChanged,
-                                    fmi3Boolean *nextEventTimeDefined,
-                                    fmi3Float64 *nextEventTime) {
-    (void)discreteStatesNeedUpdate;
-    (void)terminateSimulation;
-    (void)nominalsOfContinuousStatesChanged;
-    (void)valuesOfContinuousStatesChanged;
-    (void)nextEventTimeDefined;
-    (void)nextEventTime;
-    return not_supported(instance, __func__, "hasEventMode = false");
-}
-
-/* ---------------------------------------------------------------- Model Exchange (not provided) */
-
-#define ME_ONLY "Model Exchange: TrailerTrain is a Co-Simulation FMU only"
-
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
-                                       fmi3Boolean noSetFMUStatePriorToCurrentPoint,
-                                       fmi3Boolean *enterEventMode,
-                                       fmi3Boolean *terminateSimulation) {
-    (void)noSetFMUStatePriorToCurrentPoint;
-    (void)enterEventMode;
-    (void)terminateSimulation;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
-    (void)time;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
-                                   size_t nContinuousStates) {
-    (void)continuousStates;
-    (void)nContinuousStates;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
-                                             size_t nContinuousStates) {
-    (void)derivatives;
-    (void)nContinuousStates;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[],
-                                  size_t nEventIndicators) {
-    (void)eventIndicators;
-    (void)nEventIndicators;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
-                                   size_t nContinuousStates) {
-    (void)continuousStates;
-    (void)nContinuousStates;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
-                                             size_t nContinuousStates) {
-    (void)nominals;
-    (void)nContinuousStates;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
-    (void)nEventIndicators;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
-fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates) {
-    (void)nContinuousStates;
-    return not_supported(instance, __func__, ME_ONLY);
-}
-
 /* ---------------------------------------------------------------- Co-Simulation */
-
-fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
-    return not_supported(instance, __func__, "hasEventMode = false: fmi3ExitInitializationMode "
-                         "enters Step Mode");
-}
-
-fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance,
-                                    const fmi3ValueReference valueReferences[],
-                                    size_t nValueReferences, const fmi3Int32 orders[],
-                                    fmi3Float64 values[], size_t nValues) {
-    (void)valueReferences;
-    (void)nValueReferences;
-    (void)orders;
-    (void)values;
-    (void)nValues;
-    return not_supported(instance, __func__, "maxOutputDerivativeOrder = 0");
-}
 
 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint,
                       fmi3Float64 communicationStepSize,
@@ -665,7 +405,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     double before;
     BEGIN(mode_step);
     (void)noSetFMUStatePriorToCurrentPoint;
-    before = inst->data.time;
+    before = model_time(&inst->data);
     status = (fmi3Status)instance_do_step(inst, __func__, currentCommunicationPoint,
                                           communicationStepSize);
     if (eventHandlingNeeded != NULL) {
@@ -678,16 +418,120 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         *earlyReturn = false;
     }
     if (lastSuccessfulTime != NULL) {
-        *lastSuccessfulTime = (status == fmi3OK) ? inst->data.time : before;
+        *lastSuccessfulTime = (status == fmi3OK) ? model_time(&inst->data) : before;
     }
     END;
 }
 
-/* ---------------------------------------------------------------- Scheduled Execution */
+/* ---------------------------------------------------------------- what TrailerTrain has not */
 
-fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
-                                      fmi3Float64 activationTime) {
-    (void)clockReference;
-    (void)activationTime;
-    return not_supported(instance, __func__, "TrailerTrain has no <ScheduledExecution>");
-}
+/*
+ * A function of a capability TrailerTrain does not have (its modelDescription says so: no Event
+ * Mode, clocks, dependencies, derivatives, Model Exchange or Scheduled Execution). Importers look
+ * every function up, so each is exported, defined by one line: NOT_SUPPORTED(name, (its
+ * parameters), why). It logs "name: not supported (why)", moves the instance to the error state
+ * and returns fmi3Error. The parameters besides the instance are unused by design.
+ */
+#define NOT_SUPPORTED(FUNCTION, PARAMETERS, WHY)                                                \
+    fmi3Status FUNCTION PARAMETERS {                                                            \
+        return not_supported(instance, #FUNCTION, WHY);                                         \
+    }
+#define NO_CLOCKS MODEL_IDENTIFIER " has no clocks"
+#define ME_ONLY "Model Exchange: " MODEL_IDENTIFIER " is a Co-Simulation FMU only"
+#define VRS_IN const fmi3ValueReference valueReferences[], size_t nValueReferences
+
+#if defined(__GNUC__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#endif
+
+NOT_SUPPORTED(fmi3EnterEventMode, (fmi3Instance instance), "hasEventMode = false")
+NOT_SUPPORTED(fmi3EvaluateDiscreteStates, (fmi3Instance instance),
+              "providesEvaluateDiscreteStates = false")
+NOT_SUPPORTED(fmi3UpdateDiscreteStates,
+              (fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
+               fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
+               fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
+               fmi3Float64 *nextEventTime),
+              "hasEventMode = false")
+NOT_SUPPORTED(fmi3EnterStepMode, (fmi3Instance instance),
+              "hasEventMode = false: fmi3ExitInitializationMode enters Step Mode")
+
+NOT_SUPPORTED(fmi3GetClock, (fmi3Instance instance, VRS_IN, fmi3Clock values[]), NO_CLOCKS)
+NOT_SUPPORTED(fmi3SetClock, (fmi3Instance instance, VRS_IN, const fmi3Clock values[]), NO_CLOCKS)
+NOT_SUPPORTED(fmi3GetIntervalDecimal,
+              (fmi3Instance instance, VRS_IN, fmi3Float64 intervals[],
+               fmi3IntervalQualifier qualifiers[]), NO_CLOCKS)
+NOT_SUPPORTED(fmi3GetIntervalFraction,
+              (fmi3Instance instance, VRS_IN, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
+               fmi3IntervalQualifier qualifiers[]), NO_CLOCKS)
+NOT_SUPPORTED(fmi3GetShiftDecimal, (fmi3Instance instance, VRS_IN, fmi3Float64 shifts[]),
+              NO_CLOCKS)
+NOT_SUPPORTED(fmi3GetShiftFraction,
+              (fmi3Instance instance, VRS_IN, fmi3UInt64 counters[], fmi3UInt64 resolutions[]),
+              NO_CLOCKS)
+NOT_SUPPORTED(fmi3SetIntervalDecimal,
+              (fmi3Instance instance, VRS_IN, const fmi3Float64 intervals[]), NO_CLOCKS)
+NOT_SUPPORTED(fmi3SetIntervalFraction,
+              (fmi3Instance instance, VRS_IN, const fmi3UInt64 counters[],
+               const fmi3UInt64 resolutions[]), NO_CLOCKS)
+NOT_SUPPORTED(fmi3SetShiftDecimal, (fmi3Instance instance, VRS_IN, const fmi3Float64 shifts[]),
+              NO_CLOCKS)
+NOT_SUPPORTED(fmi3SetShiftFraction,
+              (fmi3Instance instance, VRS_IN, const fmi3UInt64 counters[],
+               const fmi3UInt64 resolutions[]), NO_CLOCKS)
+
+NOT_SUPPORTED(fmi3GetNumberOfVariableDependencies,
+              (fmi3Instance instance, fmi3ValueReference valueReference, size_t *nDependencies),
+              "providesPerElementDependencies = false")
+NOT_SUPPORTED(fmi3GetVariableDependencies,
+              (fmi3Instance instance, fmi3ValueReference dependent,
+               size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
+               size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
+               size_t nDependencies),
+              "providesPerElementDependencies = false")
+NOT_SUPPORTED(fmi3GetDirectionalDerivative,
+              (fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+               const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+               size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity),
+              "providesDirectionalDerivatives = false")
+NOT_SUPPORTED(fmi3GetAdjointDerivative,
+              (fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+               const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+               size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity),
+              "providesAdjointDerivatives = false")
+NOT_SUPPORTED(fmi3GetOutputDerivatives,
+              (fmi3Instance instance, VRS_IN, const fmi3Int32 orders[], fmi3Float64 values[],
+               size_t nValues), "maxOutputDerivativeOrder = 0")
+
+NOT_SUPPORTED(fmi3EnterContinuousTimeMode, (fmi3Instance instance), ME_ONLY)
+NOT_SUPPORTED(fmi3CompletedIntegratorStep,
+              (fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+               fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation), ME_ONLY)
+NOT_SUPPORTED(fmi3SetTime, (fmi3Instance instance, fmi3Float64 time), ME_ONLY)
+NOT_SUPPORTED(fmi3SetContinuousStates,
+              (fmi3Instance instance, const fmi3Float64 continuousStates[],
+               size_t nContinuousStates), ME_ONLY)
+NOT_SUPPORTED(fmi3GetContinuousStateDerivatives,
+              (fmi3Instance instance, fmi3Float64 derivatives[], size_t nContinuousStates),
+              ME_ONLY)
+NOT_SUPPORTED(fmi3GetEventIndicators,
+              (fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators),
+              ME_ONLY)
+NOT_SUPPORTED(fmi3GetContinuousStates,
+              (fmi3Instance instance, fmi3Float64 continuousStates[], size_t nContinuousStates),
+              ME_ONLY)
+NOT_SUPPORTED(fmi3GetNominalsOfContinuousStates,
+              (fmi3Instance instance, fmi3Float64 nominals[], size_t nContinuousStates), ME_ONLY)
+NOT_SUPPORTED(fmi3GetNumberOfEventIndicators,
+              (fmi3Instance instance, size_t *nEventIndicators), ME_ONLY)
+NOT_SUPPORTED(fmi3GetNumberOfContinuousStates,
+              (fmi3Instance instance, size_t *nContinuousStates), ME_ONLY)
+
+NOT_SUPPORTED(fmi3ActivateModelPartition,
+              (fmi3Instance instance, fmi3ValueReference clockReference,
+               fmi3Float64 activationTime), MODEL_IDENTIFIER " has no <ScheduledExecution>")
+
+#if defined(__GNUC__)
+#pragma GCC diagnostic pop
+#endif

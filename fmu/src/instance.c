@@ -1,6 +1,6 @@
 /*
- * The FMI plumbing shared by fmi2.c and fmi3.c (see instance.h). No mutable static state: every
- * instance owns its data.
+ * The FMI plumbing shared by fmi2.c and fmi3.c over any model of fmu_model.h (see instance.h).
+ * No mutable static state: every instance owns its data.
  */
 #include <math.h>
 #include <stdarg.h>
@@ -10,7 +10,7 @@
 
 #include "instance.h"
 
-#define STATE_MAGIC 0x54524e32u /* "TRN2": state q = x0, y0, v0, w0, theta[0..n] */
+#define STATE_MAGIC 0x54524e32u /* "TRN2": the layout of a saved ModelData */
 
 #if FMI_VERSION == 3
 #define FMI_PREFIX "fmi3"
@@ -37,17 +37,20 @@ static const char *const log_categories[] = {"logStatusError", "logStatusWarning
 
 /* ---------------------------------------------------------------- life cycle and logging */
 
-Instance *instance_new(size_t size, const char *name, LogSink sink, bool logging_on) {
+Instance *instance_new(size_t size, const char *name, const char *resource_location,
+                       LogSink sink, bool logging_on, char *msg, size_t len) {
     Instance *inst = (Instance *)calloc(1, size);
-    if (inst == NULL) {
-        return NULL;
-    }
-    inst->instance_name = (char *)malloc(strlen(name) + 1);
-    if (inst->instance_name == NULL) {
+    if (inst == NULL || (inst->instance_name = (char *)malloc(strlen(name) + 1)) == NULL) {
         free(inst);
+        snprintf(msg, len, "out of memory");
         return NULL;
     }
     strcpy(inst->instance_name, name);
+    if (!model_instantiate(&inst->data, resource_location, msg, len)) { /* released its own */
+        free(inst->instance_name);
+        free(inst);
+        return NULL;
+    }
     inst->sink = sink;
     inst->logging_on = logging_on;
     inst->log_debug = false;
@@ -61,6 +64,7 @@ void instance_free(Instance *inst) {
     if (inst == NULL) {
         return;
     }
+    model_free(&inst->data);
     free(inst->instance_name);
     free(inst);
 }
@@ -167,49 +171,23 @@ Status instance_set_debug_logging(Instance *inst, const char *function, bool log
 
 /* ---------------------------------------------------------------- get and set */
 
-static bool setup_mode(const Instance *inst) {
-    return inst->mode == mode_instantiated || inst->mode == mode_configuration
-           || inst->mode == mode_initialization;
-}
-
-static SetPhase set_phase(const Instance *inst) {
+static ModelPhase model_phase(const Instance *inst) {
     switch (inst->mode) {
     case mode_instantiated: return phase_instantiated;
     case mode_configuration: return phase_configuration;
     case mode_initialization: return phase_initialization;
-    case mode_step: case mode_terminated: case mode_error: break;
+    case mode_step: return phase_running;
+    case mode_terminated: return phase_terminated;
+    case mode_error: break;
     }
-    return phase_running;
+    return phase_error;
 }
 
-/* Makes the outputs current. They are a cache: computed after each step, after the end of
-   initialization and at the first read after a set, and kept while outputs_valid, which every set
-   clears (setting an input changes F_lat; before initialization ends, setting a parameter or a
-   start value changes every output). outputs_valid implies a finite state and finite outputs, so
-   a read of current outputs costs O(1) here and O(values) in all; a read after a set costs O(n)
-   once. Before initialization ends the outputs follow the (possibly changed) start parameters,
-   which must then be valid; after an error with a non-finite state there are none. */
+/* Makes the outputs current (the model keeps them as a cache: see model_update_outputs). */
 static Status ensure_outputs(Instance *inst, const char *function) {
     char msg[MSG_LEN];
-    if (inst->data.outputs_valid) {
-        return status_ok;
-    }
-    if (setup_mode(inst)) {
-        if (!model_check_parameters(&inst->data, msg, sizeof(msg))) {
-            return instance_fail(inst, function, "outputs cannot be computed: %s", msg);
-        }
-        model_state_from_start(&inst->data);
-    }
-    if (!model_state_is_finite(&inst->data)) {
-        return instance_fail(inst, function, "the state is non-finite after an error: no outputs");
-    }
-    model_compute_outputs(&inst->data);
-    if (!model_outputs_are_finite(&inst->data)) {
-        inst->data.outputs_valid = false;
-        return instance_fail(inst, function, "outputs became non-finite at t = %.9g "
-                             "(overflow of the forces: velocities %g m/s, %g rad/s of the "
-                             "robot)", inst->data.time, inst->data.q[IX_V0],
-                             inst->data.q[IX_W0]);
+    if (!model_update_outputs(&inst->data, model_phase(inst), msg, sizeof(msg))) {
+        return instance_fail(inst, function, "%s", msg);
     }
     return status_ok;
 }
@@ -218,10 +196,16 @@ static Status ensure_outputs(Instance *inst, const char *function) {
 static Status check_count(Instance *inst, const char *function, size_t nvr, size_t used,
                           size_t n_values) {
     if (used != n_values) {
+#if FMI_VERSION == 3 /* FMI 3.0 arrays: their sizes follow the plant's structural parameter n */
         return instance_fail(inst, function, "nValues = %u but the %u variable%s hold%s %u "
                              "value%s (n = %d)", (unsigned)n_values, (unsigned)nvr,
                              nvr == 1 ? "" : "s", nvr == 1 ? "s" : "", (unsigned)used,
                              used == 1 ? "" : "s", inst->data.n);
+#else /* one value per scalar variable */
+        return instance_fail(inst, function, "nValues = %u but the %u variable%s hold%s %u "
+                             "value%s", (unsigned)n_values, (unsigned)nvr, nvr == 1 ? "" : "s",
+                             nvr == 1 ? "s" : "", (unsigned)used, used == 1 ? "" : "s");
+#endif
     }
     return status_ok;
 }
@@ -269,19 +253,18 @@ Status instance_get_real(Instance *inst, const char *function, const unsigned vr
 
 DEFINE_GET(instance_get_integer, int, model_get_integer)
 DEFINE_GET(instance_get_boolean, bool, model_get_boolean)
+#if FMI_VERSION == 3
 DEFINE_GET(instance_get_uint64, uint64_t, model_get_uint64)
+#endif
 
 #define DEFINE_SET(NAME, TYPE, MODEL_SET)                                                       \
     Status NAME(Instance *inst, const char *function, const unsigned vr[], size_t nvr,          \
                 const TYPE values[], size_t n_values) {                                         \
         char msg[MSG_LEN];                                                                      \
         size_t k, index = 0;                                                                    \
-        const SetPhase phase = set_phase(inst);                                                 \
+        const ModelPhase phase = model_phase(inst);                                             \
         if (nvr > 0 && (vr == NULL || values == NULL)) {                                        \
             return instance_fail(inst, function, "vr or values is NULL");                       \
-        }                                                                                       \
-        if (nvr > 0) {                                                                          \
-            inst->data.outputs_valid = false; /* every set may change the outputs */            \
         }                                                                                       \
         for (k = 0; k < nvr; k++) {                                                             \
             if (!MODEL_SET(&inst->data, vr[k], values, n_values, &index, phase, msg,            \
@@ -295,10 +278,13 @@ DEFINE_GET(instance_get_uint64, uint64_t, model_get_uint64)
 DEFINE_SET(instance_set_real, double, model_set_real)
 DEFINE_SET(instance_set_integer, int, model_set_integer)
 DEFINE_SET(instance_set_boolean, bool, model_set_boolean)
+#if FMI_VERSION == 3
 DEFINE_SET(instance_set_uint64, uint64_t, model_set_uint64)
+#endif
 
 /* ---------------------------------------------------------------- initialization and steps */
 
+#if FMI_VERSION == 3
 Status instance_end_configuration(Instance *inst, const char *function) {
     char msg[MSG_LEN];
     if (!model_check_structure(&inst->data, msg, sizeof(msg))) {
@@ -306,71 +292,54 @@ Status instance_end_configuration(Instance *inst, const char *function) {
     }
     return status_ok;
 }
+#endif
 
 Status instance_exit_initialization(Instance *inst, const char *function) {
     char msg[MSG_LEN];
-    ModelData *m = &inst->data;
-    /* Parameters may have been set after entering initialization (FMIL-based importers):
-       everything is derived from them here. */
-    if (!model_check_parameters(m, msg, sizeof(msg))
-        || !model_check_combinations(m, msg, sizeof(msg))) {
+    if (!model_exit_initialization(&inst->data, msg, sizeof(msg))) {
         return instance_fail(inst, function, "%s", msg);
-    }
-    model_state_from_start(m);
-    model_compute_outputs(m);
-    if (!model_outputs_are_finite(m)) {
-        m->outputs_valid = false;
-        return instance_fail(inst, function, "the start values give non-finite outputs "
-                             "(v_start = %g, w_start = %g, v_cmd = %g, w_cmd = %g)", m->v_start,
-                             m->w_start, m->v_cmd, m->w_cmd);
     }
     inst->mode = mode_step;
     return status_ok;
 }
 
 Status instance_do_step(Instance *inst, const char *function, double t, double h) {
-    ModelData *m = &inst->data;
-    double tolerance;
+    char msg[MSG_LEN];
+    const double now = model_time(&inst->data);
+    /* Importers accumulate times differently (sums of floats, integer nanoseconds). */
+    const double tolerance = 1e-9 + 1e-12 * fabs(now);
     if (!(h > 0.0) || !isfinite(h)) {
         return instance_fail(inst, function, "communicationStepSize = %g: must be finite and > 0",
                              h);
     }
-    if (h / m->max_substep > 1e9) {
-        return instance_fail(inst, function, "communicationStepSize = %g s needs more than 1e9 "
-                             "substeps of max_substep = %g s", h, m->max_substep);
-    }
-    /* Importers accumulate times differently (sums of floats, integer nanoseconds). */
-    tolerance = 1e-9 + 1e-12 * fabs(m->time);
-    if (!isfinite(t) || fabs(t - m->time) > tolerance) {
+    if (!isfinite(t) || fabs(t - now) > tolerance) {
         return instance_fail(inst, function, "currentCommunicationPoint = %.17g differs from the "
-                             "FMU's time %.17g", t, m->time);
+                             "FMU's time %.17g", t, now);
     }
     if (inst->stop_time_defined && t + h > inst->stop_time + tolerance) {
         return instance_fail(inst, function, "the step from t = %.17g by %.17g s ends after "
                              "stopTime = %.17g (set in " STOP_TIME_SOURCE ")", t, h,
                              inst->stop_time);
     }
-    m->time = t;
     if (inst->log_debug && inst->logging_on) {
         instance_log(inst, status_ok, "logDebug", "%s: t = %.9g, h = %.9g", function, t, h);
     }
-    model_integrate(m, h, t + h);
-    if (model_state_is_finite(m)) {
-        model_compute_outputs(m); /* outputs of the new point, checked once here */
-    }
-    if (!model_state_is_finite(m) || !model_outputs_are_finite(m)) {
-        m->outputs_valid = false; /* a later read fails instead of returning them */
-        return instance_fail(inst, function, "the state or outputs became non-finite in the step "
-                             "from t = %.9g to %.9g (inputs v_cmd = %g, w_cmd = %g)", t, t + h,
-                             m->v_cmd, m->w_cmd);
+    if (!model_do_step(&inst->data, t, h, tolerance, msg, sizeof(msg))) {
+        return instance_fail(inst, function, "%s", msg);
     }
     return status_ok;
 }
 
 /* ---------------------------------------------------------------- FMU states */
 
+#define STATES_PROVIDED(inst, function, flag)                                                   \
+    if (!MODEL_CAN_GET_AND_SET_STATE) {                                                         \
+        return instance_not_supported((inst), (function), flag " = false");                     \
+    }
+
 Status instance_get_state(Instance *inst, const char *function, void **state) {
     SavedState *saved;
+    STATES_PROVIDED(inst, function, "canGetAndSetFMUstate");
     if (state == NULL) {
         return instance_fail(inst, function, "FMUstate is NULL");
     }
@@ -391,9 +360,10 @@ Status instance_get_state(Instance *inst, const char *function, void **state) {
 
 Status instance_set_state(Instance *inst, const char *function, const void *state) {
     const SavedState *saved = (const SavedState *)state;
+    STATES_PROVIDED(inst, function, "canGetAndSetFMUstate");
     if (saved == NULL || saved->magic != STATE_MAGIC || saved->size != sizeof(SavedState)) {
-        return instance_fail(inst, function, "FMUstate is NULL or not a TrailerTrain state of "
-                             "this build (n = %d)", inst->data.n);
+        return instance_fail(inst, function, "FMUstate is NULL or not a " MODEL_IDENTIFIER
+                             " state of this build");
     }
     inst->data = saved->data;
     inst->mode = saved->mode;
@@ -401,8 +371,7 @@ Status instance_set_state(Instance *inst, const char *function, const void *stat
 }
 
 Status instance_free_state(Instance *inst, const char *function, void **state) {
-    (void)inst;
-    (void)function;
+    STATES_PROVIDED(inst, function, "canGetAndSetFMUstate");
     if (state != NULL) {
         free(*state);
         *state = NULL;
@@ -411,6 +380,7 @@ Status instance_free_state(Instance *inst, const char *function, void **state) {
 }
 
 Status instance_state_size(Instance *inst, const char *function, size_t *size) {
+    STATES_PROVIDED(inst, function, "canSerializeFMUstate");
     if (size == NULL) {
         return instance_fail(inst, function, "size is NULL");
     }
@@ -420,6 +390,7 @@ Status instance_state_size(Instance *inst, const char *function, size_t *size) {
 
 Status instance_serialize_state(Instance *inst, const char *function, const void *state,
                                 unsigned char *bytes, size_t size) {
+    STATES_PROVIDED(inst, function, "canSerializeFMUstate");
     if (state == NULL || bytes == NULL || size < sizeof(SavedState)) {
         return instance_fail(inst, function, "need a state and a buffer of %u bytes, got %u",
                              (unsigned)sizeof(SavedState), (unsigned)size);
@@ -432,14 +403,15 @@ Status instance_deserialize_state(Instance *inst, const char *function,
                                   const unsigned char *bytes, size_t size, void **state) {
     SavedState header;
     SavedState *saved;
+    STATES_PROVIDED(inst, function, "canSerializeFMUstate");
     if (bytes == NULL || state == NULL || size != sizeof(SavedState)) {
         return instance_fail(inst, function, "serialized state has %u bytes; this build "
-                             "(" FMI_PREFIX ", up to %d trailers) expects %u", (unsigned)size,
-                             MAX_TRAILERS, (unsigned)sizeof(SavedState));
+                             "(" FMI_PREFIX ") expects %u", (unsigned)size,
+                             (unsigned)sizeof(SavedState));
     }
     memcpy(&header, bytes, sizeof(SavedState));
     if (header.magic != STATE_MAGIC || header.size != sizeof(SavedState)) {
-        return instance_fail(inst, function, "not a TrailerTrain state of this build");
+        return instance_fail(inst, function, "not a " MODEL_IDENTIFIER " state of this build");
     }
     saved = (SavedState *)*state;
     if (saved == NULL) {

@@ -2,7 +2,9 @@
  * What the FMI 2.0 glue (fmi2.c) and the FMI 3.0 glue (fmi3.c) share: an instance (model data,
  * mode, log settings) and the parts of the API whose rules are the same in both standards: mode
  * guards, logging, get/set by value reference, initialization, the step, FMU states. The glue
- * files translate names and types only. Statuses are numbered alike in both standards.
+ * files translate names and types only. Statuses are numbered alike in both standards. The
+ * model is any that implements fmu_model.h: both FMUs of pushtrain (TrailerTrain and the
+ * BackwardController) are built on this glue.
  *
  * Every call that fails logs "function: what is wrong" (function is the fmi2/fmi3 name) and moves
  * the instance to mode_error, where only getters (for diagnostics), setting a saved FMU state,
@@ -11,7 +13,8 @@
 #ifndef TRAILERTRAIN_INSTANCE_H
 #define TRAILERTRAIN_INSTANCE_H
 
-#include "model.h"
+#include "fmu_model.h"
+#include MODEL_HEADER /* the model's own header: struct ModelData */
 
 typedef enum {
     status_ok = 0,
@@ -57,9 +60,11 @@ struct Instance {
     bool log_warnings; /* category logStatusWarning */
 };
 
-/* Allocates size bytes (the glue's instance type) with the model at its start values, in
-   mode_instantiated; NULL when out of memory. */
-PT_INTERNAL Instance *instance_new(size_t size, const char *name, LogSink sink, bool logging_on);
+/* Allocates size bytes (the glue's instance type) with the model instantiated
+   (model_instantiate, given the FMU's resource_location) and at its start values, in
+   mode_instantiated; NULL with a message in msg when out of memory or the model refuses. */
+PT_INTERNAL Instance *instance_new(size_t size, const char *name, const char *resource_location,
+                                   LogSink sink, bool logging_on, char *msg, size_t len);
 PT_INTERNAL void instance_free(Instance *inst);
 /* Back to the start values and mode_instantiated (fmi2Reset, fmi3Reset). */
 PT_INTERNAL void instance_reset(Instance *inst);
@@ -103,15 +108,15 @@ PT_INTERNAL Status instance_set_uint64(Instance *inst, const char *function, con
 /* Ends configuration (fmi3ExitConfigurationMode, fmi3EnterInitializationMode): n_bodies agrees
    with n. */
 PT_INTERNAL Status instance_end_configuration(Instance *inst, const char *function);
-/* Checks the parameters and their combinations, starts the state from them and computes the
-   outputs: everything is derived here, as some importers set parameters only after entering
-   initialization. Moves to mode_step. */
+/* The model checks its parameters and derives everything from them (model_exit_initialization:
+   some importers set parameters only after entering initialization). Moves to mode_step. */
 PT_INTERNAL Status instance_exit_initialization(Instance *inst, const char *function);
-/* One communication step from t by h [s]: checks t against the FMU's time (within a tolerance)
-   and the stop time, integrates exactly to t + h and computes the outputs there. */
+/* One communication step from t by h [s]: checks h, t against the FMU's time (within a
+   tolerance) and the stop time, then the model steps to t + h (model_do_step). */
 PT_INTERNAL Status instance_do_step(Instance *inst, const char *function, double t, double h);
 
-/* FMU states: a copy of the model data and the mode (plain data, so serializing is a copy). */
+/* FMU states: a copy of the model data and the mode (plain data, so serializing is a copy);
+   not supported (an error) for a model whose MODEL_CAN_GET_AND_SET_STATE is 0. */
 PT_INTERNAL Status instance_get_state(Instance *inst, const char *function, void **state);
 PT_INTERNAL Status instance_set_state(Instance *inst, const char *function, const void *state);
 PT_INTERNAL Status instance_free_state(Instance *inst, const char *function, void **state);

@@ -1,12 +1,15 @@
 /*
- * Start values, combination checks, outputs and fixed-step RK4 integration of TrailerTrain.
- * Start values must equal the XML's (fmu/variables.py); a test checks them through the FMU.
+ * Start values, combination checks, outputs and fixed-step RK4 integration of TrailerTrain, and
+ * its side of the glue's model interface (fmu_model.h): initialization, outputs, the step.
+ * Start values come from start_values.h, which the builder renders from fmu/variables.py (the
+ * modelDescription.xml states the same; a test checks them through the FMU).
  */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "model.h"
+#include "start_values.h" /* START_<name>, generated from fmu/variables.py (Table 1 included) */
 
 #define PT_PI 3.14159265358979323846
 
@@ -15,14 +18,15 @@ static void set_array_defaults(ModelData *m) {
     const int n = m->n;
     int i;
     for (i = 0; i < MAX_BODIES; i++) {
-        m->front[i] = (i >= 1 && i <= n) ? 0.52 : 0.0;
-        m->rear[i] = (i < n) ? 0.52 : 0.0;
-        m->mass[i] = (i >= 1 && i <= n) ? 42.1 : 0.0;
-        m->inertia[i] = (i >= 1 && i <= n) ? 3.5083 : 0.0;
-        m->payload[i] = 0.0;
-        m->mu[i] = (i >= 1 && i <= n) ? 0.09 : 0.0;
-        m->theta_start[i] = 0.0;
-        m->slide[i] = 0.0;
+        const bool trailer = i >= 1 && i <= n;
+        m->front[i] = trailer ? START_front : 0.0;
+        m->rear[i] = (i < n) ? START_rear : 0.0;
+        m->mass[i] = trailer ? START_mass : 0.0;
+        m->inertia[i] = trailer ? START_inertia : 0.0;
+        m->payload[i] = trailer ? START_payload : 0.0;
+        m->mu[i] = trailer ? START_mu : 0.0;
+        m->theta_start[i] = (i <= n) ? START_theta_start : 0.0;
+        m->slide[i] = trailer ? START_slide : 0.0;
     }
 }
 
@@ -30,22 +34,22 @@ void model_set_defaults(ModelData *m) {
     memset(m, 0, sizeof(*m));
     m->n = DEFAULT_TRAILERS;
     set_array_defaults(m);
-    m->g = 9.81;
-    m->robot_tau = 0.05;
-    m->robot_acc_max = 1.0;
-    m->robot_alpha_max = 2.0;
-    m->slip_mode = 0;
-    m->phi_max = 1.5707963267948966;
-    m->x0_start = 0.0;
-    m->y0_start = 0.0;
-    m->v_start = 0.0;
-    m->w_start = 0.0;
-    m->max_substep = 0.005;
-    m->slip_substep = 0.0005;
-    m->v_cmd = 0.0;
-    m->w_cmd = 0.0;
-    m->push_x = 0.0;
-    m->push_y = 0.0;
+    m->g = START_g;
+    m->robot_tau = START_robot_tau;
+    m->robot_acc_max = START_robot_acc_max;
+    m->robot_alpha_max = START_robot_alpha_max;
+    m->slip_mode = START_slip_mode;
+    m->phi_max = START_phi_max;
+    m->x0_start = START_x0_start;
+    m->y0_start = START_y0_start;
+    m->v_start = START_v_start;
+    m->w_start = START_w_start;
+    m->max_substep = START_max_substep;
+    m->slip_substep = START_slip_substep;
+    m->v_cmd = START_v_cmd;
+    m->w_cmd = START_w_cmd;
+    m->push_x = START_push_x;
+    m->push_y = START_push_y;
     m->time = 0.0;
     model_state_from_start(m);
 }
@@ -210,4 +214,95 @@ void model_integrate(ModelData *m, double h, double t_end) {
     }
     m->time = t_end;
     m->outputs_valid = false;
+}
+
+/* ---------------------------------------------------------------- the glue's model interface */
+
+bool model_instantiate(ModelData *m, const char *resource_location, char *msg, size_t len) {
+    (void)m; /* model_set_defaults follows */
+    (void)resource_location; /* no resources are needed; any file: spelling is accepted */
+    (void)msg;
+    (void)len;
+    return true;
+}
+
+void model_free(ModelData *m) {
+    (void)m; /* plain data: nothing to release */
+}
+
+void model_set_start_time(ModelData *m, double start_time) {
+    m->time = start_time;
+}
+
+double model_time(const ModelData *m) {
+    return m->time;
+}
+
+/* The outputs are a cache: computed after each step, after the end of initialization and at the
+   first read after a set, and kept while outputs_valid, which every set clears (setting an input
+   changes F_lat; before initialization ends, setting a parameter or a start value changes every
+   output). outputs_valid implies a finite state and finite outputs, so a read of current outputs
+   costs O(1) here; a read after a set costs O(n) once. Before initialization ends the outputs
+   follow the (possibly changed) start parameters, which must then be valid; after an error with
+   a non-finite state there are none. */
+bool model_update_outputs(ModelData *m, ModelPhase phase, char *msg, size_t len) {
+    char why[512];
+    if (m->outputs_valid) {
+        return true;
+    }
+    if (phase <= phase_initialization) {
+        if (!model_check_parameters(m, why, sizeof(why))) {
+            snprintf(msg, len, "outputs cannot be computed: %s", why);
+            return false;
+        }
+        model_state_from_start(m);
+    }
+    if (!model_state_is_finite(m)) {
+        snprintf(msg, len, "the state is non-finite after an error: no outputs");
+        return false;
+    }
+    model_compute_outputs(m);
+    if (!model_outputs_are_finite(m)) {
+        m->outputs_valid = false;
+        snprintf(msg, len, "outputs became non-finite at t = %.9g (overflow of the forces: "
+                 "velocities %g m/s, %g rad/s of the robot)", m->time, m->q[IX_V0], m->q[IX_W0]);
+        return false;
+    }
+    return true;
+}
+
+bool model_exit_initialization(ModelData *m, char *msg, size_t len) {
+    if (!model_check_parameters(m, msg, len) || !model_check_combinations(m, msg, len)) {
+        return false;
+    }
+    model_state_from_start(m);
+    model_compute_outputs(m);
+    if (!model_outputs_are_finite(m)) {
+        m->outputs_valid = false;
+        snprintf(msg, len, "the start values give non-finite outputs (v_start = %g, w_start = %g, "
+                 "v_cmd = %g, w_cmd = %g)", m->v_start, m->w_start, m->v_cmd, m->w_cmd);
+        return false;
+    }
+    return true;
+}
+
+bool model_do_step(ModelData *m, double t, double h, double tolerance, char *msg, size_t len) {
+    (void)tolerance; /* fixed substeps to exactly t + h */
+    if (h / m->max_substep > 1e9) {
+        snprintf(msg, len, "communicationStepSize = %g s needs more than 1e9 substeps of "
+                 "max_substep = %g s", h, m->max_substep);
+        return false;
+    }
+    m->time = t;
+    model_integrate(m, h, t + h);
+    if (model_state_is_finite(m)) {
+        model_compute_outputs(m); /* outputs of the new point, checked once here */
+    }
+    if (!model_state_is_finite(m) || !model_outputs_are_finite(m)) {
+        m->outputs_valid = false; /* a later read fails instead of returning them */
+        snprintf(msg, len, "the state or outputs became non-finite in the step from t = %.9g to "
+                 "%.9g (inputs v_cmd = %g, w_cmd = %g)", t, t + h, m->v_cmd, m->w_cmd);
+        return false;
+    }
+    return true;
 }

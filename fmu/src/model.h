@@ -5,31 +5,23 @@
  * pointing toward the robot. The number of trailers n is data of the instance (ModelData.n):
  * fixed by the build for FMI 2.0 (MAX_TRAILERS = n), a structural parameter up to MAX_TRAILERS
  * for FMI 3.0. The physics (chain kinematics, accelerations, lateral wheel forces, integration)
- * lives in chain.c, forces.c, slip.c and model.c, access to the variables by value reference in
- * variables.c; none of them knows the FMI version. The glue is fmi2.c or fmi3.c over instance.c.
- * The derivations are in the comments of chain.c, forces.c and slip.c.
+ * lives in chain.c, forces.c, slip.c, slip_solver.c and model.c, access to the variables by value
+ * reference in variables.c; none of them knows the FMI version. The glue is fmi2.c or fmi3.c over
+ * instance.c, through the model interface of fmu_model.h (model.c and variables.c implement it).
+ * The derivations are in the comments of chain.c, forces.c, slip.c and slip_solver.c.
  */
 #ifndef TRAILERTRAIN_MODEL_H
 #define TRAILERTRAIN_MODEL_H
 
-#include <stdbool.h>
-#include <stddef.h>
-#include <stdint.h>
-
-/* generated per build: FMI_VERSION, MAX_TRAILERS, DEFAULT_TRAILERS, MODEL_GUID */
-#include "build_config.h"
+/* the model interface of the glue; it includes the generated build_config.h: FMI_VERSION,
+   MODEL_IDENTIFIER, MODEL_GUID, MODEL_HEADER, and MAX_TRAILERS, DEFAULT_TRAILERS */
+#include "fmu_model.h"
 
 #if !defined(MAX_TRAILERS) || MAX_TRAILERS < 1 || MAX_TRAILERS > 50
 #error "MAX_TRAILERS must be defined in build_config.h as 1..50"
 #endif
 #if !defined(DEFAULT_TRAILERS) || DEFAULT_TRAILERS < 1 || DEFAULT_TRAILERS > MAX_TRAILERS
 #error "DEFAULT_TRAILERS must be defined in build_config.h as 1..MAX_TRAILERS"
-#endif
-
-#if defined(__GNUC__)
-#define PT_INTERNAL __attribute__((visibility("hidden")))
-#else
-#define PT_INTERNAL
 #endif
 
 #define MAX_BODIES (MAX_TRAILERS + 1)  /* array size of the per-body quantities */
@@ -47,7 +39,8 @@ static inline double pt_clamp(double value, double lo, double hi) {
 
 /* Everything an instance computes with. Plain data without pointers, so an FMU state is a copy.
    Per-body arrays hold index i = 0..n; the elements beyond n are zero and never read. */
-typedef struct {
+#define MODEL_CAN_GET_AND_SET_STATE 1
+struct ModelData {
     int n;                          /* number of trailers, 1..MAX_TRAILERS */
     int n_bodies_set;               /* FMI 3.0: n_bodies as set (0: not set since checked) */
 
@@ -84,11 +77,10 @@ typedef struct {
     double slide_speed[MAX_BODIES]; /* lateral sliding speed of wheel i along n_i [m/s] */
     bool slipping[MAX_BODIES];
     bool jackknifed;
-} ModelData;
+};
 
-/* model.c */
-/* Every variable at its start value, with n = DEFAULT_TRAILERS. */
-PT_INTERNAL void model_set_defaults(ModelData *m);
+/* model.c (besides its part of fmu_model.h: model_set_defaults puts every variable at its start
+   value, with n = DEFAULT_TRAILERS) */
 /* n trailers (1..MAX_TRAILERS, checked by the caller): the per-body parameters and inputs return
    to their start values, sized for the new n (FMI 3.0: a dimension change invalidates them). */
 PT_INTERNAL void model_set_trailers(ModelData *m, int n);
@@ -108,50 +100,13 @@ PT_INTERNAL void model_rk4_step(const ModelData *m, double *q, double dt);
 /* Integrates from m->time to m->time + h with fixed RK4 substeps; sets m->time = t_end. */
 PT_INTERNAL void model_integrate(ModelData *m, double h, double t_end);
 
-/* variables.c: get and set by value reference. The numbering, names, types and causalities are
-   generated from fmu/variables.py (variables.h, included by variables.c only). A value reference
-   stands for one value (a scalar; an element x[i] in FMI 2.0) or for a whole array (FMI 3.0: x
-   holds x[0] .. x[n] at the instance's n). The functions move its values through
-   values[*index ..] (at most n_values in all) and advance *index; on failure they write "what is
-   wrong" into msg and return false. Outputs are read as last computed: make them current first
-   when model_needs_outputs(vr). What can be set depends on the phase. */
-typedef enum {
-    phase_instantiated,   /* parameters, inputs and the structural parameters */
-    phase_configuration,  /* FMI 3.0 Configuration Mode: only the structural parameters */
-    phase_initialization, /* parameters and inputs */
-    phase_running         /* after initialization: inputs */
-} SetPhase;
+/* variables.c (besides its part of fmu_model.h): the numbering, names, types and causalities
+   of the variables are generated from fmu/variables.py (variables.h, included by variables.c
+   only); what can be set depends on the phase. */
 PT_INTERNAL const char *model_variable_name(const ModelData *m, unsigned vr, char *buffer,
                                             size_t len);
-PT_INTERNAL bool model_needs_outputs(const ModelData *m, unsigned vr);
 PT_INTERNAL bool model_get_real(const ModelData *m, unsigned vr, double values[], size_t n_values,
                                 size_t *index, char *msg, size_t len);
-/* model_get_real for vr[0..nvr), looking up the storage of an FMI 2.0 array once for a run of its
-   elements (a read of all outputs costs a copy per value). */
-PT_INTERNAL bool model_get_reals(const ModelData *m, const unsigned vr[], size_t nvr,
-                                 double values[], size_t n_values, size_t *index, char *msg,
-                                 size_t len);
-PT_INTERNAL bool model_get_integer(const ModelData *m, unsigned vr, int values[], size_t n_values,
-                                   size_t *index, char *msg, size_t len);
-PT_INTERNAL bool model_get_boolean(const ModelData *m, unsigned vr, bool values[],
-                                   size_t n_values, size_t *index, char *msg, size_t len);
-PT_INTERNAL bool model_get_uint64(const ModelData *m, unsigned vr, uint64_t values[],
-                                  size_t n_values, size_t *index, char *msg, size_t len);
-PT_INTERNAL bool model_set_real(ModelData *m, unsigned vr, const double values[], size_t n_values,
-                                size_t *index, SetPhase phase, char *msg, size_t len);
-PT_INTERNAL bool model_set_integer(ModelData *m, unsigned vr, const int values[],
-                                   size_t n_values, size_t *index, SetPhase phase, char *msg,
-                                   size_t len);
-PT_INTERNAL bool model_set_boolean(ModelData *m, unsigned vr, const bool values[],
-                                   size_t n_values, size_t *index, SetPhase phase, char *msg,
-                                   size_t len);
-/* FMI 3.0 structural parameters: setting n resizes (model_set_trailers) at once, after a range
-   check; n_bodies is remembered and must equal n + 1 when configuration ends. */
-PT_INTERNAL bool model_set_uint64(ModelData *m, unsigned vr, const uint64_t values[],
-                                  size_t n_values, size_t *index, SetPhase phase, char *msg,
-                                  size_t len);
-/* When configuration ends: n_bodies, if it was set, equals n + 1 (then it is forgotten). */
-PT_INTERNAL bool model_check_structure(ModelData *m, char *msg, size_t len);
 
 /* chain.c */
 /* Velocities of all bodies: v[i], w[i] and cos/sin of phi_i (index 1..n). */
@@ -183,6 +138,20 @@ PT_INTERNAL double slip_advance(ModelData *m, double t_left, bool *rolls);
 /* Can every wheel roll at state q with the current inputs? (the force rolling needs is within
    friction) */
 PT_INTERNAL bool slip_wheels_roll(const ModelData *m, const double *q);
+/* Robot rear hitch: velocity vh and acceleration ah (world) at state q. */
+PT_INTERNAL void robot_hitch(const ModelData *m, const double *q, double *vh, double *ah);
+/* RK4 of the robot alone over dt [s] (its motion does not depend on the trailers). */
+PT_INTERNAL void robot_rk4(const ModelData *m, double *q, double dt);
+
+/* slip_solver.c (slip_mode 1): the friction solver of the dynamic regime, in linear time (the
+   tests build their dense reference, tests/csrc/slip_dense.c, in its place) */
+#define STICK_SPEED 1e-7 /* |u| below this counts as rolling when leaving the dynamic regime */
+#define CONFIG_ITERATIONS 8       /* fixed-point iterations on the end-of-substep headings */
+#define CONFIG_TOLERANCE 1e-12    /* [rad] end headings converged: |u| error <= speed * 1e-12 */
+/* One substep of dt [s] of the dynamic regime; the friction impulses make the lateral wheel
+   speeds consistent at the end of the substep. Leaves the regime when every wheel sticks and can
+   roll at the new state. */
+PT_INTERNAL void slip_dynamic_step(ModelData *m, double dt);
 /* Outputs of the dynamic regime: velocities, sliding speeds, wheel and hitch forces. */
 PT_INTERNAL void slip_outputs(ModelData *m);
 /* Force outputs at the onset of sliding: the state rolls but rolling would need more than

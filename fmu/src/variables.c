@@ -304,7 +304,7 @@ bool model_get_boolean(const ModelData *m, unsigned vr, bool values[], size_t n_
 /* Inputs can be set after initialization too, parameters only before its end, structural
    parameters only before it begins (and they alone in Configuration Mode); r is a known
    variable. */
-static bool settable(const ModelData *m, unsigned vr, VarRef r, SetPhase phase, char *msg,
+static bool settable(const ModelData *m, unsigned vr, VarRef r, ModelPhase phase, char *msg,
                      size_t len) {
     char name[64];
     model_variable_name(m, vr, name, sizeof(name));
@@ -318,7 +318,7 @@ static bool settable(const ModelData *m, unsigned vr, VarRef r, SetPhase phase, 
     case var_input:
         return true;
     case var_parameter:
-        if (phase == phase_running) {
+        if (phase >= phase_running) {
             snprintf(msg, len, "parameter %s is fixed: it can be set only in Instantiated or "
                      "Initialization Mode", name);
             return false;
@@ -347,7 +347,7 @@ static bool settable(const ModelData *m, unsigned vr, VarRef r, SetPhase phase, 
 }
 
 /* An input value: finite, and no imposed slide once slip_mode 1 is fixed. */
-static bool check_input(const ModelData *m, VarRef r, int k, double value, SetPhase phase,
+static bool check_input(const ModelData *m, VarRef r, int k, double value, ModelPhase phase,
                         char *msg, size_t len) {
     char name[64];
     if (!isfinite(value)) {
@@ -355,7 +355,7 @@ static bool check_input(const ModelData *m, VarRef r, int k, double value, SetPh
                  element_name(r, k, name, sizeof(name)), value);
         return false;
     }
-    if (r.block == blk_slide && value != 0.0 && m->slip_mode == 1 && phase == phase_running) {
+    if (r.block == blk_slide && value != 0.0 && m->slip_mode == 1 && phase >= phase_running) {
         /* slip_mode is fixed now; before, the combination is checked when initialization
            ends (model_check_combinations), whatever order the importer sets them in */
         snprintf(msg, len, "input %s = %g: an imposed slide is the kinematic disturbance of "
@@ -367,9 +367,10 @@ static bool check_input(const ModelData *m, VarRef r, int k, double value, SetPh
 }
 
 bool model_set_real(ModelData *m, unsigned vr, const double values[], size_t n_values,
-                    size_t *index, SetPhase phase, char *msg, size_t len) {
+                    size_t *index, ModelPhase phase, char *msg, size_t len) {
     VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     int k;
+    m->outputs_valid = false; /* every set may change the outputs */
     if (!check_type(m, vr, var_real, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
@@ -394,8 +395,9 @@ bool model_set_real(ModelData *m, unsigned vr, const double values[], size_t n_v
 }
 
 bool model_set_integer(ModelData *m, unsigned vr, const int values[], size_t n_values,
-                       size_t *index, SetPhase phase, char *msg, size_t len) {
+                       size_t *index, ModelPhase phase, char *msg, size_t len) {
     VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
+    m->outputs_valid = false; /* every set may change the outputs */
     if (!check_type(m, vr, var_integer, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
@@ -419,9 +421,10 @@ static bool check_structural(VarRef r, uint64_t value, char *msg, size_t len) {
 }
 
 bool model_set_uint64(ModelData *m, unsigned vr, const uint64_t values[], size_t n_values,
-                      size_t *index, SetPhase phase, char *msg, size_t len) {
+                      size_t *index, ModelPhase phase, char *msg, size_t len) {
     VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
     uint64_t value;
+    m->outputs_valid = false; /* every set may change the outputs */
     if (!check_type(m, vr, var_uint64, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
@@ -447,10 +450,10 @@ bool model_set_uint64(ModelData *m, unsigned vr, const uint64_t values[], size_t
 }
 
 bool model_set_boolean(ModelData *m, unsigned vr, const bool values[], size_t n_values,
-                       size_t *index, SetPhase phase, char *msg, size_t len) {
+                       size_t *index, ModelPhase phase, char *msg, size_t len) {
     VarRef r = {NULL, 0, 0, 0}; /* set by decode; zeroed for gcc's flow analysis */
-    (void)m;
     (void)values;
+    m->outputs_valid = false; /* every set may change the outputs */
     if (!check_type(m, vr, var_boolean, &r, msg, len) || !settable(m, vr, r, phase, msg, len)
         || !check_room(m, r, n_values, *index, msg, len)) {
         return false;
