@@ -115,9 +115,10 @@ def big_map(budget: float) -> dict:
     10 m with cross aisles every 25 m, as a map file would give it (traced walls and all)."""
     import numpy as np
 
-    from pushtrain.planner import PlannerConfig, plan
+    from pushtrain.planner.config import PlannerConfig
     from pushtrain.planner.maps import OccupancyGrid
     from pushtrain.planner.mapworld import grid_world
+    from pushtrain.planner.planner import plan
     from pushtrain.planner.world import Train
 
     h, size = 0.05, 100.0

@@ -30,9 +30,12 @@ from PIL import Image
 from shapely.affinity import rotate
 from shapely.geometry import box
 
-from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan
+from pushtrain.errors import PlanningError
+from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.maps import load_map
 from pushtrain.planner.mapworld import grid_world
+from pushtrain.planner.planner import plan
+from pushtrain.planner.world import Train, World
 
 SIZE = 100.0                                     # m
 START = (6.0, 42.95, math.pi)                    # last trailer, pushed toward +x (an aisle)

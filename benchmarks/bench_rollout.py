@@ -19,7 +19,7 @@ import numpy as np
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.core.rollout import ClosedLoop, simulate
-from pushtrain.planner.train_check import default_controller, simulate_tracking
+from pushtrain.planner.kinematic_loop import default_controller, simulate_tracking
 
 STEP = 0.025
 SETTLE = 2.0

@@ -80,7 +80,7 @@ def main() -> int:
     scenarios = sorted((ROOT / "examples").glob("*.toml"))
     with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(args.workers) as pool:
         prints = dict(zip((s.name for s in scenarios),
-                          pool.map(lambda s: run_example(s, Path(tmp)), scenarios)))
+                          pool.map(lambda s: run_example(s, Path(tmp)), scenarios), strict=True))
     if args.save:
         args.save.write_text(json.dumps(prints, indent=1, sort_keys=True))
         print(f"saved fingerprints of {len(prints)} examples to {args.save}")

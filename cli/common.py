@@ -8,15 +8,13 @@ from contextlib import contextmanager
 
 import click
 
-from pushtrain.errors import InputError, PlanningError, PushtrainError
+from pushtrain.errors import InputError, PlanningError, PushtrainError, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
-from pushtrain.mission.scenario import Scenario, ScenarioError, load_scenario, parse_scenario
+from pushtrain.mission.scenario import Scenario, load_scenario, parse_scenario
 
-from .exits import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_REACHED, EXIT_OK
+from .exits import EXIT_BAD_INPUT, EXIT_NOT_REACHED
 
-__all__ = ["EXIT_OK", "EXIT_NOT_REACHED", "EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "MAX_TRAILERS",
-           "BadInput",
-           "_scenario", "check_map", "click_error", "click_errors", "scenario_argument",
+__all__ = ["BadInput", "_scenario", "check_map", "click_error", "click_errors", "scenario_argument",
            "out_dir_option", "trailers_option", "csv_option"]
 
 # planning failures that are the scenario's fault (exit 2); the others mean no plan was found

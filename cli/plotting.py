@@ -43,8 +43,7 @@ import numpy as np
 from pushtrain.files import remove_partials
 from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES  # names only: no matplotlib here
 
-__all__ = ["PNG_FILES", "GIF_FILE", "HTML_FILE", "footprints_of", "keep_out_of", "PlotProblem",
-           "PlotWorkers", "InlinePlotter", "plotter",
+__all__ = ["footprints_of", "keep_out_of", "PlotProblem", "PlotWorkers", "InlinePlotter", "plotter",
            "SILENCE_LIMIT_S"]
 
 log = logging.getLogger(__name__)

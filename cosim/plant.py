@@ -11,8 +11,7 @@ import numpy as np
 
 from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last
 from pushtrain.core.reference import Reference
-
-from .fmu_slave import CosimInputError
+from pushtrain.errors import CosimInputError
 
 __all__ = ["PlantConfig", "InitialState"]
 

@@ -18,20 +18,16 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.openloop import RotationProfile
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.cosim.master import (
-    InitialState,
-    PlantConfig,
-    Push,
-    Result,
-    SetBias,
-    Slide,
-    simulate,
-)
+from pushtrain.cosim.events import Push, SetBias, Slide
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState, PlantConfig
+from pushtrain.cosim.result import Result
 from pushtrain.cosim.sensors import SensorConfig
+from pushtrain.errors import ScenarioError
 from pushtrain.files import atomic_write, atomic_write_text
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 
-from .scenario import Scenario, ScenarioError
+from .scenario import Scenario
 
 __all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "events_of",
            "scripted_reference", "plan_path", "fmu_build_args", "run_scenario", "save_results",
@@ -215,7 +211,8 @@ def plan_path(sc: Scenario):
     The whole-train check simulates the scenario's own controller at the reference speed and
     cusp dwell the co-simulation will use.
     """
-    from pushtrain.planner import PlannerConfig, plan
+    from pushtrain.planner.config import PlannerConfig
+    from pushtrain.planner.planner import plan
 
     p = sc.planner
     clearance = tuple(p.clearance) if isinstance(p.clearance, list) else p.clearance

@@ -29,7 +29,7 @@ from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
 from pushtrain.validation import Integer, no_bool, read_toml, validate_model
 
-__all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
+__all__ = ["Scenario", "load_scenario", "parse_scenario"]
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]

@@ -33,13 +33,10 @@ from pushtrain.errors import PlanningError, PlanningInputError
 
 from .budget import STEPS_PER_CHECK, Work
 from .closedloop import plan_lattice
-from .config import _ANYTIME, PLANNERS, PlannerConfig, turning_radius_from_joint_limit
+from .config import _ANYTIME, PlannerConfig
 from .curves import (
-    ReedsSheppCurve,
     _chain_to_yaw,
     _segments_from_states,
-    primitives_to_segments,
-    rs_distance,
 )
 from .kinematic_loop import TrackerConfig, reference_times
 from .path import PlannedPath
@@ -47,15 +44,7 @@ from .search import _Attempt, _solve_once, _solve_restarts
 from .train_check import check_train
 from .world import Train, World
 
-__all__ = [
-    "PlannerConfig",
-    "plan",
-    "turning_radius_from_joint_limit",
-    "PLANNERS",
-    "ReedsSheppCurve",
-    "rs_distance",
-    "primitives_to_segments",
-]
+__all__ = ["plan"]
 
 log = logging.getLogger(__name__)
 

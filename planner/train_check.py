@@ -26,7 +26,6 @@ import shapely
 
 from pushtrain.core.kinematics import (
     ChainGeometry,
-    body_positions_along,
     joint_angles,
     wrap_angle,
     wrap_scalar,
@@ -39,24 +38,13 @@ from .kinematic_loop import (
     Trajectory,
     _rk4_step,
     _robot_positions,
-    default_controller,
     reference_times,
     simulate_tracking,
     towed_rates,
 )
 from .world import Train, World
 
-__all__ = [
-    "TrackerConfig",
-    "TrainCheckResult",
-    "Trajectory",
-    "body_positions_along",
-    "check_train",
-    "default_controller",
-    "reference_times",
-    "simulate_tracking",
-    "towed_rates",
-]
+__all__ = ["TrainCheckResult", "check_train"]
 
 log = logging.getLogger(__name__)
 

@@ -5,4 +5,7 @@ Subpackages: :mod:`pushtrain.fmu` (the TrailerTrain FMU and its builder), :mod:`
 planner) and :mod:`pushtrain.cli` (the click command line).
 """
 
+__all__ = ["__version__"]
+
+
 __version__ = "0.1.0"

@@ -7,6 +7,9 @@ Importing this package imports nothing else (no matplotlib): code that only name
 a run (the CLI's main process) takes the names from here.
 """
 
+__all__ = ["PNG_FILES", "GIF_FILE", "HTML_FILE"]
+
+
 PNG_FILES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
 """The standard plots of a run, as :func:`~.plots.plot_file` names them."""
 GIF_FILE = "train.gif"

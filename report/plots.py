@@ -30,47 +30,15 @@ import numpy as np
 from pushtrain.errors import PlotError
 from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
 from pushtrain.report.animation import animate
-from pushtrain.report.common import DPI, GIF_DPI, check_n
-from pushtrain.report.geometry import (
-    DEFAULT_FOOTPRINTS,
-    body_corners,
-    frame_indices,
-    hitch_links,
-    snapshot_indices,
-)
-from pushtrain.report.mapview import map_figure, plot_map
+from pushtrain.report.common import check_n
+from pushtrain.report.mapview import plot_map
 from pushtrain.report.timeseries import (
-    inputs_and_joints_figure,
-    lateral_forces_figure,
     plot_inputs_and_joints,
     plot_lateral_forces,
     plot_tracking_error,
-    tracking_error_figure,
 )
 
-__all__ = [
-    "PlotError",
-    "DPI",
-    "GIF_DPI",
-    "DEFAULT_FOOTPRINTS",
-    "plot_map",
-    "plot_inputs_and_joints",
-    "plot_tracking_error",
-    "plot_lateral_forces",
-    "animate",
-    "plot_all",
-    "plot_file",
-    "PNG_FILES",
-    "GIF_FILE",
-    "map_figure",
-    "inputs_and_joints_figure",
-    "tracking_error_figure",
-    "lateral_forces_figure",
-    "snapshot_indices",
-    "frame_indices",
-    "hitch_links",
-    "body_corners",
-]
+__all__ = ["plot_all", "plot_file"]
 
 log = logging.getLogger(__name__)
 

@@ -8,8 +8,11 @@ The rooms (folders mapped into ``pushtrain.*``) and what each may import::
     planner -> core            cosim -> {core, fmu}         report -> core
     core, fmu -> (nothing of pushtrain but the infrastructure in pushtrain/)
 
-Every room may import ``pushtrain`` itself (errors, files, validation, limits). Deprecated
-aliases of moved modules are left out: they exist only to forward old import paths.
+Every room may import ``pushtrain`` itself (errors, files, validation, limits).
+
+Names have one home: every module says what it offers in ``__all__`` (its own names only), every
+``from pushtrain... import name`` names the module where ``name`` is defined, and no module
+imports or reads another module's ``_private`` name.
 """
 
 import ast
@@ -18,8 +21,6 @@ import sys
 from pathlib import Path
 
 import pytest
-
-from pushtrain._compat import MOVED_MODULES
 
 ROOT = Path(__file__).resolve().parents[1]
 ROOMS = ("pushtrain", "core", "fmu", "planner", "cosim", "report", "mission", "studies", "cli")
@@ -36,7 +37,6 @@ ALLOWED = {
 }
 OWNERS = {"ompl": {"planner"}, "fmpy": {"cosim", "fmu"}, "dask": {"studies.sweep"},
           "distributed": {"studies.sweep"}, "ezdxf": {"planner.dxf"}}
-DEPRECATED = set(MOVED_MODULES) | {"pushtrain.planner.errors"}
 
 
 def _module_name(path: Path) -> str:
@@ -76,8 +76,7 @@ def _imports(path: Path) -> set[str]:
 def _sources():
     for room in ROOMS:
         for path in sorted((ROOT / room).rglob("*.py")):
-            if _module_name(path) not in DEPRECATED:
-                yield room, path
+            yield room, path
 
 
 MODULES = {_module_name(path): path for _, path in _sources()}
@@ -196,15 +195,128 @@ def test_no_bare_top_level_modules_leak_from_the_install():
     assert done.stdout.strip() == "[]", done.stdout + done.stderr
 
 
-@pytest.mark.parametrize("old", sorted(MOVED_MODULES))
-def test_old_import_paths_work_with_a_warning(old):
-    code = ("import warnings, importlib; warnings.simplefilter('error', DeprecationWarning)\n"
-            f"try:\n    importlib.import_module({old!r})\n"
-            "except DeprecationWarning as w:\n    print('warned:', w)\n")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert f"warned: {old} moved to {MOVED_MODULES[old]}" in done.stdout, done.stdout + done.stderr
-    code = (f"import warnings; warnings.simplefilter('ignore')\nimport importlib\n"
-            f"old = importlib.import_module({old!r}); new = importlib.import_module("
-            f"{MOVED_MODULES[old]!r})\nassert old is new")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
+
+# ------------------------------------------------------------------------ one home for each name
+SCRIPT_FOLDERS = ("tests", "benchmarks", "examples", "docs")
+"""Folders whose Python files import pushtrain as users do; their imports must name homes too."""
+
+
+def _absolute_target(path: Path, node: ast.ImportFrom) -> str | None:
+    """The module a ``from ... import`` names, made absolute (relative imports of the package)."""
+    if not node.level:
+        return node.module
+    module = _module_name(path)
+    package = module if _is_package(path) else module.rpartition(".")[0]
+    base = package.split(".")
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _top_level_statements(tree: ast.Module):
+    """The module's own statements, the bodies of top-level if/try blocks included."""
+    todo = list(tree.body)
+    while todo:
+        node = todo.pop()
+        yield node
+        if isinstance(node, (ast.If, ast.Try)):
+            todo += node.body + node.orelse + getattr(node, "finalbody", [])
+            for handler in getattr(node, "handlers", []):
+                todo += handler.body
+
+
+def _defined_names(module: str) -> set[str]:
+    """The names ``module`` binds itself (def, class, assignment), not the ones it imports."""
+    names = set()
+    for node in _top_level_statements(ast.parse(MODULES[module].read_text())):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names |= {n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+    return names
+
+
+DEFINED = {module: _defined_names(module) for module in MODULES}
+
+
+def _offered(module: str) -> list[str] | None:
+    """The literal ``__all__`` of ``module``, or None when it has none."""
+    for node in _top_level_statements(ast.parse(MODULES[module].read_text())):
+        targets = node.targets if isinstance(node, ast.Assign) else (
+            [node.target] if isinstance(node, ast.AnnAssign) else [])
+        if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets):
+            return ast.literal_eval(node.value)
+    return None
+
+
+def _lives_in(module: str, name: str) -> bool:
+    return name in DEFINED[module] or f"{module}.{name}" in MODULES
+
+
+def _user_files():
+    yield from (path for _, path in _sources())
+    for folder in SCRIPT_FOLDERS:
+        yield from sorted((ROOT / folder).rglob("*.py"))
+
+
+def _name_uses(path: Path):
+    """Every (line, module, name) of a pushtrain module's name the file uses: ``from module import
+    name`` and ``alias.name`` where ``alias`` is the module imported under a name of its own."""
+    in_package = path.relative_to(ROOT).parts[0] in ROOMS
+    tree = ast.parse(path.read_text())
+    aliases = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            target = _absolute_target(path, node) if in_package else node.module
+            if target not in MODULES:
+                continue
+            for alias in node.names:
+                if f"{target}.{alias.name}" in MODULES:
+                    aliases[alias.asname or alias.name] = f"{target}.{alias.name}"
+                yield node.lineno, target, alias.name
+        elif isinstance(node, ast.Import):
+            aliases |= {a.asname: a.name for a in node.names if a.asname and a.name in MODULES}
+    reads = [node for node in ast.walk(tree) if isinstance(node, ast.Attribute)
+             and isinstance(node.value, ast.Name) and node.value.id in aliases]
+    # a test may hang a name of its own on a module (monkeypatching) and read it back
+    hung = {(node.value.id, node.attr) for node in reads if isinstance(node.ctx, ast.Store)}
+    for node in reads:
+        if isinstance(node.ctx, ast.Load) and (node.value.id, node.attr) not in hung:
+            yield node.lineno, aliases[node.value.id], node.attr
+
+
+def test_every_module_says_what_it_offers():
+    missing = [module for module in MODULES if _offered(module) is None]
+    assert not missing, f"modules without __all__: {missing}"
+
+
+def test_every_module_offers_only_its_own_names():
+    wrong = [f"{module}.__all__ offers {name!r}, which it does not define"
+             for module in MODULES for name in _offered(module) or []
+             if not _lives_in(module, name)]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_every_import_names_the_home_of_the_name():
+    """Package, tests, benchmarks and examples take each name from the module defining it."""
+    wrong = [f"{path.relative_to(ROOT)}:{line}: {name!r} is not defined in {module}"
+             for path in _user_files() for line, module, name in _name_uses(path)
+             if not _lives_in(module, name) and not name.startswith("__")]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_home_rules_would_catch_a_re_export(tmp_path):
+    probe = ROOT / "core" / "_probe_for_test.py"
+    probe.write_text("import pushtrain.cosim.master as m\nfrom pushtrain.cosim.master import "
+                     "np\nm.math\n__all__ = ['np']\n")
+    try:
+        MODULES["pushtrain.core._probe_for_test"] = probe
+        DEFINED["pushtrain.core._probe_for_test"] = _defined_names("pushtrain.core._probe_for_test")
+        uses = {(module, name) for _, module, name in _name_uses(probe)}
+        offered = _offered("pushtrain.core._probe_for_test")
+    finally:
+        probe.unlink()
+        del MODULES["pushtrain.core._probe_for_test"], DEFINED["pushtrain.core._probe_for_test"]
+    assert uses == {("pushtrain.cosim.master", "np"), ("pushtrain.cosim.master", "math")}
+    assert not any(_lives_in(module, name) for module, name in uses)
+    assert offered == ["np"]

@@ -14,9 +14,12 @@ from PIL import Image
 from shapely.geometry import box
 
 from pushtrain.cli.main import cli
-from pushtrain.planner import BodyFootprint, PlannerConfig, Train, World, plan, worlds
+from pushtrain.planner import worlds
+from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.maps import load_map
 from pushtrain.planner.mapworld import grid_world
+from pushtrain.planner.planner import plan
+from pushtrain.planner.world import BodyFootprint, Train, World
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 H = 0.05
@@ -231,7 +234,7 @@ def test_the_grid_image_is_drawn_where_the_map_lies(tmp_path):
     """The image's corners land on the rotated footprint; the failure picture draws it too."""
     from matplotlib.figure import Figure
 
-    from pushtrain.planner import save_diagnostic
+    from pushtrain.planner.world import save_diagnostic
 
     yaml = write_room(tmp_path, origin="[1.0, -2.0, 0.6]")
     world = grid_world(load_map(yaml))

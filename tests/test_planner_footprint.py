@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Polygon
 
-from pushtrain.planner import Train, World, worlds
+from pushtrain.planner import worlds
 from pushtrain.planner.footprint import _obb_overlap, body_samples, first_failure
-from pushtrain.planner.world import BodyFootprint
+from pushtrain.planner.world import BodyFootprint, Train, World
 
 TRAIN = Train.uniform(3)
 DOCK = World.from_dict(worlds.docking_bay()["world"])

@@ -4,8 +4,10 @@ import math
 
 import pytest
 
-from pushtrain.planner import World, rs_distance, worlds
+from pushtrain.planner import worlds
+from pushtrain.planner.curves import rs_distance
 from pushtrain.planner.heuristic import Heuristic
+from pushtrain.planner.world import World
 
 
 def test_grid_distance_goes_around_the_corner():

@@ -11,9 +11,13 @@ import numpy as np
 import pytest
 
 from pushtrain.core.reference import PULL, PUSH, Reference
-from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
+from pushtrain.errors import PlanningError
+from pushtrain.planner import worlds
+from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.connect import corner_segments
+from pushtrain.planner.planner import plan
 from pushtrain.planner.smooth import merge, total_turning
+from pushtrain.planner.world import Train, World
 
 TRAIN = Train.uniform(3)
 

@@ -17,18 +17,13 @@ from pushtrain.core.kinematics import (
     joint_angles,
 )
 from pushtrain.core.reference import PULL, PUSH, Reference
-from pushtrain.planner import (
-    PlannedPath,
-    PlannerConfig,
-    PlanningError,
-    PlanningInputError,
-    Train,
-    World,
-    check_train,
-    plan,
-    turning_radius_from_joint_limit,
-    worlds,
-)
+from pushtrain.errors import PlanningError, PlanningInputError
+from pushtrain.planner import worlds
+from pushtrain.planner.config import PlannerConfig, turning_radius_from_joint_limit
+from pushtrain.planner.path import PlannedPath
+from pushtrain.planner.planner import plan
+from pushtrain.planner.train_check import check_train
+from pushtrain.planner.world import Train, World
 
 TRAIN = Train.uniform(3, link=0.52)
 
@@ -382,7 +377,7 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
         checked = plan(world, case["start"], case["goal"], TRAIN,
                        PlannerConfig(planner="restarts", seed=3, anytime_time=0.5))
         assert checked.info["attempts"][-1]["train_ok"]
-    from pushtrain.planner.planner import rs_distance
+    from pushtrain.planner.curves import rs_distance
     radius = best.turning_radius
     yaw = lambda p: (p[0], p[1], p[2] + math.pi)  # noqa: E731
     assert best.length >= rs_distance(radius, yaw(case["start"]), yaw(case["goal"])) - 1e-9
@@ -510,7 +505,11 @@ def test_prmstar_returns():
     """PRM* evaluates its termination condition on a second thread too; a condition written
     in Python would deadlock there (run in a subprocess, so a regression fails, not hangs)."""
     code = (
-        "from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds\n"
+        "from pushtrain.errors import PlanningError\n"
+        "from pushtrain.planner import worlds\n"
+        "from pushtrain.planner.config import PlannerConfig\n"
+        "from pushtrain.planner.planner import plan\n"
+        "from pushtrain.planner.world import Train, World\n"
         "c = worlds.l_corridor(2.0)\n"
         "try:\n"
         "    p = plan(World.from_dict(c['world']), c['start'], c['goal'], Train.uniform(3),\n"

@@ -12,9 +12,13 @@ import numpy as np
 import pytest
 
 from pushtrain.core.reference import PULL, PUSH, Segment
-from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
+from pushtrain.errors import PlanningError
+from pushtrain.planner import worlds
+from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.connect import MAX_SAMPLES, corner_segments, sample_reference
+from pushtrain.planner.planner import plan
 from pushtrain.planner.route import MAX_ROUTE_NODES, MIN_CELL, _Grid, find_route, widest_gap
+from pushtrain.planner.world import Train, World
 
 PUBLIC = Path(__file__).resolve().parents[1] / "examples" / "maps" / "public"
 BOOKSTORE = PUBLIC / "aws_bookstore.yaml"

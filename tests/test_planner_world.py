@@ -5,14 +5,9 @@ import math
 import pytest
 from shapely.geometry import Polygon
 
-from pushtrain.planner import (
-    BodyFootprint,
-    PlanningInputError,
-    Train,
-    World,
-    save_diagnostic,
-    worlds,
-)
+from pushtrain.errors import PlanningInputError
+from pushtrain.planner import worlds
+from pushtrain.planner.world import BodyFootprint, Train, World, save_diagnostic
 
 
 def test_from_dict_outline_and_obstacles():
@@ -58,7 +53,7 @@ def test_validity_uses_last_trailer_in_chain_orientation():
     trailer = BodyFootprint(length=1.2, width=0.6, offset=0.55)
     train = Train.uniform(1, trailer=trailer)
     cfg_ok = dict(inflation=0.0, offtrack_allowance=0.0)
-    from pushtrain.planner import PlannerConfig
+    from pushtrain.planner.config import PlannerConfig
 
     cfg = PlannerConfig(planner="rrtconnect", **cfg_ok, time_budget=0.2, check_train=False,
                         straight_pull_ends=False)
@@ -68,7 +63,7 @@ def test_validity_uses_last_trailer_in_chain_orientation():
         world, train, (0.5, 1.0, 0.0 + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3
     )
     assert states.shape[1] == 3
-    from pushtrain.planner import PlanningError
+    from pushtrain.errors import PlanningError
 
     with pytest.raises(PlanningError):
         # theta = pi puts the rectangle at x in [-0.65, 0.55]: outside the map -> invalid start

@@ -8,6 +8,8 @@ import click
 
 from ..common import _scenario, click_errors, scenario_argument
 
+__all__ = ["analyze_cmd"]
+
 
 def _stability_lines(c, speed: float) -> list[str]:
     from pushtrain.core import analysis

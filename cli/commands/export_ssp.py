@@ -17,6 +17,8 @@ from ..common import (
 from ..runs import describe_path, plan_or_fail
 from .run import _load_path
 
+__all__ = ["export_ssp_cmd"]
+
 
 def _check_target(out: str) -> Path:
     """``out`` as a Path, or BadInput: an empty name, a folder, a missing folder, or anything

@@ -11,6 +11,8 @@ from pushtrain.files import atomic_write
 from ..common import BadInput, _scenario, check_map, click_errors, scenario_argument
 from ..runs import describe_path, plan_or_fail, write_path
 
+__all__ = ["plan_cmd"]
+
 
 def _plot_path(sc, path, png: Path) -> None:
     """Draw the map and the planned path of the last trailer into ``png``."""

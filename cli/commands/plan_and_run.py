@@ -20,6 +20,8 @@ from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import describe_path, plan_or_fail, run_and_report, write_path, write_scenario
 
+__all__ = ["plan_and_run"]
+
 
 @click.command("plan-and-run")
 @scenario_argument

@@ -20,6 +20,8 @@ from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import run_and_report, write_path, write_scenario
 
+__all__ = ["run_cmd"]
+
 
 def _load_path(path_file: str):
     from pushtrain.planner.path import PlannedPath

@@ -6,6 +6,8 @@ import click
 
 from ..common import _scenario, check_map, scenario_argument
 
+__all__ = ["validate_cmd"]
+
 
 @click.command("validate")
 @scenario_argument
