@@ -125,13 +125,13 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
     """
     from pushtrain.errors import FmuBuildError
 
-    from .common import BadInput, _scenario
+    from .common import BadInput, load_scenario_with_overrides
     from .exits import EXIT_INTERRUPTED, EXIT_OK
 
     if out is not None and not out.strip():
         raise BadInput(f"--out {out!r}: an empty folder name; allowed: a folder path, or no "
                        "--out for runs/<name>-<timestamp>")
-    sc = _scenario(scenario)
+    sc = load_scenario_with_overrides(scenario)
     try:
         spec = load_sweep_spec(spec_path)
     except SweepError as exc:

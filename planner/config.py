@@ -25,7 +25,8 @@ from .budget import checks_for, steps_for
 from .kinematic_loop import TrackerConfig
 from .world import Train
 
-__all__ = ["PLANNERS", "PlannerConfig", "turning_radius_from_joint_limit"]
+__all__ = ["PLANNERS", "PlannerConfig", "turning_radius_from_joint_limit", "ANYTIME_PLANNERS",
+           "OPTIMIZING_PLANNERS"]
 
 PLANNERS = ("lattice", "rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar")
 """Planner names: ``lattice`` (the default) searches closed-loop states of the whole train
@@ -34,8 +35,8 @@ train afterwards: ``rrtconnect`` stops at its first solution, the rest are anyti
 
 _OMPL = {"rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"}
 
-_ANYTIME = {"restarts", "rrtstar", "bitstar", "prmstar"}
-_OPTIMIZING = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
+ANYTIME_PLANNERS = {"restarts", "rrtstar", "bitstar", "prmstar"}
+OPTIMIZING_PLANNERS = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
 
 
 def turning_radius_from_joint_limit(

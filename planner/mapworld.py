@@ -94,12 +94,12 @@ def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=
     PlanningInputError
         A malformed polygon.
     """
-    from .world import World, _polygon
+    from .world import World, polygon_from_points
 
     outline, outline_label = None, ""
     if free is not None:
         try:
-            outline, outline_label = _polygon(free, "map.free", outline=True), "map.free"
+            outline, outline_label = polygon_from_points(free, "map.free", outline=True), "map.free"
         except PlanningInputError as exc:
             if "outline_problem" not in exc.details:
                 raise
@@ -110,7 +110,7 @@ def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=
     extra, labels = [], []
     for name, items in (("obstacles", obstacles), ("walls", walls)):
         for k, p in enumerate(items):
-            extra.append(_polygon(p, f"map.{name}[{k}]"))
+            extra.append(polygon_from_points(p, f"map.{name}[{k}]"))
             labels.append(f"map.{name}[{k}]")
     if dxf is not None:
         from .dxf import DEFAULT_LINE_THICKNESS, read_dxf

@@ -33,14 +33,14 @@ from pushtrain.errors import PlanningError, PlanningInputError
 
 from .budget import STEPS_PER_CHECK, Work
 from .closedloop import plan_lattice
-from .config import _ANYTIME, PlannerConfig
+from .config import ANYTIME_PLANNERS, PlannerConfig
 from .curves import (
-    _chain_to_yaw,
-    _segments_from_states,
+    chain_to_planner_state,
+    segments_from_states,
 )
 from .kinematic_loop import TrackerConfig, reference_times
 from .path import PlannedPath
-from .search import _Attempt, _solve_once, _solve_restarts
+from .search import Attempt, solve_once, solve_restarts
 from .train_check import check_train
 from .world import Train, World
 
@@ -179,8 +179,8 @@ def plan(
 
     tracker = config.tracker()
     tracker.controller_for(train.geometry)  # a controller for another n fails here, not later
-    initial = _Attempt(config.radius_for(train), config.inflation,
-                       pull_start_tolerance=config.pull_start_tolerance)
+    initial = Attempt(config.radius_for(train), config.inflation,
+                      pull_start_tolerance=config.pull_start_tolerance)
     attempt = initial
     history = []
     last_error: PlanningError | None = None
@@ -239,7 +239,7 @@ def _train_check(world: World, train: Train, start, segments, start_headings,
 
 def _checks_for_attempt(config: PlannerConfig, k: int, remaining: int) -> int:
     """Motion checks of attempt ``k`` with ``remaining`` checks of the budget left."""
-    if config.planner in _ANYTIME:
+    if config.planner in ANYTIME_PLANNERS:
         return min(config.anytime_checks(), remaining)
     # a replan may find nothing (e.g. a block closed the corridor): it gets half of what is
     # left, so that another try remains
@@ -247,16 +247,16 @@ def _checks_for_attempt(config: PlannerConfig, k: int, remaining: int) -> int:
 
 
 def _search(world: World, train: Train, start, goal, config: PlannerConfig,
-            attempt: _Attempt, checks: int, seed: int | None, start_headings, work: Work):
+            attempt: Attempt, checks: int, seed: int | None, start_headings, work: Work):
     """The last trailer's path (planner states (M, 3), info) for one attempt."""
-    solve = _solve_restarts if config.planner == "restarts" else _solve_once
-    return solve(world, train, _chain_to_yaw(start), _chain_to_yaw(goal), config, attempt,
-                 checks, seed, start_headings, work=work)
+    solve = solve_restarts if config.planner == "restarts" else solve_once
+    return solve(world, train, chain_to_planner_state(start), chain_to_planner_state(goal),
+                 config, attempt, checks, seed, start_headings, work=work)
 
 
 def _segments(states: np.ndarray, radius: float) -> list[Segment]:
     """Line/arc segments through ``states``, verified against OMPL's curve."""
-    segments, deviation = _segments_from_states(states, radius)
+    segments, deviation = segments_from_states(states, radius)
     if deviation > 1e-6:
         raise RuntimeError(
             f"Reeds-Shepp segment recovery deviates {deviation:.3g} m from OMPL's curve"
@@ -264,7 +264,7 @@ def _segments(states: np.ndarray, radius: float) -> list[Segment]:
     return segments
 
 
-def _planned(start, segments, start_headings, attempt: _Attempt, config: PlannerConfig,
+def _planned(start, segments, start_headings, attempt: Attempt, config: PlannerConfig,
              tracker: TrackerConfig, result, history: list, t_begin: float,
              work: Work) -> PlannedPath:
     """The PlannedPath of a plan that passed (``result``: its train check, or None)."""
@@ -294,7 +294,7 @@ def _planned(start, segments, start_headings, attempt: _Attempt, config: Planner
     return path
 
 
-def _clear_of_ends(attempt: _Attempt, train: Train, config: PlannerConfig, start, goal) -> list:
+def _clear_of_ends(attempt: Attempt, train: Train, config: PlannerConfig, start, goal) -> list:
     """The attempt's blocks without those that touch the last trailer's own start or goal
     footprint (never blocked)."""
     keep_clear = [train.last.polygons(*pose).buffer(attempt.inflation + config.offtrack_allowance)
@@ -345,8 +345,8 @@ def _resample_headings(result, path: PlannedPath, tracker: TrackerConfig) -> np.
     return result.headings_at(t)
 
 
-def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: PlannerConfig,
-                  segments: Sequence[Segment] = ()) -> _Attempt:
+def _next_attempt(attempt: Attempt, failure: dict, train: Train, config: PlannerConfig,
+                  segments: Sequence[Segment] = ()) -> Attempt:
     """Change what the last failure of the closed-loop train check calls for.
 
     - A leading body (robot or trailer 1..n-1) collides while pulling: a larger radius. The

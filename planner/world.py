@@ -31,7 +31,8 @@ from pushtrain.errors import PlanningInputError
 from .distance_field import DEFAULT_RESOLUTION, DistanceField
 from .raster import polygon_path
 
-__all__ = ["World", "BodyFootprint", "Train", "save_diagnostic", "draw_poses"]
+__all__ = ["World", "BodyFootprint", "Train", "save_diagnostic", "draw_poses",
+           "polygon_from_points"]
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +53,7 @@ def outline_problem(poly: Polygon) -> str | None:
             "touch itself")
 
 
-def _polygon(points: Any, field_name: str, outline: bool = False) -> Polygon:
+def polygon_from_points(points: Any, field_name: str, outline: bool = False) -> Polygon:
     """A valid shapely polygon from a list of [x, y] points [m]; PlanningInputError otherwise.
 
     A polygon that crosses or touches itself is an error if it is the free space's ``outline``
@@ -166,7 +167,7 @@ class World:
         if unknown:
             raise PlanningInputError(f"world has unknown keys {unknown}: allowed are {_WORLD_KEYS}")
         if "free" in data:
-            outline = _polygon(data["free"], "world.free")
+            outline = polygon_from_points(data["free"], "world.free")
         elif "bounds" in data:
             b = np.asarray(data["bounds"], dtype=float).reshape(-1)
             if b.size != 4 or not np.all(np.isfinite(b)) or b[2] <= b[0] or b[3] <= b[1]:
@@ -182,7 +183,7 @@ class World:
             items = data.get(key, [])
             if not isinstance(items, Sequence):
                 raise PlanningInputError(f"world.{key} must be a list of polygons")
-            obstacles += [_polygon(p, f"world.{key}[{k}]") for k, p in enumerate(items)]
+            obstacles += [polygon_from_points(p, f"world.{key}[{k}]") for k, p in enumerate(items)]
         return cls(outline, tuple(obstacles))
 
     def to_dict(self) -> dict:

@@ -23,7 +23,7 @@ from PIL import Image
 from pushtrain.cli.main import cli
 from pushtrain.errors import MapError, PlanningInputError
 from pushtrain.planner.maps import load_map, read_map_yaml
-from pushtrain.planner.world import World, _polygon
+from pushtrain.planner.world import World, polygon_from_points
 
 MAX_MESSAGE = 4000
 """Longest error output [characters] a bad map may give ("a few kB")."""
@@ -259,7 +259,7 @@ def test_a_self_crossing_free_outline_is_refused_saying_where(tmp_path):
                "space must not cross or touch itself" in output, output
     with pytest.raises(PlanningInputError, match=r"map.free is not a simple polygon "
                                                  r"\(self-intersection at \(7, 0\) m\)"):
-        _polygon(BOWTIE, "map.free", outline=True)
+        polygon_from_points(BOWTIE, "map.free", outline=True)
     # the planner's own worlds (World.from_dict) and obstacles are still repaired, with a warning
     world = World.from_dict({"bounds": [-1, -2, 13, 4], "obstacles": [BOWTIE]})
     assert world.free_area < 14 * 6

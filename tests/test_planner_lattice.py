@@ -178,7 +178,10 @@ def test_a_joint_limit_that_forbids_the_corner_says_so(monkeypatch):
 def _plan_in_subprocess(name: str) -> subprocess.Popen:
     code = textwrap.dedent(f"""
         import json
-        from pushtrain.planner import PlannerConfig, Train, World, plan, worlds
+        from pushtrain.planner import worlds
+        from pushtrain.planner.config import PlannerConfig
+        from pushtrain.planner.planner import plan
+        from pushtrain.planner.world import Train, World
         case = worlds.CASES[{name!r}]()
         path = plan(World.from_dict(case["world"]), case["start"], case["goal"],
                     Train.uniform(3), PlannerConfig(time_budget=300.0))

@@ -184,10 +184,10 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
 
 def test_replanning_changes_what_the_failure_calls_for():
     from pushtrain.planner.planner import _next_attempt
-    from pushtrain.planner.search import _Attempt
+    from pushtrain.planner.search import Attempt
 
     cfg = ompl()
-    base = _Attempt(radius=1.0, inflation=0.05)
+    base = Attempt(radius=1.0, inflation=0.05)
     hit = {"kind": "collision", "x": 1.0, "y": 2.0}
     # the robot (or a leading trailer) hits while pulling: only a larger radius helps
     for body in (0, TRAIN.n - 1):
@@ -384,24 +384,25 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
 
 
 def test_local_search_keeps_the_path_valid_and_never_longer():
-    from pushtrain.planner.curves import _chain_to_yaw, _segments_from_states
-    from pushtrain.planner.search import _Attempt, _solve_once
+    from pushtrain.planner.curves import chain_to_planner_state, segments_from_states
+    from pushtrain.planner.search import Attempt, solve_once
 
     case = worlds.bay()
     world = World.from_dict(case["world"])
     cfg = ompl(check_train=False)
-    attempt = _Attempt(cfg.radius_for(TRAIN), cfg.inflation)
+    attempt = Attempt(cfg.radius_for(TRAIN), cfg.inflation)
     pairs = []
     for seed in range(5, 15):  # seeds whose plain solve passes the planner's pull rules
-        args = (world, TRAIN, _chain_to_yaw(case["start"]), _chain_to_yaw(case["goal"]),
-                cfg, attempt, 1000, seed)  # 1000 motion checks: 1 s of budget
+        # 1000 motion checks: 1 s of budget
+        args = (world, TRAIN, chain_to_planner_state(case["start"]),
+                chain_to_planner_state(case["goal"]), cfg, attempt, 1000, seed)
         try:
-            plain, _ = _solve_once(*args)
-            refined, info = _solve_once(*args, refine_checks=1000)
+            plain, _ = solve_once(*args)
+            refined, info = solve_once(*args, refine_checks=1000)
         except PlanningError:
             continue
         assert info["refine_time"] < 1.0  # it stops when it stops gaining
-        lengths = [sum(g.length for g in _segments_from_states(st, attempt.radius)[0])
+        lengths = [sum(g.length for g in segments_from_states(st, attempt.radius)[0])
                    for st in (plain, refined)]
         assert lengths[1] <= lengths[0] + 1e-9
         pairs.append((lengths[0] - lengths[1], refined))
@@ -411,7 +412,7 @@ def test_local_search_keeps_the_path_valid_and_never_longer():
     # the refined path is collision-free for the last trailer at 1 cm (independent shapely
     # check with the clearance the whole-train check asks for; the planner checks every
     # 0.1 m with offtrack_allowance on top)
-    segments, _ = _segments_from_states(refined, attempt.radius)
+    segments, _ = segments_from_states(refined, attempt.radius)
     length = sum(g.length for g in segments)
     ref = Reference.from_segments(case["start"], segments, speed=1.0, cusp_dwell=0.0)
     x, y, th, _, _ = ref.sample(np.linspace(0.0, ref.t_end - 1e-9, int(length / 0.01) + 2))

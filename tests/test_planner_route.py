@@ -127,7 +127,9 @@ _HOG = "import time\nt = time.time()\nwhile time.time() - t < 120:\n    pass\n"
 def _plan_bookstore() -> dict:
     code = textwrap.dedent(f"""
         import json, math
-        from pushtrain.planner import PlannerConfig, Train, plan
+        from pushtrain.planner.config import PlannerConfig
+        from pushtrain.planner.planner import plan
+        from pushtrain.planner.world import Train
         from pushtrain.planner.mapworld import map_world
         world = map_world(grid={str(BOOKSTORE)!r})
         path = plan(world, (-7.0, 1.2, math.pi / 2), (4.4, -6.2, math.pi), Train.uniform(2),

@@ -45,7 +45,7 @@ def test_footprint_corners_follow_heading_and_offset():
 
 def test_validity_uses_last_trailer_in_chain_orientation():
     """The planner state yaw is theta + pi; an offset footprint must land on the theta side."""
-    from pushtrain.planner.search import _Attempt, _solve_once
+    from pushtrain.planner.search import Attempt, solve_once
 
     # a dead-end pocket: free only for x in [0, 3]; the last trailer's rectangle sticks out
     # 0.6 m toward the robot (theta side). At x = 0.5 with theta = 0 it fits; theta = pi not.
@@ -57,9 +57,9 @@ def test_validity_uses_last_trailer_in_chain_orientation():
 
     cfg = PlannerConfig(planner="rrtconnect", **cfg_ok, time_budget=0.2, check_train=False,
                         straight_pull_ends=False)
-    att = _Attempt(1.0, 0.0)
+    att = Attempt(1.0, 0.0)
     # start pose with theta = 0: rectangle spans x in [0.5 + 0.55 - 0.6, 0.5 + 0.55 + 0.6]
-    states, _ = _solve_once(
+    states, _ = solve_once(
         world, train, (0.5, 1.0, 0.0 + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3
     )
     assert states.shape[1] == 3
@@ -67,7 +67,7 @@ def test_validity_uses_last_trailer_in_chain_orientation():
 
     with pytest.raises(PlanningError):
         # theta = pi puts the rectangle at x in [-0.65, 0.55]: outside the map -> invalid start
-        _solve_once(
+        solve_once(
             world, train, (0.5, 1.0, math.pi + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3
         )
 
