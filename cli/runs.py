@@ -47,7 +47,7 @@ def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = Non
 
 def _save_diagnostic(sc: Scenario, png: Path, exc=None) -> None:
     from pushtrain.mission.runner import train_of, world_of
-    from pushtrain.planner.world import save_diagnostic
+    from pushtrain.planner.diagnostic import save_diagnostic
 
     where = getattr(exc, "where", None)
     marks = [(where[0], where[1], getattr(exc, "reason", ""))] if where else None

@@ -71,8 +71,8 @@ def bias_model(sc: Scenario) -> BiasModel:
 
 
 def train_of(sc: Scenario):
-    """The planner's :class:`~pushtrain.planner.world.Train` (geometry, footprints, joint limit)."""
-    from pushtrain.planner.world import BodyFootprint, Train
+    """The planner's :class:`~pushtrain.planner.train.Train` (geometry, footprints, joint limit)."""
+    from pushtrain.planner.train import BodyFootprint, Train
 
     t = sc.train
     trailer = BodyFootprint(t.trailer_size.length, t.trailer_size.width, t.trailer_size.offset)
@@ -168,7 +168,7 @@ read and traced once per process, not once per use)."""
 
 
 def world_of(sc: Scenario):
-    """The planner's :class:`~pushtrain.planner.world.World` of ``sc.map`` (None without one).
+    """The planner's :class:`~pushtrain.facility.free_space.World` of ``sc.map`` (None without one).
 
     Raises ScenarioError naming the field (``map.grid (warehouse.yaml) resolution``, ...) when a
     map file cannot be used, PlanningInputError for a malformed polygon."""
@@ -176,7 +176,7 @@ def world_of(sc: Scenario):
     if m is None:  # no map: the planner (OMPL) is not imported
         return None
     from pushtrain.errors import MapError
-    from pushtrain.planner.mapworld import map_world
+    from pushtrain.facility.loading import map_world
 
     files = [Path(f) for f in (m.grid, m.dxf) if f is not None]
     stamps = tuple((str(f), f.stat().st_mtime_ns if f.is_file() else None) for f in files)
@@ -250,7 +250,7 @@ def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:
 
 
 def fmu_build_args(sc: Scenario) -> dict:
-    """:func:`~pushtrain.fmu.build_fmu`'s arguments for ``sc``'s FMU: FMI 2.0 built for
+    """:func:`~pushtrain.fmu.build.build_fmu`'s arguments for ``sc``'s FMU: FMI 2.0 built for
     ``train.n``, or the FMI 3.0 FMU that serves every n."""
     if sc.fmu.fmi_version == 2:
         return {"n_trailers": sc.train.n, "fmi_version": 2}

@@ -9,8 +9,9 @@ Public API, each name imported from the module where it lives::
     pushtrain.planner.path.PlannedPath.to_reference(speed, cusp_dwell) / to_json / from_json
     pushtrain.planner.train_check.check_train(world, train, start, segments, ...)
         -> TrainCheckResult
-    pushtrain.planner.world.World.from_dict(d), Train.uniform(n), BodyFootprint(length, width,
-        offset)
+    pushtrain.planner.train.Train.uniform(n), BodyFootprint(length, width, offset)
+    pushtrain.planner.diagnostic.save_diagnostic(path, world, start, goal, train, ...)
+    pushtrain.facility.free_space.World.from_dict(d)  (the map: :mod:`pushtrain.facility`)
     pushtrain.errors.PlanningError(reason, message, where)
 
 Importing this package imports none of its modules (no OMPL, no lattice search).

@@ -26,8 +26,9 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from pushtrain.facility.distance_field import DistanceField
+
 from .curves import reeds_shepp_space
-from .distance_field import DistanceField
 from .route import grid_graph, undirected_graph
 
 __all__ = ["Heuristic", "CarGrid", "MAX_NODES", "MAX_CAR_CELLS"]

@@ -78,7 +78,7 @@ from .footprint import body_positions
 from .heuristic import Heuristic
 from .propagate import Cursor, Propagator, Rollout, TrainState
 from .route import Route
-from .world import Train
+from .train import Train
 
 __all__ = ["SearchSettings", "Node", "Search", "Solution", "segments_cost"]
 

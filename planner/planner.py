@@ -30,6 +30,7 @@ from shapely.geometry import box as _box
 from pushtrain.core.kinematics import body_positions_along
 from pushtrain.core.reference import PULL, Segment
 from pushtrain.errors import PlanningError, PlanningInputError
+from pushtrain.facility.free_space import World
 
 from .budget import STEPS_PER_CHECK, Work
 from .closedloop import plan_lattice
@@ -41,8 +42,8 @@ from .curves import (
 from .kinematic_loop import TrackerConfig, reference_times
 from .path import PlannedPath
 from .search import Attempt, solve_once, solve_restarts
+from .train import Train
 from .train_check import check_train
-from .world import Train, World
 
 __all__ = ["plan"]
 

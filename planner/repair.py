@@ -3,8 +3,8 @@
 Pulls: while pulling the robot leads on a reference of its own, computed backward in time from
 a straight chain at the pull's end (:class:`~pushtrain.core.pulling.PullGuide`). Two rules keep
 planned pulls within what that can do: the straight train at every pull's end must be free
-(:attr:`~pushtrain.planner.PlannerConfig.straight_pull_ends`), and a pull must start near the
-chain it needs (:attr:`~pushtrain.planner.PlannerConfig.pull_start_tolerance`). The motion
+(:attr:`~pushtrain.planner.config.PlannerConfig.straight_pull_ends`), and a pull must start near the
+chain it needs (:attr:`~pushtrain.planner.config.PlannerConfig.pull_start_tolerance`). The motion
 validator (:mod:`~pushtrain.planner.search`) checks them inside each local curve with the
 rules built here; the junctions between curves and whole pulls over several curves are checked
 and repaired here on the finished path.
@@ -21,10 +21,11 @@ import numpy as np
 from shapely.geometry import Polygon
 
 from pushtrain.core.pulling import straight_chain_mismatch
+from pushtrain.facility.free_space import World
 
 from .budget import Work
 from .curves import sample_curve_into, travel_between_states, wrap_yaw
-from .world import Train, World
+from .train import Train
 
 __all__ = ["shorten_by_local_search", "pull_end_rule", "first_pull_start_outside",
            "pull_start_rule", "repair_pull_ends"]

@@ -22,6 +22,7 @@ from ompl import util as ou
 from shapely.geometry import Polygon
 
 from pushtrain.errors import PlanningError
+from pushtrain.facility.free_space import World
 
 from .budget import CHECKS_PER_SECOND, Work
 from .config import OPTIMIZING_PLANNERS, PlannerConfig
@@ -33,7 +34,7 @@ from .repair import (
     repair_pull_ends,
     shorten_by_local_search,
 )
-from .world import Train, World
+from .train import Train
 
 __all__ = ["Attempt", "solve_once", "solve_restarts"]
 

@@ -32,6 +32,7 @@ from pushtrain.core.kinematics import (
 )
 from pushtrain.core.reference import Reference, Segment
 from pushtrain.errors import PlanningInputError
+from pushtrain.facility.free_space import World
 
 from .kinematic_loop import (
     TrackerConfig,
@@ -42,7 +43,7 @@ from .kinematic_loop import (
     simulate_tracking,
     towed_rates,
 )
-from .world import Train, World
+from .train import Train
 
 __all__ = ["TrainCheckResult", "check_train"]
 

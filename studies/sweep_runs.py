@@ -198,7 +198,7 @@ def prepare_runs(sc: Scenario, spec: SweepSpec, *, fmus: dict | None = None,
         The base scenario.
     spec : SweepSpec
     fmus : dict, optional
-        ``{n: path}`` FMU files to use instead of :func:`pushtrain.fmu.build_fmu`.
+        ``{n: path}`` FMU files to use instead of :func:`pushtrain.fmu.build.build_fmu`.
     ship_fmu : bool
         Also return the FMU bytes as shared data (for workers on other machines).
 

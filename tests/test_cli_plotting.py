@@ -266,9 +266,9 @@ def test_the_results_table_crosses_the_pipe_unchanged():
 
 
 def test_the_maps_module_imports_without_the_planner():
-    """The plot processes unpickle the map: pushtrain.planner.world alone loads neither OMPL
+    """The plot processes unpickle the map: pushtrain.facility.free_space alone loads neither OMPL
     nor the lattice search."""
-    code = ("import sys, pushtrain.planner.world\n"
+    code = ("import sys, pushtrain.facility.free_space\n"
             "print(sorted(m for m in ('ompl', 'pushtrain.planner.lattice', "
             "'pushtrain.planner.planner') if m in sys.modules))\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

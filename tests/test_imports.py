@@ -2,10 +2,11 @@
 
 The rooms (folders mapped into ``pushtrain.*``) and what each may import::
 
-    cli -> {mission, studies, report, planner, cosim, fmu, core}
-    studies -> {mission, report, planner, cosim, fmu, core}
-    mission -> {planner, cosim, fmu, core}
-    planner -> core            cosim -> {core, fmu}         report -> core
+    cli -> {mission, studies, report, planner, facility, cosim, fmu, core}
+    studies -> {mission, report, planner, facility, cosim, fmu, core}
+    mission -> {planner, facility, cosim, fmu, core}
+    planner -> {facility, core}     report -> {facility, core}     cosim -> {core, fmu}
+    facility -> core
     core, fmu -> (nothing of pushtrain but the infrastructure in pushtrain/)
 
 Every room may import ``pushtrain`` itself (errors, files, validation, limits).
@@ -23,20 +24,22 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-ROOMS = ("pushtrain", "core", "fmu", "planner", "cosim", "report", "mission", "studies", "cli")
+ROOMS = ("pushtrain", "core", "fmu", "facility", "planner", "cosim", "report", "mission",
+         "studies", "cli")
 ALLOWED = {
     "pushtrain": set(),
     "core": set(),
     "fmu": set(),
-    "planner": {"core"},
+    "facility": {"core"},
+    "planner": {"core", "facility"},
     "cosim": {"core", "fmu"},
-    "report": {"core"},
-    "mission": {"core", "fmu", "planner", "cosim"},
-    "studies": {"core", "fmu", "planner", "cosim", "report", "mission"},
-    "cli": {"core", "fmu", "planner", "cosim", "report", "mission", "studies"},
+    "report": {"core", "facility"},
+    "mission": {"core", "fmu", "facility", "planner", "cosim"},
+    "studies": {"core", "fmu", "facility", "planner", "cosim", "report", "mission"},
+    "cli": {"core", "fmu", "facility", "planner", "cosim", "report", "mission", "studies"},
 }
 OWNERS = {"ompl": {"planner"}, "fmpy": {"cosim", "fmu"}, "dask": {"studies.sweep"},
-          "distributed": {"studies.sweep"}, "ezdxf": {"planner.dxf"}}
+          "distributed": {"studies.sweep"}, "ezdxf": {"facility.dxf"}}
 
 
 def _module_name(path: Path) -> str:
@@ -164,13 +167,13 @@ def test_the_rules_would_catch_a_forbidden_arrow(tmp_path):
     """The walker sees relative, absolute and function-level imports."""
     probe = ROOT / "core" / "_probe_for_test.py"
     probe.write_text(
-        "def f():\n    from ..planner import world\n    import pushtrain.cosim.master\n"
+        "def f():\n    from ..facility import free_space\n    import pushtrain.cosim.master\n"
     )
     try:
         found = _imports(probe)
     finally:
         probe.unlink()
-    assert {"pushtrain.planner.world", "pushtrain.cosim.master"} <= found
+    assert {"pushtrain.facility.free_space", "pushtrain.cosim.master"} <= found
 
 
 @pytest.mark.parametrize("modules, forbidden", [
@@ -179,6 +182,8 @@ def test_the_rules_would_catch_a_forbidden_arrow(tmp_path):
     ("pushtrain.core.controller, pushtrain.core.pulling, pushtrain.core.analysis",
      "pushtrain.planner"),
     ("pushtrain.cli.main", "distributed"),
+    ("pushtrain.facility.loading, pushtrain.facility.free_space, pushtrain.facility.dxf",
+     "pushtrain.planner"),
 ])
 def test_transitive_imports_stay_apart(modules, forbidden):
     code = f"import sys, {modules}; assert {forbidden!r} not in sys.modules, {forbidden!r}"
@@ -189,7 +194,7 @@ def test_transitive_imports_stay_apart(modules, forbidden):
 def test_no_bare_top_level_modules_leak_from_the_install():
     code = ("import importlib.util as u;"
             "leaks = [m for m in ('planner', 'cli', 'cosim', 'fmu', 'core', 'mission', 'studies',"
-            " 'report') if u.find_spec(m) is not None];"
+            " 'report', 'facility') if u.find_spec(m) is not None];"
             "print(leaks)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
     assert done.stdout.strip() == "[]", done.stdout + done.stderr

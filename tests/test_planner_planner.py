@@ -18,12 +18,13 @@ from pushtrain.core.kinematics import (
 )
 from pushtrain.core.reference import PULL, PUSH, Reference
 from pushtrain.errors import PlanningError, PlanningInputError
-from pushtrain.planner import worlds
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
 from pushtrain.planner.config import PlannerConfig, turning_radius_from_joint_limit
 from pushtrain.planner.path import PlannedPath
 from pushtrain.planner.planner import plan
+from pushtrain.planner.train import Train
 from pushtrain.planner.train_check import check_train
-from pushtrain.planner.world import Train, World
 
 TRAIN = Train.uniform(3, link=0.52)
 
@@ -76,7 +77,7 @@ def _independent_push_check(world, path, train):
 
 @pytest.mark.parametrize("name", ["straight", "l_2.0", "l_1.5"])
 def test_corridors_whole_train_valid(name):
-    case = worlds.CASES[name]()
+    case = example_layouts.CASES[name]()
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     assert np.allclose(path.goal[:2], case["goal"][:2], atol=1e-6)
@@ -99,7 +100,7 @@ def test_corridors_whole_train_valid(name):
 
 
 def test_bay_one_direction_change_whole_train_valid():
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     assert path.n_cusps == 1
@@ -144,7 +145,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
     (cusp or goal) the train drawn out straight ahead of the last trailer is free, and the
     first pull, drawn back from that straight end, needs a chain within the tolerance of the
     straight start chain (robot offset measured with core.kinematics)."""
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     cfg = ompl(seed=seed, check_train=False, max_attempts=4)
     path = plan(world, case["start"], case["goal"], TRAIN, cfg)
@@ -209,7 +210,7 @@ def test_replanning_changes_what_the_failure_calls_for():
 def test_planner_checks_with_the_given_tracker():
     from pushtrain.core.controller import ControllerConfig
 
-    case = worlds.straight_corridor()
+    case = example_layouts.straight_corridor()
     world = World.from_dict(case["world"])
     slow = ControllerConfig.uniform(3, v_max=0.05)  # cannot follow 0.08 m/s: misses the goal
     with pytest.raises(PlanningError) as info:
@@ -230,7 +231,7 @@ def test_planner_checks_with_the_given_tracker():
 
 
 def test_same_seed_same_plan_and_different_seed_differs():
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     cfg = ompl(seed=7, check_train=False)
     a = plan(world, case["start"], case["goal"], TRAIN, cfg)
@@ -246,7 +247,7 @@ def test_same_seed_same_plan_and_different_seed_differs():
 
 
 def test_json_roundtrip_and_reference():
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     again = PlannedPath.from_json(path.to_json())
@@ -293,8 +294,8 @@ def test_radius_rule_and_transient_margin():
 @pytest.mark.parametrize(
     "case, reason",
     [
-        (lambda: worlds.two_rooms(0.0), "unreachable"),
-        (lambda: worlds.two_rooms(0.5), "unreachable"),
+        (lambda: example_layouts.two_rooms(0.0), "unreachable"),
+        (lambda: example_layouts.two_rooms(0.5), "unreachable"),
         (lambda: {"world": {"free": [[0, 0], [10, 0], [10, 0], [0, 0]]},
                   "start": [1, 0, math.pi], "goal": [9, 0, math.pi]}, "no_free_space"),
         (lambda: {"world": {"free": [[0, 0], [10, 0], [10, 0.5], [0, 0.5]]},
@@ -312,7 +313,7 @@ def test_errors_are_named(case, reason):
 
 
 def test_colliding_start_and_goal():
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         # the straight chain behind the last trailer sticks out of the corridor's left end
@@ -326,7 +327,7 @@ def test_colliding_start_and_goal():
 
 def test_approximate_only_is_an_error():
     # with r = 6 m the 2 m corridor needs many cusps: not found within 0.05 s
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     cfg = ompl(turning_radius=6.0, time_budget=0.05, check_train=False)
     with pytest.raises(PlanningError) as info:
@@ -350,7 +351,7 @@ def test_config_validation():
 
 @pytest.mark.parametrize("name", ["rrtstar", "bitstar"])
 def test_anytime_planners(name):
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], TRAIN,
                 PlannerConfig(planner=name, anytime_time=1.0, time_budget=3.0))
@@ -363,7 +364,7 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
     first restart uses the seed itself) returns a path no longer than RRTConnect's with the
     same seed and no shorter than the Reeds-Shepp distance; plan() checks the whole train on
     it as usual."""
-    case = worlds.CASES[name]()
+    case = example_layouts.CASES[name]()
     world = World.from_dict(case["world"])
     first = plan(world, case["start"], case["goal"], TRAIN,
                  ompl(seed=3, check_train=False))
@@ -387,7 +388,7 @@ def test_local_search_keeps_the_path_valid_and_never_longer():
     from pushtrain.planner.curves import chain_to_planner_state, segments_from_states
     from pushtrain.planner.search import Attempt, solve_once
 
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     cfg = ompl(check_train=False)
     attempt = Attempt(cfg.radius_for(TRAIN), cfg.inflation)
@@ -435,7 +436,7 @@ def test_ompl_log_level_is_the_callers(capfd):
     before = ou.getLogLevel()
     try:
         ou.setLogLevel(ou.LOG_INFO)  # OMPL would report its planner runs at this level
-        case = worlds.l_corridor(2.0)
+        case = example_layouts.l_corridor(2.0)
         world = World.from_dict(case["world"])
         capfd.readouterr()
         plan(world, case["start"], case["goal"], TRAIN, ompl(seed=1, check_train=False))
@@ -457,7 +458,7 @@ def test_same_seed_same_plan_at_once_on_a_loaded_cpu(name):
     segments as each other and as a plan run alone."""
     from concurrent.futures import ThreadPoolExecutor
 
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     cfg = PlannerConfig(planner=name, seed=1)  # restarts: passes the train check on replan
 
@@ -480,7 +481,7 @@ def test_wall_clock_cap_only_stops_a_search_and_says_so(caplog):
     its info (and a warning); a PlanningError in its details."""
     import logging
 
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     plain = plan(
         world, case["start"], case["goal"], TRAIN, ompl(seed=1, check_train=False)
@@ -507,11 +508,12 @@ def test_prmstar_returns():
     in Python would deadlock there (run in a subprocess, so a regression fails, not hangs)."""
     code = (
         "from pushtrain.errors import PlanningError\n"
-        "from pushtrain.planner import worlds\n"
+        "from pushtrain.facility import example_layouts\n"
         "from pushtrain.planner.config import PlannerConfig\n"
         "from pushtrain.planner.planner import plan\n"
-        "from pushtrain.planner.world import Train, World\n"
-        "c = worlds.l_corridor(2.0)\n"
+        "from pushtrain.facility.free_space import World\n"
+        "from pushtrain.planner.train import Train\n"
+        "c = example_layouts.l_corridor(2.0)\n"
         "try:\n"
         "    p = plan(World.from_dict(c['world']), c['start'], c['goal'], Train.uniform(3),\n"
         "             PlannerConfig(planner='prmstar', anytime_time=0.2, check_train=False))\n"

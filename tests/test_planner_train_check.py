@@ -22,14 +22,15 @@ from pushtrain.core.kinematics import (
 )
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.errors import PlanningInputError
+from pushtrain.facility.free_space import World
 from pushtrain.planner.kinematic_loop import (
     TrackerConfig,
     default_controller,
     reference_times,
     towed_rates,
 )
+from pushtrain.planner.train import Train
 from pushtrain.planner.train_check import check_train
-from pushtrain.planner.world import Train, World
 
 TRAIN = Train.uniform(3)
 OPEN = World.from_dict({"bounds": [-50, -50, 50, 50]})

@@ -6,8 +6,10 @@ import pytest
 from shapely.geometry import Polygon
 
 from pushtrain.errors import PlanningInputError
-from pushtrain.planner import worlds
-from pushtrain.planner.world import BodyFootprint, Train, World, save_diagnostic
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
+from pushtrain.planner.diagnostic import save_diagnostic
+from pushtrain.planner.train import BodyFootprint, Train
 
 
 def test_from_dict_outline_and_obstacles():
@@ -73,12 +75,12 @@ def test_validity_uses_last_trailer_in_chain_orientation():
 
 
 def test_worlds_are_plain_data_and_diagnostic_png(tmp_path):
-    for name, factory in worlds.CASES.items():
+    for name, factory in example_layouts.CASES.items():
         case = factory()
         world = World.from_dict(case["world"])
         assert world.free_area > 1.0, name
         assert all(isinstance(p, list) for p in case["world"]["free"])
-    case = worlds.l_corridor(1.5)
+    case = example_layouts.l_corridor(1.5)
     out = tmp_path / "map.png"
     save_diagnostic(
         out, World.from_dict(case["world"]), case["start"], case["goal"], Train.uniform(3)
