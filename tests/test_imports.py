@@ -310,6 +310,23 @@ def test_every_import_names_the_home_of_the_name():
     assert not wrong, "\n".join(wrong)
 
 
+def test_every_imported_pushtrain_module_exists():
+    """No import names a module that moved or went away (package, tests, benchmarks, examples)."""
+    wrong = []
+    for path in _user_files():
+        in_package = path.relative_to(ROOT).parts[0] in ROOMS
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                targets = [_absolute_target(path, node) if in_package else node.module]
+            elif isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            else:
+                continue
+            wrong += [f"{path.relative_to(ROOT)}:{node.lineno}: {target}" for target in targets
+                      if target and target.split(".")[0] == "pushtrain" and target not in MODULES]
+    assert not wrong, "modules that do not exist:\n" + "\n".join(wrong)
+
+
 def test_the_home_rules_would_catch_a_re_export(tmp_path):
     probe = ROOT / "core" / "_probe_for_test.py"
     probe.write_text("import pushtrain.cosim.master as m\nfrom pushtrain.cosim.master import "
