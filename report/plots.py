@@ -1,15 +1,15 @@
 """Figures and an animation of a co-simulation run (matplotlib with the Agg canvas, no pyplot).
 
 Every function takes the structured array ``data`` of :attr:`pushtrain.cosim.result.Result.data`
-(columns as in ``master._columns(n)``) and the number of trailers ``n``. The ``plot_*`` functions
-and :func:`animate` write one file each, atomically (a temporary file in the same folder, then
-``os.replace``), and return its path; :func:`plot_all` writes the standard set into a folder.
-The ``*_figure`` functions build the same figures without saving them (for tests and notebooks).
+(columns as in ``master._columns(n)``) and the number of trailers ``n``. :func:`plot_all` writes
+the standard set into a folder and :func:`plot_file` one file of it by name; each file is written
+atomically (a temporary file in the same folder, then ``os.replace``).
 
-This module is the package's front door; the figures live by concern in
-:mod:`~pushtrain.report.mapview` (top view), :mod:`~pushtrain.report.timeseries` (inputs, joint
-angles, tracking error, lateral forces) and :mod:`~pushtrain.report.animation` (GIF), on shared
-pieces in :mod:`~pushtrain.report.common` and :mod:`~pushtrain.report.geometry`.
+The figures live by concern, each imported from its own module: :mod:`~pushtrain.report.mapview`
+(top view: ``plot_map``, ``map_figure``), :mod:`~pushtrain.report.timeseries` (inputs, joint
+angles, tracking error, lateral forces: ``plot_*`` and ``*_figure``) and
+:mod:`~pushtrain.report.animation` (GIF: ``animate``), on shared pieces in
+:mod:`~pushtrain.report.common` and :mod:`~pushtrain.report.geometry`.
 
 Conventions as in :mod:`pushtrain.core.kinematics`: positions are the robot centre (body 0) and
 the trailers' axle midpoints [m], headings point toward the robot [rad]. Plots show angles in

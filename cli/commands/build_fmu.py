@@ -7,8 +7,9 @@ from pathlib import Path
 
 import click
 
-from pushtrain.cli.common import BadInput, click_errors
 from pushtrain.fmu.variables import MAX_TRAILERS
+
+from ..common import BadInput, click_errors
 
 __all__ = ["build_fmu_cmd"]
 
