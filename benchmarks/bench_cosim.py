@@ -54,9 +54,10 @@ from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference, Segment
 from pushtrain.core.tracking import TrackingLoop
-from pushtrain.cosim.master import InitialState, PlantConfig, simulate
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState, PlantConfig
 from pushtrain.cosim.sensors import Measurement
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 
 STEP = 0.005  # [s]
 HORIZON = {3: 60.0, 50: 20.0}  # [s] per run: 12,000 and 4,000 steps

@@ -115,10 +115,11 @@ def big_map(budget: float) -> dict:
     10 m with cross aisles every 25 m, as a map file would give it (traced walls and all)."""
     import numpy as np
 
-    from pushtrain.planner import PlannerConfig, plan
-    from pushtrain.planner.maps import OccupancyGrid
-    from pushtrain.planner.mapworld import grid_world
-    from pushtrain.planner.world import Train
+    from pushtrain.facility.loading import grid_world
+    from pushtrain.facility.occupancy_grid import OccupancyGrid
+    from pushtrain.planner.config import PlannerConfig
+    from pushtrain.planner.planner import plan
+    from pushtrain.planner.train import Train
 
     h, size = 0.05, 100.0
     cells = int(size / h)

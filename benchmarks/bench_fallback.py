@@ -48,7 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_planner import _problem  # noqa: E402  (this folder, on the path above)
 
 from pushtrain.core import native  # noqa: E402
-from pushtrain.planner import plan  # noqa: E402
+from pushtrain.planner.planner import plan
 from pushtrain.planner.propagate import NativePropagator, Propagator  # noqa: E402
 
 DEFAULT = ("l_corridor", "bay", "docking", "three_point_turn", "narrow_l_5", "parallel_parking")

@@ -21,7 +21,7 @@ import time
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2Real, fmi2ValueReference
 
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 
 
 def _slave(fmu):

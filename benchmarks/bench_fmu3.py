@@ -36,7 +36,7 @@ import numpy as np
 from fmpy import simulate_fmu
 
 from pushtrain.cosim.fmu_slave import TrailerTrainSlave
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 from pushtrain.fmu.shapes import model_description_for
 from pushtrain.fmu.variables import ARRAYS
 

@@ -28,7 +28,7 @@ from pathlib import Path
 import fmpy
 from fmpy import extract, read_model_description
 
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 
 DRIVER = r"""
 #include <math.h>

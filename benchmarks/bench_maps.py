@@ -5,8 +5,9 @@ Usage: python benchmarks/bench_maps.py [--seeds 3] [--resolution 0.05] [--budget
 A 100 m x 100 m hall with rack rows, a cross aisle and a few boxes turned by 30 deg is given
 twice: as polygons (a World built from them), and rendered into a map_server map (PGM + YAML,
 a pixel free when its centre is in the free space; 2000 x 2000 pixels at 5 cm) that is loaded
-with ``pushtrain.planner.maps.load_map`` and turned into a World (``grid_world``). The same
-planner (whatever ``pushtrain.planner.plan`` is in this checkout; it is named in the output)
+with ``pushtrain.facility.occupancy_grid.load_map`` and turned into a World (``grid_world``). The
+same planner (whatever ``pushtrain.planner.planner.plan`` is in this checkout; it is named in the
+output)
 plans the same mission on both with the same seeds, and the script prints, side by side:
 
 - building the world (polygons: the World; grid: reading the files, tracing the polygons);
@@ -30,9 +31,13 @@ from PIL import Image
 from shapely.affinity import rotate
 from shapely.geometry import box
 
-from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan
-from pushtrain.planner.maps import load_map
-from pushtrain.planner.mapworld import grid_world
+from pushtrain.errors import PlanningError
+from pushtrain.facility.free_space import World
+from pushtrain.facility.loading import grid_world
+from pushtrain.facility.occupancy_grid import load_map
+from pushtrain.planner.config import PlannerConfig
+from pushtrain.planner.planner import plan
+from pushtrain.planner.train import Train
 
 SIZE = 100.0                                     # m
 START = (6.0, 42.95, math.pi)                    # last trailer, pushed toward +x (an aisle)

@@ -38,9 +38,11 @@ from dataclasses import replace
 from pathlib import Path
 
 from pushtrain.core import native
+from pushtrain.errors import PlanningError
 from pushtrain.mission import runner
 from pushtrain.mission.scenario import load_scenario
-from pushtrain.planner import PlannerConfig, PlanningError, plan
+from pushtrain.planner.config import PlannerConfig
+from pushtrain.planner.planner import plan
 from pushtrain.planner.smooth import total_turning
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -62,19 +64,19 @@ def _problem(name: str):
 
 def _config(sc) -> PlannerConfig:
     """The PlannerConfig plan_path builds for ``sc`` (without planning)."""
-    import pushtrain.planner as planner_pkg
+    import pushtrain.planner.planner as planner_module
 
     seen = {}
-    original = planner_pkg.plan
+    original = planner_module.plan
 
     def capture(world, start, goal, train, config, start_headings=None):
         seen["config"] = config
 
-    planner_pkg.plan = capture
+    planner_module.plan = capture
     try:
         runner.plan_path(sc)
     finally:
-        planner_pkg.plan = original
+        planner_module.plan = original
     return seen["config"]
 
 

@@ -2,7 +2,7 @@
 
 Runs the same plan (a bay plan like examples/bay.toml's: pull 4.5 m, cusp, push around a 1.7 m
 arc and 2.1 m into the bay; settle 2 s; step 0.025 s) through
-:func:`pushtrain.planner.train_check.simulate_tracking` (pure Python) and
+:func:`pushtrain.planner.kinematic_loop.simulate_tracking` (pure Python) and
 :func:`pushtrain.core.rollout.simulate` (C) in the same process, for n = 3 and n = 10, and prints
 simulated seconds per wall second of each and their ratio (best of several repeats, so a busy
 machine slows both alike). Also checks that both give the same states.
@@ -19,7 +19,7 @@ import numpy as np
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.core.rollout import ClosedLoop, simulate
-from pushtrain.planner.train_check import default_controller, simulate_tracking
+from pushtrain.planner.kinematic_loop import default_controller, simulate_tracking
 
 STEP = 0.025
 SETTLE = 2.0

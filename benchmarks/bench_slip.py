@@ -36,7 +36,7 @@ import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 
 H = 0.005
 DENSE_SOLVER = Path(__file__).resolve().parents[1] / "tests" / "csrc" / "slip_dense.c"

@@ -42,13 +42,10 @@ import tempfile
 import time
 
 from pushtrain.mission.scenario import parse_scenario
-from pushtrain.studies.sweep import (
-    local_client,
-    parse_sweep_spec,
-    prepare_runs,
-    run_sweep,
-    run_task,
-)
+from pushtrain.studies.sweep import local_client, run_sweep
+from pushtrain.studies.sweep_runs import prepare_runs
+from pushtrain.studies.sweep_spec import parse_sweep_spec
+from pushtrain.studies.sweep_task import run_task
 
 BASE = {
     "name": "bench_60s",

@@ -8,16 +8,14 @@ from contextlib import contextmanager
 
 import click
 
-from pushtrain.errors import InputError, PlanningError, PushtrainError
+from pushtrain.errors import InputError, PlanningError, PushtrainError, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
-from pushtrain.mission.scenario import Scenario, ScenarioError, load_scenario, parse_scenario
+from pushtrain.mission.scenario import Scenario, load_scenario, parse_scenario
 
-from .exits import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_REACHED, EXIT_OK
+from .exits import EXIT_BAD_INPUT, EXIT_NOT_REACHED
 
-__all__ = ["EXIT_OK", "EXIT_NOT_REACHED", "EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "MAX_TRAILERS",
-           "BadInput",
-           "_scenario", "check_map", "click_error", "click_errors", "scenario_argument",
-           "out_dir_option", "trailers_option", "csv_option"]
+__all__ = ["BadInput", "load_scenario_with_overrides", "check_map", "click_error", "click_errors",
+           "scenario_argument", "out_dir_option", "trailers_option", "csv_option"]
 
 # planning failures that are the scenario's fault (exit 2); the others mean no plan was found
 _INPUT_REASONS = {"start_in_collision", "goal_in_collision", "no_free_space"}
@@ -31,7 +29,8 @@ class BadInput(click.ClickException):
     exit_code = EXIT_BAD_INPUT
 
 
-def _scenario(path: str, trailers: int | None = None, seed: int | None = None) -> Scenario:
+def load_scenario_with_overrides(path: str, trailers: int | None = None,
+                                 seed: int | None = None) -> Scenario:
     """Load the scenario at ``path`` with the command line's overrides, or raise BadInput."""
     try:
         sc = load_scenario(path)

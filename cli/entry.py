@@ -13,6 +13,8 @@ import sys
 
 from .exits import interruption, terminate_as_interrupt
 
+__all__ = ["pushtrain", "plan_and_run"]
+
 
 def _interrupted(exc: BaseException | None) -> None:
     code, what = interruption(exc)

@@ -1,6 +1,9 @@
 """The command line's exit codes and the interruptions that end a command (no imports: the
 console scripts' guard uses them before any other module has loaded)."""
 
+__all__ = ["EXIT_OK", "EXIT_NOT_REACHED", "EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "EXIT_TERMINATED",
+           "Terminated", "interruption", "terminate_as_interrupt"]
+
 EXIT_OK = 0
 """The goal was reached, or a fixed-horizon run completed."""
 EXIT_NOT_REACHED = 1

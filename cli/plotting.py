@@ -3,7 +3,7 @@ process plans, co-simulates and saves.
 
 :func:`plotter` forks a plot process as soon as the scenario is read. While the main process
 checks the map, plans and co-simulates, that process imports matplotlib (and the map's module,
-``pushtrain.planner.world``, to unpickle the map) and draws a small figure to ready the fonts.
+``pushtrain.facility.free_space``, to unpickle the map) and draws a small figure to ready the fonts.
 :meth:`PlotWorkers.submit` sends it the run's setting (map, geometry, planned path, status,
 output folder) and the results table (its raw bytes through the pipe, from a thread, so the
 main process saves the results meanwhile); it then forks the second plot process, which so
@@ -43,8 +43,7 @@ import numpy as np
 from pushtrain.files import remove_partials
 from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES  # names only: no matplotlib here
 
-__all__ = ["PNG_FILES", "GIF_FILE", "HTML_FILE", "footprints_of", "keep_out_of", "PlotProblem",
-           "PlotWorkers", "InlinePlotter", "plotter",
+__all__ = ["footprints_of", "keep_out_of", "PlotProblem", "PlotWorkers", "InlinePlotter", "plotter",
            "SILENCE_LIMIT_S"]
 
 log = logging.getLogger(__name__)
@@ -78,7 +77,7 @@ class _Run:
 
     out_dir: Path
     n: int
-    world: object  # pushtrain.planner.world.World or None
+    world: object  # pushtrain.facility.free_space.World or None
     geometry: object  # pushtrain.core.kinematics.ChainGeometry
     footprints: dict
     path_xy: np.ndarray | None  # the planned path of the last trailer [m]
@@ -178,7 +177,7 @@ def _warm_up(with_map: bool) -> None:
     from pushtrain.report.common import new_figure
 
     if with_map:
-        import pushtrain.planner.world  # noqa: F401
+        import pushtrain.facility.free_space  # noqa: F401
 
     fig = new_figure(2.0, 1.5, dpi=50)
     ax = fig.add_subplot()

@@ -15,8 +15,8 @@ import click
 from pushtrain.errors import InputError, PlanningError, PushtrainError
 from pushtrain.files import atomic_write_text, claim_run_folder, remove_partials
 
-from .common import EXIT_BAD_INPUT, EXIT_NOT_REACHED, BadInput, click_error
-from .exits import interruption
+from .common import BadInput, click_error
+from .exits import EXIT_BAD_INPUT, EXIT_NOT_REACHED, interruption
 from .logs import to_run_log
 
 __all__ = ["run_folder", "default_folder", "STATUS_INVALID", "STATUS_PLANNING_FAILED",

@@ -15,8 +15,7 @@ import click
 from pushtrain.files import atomic_write_text
 from pushtrain.mission.scenario import Scenario
 
-from .common import EXIT_NOT_REACHED, EXIT_OK
-from .exits import interruption
+from .exits import EXIT_NOT_REACHED, EXIT_OK, interruption
 from .progress import Phases
 from .rundir import STATUS_INTERRUPTED
 
@@ -48,7 +47,7 @@ def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = Non
 
 def _save_diagnostic(sc: Scenario, png: Path, exc=None) -> None:
     from pushtrain.mission.runner import train_of, world_of
-    from pushtrain.planner.world import save_diagnostic
+    from pushtrain.planner.diagnostic import save_diagnostic
 
     where = getattr(exc, "where", None)
     marks = [(where[0], where[1], getattr(exc, "reason", ""))] if where else None
@@ -191,8 +190,8 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gi
     printed; the results and the other pictures stay written.
     """
     from pushtrain.mission.runner import run_scenario
+    from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
 
-    from .plotting import GIF_FILE, HTML_FILE, PNG_FILES
     from .plotting import plotter as start_plotter
 
     with contextlib.ExitStack() as stack:

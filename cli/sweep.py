@@ -8,28 +8,21 @@ from __future__ import annotations
 
 import sys
 import time
-import warnings
 from pathlib import Path
 
 import click
 
-from pushtrain.mission.scenario import ScenarioError
+from pushtrain.errors import ScenarioError, SweepError
 from pushtrain.studies import sweep as sweep_lib
-from pushtrain.studies.sweep import SweepError, SweepOutcome, SweepSpec
+from pushtrain.studies.sweep_results import SweepOutcome
+from pushtrain.studies.sweep_spec import (
+    DEFAULT_MAX_TOTAL,
+    SweepSpec,
+    count_runs,
+    load_sweep_spec,
+)
 
 __all__ = ["sweep_cmd", "check_scheduler"]
-
-_MOVED = {"sweep", "prepare_runs", "run_task", "FmuRef"}
-
-
-def __getattr__(name: str):
-    """Forward the library names that moved to :mod:`pushtrain.studies.sweep` (one release)."""
-    if name in _MOVED:
-        warnings.warn(f"pushtrain.cli.sweep.{name} moved to pushtrain.studies.sweep.{name}; "
-                      "the old path is deprecated and goes away in pushtrain 0.3",
-                      DeprecationWarning, stacklevel=2)
-        return getattr(sweep_lib, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ------------------------------------------------------------------------------------------ CLI
@@ -109,7 +102,7 @@ class _Progress:
                    "interrupted sweep to resume it.")
 @click.option("--max-runs", type=click.IntRange(min=1), metavar="N",
               help="Run at most N new runs, then stop (resume later with the same --out).")
-@click.option("--max-total", type=click.IntRange(min=1), default=sweep_lib.DEFAULT_MAX_TOTAL,
+@click.option("--max-total", type=click.IntRange(min=1), default=DEFAULT_MAX_TOTAL,
               show_default=True, metavar="N",
               help="Refuse a spec that makes more than N runs (counted before anything runs).")
 @click.option("--no-plots", is_flag=True, help="Skip the PNG plots.")
@@ -130,16 +123,17 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
       pushtrain sweep SCENARIO --spec SWEEP.toml --scheduler tcp://host:8786 --out runs/s
     Run the same command with the same --out again to resume an interrupted sweep.
     """
-    from pushtrain.fmu import FmuBuildError
+    from pushtrain.errors import FmuBuildError
 
-    from .common import EXIT_INTERRUPTED, EXIT_OK, BadInput, _scenario
+    from .common import BadInput, load_scenario_with_overrides
+    from .exits import EXIT_INTERRUPTED, EXIT_OK
 
     if out is not None and not out.strip():
         raise BadInput(f"--out {out!r}: an empty folder name; allowed: a folder path, or no "
                        "--out for runs/<name>-<timestamp>")
-    sc = _scenario(scenario)
+    sc = load_scenario_with_overrides(scenario)
     try:
-        spec = sweep_lib.load_sweep_spec(spec_path)
+        spec = load_sweep_spec(spec_path)
     except SweepError as exc:
         raise BadInput(str(exc)) from None
     if scheduler is not None and workers is not None and workers > 0:
@@ -147,7 +141,7 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
     if scheduler is not None and workers != 0:
         check_scheduler(scheduler)
     out_dir = Path(out) if out else Path("runs") / f"{spec.name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    click.echo(f"sweep {spec.name}: {sweep_lib.count_runs(spec)} runs ({spec.size_text}) "
+    click.echo(f"sweep {spec.name}: {count_runs(spec)} runs ({spec.size_text}) "
                f"-> {out_dir}")
     progress = _Progress(tty=sys.stderr.isatty())
     try:

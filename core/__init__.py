@@ -14,3 +14,5 @@ hold it equal to the Python modules.
 
 This package imports numpy and scipy only: never the planner, the co-simulation, fmpy or ompl.
 """
+
+__all__: list[str] = []

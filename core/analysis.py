@@ -33,19 +33,9 @@ import numpy as np
 
 from pushtrain.errors import AnalysisError
 
-__all__ = [
-    "AnalysisError",
-    "RouthResult",
-    "characteristic_polynomial",
-    "closed_loop_poles",
-    "effective_bias",
-    "eq12_matrix",
-    "is_hurwitz",
-    "routh_array",
-    "routh_hurwitz",
-    "steady_lateral_error",
-    "steady_lateral_error_estimated_pose",
-]
+__all__ = ["RouthResult", "characteristic_polynomial", "closed_loop_poles", "effective_bias",
+           "eq12_matrix", "is_hurwitz", "routh_array", "routh_hurwitz", "steady_lateral_error",
+           "steady_lateral_error_estimated_pose"]
 
 
 def _finite(name: str, value) -> float:

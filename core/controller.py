@@ -74,17 +74,8 @@ from .kinematics import ChainGeometry, robot_velocity_from_last, wrap_scalar
 from .reference import PULL, PUSH, REST, ReferenceSample
 from .tracking import TrackingLoop
 
-__all__ = [
-    "MODE_PULL",
-    "MODE_PUSH",
-    "MODE_REST",
-    "BackwardController",
-    "ControlInfo",
-    "ControllerConfig",
-    "ControllerError",
-    "Gains",
-    "kanayama",
-]
+__all__ = ["MODE_PULL", "MODE_PUSH", "MODE_REST", "BackwardController", "ControlInfo",
+           "ControllerConfig", "Gains", "kanayama"]
 
 logger = logging.getLogger(__name__)
 

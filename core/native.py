@@ -38,31 +38,10 @@ from pathlib import Path
 
 from pushtrain.errors import NativeBuildError
 
-__all__ = [
-    "CFLAGS",
-    "NativeBuildError",
-    "PtChain",
-    "PtChecks",
-    "PtControlInfo",
-    "PtControlState",
-    "PtController",
-    "PtLeader",
-    "PtMeasurement",
-    "PtPhase",
-    "PtRecord",
-    "PtReference",
-    "PtRollout",
-    "PtSample",
-    "PtSegment",
-    "PtTrack",
-    "PtViolation",
-    "STATUS",
-    "cache_dir",
-    "compiler_command",
-    "dptr",
-    "library_path",
-    "load",
-]
+__all__ = ["CFLAGS", "PtChain", "PtChecks", "PtControlInfo", "PtControlState", "PtController",
+           "PtLeader", "PtMeasurement", "PtPhase", "PtRecord", "PtReference", "PtRollout",
+           "PtSample", "PtSegment", "PtTrack", "PtViolation", "STATUS", "cache_dir",
+           "compiler_command", "dptr", "library_path", "load"]
 
 log = logging.getLogger(__name__)
 

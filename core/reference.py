@@ -29,17 +29,8 @@ from pushtrain.errors import ReferencePathError
 
 from .kinematics import wrap_angle
 
-__all__ = [
-    "PULL",
-    "PUSH",
-    "REST",
-    "Reference",
-    "ReferencePathError",
-    "ReferenceSample",
-    "SampledReference",
-    "Segment",
-    "path_points",
-]
+__all__ = ["PULL", "PUSH", "REST", "Reference", "ReferenceSample", "SampledReference", "Segment",
+           "path_points"]
 
 PUSH = +1
 """Direction of a segment travelled trailer first (the robot pushes): v < 0."""
@@ -522,14 +513,3 @@ class SampledReference:
             return ReferenceSample(*values, int(self._cols[5][k]))
         return ReferenceSample(*values[:3], 0.0, 0.0, REST)
 
-
-def __getattr__(name: str):
-    """``ReferenceError`` was this module's name of :class:`ReferencePathError` (it shadowed
-    the builtin); it keeps working for one release with a DeprecationWarning."""
-    if name == "ReferenceError":
-        import warnings
-
-        warnings.warn("pushtrain.core.reference.ReferenceError is deprecated: use "
-                      "pushtrain.errors.ReferencePathError", DeprecationWarning, stacklevel=2)
-        return ReferencePathError
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

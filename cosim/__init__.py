@@ -3,3 +3,5 @@
 
 The train model and the control law live in :mod:`pushtrain.core`.
 """
+
+__all__: list[str] = []

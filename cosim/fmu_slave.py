@@ -31,7 +31,7 @@ from fmpy.fmi1 import FMICallException
 from pushtrain.errors import CosimError, CosimInputError
 from pushtrain.fmu.variables import ARRAYS, MAX_TRAILERS
 
-__all__ = ["CosimError", "TrailerTrainSlave"]
+__all__ = ["TrailerTrainSlave"]
 
 log = logging.getLogger(__name__)
 _STATUS = ["OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING"]

@@ -47,16 +47,17 @@ from pathlib import Path
 
 import numpy as np
 
-from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
+from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.kinematics import wrap_scalar
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.defaults import GOAL_TOLERANCE, SETTLE_TIME
+from pushtrain.errors import ControllerError, CosimError, CosimInputError
 from pushtrain.table1 import SAMPLING_TIME
 
-from .events import EventSchedule, Push, SetBias, Slide, _positive
-from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
+from .events import EventSchedule, _positive
+from .fmu_slave import TrailerTrainSlave
 from .plant import InitialState, PlantConfig
 from .recorder import Recorder
 from .result import (
@@ -72,23 +73,7 @@ from .result import (
 from .sensors import Measurement, SensorConfig, Sensors
 from .step_loop import STEP_LOOPS, CompiledLoop, unsupported
 
-__all__ = [
-    "CosimError",
-    "PlantConfig",
-    "InitialState",
-    "Push",
-    "Slide",
-    "SetBias",
-    "Result",
-    "simulate",
-    "STATUS_GOAL",
-    "STATUS_NOT_REACHED",
-    "STATUS_JACKKNIFE",
-    "STATUS_FMU_ERROR",
-    "STATUS_TIME_LIMIT",
-    "IMPLEMENTATIONS",
-    "STEP_LOOPS",
-]
+__all__ = ["simulate", "IMPLEMENTATIONS"]
 
 log = logging.getLogger(__name__)
 

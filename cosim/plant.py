@@ -11,9 +11,8 @@ import numpy as np
 
 from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last
 from pushtrain.core.reference import Reference
+from pushtrain.errors import CosimInputError
 from pushtrain.table1 import LINK
-
-from .fmu_slave import CosimInputError
 
 __all__ = ["PlantConfig", "InitialState"]
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from pushtrain.errors import SensorError
 
-__all__ = ["Measurement", "SensorConfig", "SensorError", "Sensors"]
+__all__ = ["Measurement", "SensorConfig", "Sensors"]
 
 logger = logging.getLogger(__name__)
 

@@ -48,21 +48,8 @@ from .render import (
 )
 from .variables import MAX_TRAILERS
 
-__all__ = [
-    "FMI_VERSIONS",
-    "FmuBuildError",
-    "MODEL_IDENTIFIER",
-    "build_fmu",
-    "cache_damage",
-    "cached_path",
-    "cache_dir",
-    "ready_cache_dir",
-    "usable_cached",
-    "package_fmu",
-    "render_model_description",
-    "render_model_description3",
-    "render_variables_header",
-]
+__all__ = ["FMI_VERSIONS", "build_fmu", "cache_damage", "cached_path", "cache_dir",
+           "ready_cache_dir", "usable_cached", "package_fmu"]
 
 log = logging.getLogger(__name__)
 

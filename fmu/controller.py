@@ -44,8 +44,7 @@ from .controller_variables import (
 )
 from .render import check_n
 
-__all__ = ["CONTROLLER_IDENTIFIER", "ControllerTable", "TableSegment", "build_controller_fmu",
-           "render_table"]
+__all__ = ["ControllerTable", "TableSegment", "build_controller_fmu", "render_table"]
 
 log = logging.getLogger(__name__)
 

@@ -16,20 +16,16 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.openloop import RotationProfile
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.cosim.master import (
-    InitialState,
-    PlantConfig,
-    Push,
-    Result,
-    SetBias,
-    Slide,
-    simulate,
-)
+from pushtrain.cosim.events import Push, SetBias, Slide
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState, PlantConfig
+from pushtrain.cosim.result import Result
 from pushtrain.cosim.sensors import SensorConfig
-from pushtrain.fmu import build_fmu
+from pushtrain.errors import ScenarioError
+from pushtrain.fmu.build import build_fmu
 from pushtrain.settings import config_values
 
-from .scenario import Scenario, ScenarioError
+from .scenario import Scenario
 
 __all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "events_of",
            "scripted_reference", "plan_path", "fmu_build_args", "run_scenario"]
@@ -71,8 +67,8 @@ def bias_model(sc: Scenario) -> BiasModel:
 
 
 def train_of(sc: Scenario):
-    """The planner's :class:`~pushtrain.planner.world.Train` (geometry, footprints, joint limit)."""
-    from pushtrain.planner.world import BodyFootprint, Train
+    """The planner's :class:`~pushtrain.planner.train.Train` (geometry, footprints, joint limit)."""
+    from pushtrain.planner.train import BodyFootprint, Train
 
     t = sc.train
     trailer = BodyFootprint(t.trailer_size.length, t.trailer_size.width, t.trailer_size.offset)
@@ -168,7 +164,7 @@ read and traced once per process, not once per use)."""
 
 
 def world_of(sc: Scenario):
-    """The planner's :class:`~pushtrain.planner.world.World` of ``sc.map`` (None without one).
+    """The planner's :class:`~pushtrain.facility.free_space.World` of ``sc.map`` (None without one).
 
     Raises ScenarioError naming the field (``map.grid (warehouse.yaml) resolution``, ...) when a
     map file cannot be used, PlanningInputError for a malformed polygon."""
@@ -176,7 +172,7 @@ def world_of(sc: Scenario):
     if m is None:  # no map: the planner (OMPL) is not imported
         return None
     from pushtrain.errors import MapError
-    from pushtrain.planner.mapworld import map_world
+    from pushtrain.facility.loading import map_world
 
     files = [Path(f) for f in (m.grid, m.dxf) if f is not None]
     stamps = tuple((str(f), f.stat().st_mtime_ns if f.is_file() else None) for f in files)
@@ -211,7 +207,8 @@ def plan_path(sc: Scenario):
     The whole-train check simulates the scenario's own controller at the reference speed and
     cusp dwell the co-simulation will use.
     """
-    from pushtrain.planner import PlannerConfig, plan
+    from pushtrain.planner.config import PlannerConfig
+    from pushtrain.planner.planner import plan
 
     config = PlannerConfig(
         **config_values(PlannerConfig, sc.planner), seed=sc.seed, controller=controller_of(sc),
@@ -240,7 +237,7 @@ def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:
 
 
 def fmu_build_args(sc: Scenario) -> dict:
-    """:func:`~pushtrain.fmu.build_fmu`'s arguments for ``sc``'s FMU: FMI 2.0 built for
+    """:func:`~pushtrain.fmu.build.build_fmu`'s arguments for ``sc``'s FMU: FMI 2.0 built for
     ``train.n``, or the FMI 3.0 FMU that serves every n."""
     if sc.fmu.fmi_version == 2:
         return {"n_trailers": sc.train.n, "fmi_version": 2}

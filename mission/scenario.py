@@ -41,7 +41,7 @@ from pushtrain.validation import (
     validate_model,
 )
 
-__all__ = ["ScenarioError", "Scenario", "load_scenario", "parse_scenario"]
+__all__ = ["Scenario", "load_scenario", "parse_scenario"]
 
 Point = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 

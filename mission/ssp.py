@@ -47,20 +47,16 @@ import numpy as np
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.pulling import PullGuide
 from pushtrain.core.reference import Reference
-from pushtrain.cosim.master import InitialState
-from pushtrain.errors import InputError
+from pushtrain.cosim.plant import InitialState
+from pushtrain.errors import InputError, ScenarioError
 from pushtrain.files import atomic_write
-from pushtrain.fmu import build_fmu
-from pushtrain.fmu.controller import (
-    CONTROLLER_IDENTIFIER,
-    ControllerTable,
-    build_controller_fmu,
-    table_segments,
-)
+from pushtrain.fmu.build import build_fmu
+from pushtrain.fmu.controller import ControllerTable, build_controller_fmu, table_segments
+from pushtrain.fmu.controller_variables import CONTROLLER_IDENTIFIER
 from pushtrain.fmu.render import MODEL_IDENTIFIER
 
 from .runner import controller_of, geometry_of, initial_of, plant_of, sensors_of
-from .scenario import Scenario, ScenarioError
+from .scenario import Scenario
 
 __all__ = ["CONTROLLER", "PARAMETER_SET", "PLANT", "SSP_TARGETS", "SspExport",
            "check_ssp_target", "controller_parameters", "controller_table", "export_ssp",

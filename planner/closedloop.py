@@ -1,6 +1,6 @@
 """The whole-train planner (``planner = "lattice"``, the default): checks, search, verification.
 
-:func:`plan_lattice` is what :func:`~pushtrain.planner.plan` runs by default:
+:func:`plan_lattice` is what :func:`~pushtrain.planner.planner.plan` runs by default:
 
 1. **Ends.** The map must have room for the last trailer; the train at the start and the last
    trailer at the goal must keep their clearances (``PlannerConfig.clearance``, per body),
@@ -43,6 +43,7 @@ from shapely.geometry import Point
 
 from pushtrain.core.reference import PULL
 from pushtrain.errors import PlanningError
+from pushtrain.facility.free_space import World
 
 from .footprint import body_name, body_positions, body_samples
 from .heuristic import Heuristic
@@ -52,8 +53,8 @@ from .path import PlannedPath
 from .propagate import Cursor, Propagator, make_propagator
 from .route import find_route, widest_gap
 from .smooth import merge, path_cost, shortcut
+from .train import Train
 from .train_check import check_train
-from .world import Train, World
 
 __all__ = ["plan_lattice"]
 

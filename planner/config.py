@@ -28,9 +28,10 @@ from pushtrain.validation import NonNegFloat, PositiveFloat
 
 from .budget import checks_for, steps_for
 from .kinematic_loop import TrackerConfig
-from .world import Train
+from .train import Train
 
-__all__ = ["PLANNERS", "PlannerConfig", "turning_radius_from_joint_limit"]
+__all__ = ["PLANNERS", "PlannerConfig", "turning_radius_from_joint_limit", "ANYTIME_PLANNERS",
+           "OPTIMIZING_PLANNERS"]
 
 PLANNERS = ("lattice", "rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar")
 """Planner names: ``lattice`` (the default) searches closed-loop states of the whole train
@@ -39,8 +40,8 @@ train afterwards: ``rrtconnect`` stops at its first solution, the rest are anyti
 
 _OMPL = {"rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"}
 
-_ANYTIME = {"restarts", "rrtstar", "bitstar", "prmstar"}
-_OPTIMIZING = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
+ANYTIME_PLANNERS = {"restarts", "rrtstar", "bitstar", "prmstar"}
+OPTIMIZING_PLANNERS = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
 
 
 def turning_radius_from_joint_limit(
@@ -131,8 +132,8 @@ class PlannerConfig:
         straight lines (much harder for the sampling planners; for studies only).
     controller : ControllerConfig or None
         The co-simulation's controller, simulated by the whole-train check
-        (:class:`~pushtrain.planner.train_check.TrackerConfig`); None: the scenario defaults of
-        :func:`~pushtrain.planner.train_check.default_controller` for the train.
+        (:class:`~pushtrain.planner.kinematic_loop.TrackerConfig`); None: the scenario defaults of
+        :func:`~pushtrain.planner.kinematic_loop.default_controller` for the train.
     speed : float
         Reference speed [m/s] the co-simulation will use (``PlannedPath.to_reference``).
     cusp_dwell : float
@@ -197,7 +198,7 @@ class PlannerConfig:
         the cheapest (length, turning and cusps priced as the search prices them); False
         (default): return the first path.
     time_cap : float or None
-        Wall-clock safety cap [s] of one :func:`~pushtrain.planner.plan` call; None:
+        Wall-clock safety cap [s] of one :func:`~pushtrain.planner.planner.plan` call; None:
         10 x ``time_budget`` + 10 s. Only this stops a search by the clock; a plan it cut short
         has ``info["time_capped"]`` True (a PlanningError: ``details["time_capped"]``) and a
         warning is logged, since the result then depends on the machine's speed.

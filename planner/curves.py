@@ -21,10 +21,12 @@ from pushtrain.core.reference import PULL, PUSH, Segment
 
 from .reeds_shepp import Primitive, evaluate_primitives, recover_primitives
 
-__all__ = ["ReedsSheppCurve", "rs_distance", "primitives_to_segments"]
+__all__ = ["ReedsSheppCurve", "rs_distance", "primitives_to_segments", "reeds_shepp_space",
+           "chain_to_planner_state", "segments_from_states", "sample_curve_into",
+           "travel_between_states", "wrap_yaw"]
 
 
-def _space(rho: float, bounds) -> ob.ReedsSheppStateSpace:
+def reeds_shepp_space(rho: float, bounds) -> ob.ReedsSheppStateSpace:
     """OMPL's Reeds-Shepp space of radius ``rho`` [m] on ``bounds`` (xmin, ymin, xmax, ymax)."""
     space = ob.ReedsSheppStateSpace(float(rho))
     b = ob.RealVectorBounds(2)
@@ -36,7 +38,7 @@ def _space(rho: float, bounds) -> ob.ReedsSheppStateSpace:
     return space
 
 
-def _yaw_wrap(yaw: float) -> float:
+def wrap_yaw(yaw: float) -> float:
     """Yaw in [-pi, pi) as OMPL's SO2 bounds require."""
     return (float(yaw) + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -53,12 +55,12 @@ class ReedsSheppCurve:
         lo = min(a[0], b[0]) - pad, min(a[1], b[1]) - pad
         hi = max(a[0], b[0]) + pad, max(a[1], b[1]) + pad
         self.rho = float(rho)
-        self._space = _space(rho, (lo[0], lo[1], hi[0], hi[1]))
+        self._space = reeds_shepp_space(rho, (lo[0], lo[1], hi[0], hi[1]))
         self._a, self._b, self._out = (self._space.allocState() for _ in range(3))
         for state, pose in ((self._a, a), (self._b, b)):
             state.setX(float(pose[0]))
             state.setY(float(pose[1]))
-            state.setYaw(_yaw_wrap(pose[2]))
+            state.setYaw(wrap_yaw(pose[2]))
         self.length = float(self._space.distance(self._a, self._b))
 
     def interpolate(self, t: float) -> tuple[float, float, float]:
@@ -105,7 +107,7 @@ def _merge(segments: Sequence[Segment]) -> list[Segment]:
     return out
 
 
-def _sample_into(rows: list, space, a, b, m: int, tmp) -> None:
+def sample_curve_into(rows: list, space, a, b, m: int, tmp) -> None:
     """Append to ``rows`` the states (x, y, yaw) of OMPL's curve ``a -> b`` at the fractions
     k/m, k = 1..m (``tmp``: a scratch state of ``space``)."""
     interpolate, get_x, get_y, get_yaw = space.interpolate, tmp.getX, tmp.getY, tmp.getYaw
@@ -114,7 +116,7 @@ def _sample_into(rows: list, space, a, b, m: int, tmp) -> None:
         rows.append((get_x(), get_y(), get_yaw()))
 
 
-def _travel_backward(pts: np.ndarray):
+def travel_between_states(pts: np.ndarray):
     """Travel between consecutive planner states ``pts`` (K, 3) = (x, y, yaw): whether each step
     k -> k+1 goes backward (against the yaw at its middle), its yaw change [rad] and its
     length [m], each (K-1,)."""
@@ -125,7 +127,7 @@ def _travel_backward(pts: np.ndarray):
     return backward, dyaw, np.hypot(d[:, 0], d[:, 1])
 
 
-def _segments_from_states(states: np.ndarray, rho: float) -> tuple[list[Segment], float]:
+def segments_from_states(states: np.ndarray, rho: float) -> tuple[list[Segment], float]:
     """Line/arc segments of the Reeds-Shepp path through ``states`` (planner frame), and the
     largest deviation [m] between the segments and OMPL's interpolation (checked at 33 points
     per local curve)."""
@@ -143,6 +145,6 @@ def _segments_from_states(states: np.ndarray, rho: float) -> tuple[list[Segment]
     return _merge(primitives_to_segments(prims, rho)), worst
 
 
-def _chain_to_yaw(pose) -> tuple[float, float, float]:
+def chain_to_planner_state(pose) -> tuple[float, float, float]:
     """Chain pose (x, y, theta) -> planner state (x, y, yaw = theta + pi)."""
     return float(pose[0]), float(pose[1]), float(pose[2]) + math.pi

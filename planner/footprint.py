@@ -2,7 +2,7 @@
 
 The planner's search asks, for every simulated state of the train along a candidate motion,
 whether each body keeps its clearance from the walls. It asks the map's signed distance field
-(:meth:`~pushtrain.planner.world.World.distance_field`, the same call on polygon maps and on
+(:meth:`~pushtrain.facility.free_space.World.distance_field`, the same call on polygon maps and on
 occupancy grids) at sample points of each body's rectangle, fixed in the body's frame once
 (:func:`body_samples`), with a threshold per point that makes the sampled test conservative:
 
@@ -11,7 +11,7 @@ Perimeter points
     1-Lipschitz, so a point of an edge within ``s/2`` of a sample whose value is ``d`` has at
     least ``d - s/2``; an edge keeps ``margin`` if every sample keeps ``margin + s/2 + tol``
     (``tol``: the field's own interpolation error, about a millimetre at the margins of a 2 cm
-    polygon field; see :mod:`~pushtrain.planner.distance_field`).
+    polygon field; see :mod:`~pushtrain.facility.distance_field`).
 Interior points
     An obstacle smaller than the body (a pillar, a few occupied cells) can lie wholly inside the
     rectangle while every perimeter sample is clear. The perimeter samples, once accepted,
@@ -37,9 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.facility.distance_field import DistanceField
 
-from .distance_field import DistanceField
-from .world import BodyFootprint, Train
+from .train import BodyFootprint, Train
 
 __all__ = ["BodySamples", "body_samples", "body_positions", "disc_cover", "first_failure",
            "FIELD_TOLERANCE", "body_name"]

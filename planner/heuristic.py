@@ -26,8 +26,9 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from .curves import _space
-from .distance_field import DistanceField
+from pushtrain.facility.distance_field import DistanceField
+
+from .curves import reeds_shepp_space
 from .route import grid_graph, undirected_graph
 
 __all__ = ["Heuristic", "CarGrid", "MAX_NODES", "MAX_CAR_CELLS"]
@@ -75,7 +76,8 @@ class Heuristic:
         self.goal = tuple(float(a) for a in goal)
         self.radius = float(radius)
         xmin, ymin, xmax, ymax = field.bounds
-        self._space = _space(self.radius, (xmin - 10.0, ymin - 10.0, xmax + 10.0, ymax + 10.0))
+        margin_bounds = (xmin - 10.0, ymin - 10.0, xmax + 10.0, ymax + 10.0)
+        self._space = reeds_shepp_space(self.radius, margin_bounds)
         self._a = self._space.allocState()
         self._b = self._space.allocState()
         self._b.setX(self.goal[0])

@@ -83,7 +83,7 @@ from .footprint import body_positions
 from .heuristic import Heuristic
 from .propagate import Cursor, Propagator, Rollout, TrainState
 from .route import Route, comes_in_across
-from .world import Train
+from .train import Train
 
 __all__ = ["SearchSettings", "Node", "Search", "Solution", "segments_cost"]
 

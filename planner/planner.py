@@ -30,32 +30,22 @@ from shapely.geometry import box as _box
 from pushtrain.core.kinematics import body_positions_along
 from pushtrain.core.reference import PULL, Segment
 from pushtrain.errors import PlanningError, PlanningInputError
+from pushtrain.facility.free_space import World
 
 from .budget import STEPS_PER_CHECK, Work
 from .closedloop import plan_lattice
-from .config import _ANYTIME, PLANNERS, PlannerConfig, turning_radius_from_joint_limit
+from .config import ANYTIME_PLANNERS, PlannerConfig
 from .curves import (
-    ReedsSheppCurve,
-    _chain_to_yaw,
-    _segments_from_states,
-    primitives_to_segments,
-    rs_distance,
+    chain_to_planner_state,
+    segments_from_states,
 )
 from .kinematic_loop import TrackerConfig, reference_times
 from .path import PlannedPath
-from .search import _Attempt, _solve_once, _solve_restarts
+from .search import Attempt, solve_once, solve_restarts
+from .train import Train
 from .train_check import check_train
-from .world import Train, World
 
-__all__ = [
-    "PlannerConfig",
-    "plan",
-    "turning_radius_from_joint_limit",
-    "PLANNERS",
-    "ReedsSheppCurve",
-    "rs_distance",
-    "primitives_to_segments",
-]
+__all__ = ["plan"]
 
 log = logging.getLogger(__name__)
 
@@ -190,8 +180,8 @@ def plan(
 
     tracker = config.tracker()
     tracker.controller_for(train.geometry)  # a controller for another n fails here, not later
-    initial = _Attempt(config.radius_for(train), config.inflation,
-                       pull_start_tolerance=config.pull_start_tolerance)
+    initial = Attempt(config.radius_for(train), config.inflation,
+                      pull_start_tolerance=config.pull_start_tolerance)
     attempt = initial
     history = []
     last_error: PlanningError | None = None
@@ -250,7 +240,7 @@ def _train_check(world: World, train: Train, start, segments, start_headings,
 
 def _checks_for_attempt(config: PlannerConfig, k: int, remaining: int) -> int:
     """Motion checks of attempt ``k`` with ``remaining`` checks of the budget left."""
-    if config.planner in _ANYTIME:
+    if config.planner in ANYTIME_PLANNERS:
         return min(config.anytime_checks(), remaining)
     # a replan may find nothing (e.g. a block closed the corridor): it gets half of what is
     # left, so that another try remains
@@ -258,16 +248,16 @@ def _checks_for_attempt(config: PlannerConfig, k: int, remaining: int) -> int:
 
 
 def _search(world: World, train: Train, start, goal, config: PlannerConfig,
-            attempt: _Attempt, checks: int, seed: int | None, start_headings, work: Work):
+            attempt: Attempt, checks: int, seed: int | None, start_headings, work: Work):
     """The last trailer's path (planner states (M, 3), info) for one attempt."""
-    solve = _solve_restarts if config.planner == "restarts" else _solve_once
-    return solve(world, train, _chain_to_yaw(start), _chain_to_yaw(goal), config, attempt,
-                 checks, seed, start_headings, work=work)
+    solve = solve_restarts if config.planner == "restarts" else solve_once
+    return solve(world, train, chain_to_planner_state(start), chain_to_planner_state(goal),
+                 config, attempt, checks, seed, start_headings, work=work)
 
 
 def _segments(states: np.ndarray, radius: float) -> list[Segment]:
     """Line/arc segments through ``states``, verified against OMPL's curve."""
-    segments, deviation = _segments_from_states(states, radius)
+    segments, deviation = segments_from_states(states, radius)
     if deviation > 1e-6:
         raise RuntimeError(
             f"Reeds-Shepp segment recovery deviates {deviation:.3g} m from OMPL's curve"
@@ -275,7 +265,7 @@ def _segments(states: np.ndarray, radius: float) -> list[Segment]:
     return segments
 
 
-def _planned(start, segments, start_headings, attempt: _Attempt, config: PlannerConfig,
+def _planned(start, segments, start_headings, attempt: Attempt, config: PlannerConfig,
              tracker: TrackerConfig, result, history: list, t_begin: float,
              work: Work) -> PlannedPath:
     """The PlannedPath of a plan that passed (``result``: its train check, or None)."""
@@ -305,7 +295,7 @@ def _planned(start, segments, start_headings, attempt: _Attempt, config: Planner
     return path
 
 
-def _clear_of_ends(attempt: _Attempt, train: Train, config: PlannerConfig, start, goal) -> list:
+def _clear_of_ends(attempt: Attempt, train: Train, config: PlannerConfig, start, goal) -> list:
     """The attempt's blocks without those that touch the last trailer's own start or goal
     footprint (never blocked)."""
     keep_clear = [train.last.polygons(*pose).buffer(attempt.inflation + config.offtrack_allowance)
@@ -356,8 +346,8 @@ def _resample_headings(result, path: PlannedPath, tracker: TrackerConfig) -> np.
     return result.headings_at(t)
 
 
-def _next_attempt(attempt: _Attempt, failure: dict, train: Train, config: PlannerConfig,
-                  segments: Sequence[Segment] = ()) -> _Attempt:
+def _next_attempt(attempt: Attempt, failure: dict, train: Train, config: PlannerConfig,
+                  segments: Sequence[Segment] = ()) -> Attempt:
     """Change what the last failure of the closed-loop train check calls for.
 
     - A leading body (robot or trailer 1..n-1) collides while pulling: a larger radius. The

@@ -54,11 +54,11 @@ from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.errors import NativeBuildError
+from pushtrain.facility.distance_field import DistanceField
 
-from .distance_field import DistanceField
 from .footprint import FIELD_TOLERANCE, BodySamples, disc_cover, first_failure
 from .kinematic_loop import TrackerConfig, _Measurement, _rk4_step, towed_rates
-from .world import Train
+from .train import Train
 
 __all__ = ["TrainState", "Cursor", "Rollout", "Propagator", "NativePropagator",
            "make_propagator", "last_pose"]

@@ -3,8 +3,8 @@
 Pulls: while pulling the robot leads on a reference of its own, computed backward in time from
 a straight chain at the pull's end (:class:`~pushtrain.core.pulling.PullGuide`). Two rules keep
 planned pulls within what that can do: the straight train at every pull's end must be free
-(:attr:`~pushtrain.planner.PlannerConfig.straight_pull_ends`), and a pull must start near the
-chain it needs (:attr:`~pushtrain.planner.PlannerConfig.pull_start_tolerance`). The motion
+(:attr:`~pushtrain.planner.config.PlannerConfig.straight_pull_ends`), and a pull must start near the
+chain it needs (:attr:`~pushtrain.planner.config.PlannerConfig.pull_start_tolerance`). The motion
 validator (:mod:`~pushtrain.planner.search`) checks them inside each local curve with the
 rules built here; the junctions between curves and whole pulls over several curves are checked
 and repaired here on the finished path.
@@ -21,15 +21,17 @@ import numpy as np
 from shapely.geometry import Polygon
 
 from pushtrain.core.pulling import straight_chain_mismatch
+from pushtrain.facility.free_space import World
 
 from .budget import Work
-from .curves import _sample_into, _travel_backward, _yaw_wrap
-from .world import Train, World
+from .curves import sample_curve_into, travel_between_states, wrap_yaw
+from .train import Train
 
-__all__: list[str] = []
+__all__ = ["shorten_by_local_search", "pull_end_rule", "first_pull_start_outside",
+           "pull_start_rule", "repair_pull_ends"]
 
 
-def _pull_end_rule(train: Train, world: World, inflation: float):
+def pull_end_rule(train: Train, world: World, inflation: float):
     """``(x, y, yaw) -> bool``: the train drawn out straight ahead of the last trailer at this
     planner state (bodies 0..n-1 at their link distances) is free with ``inflation`` [m]."""
     ahead = np.cumsum((train.geometry.front + train.geometry.rear)[::-1])[::-1]
@@ -45,7 +47,7 @@ def _pull_end_rule(train: Train, world: World, inflation: float):
     return pull_end_valid
 
 
-def _pull_start_rule(train: Train, tolerance: float, start_yaw, start_headings):
+def pull_start_rule(train: Train, tolerance: float, start_yaw, start_headings):
     """``(s1, samples) -> bool``: the pull sampled by ``samples`` (K, 3) (planner states),
     starting at state ``s1``, needs a chain within ``tolerance`` [m] of the one it starts from
     (``start_headings`` at the start state, a straight chain elsewhere)."""
@@ -61,8 +63,8 @@ def _pull_start_rule(train: Train, tolerance: float, start_yaw, start_headings):
     return pull_start_valid
 
 
-def _pull_start_outside(space, states: list, train: Train, tolerance: float, start_headings,
-                        step: float = 0.02):
+def first_pull_start_outside(space, states: list, train: Train, tolerance: float, start_headings,
+                             step: float = 0.02):
     """The first pull of the path (a whole run over any number of local curves) that starts
     farther than ``tolerance`` from the chain it needs, as (x, y, mismatch), or None.
 
@@ -72,11 +74,12 @@ def _pull_start_outside(space, states: list, train: Train, tolerance: float, sta
     tmp = space.allocState()
     rows = [(states[0].getX(), states[0].getY(), states[0].getYaw())]
     for a, b in zip(states[:-1], states[1:], strict=True):
-        _sample_into(rows, space, a, b, max(1, int(math.ceil(space.distance(a, b) / step))), tmp)
+        pieces = max(1, int(math.ceil(space.distance(a, b) / step)))
+        sample_curve_into(rows, space, a, b, pieces, tmp)
     pts = np.array(rows)
     if pts.shape[0] < 2:
         return None
-    backward, _, step_length = _travel_backward(pts)
+    backward, _, step_length = travel_between_states(pts)
     backward &= step_length > 1e-12
     edges = np.diff(np.concatenate(([0], backward.astype(int), [0])))
     for i0, i1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
@@ -94,7 +97,7 @@ def _near(space, state, rng, sigma_xy: float, sigma_yaw: float):
     cand = space.allocState()
     cand.setX(state.getX() + sigma_xy * rng.standard_normal())
     cand.setY(state.getY() + sigma_xy * rng.standard_normal())
-    cand.setYaw(_yaw_wrap(state.getYaw() + sigma_yaw * rng.standard_normal()))
+    cand.setYaw(wrap_yaw(state.getYaw() + sigma_yaw * rng.standard_normal()))
     return cand
 
 
@@ -109,7 +112,7 @@ def _fits(si, validator, states: list, i: int, middle: list) -> bool:
                for a, b, c in zip(seq[:-2], seq[1:-1], seq[2:], strict=True))
 
 
-def _repair_pull_ends(si, space, validator, states: list, seed: int, tries: int = 40):
+def repair_pull_ends(si, space, validator, states: list, seed: int, tries: int = 40):
     """Move every cusp of the path where a pull ends with a blocked straight train.
 
     The motion validator checks the straight train at pull ends inside a local curve; a pull
@@ -145,8 +148,8 @@ def _repair_pull_ends(si, space, validator, states: list, seed: int, tries: int 
     return repairs, None
 
 
-def _local_search(si, space, validator, states: list, work: Work, limit: int, rng,
-                  sigma=(0.3, 0.3)) -> list:
+def shorten_by_local_search(si, space, validator, states: list, work: Work, limit: int, rng,
+                            sigma=(0.3, 0.3)) -> list:
     """Shorten the path through ``states`` by moving one interior state at a time: Gaussian
     proposals (``sigma`` in x and y [m] and yaw [rad], halved after 30 proposals in a row
     without a gain), accepted when the path gets shorter, both adjacent curves are free and the

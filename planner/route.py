@@ -38,7 +38,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from .distance_field import DistanceField
+from pushtrain.facility.distance_field import DistanceField
 
 __all__ = ["Route", "Bottleneck", "MAX_ROUTE_NODES", "SPACING", "find_route", "widest_gap",
            "comes_in_across", "grid_graph", "undirected_graph"]

@@ -22,20 +22,21 @@ from ompl import util as ou
 from shapely.geometry import Polygon
 
 from pushtrain.errors import PlanningError
+from pushtrain.facility.free_space import World
 
 from .budget import CHECKS_PER_SECOND, Work
-from .config import _OPTIMIZING, PlannerConfig
-from .curves import _sample_into, _space, _travel_backward, _yaw_wrap
+from .config import OPTIMIZING_PLANNERS, PlannerConfig
+from .curves import reeds_shepp_space, sample_curve_into, travel_between_states, wrap_yaw
 from .repair import (
-    _local_search,
-    _pull_end_rule,
-    _pull_start_outside,
-    _pull_start_rule,
-    _repair_pull_ends,
+    first_pull_start_outside,
+    pull_end_rule,
+    pull_start_rule,
+    repair_pull_ends,
+    shorten_by_local_search,
 )
-from .world import Train, World
+from .train import Train
 
-__all__: list[str] = []
+__all__ = ["Attempt", "solve_once", "solve_restarts"]
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +88,7 @@ def _state(space, pose):
     state = space.allocState()
     state.setX(float(pose[0]))
     state.setY(float(pose[1]))
-    state.setYaw(_yaw_wrap(pose[2]))
+    state.setYaw(wrap_yaw(pose[2]))
     return state
 
 
@@ -167,13 +168,13 @@ class _TrailerMotionValidator(ob.MotionValidator):
             return bool(self._valid_many(np.array([[s2.getX(), s2.getY(), s2.getYaw()]])))
         m = max(1, int(math.ceil(length / self._step)))
         rows = [(s1.getX(), s1.getY(), s1.getYaw())]
-        _sample_into(rows, self._space, s1, s2, m, self._tmp)
+        sample_curve_into(rows, self._space, s1, s2, m, self._tmp)
         pts = np.array(rows)
         # every sample's footprint at once (vectorized shapely); s1 is valid already
         if not self._valid_many(pts[1:]):
             return False
         # travel direction between consecutive samples: backward[k - 1] is sample k-1 -> k
-        backward, dyaw, _ = _travel_backward(pts)
+        backward, dyaw, _ = travel_between_states(pts)
         if not self._allow and np.any(backward & (np.abs(dyaw) > 1e-9)):
             return False
         end_backward = False
@@ -212,7 +213,7 @@ class _TrailerMotionValidator(ob.MotionValidator):
 
 
 @dataclass
-class _Attempt:
+class Attempt:
     """State of one planning attempt (what the replanning loop changes)."""
 
     radius: float
@@ -255,7 +256,7 @@ def _footprint_checks(world: World, train: Train, clearance: float):
 
 
 def _set_up(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
-            attempt: _Attempt, seed: int | None, start_headings, work: Work) -> _Search:
+            attempt: Attempt, seed: int | None, start_headings, work: Work) -> _Search:
     """Seed OMPL and set up the problem: space, validity, motion validator with the pull
     rules (counting its checks in ``work``), start and goal, planner."""
     planning_world = world.with_obstacles(attempt.blocks) if attempt.blocks else world
@@ -263,15 +264,15 @@ def _set_up(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConf
                                              attempt.inflation + config.offtrack_allowance)
     if seed is not None:
         _set_seed(seed)
-    space = _space(attempt.radius, world.bounds)
+    space = reeds_shepp_space(attempt.radius, world.bounds)
     ss = og.SimpleSetup(space)
     ss.setStateValidityChecker(is_valid)
     si = ss.getSpaceInformation()
-    pull_end_valid = (_pull_end_rule(train, planning_world, attempt.inflation)
+    pull_end_valid = (pull_end_rule(train, planning_world, attempt.inflation)
                       if config.straight_pull_ends else None)
     pull_start_valid = (None if attempt.pull_start_tolerance is None else
-                        _pull_start_rule(train, attempt.pull_start_tolerance, start_yaw,
-                                         start_headings))
+                        pull_start_rule(train, attempt.pull_start_tolerance, start_yaw,
+                                        start_headings))
     validator = _TrailerMotionValidator(si, space, valid_many, config.planning_resolution,
                                         config.allow_pull_arcs, pull_end_valid, pull_start_valid,
                                         work)
@@ -279,7 +280,7 @@ def _set_up(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConf
     validator.goal = (float(goal_yaw[0]), float(goal_yaw[1]))
     start, goal = _state(space, start_yaw), _state(space, goal_yaw)
     ss.setStartAndGoalStates(start, goal)
-    if config.planner in _OPTIMIZING:
+    if config.planner in OPTIMIZING_PLANNERS:
         ss.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
     planner = _allocate_planner(config.planner, si)
     if config.planner == "rrtconnect":
@@ -361,20 +362,21 @@ def _shorten(search: _Search, path, config: PlannerConfig, info: dict, refine_li
         info["simplify_time"] = time.perf_counter() - t1
     if refine_limit is not None and path.length() < refine_below:
         t1 = time.perf_counter()
-        states = _local_search(si, search.space, search.validator, list(path.getStates()),
-                               search.validator.work, refine_limit, np.random.default_rng(seed))
+        states = shorten_by_local_search(si, search.space, search.validator,
+                                         list(path.getStates()), search.validator.work,
+                                         refine_limit, np.random.default_rng(seed))
         path = _greedy_shortcut(si, _path_through(si, states))
         info["refine_time"] = time.perf_counter() - t1
     return path
 
 
 def _apply_pull_rules(search: _Search, path, train: Train, config: PlannerConfig,
-                      attempt: _Attempt, seed: int | None, start_headings, info: dict) -> list:
+                      attempt: Attempt, seed: int | None, start_headings, info: dict) -> list:
     """The path's states after repairing its pull ends; PlanningError (pull_end_blocked,
     pull_start_mismatch) where the finished path breaks a pull rule."""
     path_states = list(path.getStates())
-    repaired, blocked = _repair_pull_ends(search.si, search.space, search.validator, path_states,
-                                          0 if seed is None else int(seed))
+    repaired, blocked = repair_pull_ends(search.si, search.space, search.validator, path_states,
+                                         0 if seed is None else int(seed))
     info["pull_end_repairs"] = repaired
     if blocked is not None:
         raise PlanningError(
@@ -385,8 +387,8 @@ def _apply_pull_rules(search: _Search, path, train: Train, config: PlannerConfig
             where=blocked, details=info,
         )
     if attempt.pull_start_tolerance is not None:
-        bad = _pull_start_outside(search.space, path_states, train, attempt.pull_start_tolerance,
-                                  start_headings)
+        bad = first_pull_start_outside(search.space, path_states, train,
+                                       attempt.pull_start_tolerance, start_headings)
         if bad is not None:
             raise PlanningError(
                 "pull_start_mismatch",
@@ -398,17 +400,17 @@ def _apply_pull_rules(search: _Search, path, train: Train, config: PlannerConfig
     return path_states
 
 
-def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
-                attempt: _Attempt, checks: int, seed: int | None, start_headings=None,
-                refine_checks: int = 0, refine_below: float = math.inf,
-                work: Work | None = None):
+def solve_once(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
+               attempt: Attempt, checks: int, seed: int | None, start_headings=None,
+               refine_checks: int = 0, refine_below: float = math.inf,
+               work: Work | None = None):
     """One OMPL solve of the last trailer. Returns (states (M,3), info) or raises PlanningError.
 
     The solve stops after ``checks`` motion checks (counted in ``work``, which also holds the
     wall-clock safety cap; None: a fresh count without a cap). ``refine_checks`` > 0 shortens
     the simplified path further by a local search on its states
-    (:func:`~pushtrain.planner.repair._local_search`) until it stops gaining or the work since
-    the call's start reaches ``refine_checks``, if the simplified path is shorter than
+    (:func:`~pushtrain.planner.repair.shorten_by_local_search`) until it stops gaining or the work
+    since the call's start reaches ``refine_checks``, if the simplified path is shorter than
     ``refine_below`` [m]."""
     work = Work() if work is None else work
     used0 = work.used
@@ -444,13 +446,13 @@ def _solve_once(world: World, train: Train, start_yaw, goal_yaw, config: Planner
         return states, info
 
 
-def _solve_restarts(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
-                    attempt: _Attempt, checks: int, seed: int | None, start_headings=None,
-                    work: Work | None = None):
+def solve_restarts(world: World, train: Train, start_yaw, goal_yaw, config: PlannerConfig,
+                   attempt: Attempt, checks: int, seed: int | None, start_headings=None,
+                   work: Work | None = None):
     """Anytime planning by restarts: RRTConnect, simplification and a local search on the
-    path's states (:func:`~pushtrain.planner.repair._local_search`, until it stops gaining)
-    again and again, each with its own seed (derived from ``seed``), until the restarts have
-    done ``checks`` motion checks (counted in ``work``); the shortest path wins. A restart
+    path's states (:func:`~pushtrain.planner.repair.shorten_by_local_search`, until it stops
+    gaining) again and again, each with its own seed (derived from ``seed``), until the restarts
+    have done ``checks`` motion checks (counted in ``work``); the shortest path wins. A restart
     whose shortest Reeds-Shepp curve is free ends the search: no path is shorter.
 
     Not asymptotically optimal like RRT* or BIT*, but each restart is a complete, locally
@@ -475,9 +477,9 @@ def _solve_restarts(world: World, train: Train, start_yaw, goal_yaw, config: Pla
             # the local search gains 5-15 %: a restart far longer than the best so far is
             # not worth it
             below = math.inf if best is None else _REFINE_RATIO * best[1]["length_ompl"]
-            states, info = _solve_once(world, train, start_yaw, goal_yaw, single, attempt,
-                                       remaining, run_seed, start_headings,
-                                       refine_checks=remaining, refine_below=below, work=work)
+            states, info = solve_once(world, train, start_yaw, goal_yaw, single, attempt,
+                                      remaining, run_seed, start_headings,
+                                      refine_checks=remaining, refine_below=below, work=work)
         except PlanningError as exc:
             last_error = exc
             continue

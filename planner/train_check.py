@@ -26,37 +26,26 @@ import shapely
 
 from pushtrain.core.kinematics import (
     ChainGeometry,
-    body_positions_along,
     joint_angles,
     wrap_angle,
     wrap_scalar,
 )
 from pushtrain.core.reference import Reference, Segment
 from pushtrain.errors import PlanningInputError
+from pushtrain.facility.free_space import World
 
 from .kinematic_loop import (
     TrackerConfig,
     Trajectory,
     _rk4_step,
     _robot_positions,
-    default_controller,
     reference_times,
     simulate_tracking,
     towed_rates,
 )
-from .world import Train, World
+from .train import Train
 
-__all__ = [
-    "TrackerConfig",
-    "TrainCheckResult",
-    "Trajectory",
-    "body_positions_along",
-    "check_train",
-    "default_controller",
-    "reference_times",
-    "simulate_tracking",
-    "towed_rates",
-]
+__all__ = ["TrainCheckResult", "check_train"]
 
 log = logging.getLogger(__name__)
 

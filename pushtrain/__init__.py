@@ -1,8 +1,14 @@
 """pushtrain: backward-motion planning and co-simulation of a robot pushing n passive trailers.
 
-Subpackages: :mod:`pushtrain.fmu` (the TrailerTrain FMU and its builder), :mod:`pushtrain.cosim`
-(chain kinematics, controller, co-simulation master), :mod:`pushtrain.planner` (OMPL Reeds-Shepp
-planner) and :mod:`pushtrain.cli` (the click command line).
+Subpackages (rooms; the README's "Architecture: who imports whom" gives the arrows):
+:mod:`pushtrain.core` (train model and control law), :mod:`pushtrain.fmu` (the TrailerTrain FMU
+and its builder), :mod:`pushtrain.facility` (the facility map), :mod:`pushtrain.planner` (the
+whole-train planner), :mod:`pushtrain.cosim` (the co-simulation master), :mod:`pushtrain.report`
+(plots and pages), :mod:`pushtrain.mission` (scenarios and their runner),
+:mod:`pushtrain.studies` (sweeps, the slip study) and :mod:`pushtrain.cli` (the command line).
+This package itself holds what every room may use: errors, file writing, validation, limits.
 """
+
+__all__ = ["__version__"]
 
 __version__ = "0.1.0"

@@ -12,7 +12,7 @@ about 3.5 MB, and drawing a few rectangles and polylines per frame needs nothing
 The renderer is about 500 lines of plain JavaScript with no dependencies.
 
 The map is embedded as a PNG picture of the free space (drawn by the map's own
-:meth:`~pushtrain.planner.world.World.plot`, so occupancy grids and polygons look as in
+:meth:`~pushtrain.facility.free_space.World.plot`, so occupancy grids and polygons look as in
 ``map.png``) with its extent in metres; everything else is vector data. The time series are
 decimated for the view to at most ``max_rows`` rows spread evenly over the results, first and
 last included (:func:`~pushtrain.report.geometry.frame_indices`, as the GIF's frames; each drawn
@@ -113,7 +113,7 @@ def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, stat
 
     ``data`` is ``Result.data`` (columns as in ``master._columns(n)``); ``world`` the map or
     None; ``path_xy`` (N, 2) the planned path of the last trailer [m]; ``footprints`` as in
-    :func:`~pushtrain.report.plots.plot_map`; ``phi_max_deg`` the joint limit drawn on the
+    :func:`~pushtrain.report.mapview.plot_map`; ``phi_max_deg`` the joint limit drawn on the
     joint plot; ``keep_out`` the clearance [m] whose band is drawn.
     """
     n = check_n(n)

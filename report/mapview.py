@@ -184,7 +184,7 @@ def plot_map(data, n: int, out_path, *, world=None, path_xy=None, footprints=Non
     out_path : path-like
         Image file (``.png``, ``.svg``, ``.pdf``, ...); written atomically.
     world : object with ``plot(ax)``, optional
-        Walls and free space (:class:`pushtrain.planner.world.World`).
+        Walls and free space (:class:`pushtrain.facility.free_space.World`).
     path_xy : array of shape (m, 2), optional
         The planned dense path of the last trailer [m].
     footprints : dict, optional

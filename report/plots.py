@@ -1,15 +1,15 @@
 """Figures and an animation of a co-simulation run (matplotlib with the Agg canvas, no pyplot).
 
 Every function takes the structured array ``data`` of :attr:`pushtrain.cosim.result.Result.data`
-(columns as in ``master._columns(n)``) and the number of trailers ``n``. The ``plot_*`` functions
-and :func:`animate` write one file each, atomically (a temporary file in the same folder, then
-``os.replace``), and return its path; :func:`plot_all` writes the standard set into a folder.
-The ``*_figure`` functions build the same figures without saving them (for tests and notebooks).
+(columns as in ``master._columns(n)``) and the number of trailers ``n``. :func:`plot_all` writes
+the standard set into a folder and :func:`plot_file` one file of it by name; each file is written
+atomically (a temporary file in the same folder, then ``os.replace``).
 
-This module is the package's front door; the figures live by concern in
-:mod:`~pushtrain.report.mapview` (top view), :mod:`~pushtrain.report.timeseries` (inputs, joint
-angles, tracking error, lateral forces) and :mod:`~pushtrain.report.animation` (GIF), on shared
-pieces in :mod:`~pushtrain.report.common` and :mod:`~pushtrain.report.geometry`.
+The figures live by concern, each imported from its own module: :mod:`~pushtrain.report.mapview`
+(top view: ``plot_map``, ``map_figure``), :mod:`~pushtrain.report.timeseries` (inputs, joint
+angles, tracking error, lateral forces: ``plot_*`` and ``*_figure``) and
+:mod:`~pushtrain.report.animation` (GIF: ``animate``), on shared pieces in
+:mod:`~pushtrain.report.common` and :mod:`~pushtrain.report.geometry`.
 
 Conventions as in :mod:`pushtrain.core.kinematics`: positions are the robot centre (body 0) and
 the trailers' axle midpoints [m], headings point toward the robot [rad]. Plots show angles in
@@ -30,47 +30,15 @@ import numpy as np
 from pushtrain.errors import PlotError
 from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
 from pushtrain.report.animation import animate
-from pushtrain.report.common import DPI, GIF_DPI, check_n
-from pushtrain.report.geometry import (
-    DEFAULT_FOOTPRINTS,
-    body_corners,
-    frame_indices,
-    hitch_links,
-    snapshot_indices,
-)
-from pushtrain.report.mapview import map_figure, plot_map
+from pushtrain.report.common import check_n
+from pushtrain.report.mapview import plot_map
 from pushtrain.report.timeseries import (
-    inputs_and_joints_figure,
-    lateral_forces_figure,
     plot_inputs_and_joints,
     plot_lateral_forces,
     plot_tracking_error,
-    tracking_error_figure,
 )
 
-__all__ = [
-    "PlotError",
-    "DPI",
-    "GIF_DPI",
-    "DEFAULT_FOOTPRINTS",
-    "plot_map",
-    "plot_inputs_and_joints",
-    "plot_tracking_error",
-    "plot_lateral_forces",
-    "animate",
-    "plot_all",
-    "plot_file",
-    "PNG_FILES",
-    "GIF_FILE",
-    "map_figure",
-    "inputs_and_joints_figure",
-    "tracking_error_figure",
-    "lateral_forces_figure",
-    "snapshot_indices",
-    "frame_indices",
-    "hitch_links",
-    "body_corners",
-]
+__all__ = ["plot_all", "plot_file"]
 
 log = logging.getLogger(__name__)
 

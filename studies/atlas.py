@@ -34,10 +34,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from pushtrain.errors import InputError, PlanningError, PushtrainError
+from pushtrain.errors import InputError, PlanningError, PushtrainError, ScenarioError
 from pushtrain.files import atomic_write_text
 from pushtrain.fmu.variables import MAX_TRAILERS
-from pushtrain.mission.scenario import ScenarioError, parse_scenario
+from pushtrain.mission.scenario import parse_scenario
 
 __all__ = ["Facility", "AtlasError", "load_facility", "parse_trailers", "mission_dict",
            "run_pair", "atlas", "SECTIONS", "RESULT_FIELDS"]

@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from pushtrain.core.openloop import RotationProfile
-from pushtrain.cosim.master import InitialState, PlantConfig, simulate
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState, PlantConfig
 from pushtrain.files import atomic_write
 from pushtrain.table1 import SAMPLING_TIME
 
@@ -88,7 +89,7 @@ def _one(fmu_for, n: int, alpha_deg: float, cfg: SlipStudyConfig, payload_on: in
 def run_slip_study(cfg: SlipStudyConfig, fmu_for=None, progress=None) -> list[SlipRow]:
     """Run the three sweeps; ``fmu_for(n)`` gives the FMU path (default: build_fmu)."""
     if fmu_for is None:
-        from pushtrain.fmu import build_fmu as fmu_for
+        from pushtrain.fmu.build import build_fmu as fmu_for
     jobs = [("trailers", n, cfg.alpha_deg, 0) for n in cfg.trailers]
     jobs += [("alpha", cfg.n_for_alpha, a, 0) for a in cfg.alphas_deg]
     jobs += [

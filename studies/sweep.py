@@ -47,70 +47,19 @@ from .sweep_results import (
     combine,
     existing_rows,
     finish_row,
-    read_results,
-    write_rows_csv,
 )
-from .sweep_runs import SweepRun, bias_swept, expand_runs, prepare_runs, run_key
+from .sweep_runs import SweepRun, bias_swept, prepare_runs
 from .sweep_spec import (
     DEFAULT_MAX_TOTAL,
     DEFAULT_METRICS,
-    METRICS,
-    OK_STATUSES,
-    STATUS_ERROR,
     STATUS_LOST,
-    TIMING_COLUMNS,
-    ParameterSpec,
-    RangeSpec,
     SweepSpec,
     check_size,
-    count_runs,
-    get_path,
     load_sweep_spec,
-    parse_path,
-    parse_sweep_spec,
-    resolve,
-    set_path,
 )
-from .sweep_task import FmuRef, execute, execute_batch, failure_row, metrics_of, run_task
+from .sweep_task import execute, execute_batch, failure_row, run_task
 
-__all__ = [
-    "SweepError",
-    "scheduler_problem",
-    "dask_client",
-    "completed",
-    "RangeSpec",
-    "ParameterSpec",
-    "SweepSpec",
-    "SweepRun",
-    "SweepOutcome",
-    "FmuRef",
-    "METRICS",
-    "DEFAULT_METRICS",
-    "DEFAULT_MAX_TOTAL",
-    "TIMING_COLUMNS",
-    "OK_STATUSES",
-    "STATUS_ERROR",
-    "STATUS_LOST",
-    "parse_path",
-    "get_path",
-    "set_path",
-    "parse_sweep_spec",
-    "load_sweep_spec",
-    "count_runs",
-    "check_size",
-    "expand_runs",
-    "run_key",
-    "resolve",
-    "metrics_of",
-    "failure_row",
-    "prepare_runs",
-    "run_task",
-    "run_sweep",
-    "local_client",
-    "sweep",
-    "read_results",
-    "write_rows_csv",
-]
+__all__ = ["scheduler_problem", "dask_client", "completed", "run_sweep", "local_client", "sweep"]
 
 log = logging.getLogger(__name__)
 

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from pushtrain.errors import SweepError
-from pushtrain.mission.scenario import Scenario, ScenarioError, parse_scenario
+from pushtrain.errors import ScenarioError, SweepError
+from pushtrain.mission.scenario import Scenario, parse_scenario
 
 from .sweep_spec import SweepSpec, get_path, parse_path, plain_value, resolve, set_path
 from .sweep_task import FmuRef, sha256_of
@@ -140,7 +140,7 @@ def _scenarios(base: dict, spec: SweepSpec, runs: list[SweepRun]) -> dict[int, S
 
 def _fmu_refs(trailer_counts, fmus: dict | None, ship_fmu: bool) -> tuple[dict, dict]:
     """One :class:`FmuRef` per number of trailers (built unless given), and the shared bytes."""
-    from pushtrain.fmu import build_fmu
+    from pushtrain.fmu.build import build_fmu
 
     refs, shared = {}, {}
     for n in sorted(trailer_counts):
@@ -158,8 +158,8 @@ def _planning_key(data: dict) -> str:
 
 
 def _plan(sc: Scenario):
+    from pushtrain.errors import PlanningError
     from pushtrain.mission.runner import plan_path
-    from pushtrain.planner import PlanningError
 
     try:
         return plan_path(sc).to_dict(), None
@@ -198,7 +198,7 @@ def prepare_runs(sc: Scenario, spec: SweepSpec, *, fmus: dict | None = None,
         The base scenario.
     spec : SweepSpec
     fmus : dict, optional
-        ``{n: path}`` FMU files to use instead of :func:`pushtrain.fmu.build_fmu`.
+        ``{n: path}`` FMU files to use instead of :func:`pushtrain.fmu.build.build_fmu`.
     ship_fmu : bool
         Also return the FMU bytes as shared data (for workers on other machines).
 

@@ -30,28 +30,10 @@ from pydantic import (
 from pushtrain.errors import FieldErrors, SweepError
 from pushtrain.validation import FiniteFloat, Integer, PositiveFloat, read_toml, validate_model
 
-__all__ = [
-    "SweepError",
-    "RangeSpec",
-    "ParameterSpec",
-    "SweepSpec",
-    "METRICS",
-    "DEFAULT_METRICS",
-    "TIMING_COLUMNS",
-    "OK_STATUSES",
-    "STATUS_ERROR",
-    "STATUS_LOST",
-    "parse_path",
-    "get_path",
-    "set_path",
-    "resolve",
-    "parse_sweep_spec",
-    "load_sweep_spec",
-    "count_runs",
-    "check_size",
-    "DEFAULT_MAX_TOTAL",
-    "plain_value",
-]
+__all__ = ["RangeSpec", "ParameterSpec", "SweepSpec", "METRICS", "DEFAULT_METRICS",
+           "TIMING_COLUMNS", "OK_STATUSES", "STATUS_ERROR", "STATUS_LOST", "parse_path", "get_path",
+           "set_path", "resolve", "parse_sweep_spec", "load_sweep_spec", "count_runs", "check_size",
+           "DEFAULT_MAX_TOTAL", "plain_value"]
 
 Value = Union[StrictBool, StrictInt, FiniteFloat, str, list[Union[StrictInt, FiniteFloat]]]
 

@@ -169,7 +169,7 @@ class TrailerSim:
 @pytest.fixture(scope="session")
 def built_fmu():
     """Factory ``built_fmu(n) -> pathlib.Path`` of the TrailerTrain FMU for n trailers (cached)."""
-    from pushtrain.fmu import build_fmu
+    from pushtrain.fmu.build import build_fmu
 
     cache: dict[int, pathlib.Path] = {}
 

@@ -6,7 +6,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pushtrain.core.analysis import (
-    AnalysisError,
     characteristic_polynomial,
     closed_loop_poles,
     effective_bias,
@@ -25,6 +24,7 @@ from pushtrain.core.kinematics import (
 )
 from pushtrain.core.reference import PUSH, ReferenceSample
 from pushtrain.cosim.sensors import Measurement
+from pushtrain.errors import AnalysisError
 
 gains = st.floats(0.1, 20.0)
 

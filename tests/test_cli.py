@@ -208,7 +208,7 @@ def test_plan_and_run_console_script_usage_and_bad_option():
 def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
     """[planner] anytime_time and pull_start_tolerance are what plan() is given (monkeypatched
     plan records its configuration)."""
-    import pushtrain.planner as planner_pkg
+    import pushtrain.planner.planner as planner_module
     from pushtrain.mission.runner import plan_path
     from pushtrain.mission.scenario import load_scenario
 
@@ -224,7 +224,7 @@ def test_planner_settings_reach_the_planner(tmp_path, monkeypatch):
         seen["config"] = config
         return "planned"
 
-    monkeypatch.setattr(planner_pkg, "plan", fake_plan)
+    monkeypatch.setattr(planner_module, "plan", fake_plan)
     assert plan_path(sc) == "planned"
     cfg = seen["config"]
     assert (cfg.planner, cfg.anytime_time, cfg.pull_start_tolerance) == ("restarts", 0.25, 0.2)

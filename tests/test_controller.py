@@ -20,7 +20,6 @@ from pushtrain.core.controller import (
     MODE_REST,
     BackwardController,
     ControllerConfig,
-    ControllerError,
     Gains,
     kanayama,
 )
@@ -35,6 +34,7 @@ from pushtrain.core.kinematics import (
 )
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, ReferenceSample, Segment
 from pushtrain.cosim.sensors import Measurement, SensorConfig, Sensors
+from pushtrain.errors import ControllerError
 
 H = 0.005
 D = 0.52

@@ -8,9 +8,9 @@ import pytest
 import shapely
 
 from pushtrain.errors import PlanningInputError
-from pushtrain.planner import worlds
-from pushtrain.planner.distance_field import DistanceField
-from pushtrain.planner.world import World
+from pushtrain.facility import example_layouts
+from pushtrain.facility.distance_field import DistanceField
+from pushtrain.facility.free_space import World
 
 
 def _exact_signed(world: World, x, y):
@@ -19,7 +19,7 @@ def _exact_signed(world: World, x, y):
     return np.where(shapely.contains_xy(world.free, x, y), d, -d)
 
 
-@pytest.mark.parametrize("make", [worlds.l_corridor, worlds.bay])
+@pytest.mark.parametrize("make", [example_layouts.l_corridor, example_layouts.bay])
 def test_polygon_field_is_exact_near_walls(make):
     world = World.from_dict(make()["world"])
     field = world.distance_field(0.02)
@@ -37,7 +37,7 @@ def test_polygon_field_is_exact_near_walls(make):
 
 
 def test_polygon_nodes_are_exact_within_band():
-    world = World.from_dict(worlds.bay()["world"])
+    world = World.from_dict(example_layouts.bay()["world"])
     field = DistanceField.from_world(world, 0.05, band=0.5)
     ny, nx = field.shape
     xs = field.x0 + 0.05 * np.arange(nx)
@@ -65,7 +65,7 @@ def test_occupancy_field_distances_and_outside():
 
 
 def test_world_caches_its_field_and_prefers_occupancy():
-    world = World.from_dict(worlds.bay()["world"])
+    world = World.from_dict(example_layouts.bay()["world"])
     assert world.distance_field() is world.distance_field()
 
     class Grid:
@@ -78,6 +78,6 @@ def test_world_caches_its_field_and_prefers_occupancy():
 
 @pytest.mark.parametrize("bad", [0.0, -0.1, math.nan])
 def test_bad_resolution_is_refused(bad):
-    world = World.from_dict(worlds.bay()["world"])
+    world = World.from_dict(example_layouts.bay()["world"])
     with pytest.raises(PlanningInputError, match="resolution"):
         DistanceField.from_world(world, bad)

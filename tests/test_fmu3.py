@@ -20,7 +20,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 from pushtrain.fmu.shapes import model_description_for
 from pushtrain.fmu.variables import ARRAYS, DEFAULT_TRAILERS, MAX_TRAILERS, VR_STRIDE
 

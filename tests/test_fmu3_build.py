@@ -16,7 +16,7 @@ from fmpy.fmi3 import FMU3Slave
 
 from pushtrain.cli.main import cli
 from pushtrain.errors import FmuInputError
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 from pushtrain.fmu.shapes import model_description_for
 
 

@@ -14,9 +14,12 @@ from click.testing import CliRunner
 from pushtrain.cli.main import cli
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.reference import Reference, Segment
-from pushtrain.cosim.fmu_slave import CosimError, TrailerTrainSlave
-from pushtrain.cosim.master import InitialState, PlantConfig, Push, Slide, simulate
-from pushtrain.fmu import build_fmu
+from pushtrain.cosim.events import Push, Slide
+from pushtrain.cosim.fmu_slave import TrailerTrainSlave
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState, PlantConfig
+from pushtrain.errors import CosimError
+from pushtrain.fmu.build import build_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -7,8 +7,9 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from pushtrain.fmu import FmuBuildError, build_fmu
-from pushtrain.fmu.build import render_variables_header
+from pushtrain.errors import FmuBuildError
+from pushtrain.fmu.build import build_fmu
+from pushtrain.fmu.render import render_variables_header
 
 
 def _generated_enums(fmu_path) -> tuple[int, dict[str, int]]:

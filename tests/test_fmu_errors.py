@@ -15,7 +15,7 @@ from fmpy.fmi1 import FMICallException
 
 from pushtrain.core.kinematics import ChainGeometry, body_positions
 from pushtrain.errors import FmuBuildError, FmuInputError
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 
 N = 3
 STATUS_ERROR = 3

@@ -27,7 +27,7 @@ def test_readers_and_writers_by_name(fmu3):
 
 @pytest.mark.parametrize("fmi_version", [2, 3])
 def test_readers_write_into_a_given_array(fmi_version, fmu3):
-    from pushtrain.fmu import build_fmu
+    from pushtrain.fmu.build import build_fmu
 
     fmu = fmu3 if fmi_version == 2 else build_fmu(fmi_version=3)
     with TrailerTrainSlave(fmu, n_trailers=3) as slave:
@@ -58,7 +58,7 @@ def test_a_failing_read_says_when_and_what(fmu3):
 
 @pytest.mark.parametrize("fmi_version", [2, 3])
 def test_a_failing_step_or_set_raises_with_the_fmu_message(fmi_version, fmu3):
-    from pushtrain.fmu import build_fmu
+    from pushtrain.fmu.build import build_fmu
 
     fmu = fmu3 if fmi_version == 2 else build_fmu(fmi_version=3)
     with TrailerTrainSlave(fmu) as slave:

@@ -8,7 +8,9 @@ import pytest
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand, RotationProfile
 from pushtrain.core.reference import Reference, Segment
-from pushtrain.cosim.master import InitialState, PlantConfig, Push, simulate
+from pushtrain.cosim.events import Push
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState, PlantConfig
 from pushtrain.table1 import LINK, TRAILER_INERTIA, TRAILER_MASS
 
 M, INERTIA = TRAILER_MASS, TRAILER_INERTIA  # the FMU's start values
@@ -162,8 +164,9 @@ def test_heavy_payload_on_the_last_trailer_slips_earlier_than_on_trailer_1(fmu3)
 
 
 def test_slide_input_is_refused_in_slip_mode_1(fmu3):
+    from pushtrain.cosim.events import Slide
     from pushtrain.cosim.fmu_slave import TrailerTrainSlave
-    from pushtrain.cosim.master import CosimError, Slide
+    from pushtrain.errors import CosimError
 
     with pytest.raises(CosimError, match="Push"):
         simulate(fmu3, None, HOLD, initial=AT_REST, plant=PlantConfig(3, slip_mode=1),

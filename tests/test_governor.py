@@ -12,7 +12,7 @@ from pushtrain.cli.main import cli
 from pushtrain.core.governor import GovernorConfig, SlipGovernor, lateral_forces
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.cosim.fmu_slave import TrailerTrainSlave
-from pushtrain.fmu import build_fmu
+from pushtrain.fmu.build import build_fmu
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "slip_governor.toml"
 

@@ -22,8 +22,8 @@ from PIL import Image
 
 from pushtrain.cli.main import cli
 from pushtrain.errors import MapError, PlanningInputError
-from pushtrain.planner.maps import load_map, read_map_yaml
-from pushtrain.planner.world import World, _polygon
+from pushtrain.facility.free_space import World, polygon_from_points
+from pushtrain.facility.occupancy_grid import load_map, read_map_yaml
 
 MAX_MESSAGE = 4000
 """Longest error output [characters] a bad map may give ("a few kB")."""
@@ -161,7 +161,7 @@ def test_the_hall_itself_is_fine(tmp_path):
 def test_a_dxf_cut_short_names_the_file(tmp_path):
     """Every cut of the hall's file is a MapError (StopIteration, ValueError, IndexError
     tracebacks before the fix), and the CLI exits 2."""
-    from pushtrain.planner.dxf import read_dxf
+    from pushtrain.facility.dxf import read_dxf
 
     path = _dxf_scenario(tmp_path, lambda msp: None)
     whole = (tmp_path / "plan.dxf").read_bytes()
@@ -224,10 +224,10 @@ def test_a_room_drawn_closed_around_the_start_says_so(tmp_path):
 
 
 def test_units_declared_and_asked_for_differ_warns_naming_both(tmp_path, caplog):
-    from pushtrain.planner.dxf import read_dxf
+    from pushtrain.facility.dxf import read_dxf
 
     _dxf_scenario(tmp_path, lambda msp: None, units=4)       # millimetres, 10 000 x 5 000
-    with caplog.at_level(logging.WARNING, logger="pushtrain.planner.dxf"):
+    with caplog.at_level(logging.WARNING, logger="pushtrain.facility.dxf"):
         plan = read_dxf(tmp_path / "plan.dxf", ["WALLS"], units="in")
     assert plan.scale == 0.0254
     (record,) = [r for r in caplog.records if "declares" in r.getMessage()]
@@ -235,7 +235,7 @@ def test_units_declared_and_asked_for_differ_warns_naming_both(tmp_path, caplog)
     assert "plan.dxf declares millimetres ($INSUNITS = 4)" in text, text
     assert "map.dxf_units = 'in' (inches): read as inches" in text, text
     caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="pushtrain.planner.dxf"):
+    with caplog.at_level(logging.WARNING, logger="pushtrain.facility.dxf"):
         read_dxf(tmp_path / "plan.dxf", ["WALLS"], units="mm")
         read_dxf(tmp_path / "plan.dxf", ["WALLS"])
     assert not [r for r in caplog.records if "declares" in r.getMessage()]
@@ -259,7 +259,7 @@ def test_a_self_crossing_free_outline_is_refused_saying_where(tmp_path):
                "space must not cross or touch itself" in output, output
     with pytest.raises(PlanningInputError, match=r"map.free is not a simple polygon "
                                                  r"\(self-intersection at \(7, 0\) m\)"):
-        _polygon(BOWTIE, "map.free", outline=True)
+        polygon_from_points(BOWTIE, "map.free", outline=True)
     # the planner's own worlds (World.from_dict) and obstacles are still repaired, with a warning
     world = World.from_dict({"bounds": [-1, -2, 13, 4], "obstacles": [BOWTIE]})
     assert world.free_area < 14 * 6

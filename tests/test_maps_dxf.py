@@ -13,8 +13,8 @@ from shapely.geometry import Point
 
 from pushtrain.cli.main import cli
 from pushtrain.errors import MapError
-from pushtrain.planner.dxf import read_dxf
-from pushtrain.planner.mapworld import map_world
+from pushtrain.facility.dxf import read_dxf
+from pushtrain.facility.loading import map_world
 
 ezdxf = pytest.importorskip("ezdxf")  # the test extras install it (pip install -e ".[test]")
 

@@ -14,9 +14,13 @@ from PIL import Image
 from shapely.geometry import box
 
 from pushtrain.cli.main import cli
-from pushtrain.planner import BodyFootprint, PlannerConfig, Train, World, plan, worlds
-from pushtrain.planner.maps import load_map
-from pushtrain.planner.mapworld import grid_world
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
+from pushtrain.facility.loading import grid_world
+from pushtrain.facility.occupancy_grid import load_map
+from pushtrain.planner.config import PlannerConfig
+from pushtrain.planner.planner import plan
+from pushtrain.planner.train import BodyFootprint, Train
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 H = 0.05
@@ -43,7 +47,7 @@ def render(world: World, folder: Path, name: str = "corridor", pad: float = 0.5)
 
 @pytest.fixture(scope="module")
 def l_worlds(tmp_path_factory):
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     polygons = World.from_dict(case["world"])
     gridded = grid_world(load_map(render(polygons, tmp_path_factory.mktemp("l"))))
     return case, polygons, gridded
@@ -151,7 +155,7 @@ def test_the_old_polygon_map_is_unchanged():
 
     sc = load_scenario(EXAMPLES / "bay.toml")
     world = world_of(sc)
-    expected = World.from_dict(worlds.bay()["world"])
+    expected = World.from_dict(example_layouts.bay()["world"])
     assert world.occupancy is None
     assert world.free.symmetric_difference(expected.free).area == 0.0
 
@@ -231,7 +235,7 @@ def test_the_grid_image_is_drawn_where_the_map_lies(tmp_path):
     """The image's corners land on the rotated footprint; the failure picture draws it too."""
     from matplotlib.figure import Figure
 
-    from pushtrain.planner import save_diagnostic
+    from pushtrain.planner.diagnostic import save_diagnostic
 
     yaml = write_room(tmp_path, origin="[1.0, -2.0, 0.6]")
     world = grid_world(load_map(yaml))

@@ -7,19 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from pushtrain.core.controller import ControllerConfig, ControllerError
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand
-from pushtrain.core.reference import Reference, ReferencePathError, Segment
-from pushtrain.cosim.master import (
-    CosimError,
-    InitialState,
-    PlantConfig,
-    Push,
-    SetBias,
-    Slide,
-    simulate,
-)
+from pushtrain.core.reference import Reference, Segment
+from pushtrain.cosim.events import Push, SetBias, Slide
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState, PlantConfig
 from pushtrain.cosim.sensors import SensorConfig
+from pushtrain.errors import ControllerError, CosimError, ReferencePathError
 
 D = 0.52
 

@@ -24,16 +24,11 @@ from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment
 from pushtrain.cosim import master, step_loop
-from pushtrain.cosim.master import (
-    CosimError,
-    InitialState,
-    PlantConfig,
-    Push,
-    SetBias,
-    Slide,
-    simulate,
-)
+from pushtrain.cosim.events import Push, SetBias, Slide
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState, PlantConfig
 from pushtrain.cosim.sensors import SensorConfig, Sensors
+from pushtrain.errors import CosimError
 from pushtrain.mission.runner import plan_path, run_scenario
 from pushtrain.mission.scenario import load_scenario
 

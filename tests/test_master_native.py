@@ -12,14 +12,16 @@ import pytest
 from click.testing import CliRunner
 
 from pushtrain.cli.main import cli
-from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
+from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment
 from pushtrain.core.tracking import TrackingLoop
-from pushtrain.cosim.master import CosimError, SetBias, simulate
+from pushtrain.cosim.events import SetBias
+from pushtrain.cosim.master import simulate
 from pushtrain.cosim.sensors import Measurement, SensorConfig
+from pushtrain.errors import ControllerError, CosimError
 
 
 def _push_pull():

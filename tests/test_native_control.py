@@ -22,13 +22,13 @@ import pytest
 
 import pushtrain.core.controller as controller_module
 from pushtrain.core import native
-from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
+from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, wrap_scalar
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.native_reference import NativeLeader, NativeReference
 from pushtrain.core.pulling import PullGuide, rates_driven_by_last
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, ReferenceSample, Segment
-from pushtrain.errors import NativeBuildError, ReferencePathError
+from pushtrain.errors import ControllerError, NativeBuildError, ReferencePathError
 
 CSRC = Path(native.__file__).with_name("csrc")
 TOL = 1e-12
@@ -91,7 +91,7 @@ def test_wrap_equals_python_modulo_on_edge_cases_and_random_angles():
 
 @pytest.mark.parametrize("n", [1, 3, 10])
 def test_chain_kinematics_equal_python(n):
-    from pushtrain.planner.train_check import towed_rates
+    from pushtrain.planner.kinematic_loop import towed_rates
 
     lib = native.load()
     rng = np.random.default_rng(10 + n)

@@ -5,9 +5,12 @@ import math
 import numpy as np
 
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.cosim.master import InitialState, simulate
-from pushtrain.planner import Train, World, check_train
-from pushtrain.planner.train_check import TrackerConfig, default_controller
+from pushtrain.cosim.master import simulate
+from pushtrain.cosim.plant import InitialState
+from pushtrain.facility.free_space import World
+from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller
+from pushtrain.planner.train import Train
+from pushtrain.planner.train_check import check_train
 
 
 def test_predicted_last_trailer_matches_the_fmu(fmu3):

@@ -10,12 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Polygon
 
-from pushtrain.planner import Train, World, worlds
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
 from pushtrain.planner.footprint import _obb_overlap, body_samples, first_failure
-from pushtrain.planner.world import BodyFootprint
+from pushtrain.planner.train import BodyFootprint, Train
 
 TRAIN = Train.uniform(3)
-DOCK = World.from_dict(worlds.docking_bay()["world"])
+DOCK = World.from_dict(example_layouts.docking_bay()["world"])
 FIELD = DOCK.distance_field()
 SAMPLES = body_samples(TRAIN, 0.05)
 
@@ -54,7 +55,7 @@ def test_a_sampled_pass_is_an_exact_pass(x, y, th, bend):
 
 
 def test_a_trailer_in_the_bay_with_its_clearance_passes_and_closer_fails():
-    case = worlds.docking_bay()
+    case = example_layouts.docking_bay()
     gx, gy, gth = case["goal"]
     # the last trailer centred in the 0.9 m bay keeps 0.15 m on each side
     fp = TRAIN.last

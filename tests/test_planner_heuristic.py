@@ -4,12 +4,14 @@ import math
 
 import pytest
 
-from pushtrain.planner import World, rs_distance, worlds
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
+from pushtrain.planner.curves import rs_distance
 from pushtrain.planner.heuristic import Heuristic
 
 
 def test_grid_distance_goes_around_the_corner():
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     h = Heuristic(world.distance_field(), case["goal"], 1.0, 0.35, car_resolution=None)
     # the shortest way of a point keeping 0.35 m from the walls: to the inner corner moved by
@@ -27,7 +29,7 @@ def test_grid_distance_goes_around_the_corner():
 def test_a_node_cap_coarsens_the_grid_and_keeps_it_a_lower_bound_of_the_way():
     """max_nodes (a short time budget) gives a grid of about that many nodes whose distance
     still goes around the corner and stays within the 8-connected bound."""
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     field = world.distance_field()
     fine = Heuristic(field, case["goal"], 1.0, 0.35, car_resolution=None)
@@ -43,7 +45,7 @@ def test_a_node_cap_coarsens_the_grid_and_keeps_it_a_lower_bound_of_the_way():
 
 
 def test_rs_is_the_reeds_shepp_length_of_the_chain_poses():
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     h = Heuristic(world.distance_field(), case["goal"], 0.9, 0.35, car_resolution=None)
     start, goal = case["start"], case["goal"]
@@ -53,7 +55,7 @@ def test_rs_is_the_reeds_shepp_length_of_the_chain_poses():
 
 
 def test_separated_rooms_have_no_finite_estimate():
-    case = worlds.two_rooms(0.5)  # a slit narrower than the trailer's 0.7 m band
+    case = example_layouts.two_rooms(0.5)  # a slit narrower than the trailer's 0.7 m band
     world = World.from_dict(case["world"])
     h = Heuristic(world.distance_field(), case["goal"], 1.0, 0.35)
     assert h(case["start"]) == math.inf
@@ -64,7 +66,7 @@ def test_the_car_turns_around_only_where_there_is_room():
     """In the T-junction a train heading the wrong way must turn in the side branch: the car's
     cost is far above the Reeds-Shepp length (which turns on the spot through the walls) and
     above the distance, and it charges a cusp."""
-    case = worlds.t_junction()
+    case = example_layouts.t_junction()
     world = World.from_dict(case["world"])
     h = Heuristic(world.distance_field(), case["goal"], 0.97, 0.35)
     wrong_way = (1.0, 1.0, math.pi)  # pushing toward +x, the goal wants the robot toward +x

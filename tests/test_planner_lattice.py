@@ -11,9 +11,14 @@ import numpy as np
 import pytest
 
 from pushtrain.core.reference import PULL, PUSH, Reference
-from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
+from pushtrain.errors import PlanningError
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
+from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.connect import corner_segments
+from pushtrain.planner.planner import plan
 from pushtrain.planner.smooth import merge, total_turning
+from pushtrain.planner.train import Train
 
 TRAIN = Train.uniform(3)
 
@@ -59,7 +64,7 @@ def test_corner_paths_that_do_not_exist():
 
 
 def test_merge_keeps_the_reference_and_joins_equal_pieces():
-    case = worlds.docking_bay()
+    case = example_layouts.docking_bay()
     path = corner_segments(case["start"], case["goal"], PUSH, 1.0)
     pieces = []
     for g in path:
@@ -71,7 +76,7 @@ def test_merge_keeps_the_reference_and_joins_equal_pieces():
 
 
 def _plan(name, **settings):
-    case = worlds.CASES[name]()
+    case = example_layouts.CASES[name]()
     n = {"narrow_l": 5, "corner_10": 10}.get(name, 3)
     train = Train.uniform(n)
     world = World.from_dict(case["world"])
@@ -104,7 +109,7 @@ def test_the_manoeuvres_plan_and_the_whole_train_keeps_its_clearance(name):
 
 
 def test_a_goal_closer_to_the_wall_than_the_clearance_is_refused_with_numbers():
-    case = worlds.docking_bay()
+    case = example_layouts.docking_bay()
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         plan(world, case["start"], case["goal"], TRAIN, PlannerConfig(clearance=0.2))
@@ -116,7 +121,7 @@ def test_a_goal_closer_to_the_wall_than_the_clearance_is_refused_with_numbers():
 
 
 def test_the_start_in_a_wall_names_the_body():
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         plan(world, (2.0, 1.0, math.pi), case["goal"], TRAIN)
@@ -125,7 +130,7 @@ def test_the_start_in_a_wall_names_the_body():
 
 
 def test_separated_rooms_are_unreachable_at_once():
-    case = worlds.two_rooms(0.5)
+    case = example_layouts.two_rooms(0.5)
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         plan(world, case["start"], case["goal"], TRAIN)
@@ -140,7 +145,7 @@ def test_separated_rooms_are_unreachable_at_once():
 
 
 def test_separate_parts_of_the_map_are_named_as_such():
-    case = worlds.two_rooms(0.0)
+    case = example_layouts.two_rooms(0.0)
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         plan(world, case["start"], case["goal"], TRAIN)
@@ -154,7 +159,7 @@ def test_a_joint_limit_that_forbids_the_corner_says_so(monkeypatch):
     import pushtrain.planner.budget as budget
 
     monkeypatch.setattr(budget, "STEPS_PER_SECOND", 20_000)
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     train = Train.uniform(3, phi_max=math.radians(25.0))
     config = PlannerConfig(time_budget=3.0, joint_margin=math.radians(2.0))
@@ -174,8 +179,12 @@ def test_a_joint_limit_that_forbids_the_corner_says_so(monkeypatch):
 def _plan_in_subprocess(name: str) -> subprocess.Popen:
     code = textwrap.dedent(f"""
         import json
-        from pushtrain.planner import PlannerConfig, Train, World, plan, worlds
-        case = worlds.CASES[{name!r}]()
+        from pushtrain.facility import example_layouts
+        from pushtrain.planner.config import PlannerConfig
+        from pushtrain.planner.planner import plan
+        from pushtrain.facility.free_space import World
+        from pushtrain.planner.train import Train
+        case = example_layouts.CASES[{name!r}]()
         path = plan(World.from_dict(case["world"]), case["start"], case["goal"],
                     Train.uniform(3), PlannerConfig(time_budget=300.0))
         print(json.dumps({{"segments": path.to_dict()["segments"],
@@ -200,7 +209,7 @@ def test_an_exact_test_that_would_end_past_the_safety_cap_is_not_started(monkeyp
     cap; with a small estimate the same problem plans."""
     from pushtrain.planner import closedloop
 
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     config = PlannerConfig(time_budget=2.0)
     monkeypatch.setattr(closedloop, "_EXACT_RATE", [1.0])  # 1 s per state and body

@@ -17,18 +17,14 @@ from pushtrain.core.kinematics import (
     joint_angles,
 )
 from pushtrain.core.reference import PULL, PUSH, Reference
-from pushtrain.planner import (
-    PlannedPath,
-    PlannerConfig,
-    PlanningError,
-    PlanningInputError,
-    Train,
-    World,
-    check_train,
-    plan,
-    turning_radius_from_joint_limit,
-    worlds,
-)
+from pushtrain.errors import PlanningError, PlanningInputError
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
+from pushtrain.planner.config import PlannerConfig, turning_radius_from_joint_limit
+from pushtrain.planner.path import PlannedPath
+from pushtrain.planner.planner import plan
+from pushtrain.planner.train import Train
+from pushtrain.planner.train_check import check_train
 
 TRAIN = Train.uniform(3, link=0.52)
 
@@ -82,7 +78,7 @@ def _independent_push_check(world, path, train):
 
 @pytest.mark.parametrize("name", ["straight", "l_2.0", "l_1.5"])
 def test_corridors_whole_train_valid(name):
-    case = worlds.CASES[name]()
+    case = example_layouts.CASES[name]()
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     assert np.allclose(path.goal[:2], case["goal"][:2], atol=1e-6)
@@ -105,7 +101,7 @@ def test_corridors_whole_train_valid(name):
 
 
 def test_bay_one_direction_change_whole_train_valid():
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     assert path.n_cusps == 1
@@ -150,7 +146,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
     (cusp or goal) the train drawn out straight ahead of the last trailer is free, and the
     first pull, drawn back from that straight end, needs a chain within the tolerance of the
     straight start chain (robot offset measured with core.kinematics)."""
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     cfg = ompl(seed=seed, check_train=False, max_attempts=4)
     path = plan(world, case["start"], case["goal"], TRAIN, cfg)
@@ -190,10 +186,10 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
 
 def test_replanning_changes_what_the_failure_calls_for():
     from pushtrain.planner.planner import _next_attempt
-    from pushtrain.planner.search import _Attempt
+    from pushtrain.planner.search import Attempt
 
     cfg = ompl()
-    base = _Attempt(radius=1.0, inflation=0.05)
+    base = Attempt(radius=1.0, inflation=0.05)
     hit = {"kind": "collision", "x": 1.0, "y": 2.0}
     # the robot (or a leading trailer) hits while pulling: only a larger radius helps
     for body in (0, TRAIN.n - 1):
@@ -215,7 +211,7 @@ def test_replanning_changes_what_the_failure_calls_for():
 def test_planner_checks_with_the_given_tracker():
     from pushtrain.core.controller import ControllerConfig
 
-    case = worlds.straight_corridor()
+    case = example_layouts.straight_corridor()
     world = World.from_dict(case["world"])
     slow = ControllerConfig.uniform(3, v_max=0.05)  # cannot follow 0.08 m/s: misses the goal
     with pytest.raises(PlanningError) as info:
@@ -236,7 +232,7 @@ def test_planner_checks_with_the_given_tracker():
 
 
 def test_same_seed_same_plan_and_different_seed_differs():
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     cfg = ompl(seed=7, check_train=False)
     a = plan(world, case["start"], case["goal"], TRAIN, cfg)
@@ -252,7 +248,7 @@ def test_same_seed_same_plan_and_different_seed_differs():
 
 
 def test_json_roundtrip_and_reference():
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], TRAIN, ompl(seed=2))
     again = PlannedPath.from_json(path.to_json())
@@ -299,8 +295,8 @@ def test_radius_rule_and_transient_margin():
 @pytest.mark.parametrize(
     "case, reason",
     [
-        (lambda: worlds.two_rooms(0.0), "unreachable"),
-        (lambda: worlds.two_rooms(0.5), "unreachable"),
+        (lambda: example_layouts.two_rooms(0.0), "unreachable"),
+        (lambda: example_layouts.two_rooms(0.5), "unreachable"),
         (lambda: {"world": {"free": [[0, 0], [10, 0], [10, 0], [0, 0]]},
                   "start": [1, 0, math.pi], "goal": [9, 0, math.pi]}, "no_free_space"),
         (lambda: {"world": {"free": [[0, 0], [10, 0], [10, 0.5], [0, 0.5]]},
@@ -318,7 +314,7 @@ def test_errors_are_named(case, reason):
 
 
 def test_colliding_start_and_goal():
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         # the straight chain behind the last trailer sticks out of the corridor's left end
@@ -332,7 +328,7 @@ def test_colliding_start_and_goal():
 
 def test_approximate_only_is_an_error():
     # with r = 6 m the 2 m corridor needs many cusps: not found within 0.05 s
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     cfg = ompl(turning_radius=6.0, time_budget=0.05, check_train=False)
     with pytest.raises(PlanningError) as info:
@@ -356,7 +352,7 @@ def test_config_validation():
 
 @pytest.mark.parametrize("name", ["rrtstar", "bitstar"])
 def test_anytime_planners(name):
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], TRAIN,
                 PlannerConfig(planner=name, anytime_time=1.0, time_budget=3.0))
@@ -369,7 +365,7 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
     first restart uses the seed itself) returns a path no longer than RRTConnect's with the
     same seed and no shorter than the Reeds-Shepp distance; plan() checks the whole train on
     it as usual."""
-    case = worlds.CASES[name]()
+    case = example_layouts.CASES[name]()
     world = World.from_dict(case["world"])
     first = plan(world, case["start"], case["goal"], TRAIN,
                  ompl(seed=3, check_train=False))
@@ -383,31 +379,32 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
         checked = plan(world, case["start"], case["goal"], TRAIN,
                        PlannerConfig(planner="restarts", seed=3, anytime_time=0.5))
         assert checked.info["attempts"][-1]["train_ok"]
-    from pushtrain.planner.planner import rs_distance
+    from pushtrain.planner.curves import rs_distance
     radius = best.turning_radius
     yaw = lambda p: (p[0], p[1], p[2] + math.pi)  # noqa: E731
     assert best.length >= rs_distance(radius, yaw(case["start"]), yaw(case["goal"])) - 1e-9
 
 
 def test_local_search_keeps_the_path_valid_and_never_longer():
-    from pushtrain.planner.curves import _chain_to_yaw, _segments_from_states
-    from pushtrain.planner.search import _Attempt, _solve_once
+    from pushtrain.planner.curves import chain_to_planner_state, segments_from_states
+    from pushtrain.planner.search import Attempt, solve_once
 
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     cfg = ompl(check_train=False)
-    attempt = _Attempt(cfg.radius_for(TRAIN), cfg.inflation)
+    attempt = Attempt(cfg.radius_for(TRAIN), cfg.inflation)
     pairs = []
     for seed in range(5, 15):  # seeds whose plain solve passes the planner's pull rules
-        args = (world, TRAIN, _chain_to_yaw(case["start"]), _chain_to_yaw(case["goal"]),
-                cfg, attempt, 1000, seed)  # 1000 motion checks: 1 s of budget
+        # 1000 motion checks: 1 s of budget
+        args = (world, TRAIN, chain_to_planner_state(case["start"]),
+                chain_to_planner_state(case["goal"]), cfg, attempt, 1000, seed)
         try:
-            plain, _ = _solve_once(*args)
-            refined, info = _solve_once(*args, refine_checks=1000)
+            plain, _ = solve_once(*args)
+            refined, info = solve_once(*args, refine_checks=1000)
         except PlanningError:
             continue
         assert info["refine_time"] < 1.0  # it stops when it stops gaining
-        lengths = [sum(g.length for g in _segments_from_states(st, attempt.radius)[0])
+        lengths = [sum(g.length for g in segments_from_states(st, attempt.radius)[0])
                    for st in (plain, refined)]
         assert lengths[1] <= lengths[0] + 1e-9
         pairs.append((lengths[0] - lengths[1], refined))
@@ -417,7 +414,7 @@ def test_local_search_keeps_the_path_valid_and_never_longer():
     # the refined path is collision-free for the last trailer at 1 cm (independent shapely
     # check with the clearance the whole-train check asks for; the planner checks every
     # 0.1 m with offtrack_allowance on top)
-    segments, _ = _segments_from_states(refined, attempt.radius)
+    segments, _ = segments_from_states(refined, attempt.radius)
     length = sum(g.length for g in segments)
     ref = Reference.from_segments(case["start"], segments, speed=1.0, cusp_dwell=0.0)
     x, y, th, _, _ = ref.sample(np.linspace(0.0, ref.t_end - 1e-9, int(length / 0.01) + 2))
@@ -440,7 +437,7 @@ def test_ompl_log_level_is_the_callers(capfd):
     before = ou.getLogLevel()
     try:
         ou.setLogLevel(ou.LOG_INFO)  # OMPL would report its planner runs at this level
-        case = worlds.l_corridor(2.0)
+        case = example_layouts.l_corridor(2.0)
         world = World.from_dict(case["world"])
         capfd.readouterr()
         plan(world, case["start"], case["goal"], TRAIN, ompl(seed=1, check_train=False))
@@ -462,7 +459,7 @@ def test_same_seed_same_plan_at_once_on_a_loaded_cpu(name):
     segments as each other and as a plan run alone."""
     from concurrent.futures import ThreadPoolExecutor
 
-    case = worlds.bay()
+    case = example_layouts.bay()
     world = World.from_dict(case["world"])
     # restarts: passes the train check on replan (within 2 s of budget)
     cfg = PlannerConfig(planner=name, seed=1, time_budget=2.0)
@@ -486,7 +483,7 @@ def test_wall_clock_cap_only_stops_a_search_and_says_so(caplog):
     its info (and a warning); a PlanningError in its details."""
     import logging
 
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     plain = plan(
         world, case["start"], case["goal"], TRAIN, ompl(seed=1, check_train=False)
@@ -512,8 +509,13 @@ def test_prmstar_returns():
     """PRM* evaluates its termination condition on a second thread too; a condition written
     in Python would deadlock there (run in a subprocess, so a regression fails, not hangs)."""
     code = (
-        "from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds\n"
-        "c = worlds.l_corridor(2.0)\n"
+        "from pushtrain.errors import PlanningError\n"
+        "from pushtrain.facility import example_layouts\n"
+        "from pushtrain.planner.config import PlannerConfig\n"
+        "from pushtrain.planner.planner import plan\n"
+        "from pushtrain.facility.free_space import World\n"
+        "from pushtrain.planner.train import Train\n"
+        "c = example_layouts.l_corridor(2.0)\n"
         "try:\n"
         "    p = plan(World.from_dict(c['world']), c['start'], c['goal'], Train.uniform(3),\n"
         "             PlannerConfig(planner='prmstar', anytime_time=0.2, check_train=False))\n"

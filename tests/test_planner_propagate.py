@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.planner import Train, World
+from pushtrain.facility.free_space import World
 from pushtrain.planner.footprint import body_samples
+from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller, simulate_tracking
 from pushtrain.planner.propagate import Cursor, Propagator
-from pushtrain.planner.train_check import TrackerConfig, default_controller, simulate_tracking
+from pushtrain.planner.train import Train
 
 TRAIN = Train.uniform(3)
 OPEN = World.from_dict({"bounds": [-6, -6, 6, 6]})

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from pushtrain.core.reference import PULL, PUSH, Reference
-from pushtrain.planner import ReedsSheppCurve, primitives_to_segments
 from pushtrain.planner.connect import rs_segments
+from pushtrain.planner.curves import ReedsSheppCurve, primitives_to_segments
 from pushtrain.planner.reeds_shepp import Primitive, advance_yaw, evaluate_primitives
 
 

@@ -12,8 +12,12 @@ import numpy as np
 import pytest
 
 from pushtrain.core.reference import PULL, PUSH, Segment
-from pushtrain.planner import PlannerConfig, PlanningError, Train, World, plan, worlds
+from pushtrain.errors import PlanningError
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
+from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.connect import MAX_SAMPLES, corner_segments, sample_reference
+from pushtrain.planner.planner import plan
 from pushtrain.planner.route import (
     MAX_ROUTE_NODES,
     MIN_CELL,
@@ -23,6 +27,7 @@ from pushtrain.planner.route import (
     find_route,
     widest_gap,
 )
+from pushtrain.planner.train import Train
 
 PUBLIC = Path(__file__).resolve().parents[1] / "examples" / "maps" / "public"
 BOOKSTORE = PUBLIC / "aws_bookstore.yaml"
@@ -58,7 +63,7 @@ def test_sampling_refuses_references_no_building_has():
 
 
 def test_the_route_goes_round_the_corner_in_the_middle_of_the_corridor():
-    case = worlds.l_corridor(2.0)
+    case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     field = world.distance_field()
     start, goal = case["start"], case["goal"]
@@ -89,7 +94,7 @@ def test_the_route_goes_round_the_corner_in_the_middle_of_the_corridor():
 
 
 def test_the_widest_way_names_the_slit_and_no_route_fits_it():
-    case = worlds.two_rooms(0.5)
+    case = example_layouts.two_rooms(0.5)
     world = World.from_dict(case["world"])
     field = world.distance_field()
     assert find_route(field, case["start"], case["goal"], 0.35) is None
@@ -103,7 +108,7 @@ def test_the_widest_way_names_the_slit_and_no_route_fits_it():
 def test_a_u_turn_across_a_real_bookstore_plans():
     """Opposite headings at start and goal on a public map (this mission crashed with
     MemoryError): west along the north aisle, down the west side, east along the south."""
-    from pushtrain.planner.mapworld import map_world
+    from pushtrain.facility.loading import map_world
 
     world = map_world(grid=str(BOOKSTORE))
     path = plan(world, (-3.4, 6.3, 0.0), (4.4, -6.2, math.pi), Train.uniform(1),
@@ -121,7 +126,7 @@ def test_the_office_t_junction_plans_by_pushing_past_and_pulling_back():
     hall, to stop at the junction pushed east. Its 10 s budget found nothing before the
     pull-back connection (719 expansions at the junction); now the train is pushed round into
     the north-east diagonal and pulled back onto the goal, one cusp."""
-    from pushtrain.planner.mapworld import map_world
+    from pushtrain.facility.loading import map_world
 
     world = map_world(grid=str(PUBLIC / "willow_garage.yaml"))
     goal = (15.0, 46.8, math.pi)
@@ -138,7 +143,7 @@ def test_the_office_t_junction_plans_by_pushing_past_and_pulling_back():
 def test_pushes_along_the_route_carry_a_long_corridor():
     """A 16 m corridor with a corner: the route's pushes reach the goal in a handful of
     expansions (the primitives alone need dozens)."""
-    case = worlds.corner_long(2.5, 16.0, 3)
+    case = example_layouts.corner_long(2.5, 16.0, 3)
     world = World.from_dict(case["world"])
     path = plan(world, case["start"], case["goal"], Train.uniform(3),
                 PlannerConfig(time_budget=5.0))
@@ -152,8 +157,10 @@ _HOG = "import time\nt = time.time()\nwhile time.time() - t < 120:\n    pass\n"
 def _plan_bookstore() -> dict:
     code = textwrap.dedent(f"""
         import json, math
-        from pushtrain.planner import PlannerConfig, Train, plan
-        from pushtrain.planner.mapworld import map_world
+        from pushtrain.planner.config import PlannerConfig
+        from pushtrain.planner.planner import plan
+        from pushtrain.planner.train import Train
+        from pushtrain.facility.loading import map_world
         world = map_world(grid={str(BOOKSTORE)!r})
         path = plan(world, (-7.0, 1.2, math.pi / 2), (4.4, -6.2, math.pi), Train.uniform(2),
                     PlannerConfig(time_budget=10.0))
@@ -184,7 +191,7 @@ def test_the_same_path_with_and_without_a_cpu_hog_beside_it():
 def test_an_impossible_mission_names_the_bottleneck():
     """A 0.6 m trailer and a 0.5 m slit: 'impossible here', the slit's place and width, at
     once (no search)."""
-    case = worlds.two_rooms(0.5)
+    case = example_layouts.two_rooms(0.5)
     world = World.from_dict(case["world"])
     with pytest.raises(PlanningError) as info:
         plan(world, case["start"], case["goal"], Train.uniform(2), PlannerConfig())

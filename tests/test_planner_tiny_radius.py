@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pushtrain.planner import ReedsSheppCurve
+from pushtrain.planner.curves import ReedsSheppCurve
 from pushtrain.planner.reeds_shepp import recover_primitives
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

@@ -13,6 +13,7 @@ from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
+    body_positions_along,
     body_positions_from_last,
     forward_velocities,
     heading_rates_from_last,
@@ -20,14 +21,16 @@ from pushtrain.core.kinematics import (
     steady_joint_angle,
 )
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.planner import PlanningInputError, Train, World, check_train
-from pushtrain.planner.train_check import (
+from pushtrain.errors import PlanningInputError
+from pushtrain.facility.free_space import World
+from pushtrain.planner.kinematic_loop import (
     TrackerConfig,
-    body_positions_along,
     default_controller,
     reference_times,
     towed_rates,
 )
+from pushtrain.planner.train import Train
+from pushtrain.planner.train_check import check_train
 
 TRAIN = Train.uniform(3)
 OPEN = World.from_dict({"bounds": [-50, -50, 50, 50]})

@@ -5,14 +5,11 @@ import math
 import pytest
 from shapely.geometry import Polygon
 
-from pushtrain.planner import (
-    BodyFootprint,
-    PlanningInputError,
-    Train,
-    World,
-    save_diagnostic,
-    worlds,
-)
+from pushtrain.errors import PlanningInputError
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
+from pushtrain.planner.diagnostic import save_diagnostic
+from pushtrain.planner.train import BodyFootprint, Train
 
 
 def test_from_dict_outline_and_obstacles():
@@ -50,7 +47,7 @@ def test_footprint_corners_follow_heading_and_offset():
 
 def test_validity_uses_last_trailer_in_chain_orientation():
     """The planner state yaw is theta + pi; an offset footprint must land on the theta side."""
-    from pushtrain.planner.search import _Attempt, _solve_once
+    from pushtrain.planner.search import Attempt, solve_once
 
     # a dead-end pocket: free only for x in [0, 3]; the last trailer's rectangle sticks out
     # 0.6 m toward the robot (theta side). At x = 0.5 with theta = 0 it fits; theta = pi not.
@@ -58,32 +55,32 @@ def test_validity_uses_last_trailer_in_chain_orientation():
     trailer = BodyFootprint(length=1.2, width=0.6, offset=0.55)
     train = Train.uniform(1, trailer=trailer)
     cfg_ok = dict(inflation=0.0, offtrack_allowance=0.0)
-    from pushtrain.planner import PlannerConfig
+    from pushtrain.planner.config import PlannerConfig
 
     cfg = PlannerConfig(planner="rrtconnect", **cfg_ok, time_budget=0.2, check_train=False,
                         straight_pull_ends=False)
-    att = _Attempt(1.0, 0.0)
+    att = Attempt(1.0, 0.0)
     # start pose with theta = 0: rectangle spans x in [0.5 + 0.55 - 0.6, 0.5 + 0.55 + 0.6]
-    states, _ = _solve_once(
+    states, _ = solve_once(
         world, train, (0.5, 1.0, 0.0 + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3
     )
     assert states.shape[1] == 3
-    from pushtrain.planner import PlanningError
+    from pushtrain.errors import PlanningError
 
     with pytest.raises(PlanningError):
         # theta = pi puts the rectangle at x in [-0.65, 0.55]: outside the map -> invalid start
-        _solve_once(
+        solve_once(
             world, train, (0.5, 1.0, math.pi + math.pi), (1.5, 1.0, math.pi), cfg, att, 200, 3
         )
 
 
 def test_worlds_are_plain_data_and_diagnostic_png(tmp_path):
-    for name, factory in worlds.CASES.items():
+    for name, factory in example_layouts.CASES.items():
         case = factory()
         world = World.from_dict(case["world"])
         assert world.free_area > 1.0, name
         assert all(isinstance(p, list) for p in case["world"]["free"])
-    case = worlds.l_corridor(1.5)
+    case = example_layouts.l_corridor(1.5)
     out = tmp_path / "map.png"
     save_diagnostic(
         out, World.from_dict(case["world"]), case["start"], case["goal"], Train.uniform(3)

@@ -17,11 +17,12 @@ import pytest
 import shapely
 
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.planner import Train, World
+from pushtrain.facility.free_space import World
 from pushtrain.planner.footprint import body_positions, body_samples, first_failure
+from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller
 from pushtrain.planner.lattice import SearchSettings, segments_cost
 from pushtrain.planner.propagate import Cursor, NativePropagator, Propagator
-from pushtrain.planner.train_check import TrackerConfig, default_controller
+from pushtrain.planner.train import Train
 
 # ------------------------------------------------------------------------------- the search cost
 SETTINGS = SearchSettings(radius=1.0, turn_weight=0.3, pull_turn_weight=1.0, change_weight=0.25,

@@ -6,9 +6,10 @@ from __future__ import annotations
 import pytest
 
 from pushtrain.mission.scenario import parse_scenario
-from pushtrain.studies.sweep import expand_runs, parse_sweep_spec, read_results, sweep
-from pushtrain.studies.sweep_results import finish_row
-from pushtrain.studies.sweep_runs import SweepRun
+from pushtrain.studies.sweep import sweep
+from pushtrain.studies.sweep_results import finish_row, read_results
+from pushtrain.studies.sweep_runs import SweepRun, expand_runs
+from pushtrain.studies.sweep_spec import parse_sweep_spec
 
 
 def test_a_range_includes_both_ends():

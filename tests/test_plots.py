@@ -17,7 +17,9 @@ from PIL import Image
 
 from pushtrain.core.kinematics import ChainGeometry, body_positions, forward_velocities
 from pushtrain.cosim.master import _columns
-from pushtrain.report import plots
+from pushtrain.errors import PlotError
+from pushtrain.report import animation, common, mapview, plots, timeseries
+from pushtrain.report import geometry as report_geometry
 
 D = 0.52
 
@@ -28,7 +30,8 @@ def run3(built_fmu):
     """A real co-simulation: robot + 3 trailers pushing along a line then an arc."""
     from pushtrain.core.controller import ControllerConfig
     from pushtrain.core.reference import Reference, Segment
-    from pushtrain.cosim.master import Slide, simulate
+    from pushtrain.cosim.events import Slide
+    from pushtrain.cosim.master import simulate
     from pushtrain.cosim.sensors import SensorConfig
 
     reference = Reference.from_segments((0, 0, 0), [Segment("line", 1.0), Segment("arc", 1.0, 0.4)])
@@ -110,7 +113,7 @@ def png_size(path):
         return im.size
 
 
-def fig_pixels(fig, dpi=plots.DPI):
+def fig_pixels(fig, dpi=common.DPI):
     w, h = fig.get_size_inches()
     return round(w * dpi), round(h * dpi)
 
@@ -121,15 +124,15 @@ def leftovers(folder):
 
 # ------------------------------------------------------------------------------------ map
 def test_plot_map_writes_png_of_the_figure_size(run3, tmp_path):
-    out = plots.plot_map(run3.data, 3, tmp_path / "map.png", snapshots=6)
+    out = mapview.plot_map(run3.data, 3, tmp_path / "map.png", snapshots=6)
     assert out == tmp_path / "map.png"
-    assert png_size(out) == fig_pixels(plots.map_figure(run3.data, 3, snapshots=6))
+    assert png_size(out) == fig_pixels(mapview.map_figure(run3.data, 3, snapshots=6))
     assert leftovers(tmp_path) == []
 
 
 def test_map_snapshots_are_drawn_at_the_bodies_poses(run3):
     data, n, count = run3.data, 3, 5
-    fig = plots.map_figure(data, n, snapshots=count)
+    fig = mapview.map_figure(data, n, snapshots=count)
     patches = {p.get_gid(): p for p in fig.axes[0].patches if p.get_gid()}
     rows = list(fig.snapshot_rows)
     sizes = [(0.6, 0.5)] + [(0.8, 0.6)] * n
@@ -151,7 +154,7 @@ def test_map_snapshots_are_drawn_at_the_bodies_poses(run3):
 
 def test_map_train_line_goes_through_the_hitch_points(run3):
     data, n = run3.data, 3
-    fig = plots.map_figure(data, n, snapshots=4)
+    fig = mapview.map_figure(data, n, snapshots=4)
     lines = {ln.get_gid(): ln for ln in fig.axes[0].lines if ln.get_gid()}
     rows = fig.snapshot_rows
     for k, r in enumerate(rows):
@@ -180,7 +183,8 @@ def test_map_with_world_path_and_custom_footprints(run3, tmp_path):
     world = FakeWorld()
     path_xy = np.column_stack([np.linspace(0, -2, 50), np.zeros(50)])
     feet = {"robot": (0.7, 0.55), "trailers": [(0.5, 0.4), (0.9, 0.6, 0.1), (0.8, 0.7)]}
-    fig = plots.map_figure(run3.data, 3, world=world, path_xy=path_xy, footprints=feet, snapshots=2)
+    fig = mapview.map_figure(run3.data, 3, world=world, path_xy=path_xy, footprints=feet,
+                             snapshots=2)
     ax = fig.axes[0]
     assert world.calls == [ax]
     x0, x1 = ax.get_xlim()
@@ -194,7 +198,7 @@ def test_map_with_world_path_and_custom_footprints(run3, tmp_path):
     th = run3.data["theta2"][r]
     expect = (run3.data["x2"][r] + 0.1 * math.cos(th), run3.data["y2"][r] + 0.1 * math.sin(th))
     assert xy.mean(axis=0) == pytest.approx(expect, abs=1e-9)
-    out = plots.plot_map(run3.data, 3, tmp_path / "world.png", world=world, path_xy=path_xy,
+    out = mapview.plot_map(run3.data, 3, tmp_path / "world.png", world=world, path_xy=path_xy,
                          footprints=feet, title="custom")
     png_size(out)
 
@@ -212,7 +216,7 @@ def test_map_labels_and_legend_stay_inside_the_figure(width):
 
     data = synthetic(3, ChainGeometry(np.full(3, D), np.full(3, D)))
     path_xy = np.column_stack([data["x_d"], data["y_d"]])
-    fig = plots.map_figure(data, 3, world=Walls(), path_xy=path_xy,
+    fig = mapview.map_figure(data, 3, world=Walls(), path_xy=path_xy,
                            title="Robot with 3 trailers: goal reached")
     fig.canvas.draw()  # one layout pass from scratch, as savefig does
     renderer = fig.canvas.get_renderer()
@@ -226,7 +230,7 @@ def test_map_labels_and_legend_stay_inside_the_figure(width):
 def test_hitch_links_recovers_unequal_links_from_a_bent_chain():
     geometry = ChainGeometry(np.array([0.4, 0.6]), np.array([0.5, 0.3]))
     data = synthetic(2, geometry, t_end=5.0)
-    front, rear = plots.hitch_links(data, 2)
+    front, rear = report_geometry.hitch_links(data, 2)
     assert front == pytest.approx(geometry.front, abs=1e-6)
     assert rear == pytest.approx(geometry.rear, abs=1e-6)
     # a chain that never bends only fixes F + R: the split is even
@@ -235,30 +239,30 @@ def test_hitch_links_recovers_unequal_links_from_a_bent_chain():
         straight[f"theta{i}"] = 0.0
         straight[f"x{i}"] = -np.cumsum([0.0, 0.9, 0.9])[i]
         straight[f"y{i}"] = 0.0
-    front, rear = plots.hitch_links(straight, 2)
+    front, rear = report_geometry.hitch_links(straight, 2)
     assert front == pytest.approx([0.45, 0.45]) and rear == pytest.approx([0.45, 0.45])
 
 
 def test_snapshot_and_frame_indices():
     t = np.linspace(0.0, 10.0, 1001)
-    idx = plots.snapshot_indices(t, 6)
+    idx = report_geometry.snapshot_indices(t, 6)
     assert idx.tolist() == [int(np.argmin(np.abs(t - tk))) for tk in np.linspace(0, 10, 6)]
-    assert plots.snapshot_indices(t, 0).size == 0
-    assert plots.snapshot_indices(t[:3], 8).tolist() == [0, 1, 2]
-    frames = plots.frame_indices(1001, 150)
+    assert report_geometry.snapshot_indices(t, 0).size == 0
+    assert report_geometry.snapshot_indices(t[:3], 8).tolist() == [0, 1, 2]
+    frames = report_geometry.frame_indices(1001, 150)
     assert frames.size == 150 and frames[0] == 0 and frames[-1] == 1000
     assert np.ptp(np.diff(frames)) <= 1
-    assert plots.frame_indices(20, 150).tolist() == list(range(20))
-    with pytest.raises(plots.PlotError, match="snapshots"):
-        plots.snapshot_indices(t, -1)
-    with pytest.raises(plots.PlotError, match="max_frames"):
-        plots.frame_indices(10, 0)
+    assert report_geometry.frame_indices(20, 150).tolist() == list(range(20))
+    with pytest.raises(PlotError, match="snapshots"):
+        report_geometry.snapshot_indices(t, -1)
+    with pytest.raises(PlotError, match="max_frames"):
+        report_geometry.frame_indices(10, 0)
 
 
 # ------------------------------------------------------------------------------------ time plots
 def test_inputs_and_joints_shows_degrees_and_measured_angles(run3, tmp_path):
     data = run3.data
-    fig = plots.inputs_and_joints_figure(data, 3)
+    fig = timeseries.inputs_and_joints_figure(data, 3)
     lines = {ln.get_gid(): ln for ax in fig.axes for ln in ax.lines if ln.get_gid()}
     assert np.allclose(lines["v0"].get_ydata(), data["v0"])
     assert np.allclose(lines["w_cmd"].get_ydata(), np.degrees(data["w_cmd"]))
@@ -270,13 +274,13 @@ def test_inputs_and_joints_shows_degrees_and_measured_angles(run3, tmp_path):
     assert "phi_meas1" not in lines and "phi_meas2" not in lines
     assert [ax.get_ylabel() for ax in fig.axes[:3]] == ["v0 [m/s]", "w0 [deg/s]",
                                                         "joint angle phi_i [deg]"]
-    out = plots.plot_inputs_and_joints(data, 3, tmp_path / "inputs.png")
+    out = timeseries.plot_inputs_and_joints(data, 3, tmp_path / "inputs.png")
     assert png_size(out) == fig_pixels(fig)
 
 
 def test_tracking_error_units_and_direction_bands(run3, tmp_path):
     data = run3.data
-    fig = plots.tracking_error_figure(data, 3)
+    fig = timeseries.tracking_error_figure(data, 3)
     axes = fig.axes[:3]
     lines = {ln.get_gid(): ln for ax in axes for ln in ax.lines if ln.get_gid()}
     assert np.allclose(lines["e_lat"].get_ydata(), 100.0 * data["e_lat"])
@@ -294,7 +298,7 @@ def test_tracking_error_units_and_direction_bands(run3, tmp_path):
         assert not [p for p in ax.patches if p.get_gid() == "direction-1"]
     slide = expected_intervals(t, data["slide"] != 0)
     assert slide and slide[0][0] == pytest.approx(4.0, abs=0.01)
-    out = plots.plot_tracking_error(data, 3, tmp_path / "err.png")
+    out = timeseries.plot_tracking_error(data, 3, tmp_path / "err.png")
     assert png_size(out) == fig_pixels(fig)
 
 
@@ -312,7 +316,7 @@ def _force_profile(n, t_slip):
 def test_lateral_forces_limits_and_slip_spans(tmp_path):
     spans = [[(1.0, 2.0), (6.0, 6.5)], [(3.0, 3.2)]]
     data = synthetic(2, ChainGeometry.uniform(2), forces=_force_profile(2, spans))
-    fig = plots.lateral_forces_figure(data, 2)
+    fig = timeseries.lateral_forces_figure(data, 2)
     t = data["t"]
     for i in (1, 2):
         ax = fig.axes[i - 1]
@@ -323,7 +327,7 @@ def test_lateral_forces_limits_and_slip_spans(tmp_path):
                         if p.get_gid() == f"slip{i}")
         assert same_spans(shaded, expected_intervals(t, data[f"slipping{i}"] > 0.5))
         assert len(shaded) == len(spans[i - 1])
-    out = plots.plot_lateral_forces(data, 2, tmp_path / "forces.png")
+    out = timeseries.plot_lateral_forces(data, 2, tmp_path / "forces.png")
     assert png_size(out) == fig_pixels(fig)
 
 
@@ -331,7 +335,7 @@ def test_lateral_forces_many_trailers_uses_a_slip_timeline(tmp_path):
     n = 6
     spans = [[(1.0, 1.5)], [], [(2.0, 2.5), (4.0, 4.2)], [], [], [(7.0, 7.1)]]
     data = synthetic(n, ChainGeometry.uniform(n), forces=_force_profile(n, spans))
-    fig = plots.lateral_forces_figure(data, n)
+    fig = timeseries.lateral_forces_figure(data, n)
     force_ax, slip_ax = fig.axes[0], fig.axes[1]
     assert {ln.get_gid() for ln in force_ax.lines} >= {f"F_lat{i}" for i in range(1, n + 1)}
     for i in range(1, n + 1):
@@ -341,15 +345,15 @@ def test_lateral_forces_many_trailers_uses_a_slip_timeline(tmp_path):
                      for c in slip_ax.collections if c.get_gid() == f"slip{i}"
                      for path in c.get_paths())
         assert same_spans(got, expect)
-    png_size(plots.plot_lateral_forces(data, n, tmp_path / "forces6.png"))
+    png_size(timeseries.plot_lateral_forces(data, n, tmp_path / "forces6.png"))
 
 
 # ------------------------------------------------------------------------------------ animation
 def test_animate_writes_a_gif_with_one_frame_per_sample(run3, tmp_path):
-    out = plots.animate(run3.data, 3, tmp_path / "train.gif", max_frames=40, fps=5)
+    out = animation.animate(run3.data, 3, tmp_path / "train.gif", max_frames=40, fps=5)
     with Image.open(out) as im:
         assert im.format == "GIF"
-        assert im.n_frames == len(plots.frame_indices(len(run3.data), 40)) == 40
+        assert im.n_frames == len(report_geometry.frame_indices(len(run3.data), 40)) == 40
         assert im.info["duration"] == 200  # 1000 ms / 5 fps
         size = im.size
         first = np.asarray(im.convert("RGB")).copy()
@@ -430,7 +434,7 @@ def test_gif_stream_maps_colours_to_the_nearest_palette_entry():
     (got,), _ = _decoded(out.getvalue())
     assert tuple(got[2, 2]) == (250, 0, 0) and tuple(got[6, 6]) == (0, 0, 0)
     assert tuple(got[0, 0]) == (255, 255, 255)
-    with pytest.raises(plots.PlotError, match="no frames"):
+    with pytest.raises(PlotError, match="no frames"):
         _GifStream(io.BytesIO(), _palette_image(colors), 100.0).close()
 
 
@@ -441,7 +445,7 @@ def test_animate_frames_show_the_train_where_the_data_put_it(run3, tmp_path):
 
     from pushtrain.report.animation import _ROBOT_FACE
 
-    out = plots.animate(run3.data, 3, tmp_path / "train.gif", max_frames=6)
+    out = animation.animate(run3.data, 3, tmp_path / "train.gif", max_frames=6)
     frames, durations = _decoded(out.read_bytes())
     assert len(frames) == 6 and set(durations) == {100}
     face = np.array([round(255 * c) for c in to_rgb(_ROBOT_FACE)])
@@ -453,7 +457,7 @@ def test_animate_frames_show_the_train_where_the_data_put_it(run3, tmp_path):
 
 def test_animate_writes_150_frames(run3, tmp_path):
     # how long it takes is measured by benchmarks/, not asserted here (timed tests fail under load)
-    out = plots.animate(run3.data, 3, tmp_path / "train.gif")
+    out = animation.animate(run3.data, 3, tmp_path / "train.gif")
     with Image.open(out) as im:
         assert im.n_frames == 150
 
@@ -470,7 +474,7 @@ def test_plot_all_writes_the_standard_files(run3, tmp_path):
     again = plots.plot_all(run3.data, 3, tmp_path / "nogif", gif=False)
     assert [p.name for p in again] == [p.name for p in written[:4]]
     assert sorted(p.name for p in (tmp_path / "nogif").iterdir()) == sorted(p.name for p in again)
-    with pytest.raises(plots.PlotError, match="n_trailers = 3"):
+    with pytest.raises(PlotError, match="n_trailers = 3"):
         plots.plot_all(run3, 2, tmp_path / "bad")
 
 
@@ -488,7 +492,7 @@ def test_failed_save_leaves_nothing_behind(run3, tmp_path, monkeypatch):
 
     monkeypatch.setattr(Figure, "savefig", broken_savefig)
     with pytest.raises(RuntimeError, match="disk full"):
-        plots.plot_map(run3.data, 3, target)
+        mapview.plot_map(run3.data, 3, target)
     assert target.read_bytes() == b"old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["map.png"]
 
@@ -508,7 +512,7 @@ def test_failed_gif_leaves_nothing_behind(run3, tmp_path, monkeypatch):
     target = tmp_path / "train.gif"
     target.write_bytes(b"old")
     with pytest.raises(OSError, match="disk full"):
-        plots.animate(run3.data, 3, target, max_frames=5)
+        animation.animate(run3.data, 3, target, max_frames=5)
     assert target.read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["train.gif"]
 
@@ -519,28 +523,28 @@ def test_bad_arguments_raise_plot_errors(run3, tmp_path):
     without = np.empty(len(data), dtype=[(c, "f8") for c in names])
     for c in names:
         without[c] = data[c]
-    with pytest.raises(plots.PlotError, match="x_d"):
-        plots.plot_map(without, 3, tmp_path / "m.png")
-    with pytest.raises(plots.PlotError, match="more than 2 trailers"):
-        plots.plot_tracking_error(data, 2, tmp_path / "e.png")
-    with pytest.raises(plots.PlotError, match="n = 0"):
-        plots.plot_lateral_forces(data, 0, tmp_path / "f.png")
-    with pytest.raises(plots.PlotError, match="no rows"):
-        plots.plot_inputs_and_joints(data[:0], 3, tmp_path / "i.png")
-    with pytest.raises(plots.PlotError, match="structured array"):
-        plots.plot_map(np.zeros((10, 3)), 3, tmp_path / "m.png")
-    with pytest.raises(plots.PlotError, match="footprints\\['robot'\\]"):
-        plots.plot_map(data, 3, tmp_path / "m.png", footprints={"robot": (0.6, -0.5)})
-    with pytest.raises(plots.PlotError, match="unknown keys"):
-        plots.plot_map(data, 3, tmp_path / "m.png", footprints={"car": (1, 1)})
-    with pytest.raises(plots.PlotError, match="suffix"):
-        plots.plot_map(data, 3, tmp_path / "m.xyz")
-    with pytest.raises(plots.PlotError, match=r"\.gif"):
-        plots.animate(data, 3, tmp_path / "train.png")
-    with pytest.raises(plots.PlotError, match="fps"):
-        plots.animate(data, 3, tmp_path / "train.gif", fps=0)
-    with pytest.raises(plots.PlotError, match="path_xy"):
-        plots.plot_map(data, 3, tmp_path / "m.png", path_xy=np.zeros(5))
+    with pytest.raises(PlotError, match="x_d"):
+        mapview.plot_map(without, 3, tmp_path / "m.png")
+    with pytest.raises(PlotError, match="more than 2 trailers"):
+        timeseries.plot_tracking_error(data, 2, tmp_path / "e.png")
+    with pytest.raises(PlotError, match="n = 0"):
+        timeseries.plot_lateral_forces(data, 0, tmp_path / "f.png")
+    with pytest.raises(PlotError, match="no rows"):
+        timeseries.plot_inputs_and_joints(data[:0], 3, tmp_path / "i.png")
+    with pytest.raises(PlotError, match="structured array"):
+        mapview.plot_map(np.zeros((10, 3)), 3, tmp_path / "m.png")
+    with pytest.raises(PlotError, match="footprints\\['robot'\\]"):
+        mapview.plot_map(data, 3, tmp_path / "m.png", footprints={"robot": (0.6, -0.5)})
+    with pytest.raises(PlotError, match="unknown keys"):
+        mapview.plot_map(data, 3, tmp_path / "m.png", footprints={"car": (1, 1)})
+    with pytest.raises(PlotError, match="suffix"):
+        mapview.plot_map(data, 3, tmp_path / "m.xyz")
+    with pytest.raises(PlotError, match=r"\.gif"):
+        animation.animate(data, 3, tmp_path / "train.png")
+    with pytest.raises(PlotError, match="fps"):
+        animation.animate(data, 3, tmp_path / "train.gif", fps=0)
+    with pytest.raises(PlotError, match="path_xy"):
+        mapview.plot_map(data, 3, tmp_path / "m.png", path_xy=np.zeros(5))
     assert list(tmp_path.iterdir()) == []
 
 
@@ -558,7 +562,7 @@ def test_map_snapshots_can_be_told_apart_and_the_robot_is_marked():
     n = 3  # 12 m, a gentle turn then mostly straight: time-spaced snapshots would overlap
     data = synthetic(n, ChainGeometry(np.full(n, D), np.full(n, D)), t_end=120.0, h=0.05,
                      w0=0.0)
-    fig = plots.map_figure(data, n, snapshots=8)
+    fig = mapview.map_figure(data, n, snapshots=8)
     rows = list(fig.snapshot_rows)
     sizes = [(0.6, 0.5)] + [(0.8, 0.6)] * n
 
@@ -590,7 +594,7 @@ def test_map_snapshots_can_be_told_apart_and_the_robot_is_marked():
 
 def test_planned_path_is_a_band_wider_than_the_lines_on_it(run3):
     path_xy = np.column_stack([run3.data["x_d"], run3.data["y_d"]])
-    fig = plots.map_figure(run3.data, 3, path_xy=path_xy[::50], snapshots=2)
+    fig = mapview.map_figure(run3.data, 3, path_xy=path_xy[::50], snapshots=2)
     lines = {ln.get_label(): ln for ln in fig.axes[0].lines}
     band = lines["planned path (last trailer)"]
     assert band.get_linewidth() > 3 * lines["reference (last trailer)"].get_linewidth()
@@ -598,7 +602,7 @@ def test_planned_path_is_a_band_wider_than_the_lines_on_it(run3):
 
 
 def test_inputs_show_the_command_on_top_and_the_joint_limit(run3):
-    fig = plots.inputs_and_joints_figure(run3.data, 3, phi_max_deg=80.0)
+    fig = timeseries.inputs_and_joints_figure(run3.data, 3, phi_max_deg=80.0)
     lines = {ln.get_gid(): ln for ax in fig.axes for ln in ax.lines if ln.get_gid()}
     for cmd, actual in (("v_cmd", "v0"), ("w_cmd", "w0")):
         assert lines[cmd].get_zorder() > lines[actual].get_zorder()
@@ -612,9 +616,9 @@ def test_tracking_error_legend_names_only_the_bands_drawn(run3):
     data = run3.data.copy()
     data["direction"] = 1.0
     data["direction"][-1] = 0.0  # a rest of no duration: nothing is shaded for it
-    fig = plots.tracking_error_figure(data, 3)
+    fig = timeseries.tracking_error_figure(data, 3)
     names = [t.get_text() for lg in fig.legends for t in lg.get_texts()]
     assert "push (trailer first)" in names and "rest" not in names
     data["direction"][-200:] = 0.0
-    fig = plots.tracking_error_figure(data, 3)
+    fig = timeseries.tracking_error_figure(data, 3)
     assert "rest" in [t.get_text() for lg in fig.legends for t in lg.get_texts()]

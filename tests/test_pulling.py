@@ -14,15 +14,9 @@ from pushtrain.core.kinematics import (
     joint_angles,
 )
 from pushtrain.core.pulling import PullGuide, straight_chain_mismatch
-from pushtrain.core.reference import (
-    PULL,
-    PUSH,
-    Reference,
-    ReferencePathError,
-    SampledReference,
-    Segment,
-)
-from pushtrain.planner.train_check import default_controller, simulate_tracking
+from pushtrain.core.reference import PULL, PUSH, Reference, SampledReference, Segment
+from pushtrain.errors import ReferencePathError
+from pushtrain.planner.kinematic_loop import default_controller, simulate_tracking
 
 GEOM = ChainGeometry.uniform(3, 0.52)
 CHAIN = float(np.sum(GEOM.front + GEOM.rear))

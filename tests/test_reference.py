@@ -3,15 +3,8 @@
 import numpy as np
 import pytest
 
-from pushtrain.core.reference import (
-    PULL,
-    PUSH,
-    REST,
-    Reference,
-    ReferencePathError,
-    SampledReference,
-    Segment,
-)
+from pushtrain.core.reference import PULL, PUSH, REST, Reference, SampledReference, Segment
+from pushtrain.errors import ReferencePathError
 
 
 def mixed_reference(cusp_dwell=1.5):

@@ -24,7 +24,7 @@ from pushtrain.core.native_reference import NativeReference
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.core.rollout import Checks, ClosedLoop, LoopState, rectangle_points, simulate
 from pushtrain.errors import ControllerError
-from pushtrain.planner.train_check import default_controller, simulate_tracking
+from pushtrain.planner.kinematic_loop import default_controller, simulate_tracking
 
 D = 0.52
 
@@ -436,8 +436,8 @@ def test_integrator_equals_the_fmus_kinematic_motion_to_a_millimetre(fmu3):
       against the integrator.
     """
     from pushtrain.cosim.fmu_slave import TrailerTrainSlave
-    from pushtrain.cosim.master import InitialState, PlantConfig
     from pushtrain.cosim.master import simulate as cosimulate
+    from pushtrain.cosim.plant import InitialState, PlantConfig
 
     step = 0.005
     loop, ref, state = _bay_loop(step=step)

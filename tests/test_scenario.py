@@ -109,7 +109,7 @@ def test_per_trailer_lists_are_checked_element_by_element():
 def test_the_fmu_declares_the_same_bounds():
     import xml.etree.ElementTree as ET
 
-    from pushtrain.fmu import render_model_description
+    from pushtrain.fmu.render import render_model_description
 
     root = ET.fromstring(render_model_description(2, "{00000000-0000-0000-0000-000000000000}"))
     declared = {}

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from pushtrain.cosim.sensors import Measurement, SensorConfig, SensorError, Sensors
+from pushtrain.cosim.sensors import Measurement, SensorConfig, Sensors
+from pushtrain.errors import SensorError
 
 NOISY = dict(joint_noise_std=0.01, pos_noise_std=0.02, heading_noise_std=0.005)
 

@@ -15,24 +15,19 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from pushtrain.errors import SweepError
 from pushtrain.mission.scenario import parse_scenario
-from pushtrain.studies.sweep import (
+from pushtrain.studies.sweep import run_sweep, sweep
+from pushtrain.studies.sweep_results import read_results
+from pushtrain.studies.sweep_runs import expand_runs, prepare_runs, run_key
+from pushtrain.studies.sweep_spec import (
     METRICS,
     TIMING_COLUMNS,
-    FmuRef,
-    SweepError,
-    expand_runs,
     parse_path,
     parse_sweep_spec,
-    prepare_runs,
-    read_results,
-    run_key,
-    run_sweep,
-    run_task,
     set_path,
-    sweep,
 )
-from pushtrain.studies.sweep_task import _materialize
+from pushtrain.studies.sweep_task import FmuRef, _materialize, run_task
 
 BASE = {
     "name": "short_bias",
@@ -387,7 +382,7 @@ def test_a_resumed_sweep_runs_a_lost_run_again(base, tmp_path):
 
 
 def test_fmu_bytes_are_written_on_a_worker_without_the_file(tmp_path, serial8):
-    from pushtrain.fmu import build_fmu
+    from pushtrain.fmu.build import build_fmu
 
     path = Path(build_fmu(3))
     import hashlib
@@ -422,7 +417,7 @@ def _fake_result(summary: dict, status: str = "goal_reached", e_lat=0.004, t_end
 
 
 def test_each_metric_comes_from_its_own_entry_of_the_summary():
-    from pushtrain.studies.sweep import metrics_of
+    from pushtrain.studies.sweep_task import metrics_of
 
     summary = {"lateral_error_m": {"rms": 0.011, "max": 0.022, "final": 0.033},
                "heading_error_rad": {"rms": math.radians(1.5), "max": math.radians(2.5)},
@@ -560,7 +555,7 @@ def _no_expansion(monkeypatch):
 
 
 def test_runs_are_counted_without_expanding_them(monkeypatch):
-    from pushtrain.studies.sweep import count_runs
+    from pushtrain.studies.sweep_spec import count_runs
 
     _no_expansion(monkeypatch)
     assert count_runs(parse_sweep_spec(HUGE)) == 300_000
@@ -738,7 +733,7 @@ def test_example_joint_bias_sweep_reproduces_fig14(tmp_path):
 
 def test_example_alternating_sign_spec_predicts_the_alternating_sum():
     from pushtrain.mission.scenario import load_scenario
-    from pushtrain.studies.sweep import load_sweep_spec
+    from pushtrain.studies.sweep_spec import load_sweep_spec
 
     spec = load_sweep_spec(EXAMPLES / "sweeps" / "alternating_sign.toml")
     runs, _, _ = prepare_runs(load_scenario(EXAMPLES / "joint_bias_5deg.toml"), spec)
@@ -761,11 +756,3 @@ def test_plan_missions_are_planned_once_per_train_geometry_as_plain_data():
     assert all(r.failure is None for r in runs)
     assert [r.payload["fmu"].n for r in runs] == [2, 2, 3, 3]
 
-
-def test_old_cli_import_path_of_the_library_forwards_with_a_warning():
-    import pushtrain.cli.sweep as cli_sweep
-    import pushtrain.studies.sweep as library
-
-    for name in ("sweep", "prepare_runs", "run_task", "FmuRef"):
-        with pytest.warns(DeprecationWarning, match=f"moved to pushtrain.studies.sweep.{name}"):
-            assert getattr(cli_sweep, name) is getattr(library, name)

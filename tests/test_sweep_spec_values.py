@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from pushtrain.studies.sweep_spec import SweepError, parse_sweep_spec
+from pushtrain.errors import SweepError
+from pushtrain.studies.sweep_spec import parse_sweep_spec
 
 RANGE = {"path": "controller.k_y", "range": {"start": 1.0, "stop": 2.0, "num": 3}}
 UNIFORM = {"path": "controller.k_y", "dist": "uniform", "low": 1.0, "high": 2.0}
@@ -45,7 +46,7 @@ def test_whole_numbers_and_typed_values_pass():
 
 def test_a_swept_boolean_is_refused_by_the_scenario_naming_the_run(tmp_path):
     from pushtrain.mission.scenario import parse_scenario
-    from pushtrain.studies.sweep import prepare_runs
+    from pushtrain.studies.sweep_runs import prepare_runs
 
     base = parse_scenario({"mission": {"kind": "scripted"}, "start": {"x": 0.0, "y": 0.0},
                            "reference": {"segments": [{"kind": "line", "length": 1.0}]}})

@@ -6,7 +6,9 @@ import math
 
 import click
 
-from ..common import _scenario, click_errors, scenario_argument
+from ..common import click_errors, load_scenario_with_overrides, scenario_argument
+
+__all__ = ["analyze_cmd"]
 
 
 def _stability_lines(c, speed: float) -> list[str]:
@@ -38,7 +40,7 @@ def analyze_cmd(scenario):
     from pushtrain.core import analysis
     from pushtrain.mission.runner import bias_model
 
-    sc = _scenario(scenario)
+    sc = load_scenario_with_overrides(scenario)
     c = sc.controller
     with click_errors():
         link, speed, bias, eps = bias_model(sc)

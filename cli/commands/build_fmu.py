@@ -7,7 +7,11 @@ from pathlib import Path
 
 import click
 
-from ..common import MAX_TRAILERS, BadInput, click_errors
+from pushtrain.fmu.variables import MAX_TRAILERS
+
+from ..common import BadInput, click_errors
+
+__all__ = ["build_fmu_cmd"]
 
 
 def _check_out(out: str) -> None:
@@ -44,7 +48,7 @@ def build_fmu_cmd(trailers, fmi_version, out, force):
       pushtrain build-fmu --trailers 3 -o TrailerTrain.fmu
       pushtrain build-fmu --fmi-version 3 -o TrailerTrain3.fmu
     """
-    from pushtrain.fmu import build_fmu
+    from pushtrain.fmu.build import build_fmu
 
     version = int(fmi_version)
     if version == 2 and trailers is None:

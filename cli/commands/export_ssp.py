@@ -8,14 +8,16 @@ import click
 
 from ..common import (
     BadInput,
-    _scenario,
     check_map,
     click_errors,
+    load_scenario_with_overrides,
     scenario_argument,
     trailers_option,
 )
 from ..runs import describe_path, plan_or_fail
-from .run import _load_path
+from .run import load_path_file
+
+__all__ = ["export_ssp_cmd"]
 
 
 def _check_target(out: str) -> Path:
@@ -69,10 +71,10 @@ def export_ssp_cmd(scenario, out, path_file, ospconfig, trailers, seed):
     from pushtrain.mission.runner import scripted_reference
     from pushtrain.mission.ssp import export_ssp
 
-    sc = _scenario(scenario, trailers, seed)
+    sc = load_scenario_with_overrides(scenario, trailers, seed)
     target = _check_target(out)
     if path_file:
-        path = _load_path(path_file)
+        path = load_path_file(path_file)
         reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
     elif sc.mission.kind == "scripted":
         reference = scripted_reference(sc)

@@ -8,8 +8,16 @@ import click
 
 from pushtrain.files import atomic_write
 
-from ..common import BadInput, _scenario, check_map, click_errors, scenario_argument
+from ..common import (
+    BadInput,
+    check_map,
+    click_errors,
+    load_scenario_with_overrides,
+    scenario_argument,
+)
 from ..runs import describe_path, plan_or_fail, write_path
+
+__all__ = ["plan_cmd"]
 
 
 def _plot_path(sc, path, png: Path) -> None:
@@ -65,7 +73,7 @@ def plan_cmd(scenario, out, seed, plot_path):
         if value is not None and not value.strip():
             raise BadInput(f"{option} {value!r}: an empty file name; allowed: a file path, or "
                            f"no {option}")
-    sc = _scenario(scenario, seed=seed)
+    sc = load_scenario_with_overrides(scenario, seed=seed)
     if sc.mission.kind != "plan":
         raise BadInput(f"{scenario}: mission.kind = {sc.mission.kind!r}: 'plan' needs "
                        "mission.kind = 'plan'")

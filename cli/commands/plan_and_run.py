@@ -7,9 +7,9 @@ import sys
 import click
 
 from ..common import (
-    _scenario,
     check_map,
     csv_option,
+    load_scenario_with_overrides,
     out_dir_option,
     plot_processes_option,
     scenario_argument,
@@ -19,6 +19,8 @@ from ..plotting import plotter
 from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import describe_path, plan_or_fail, run_and_report, write_path, write_scenario
+
+__all__ = ["plan_and_run"]
 
 
 @click.command("plan-and-run")
@@ -41,7 +43,7 @@ def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv, plot_proc
     run.log and plots. Progress goes to stderr, one line per phase.
     """
     phases = Phases()
-    sc = _scenario(scenario, trailers, seed)
+    sc = load_scenario_with_overrides(scenario, trailers, seed)
     # the plot processes get ready (import matplotlib) while the map is checked, the path
     # planned and the run made
     with plotter(sc, plots=not no_plots, gif=not no_gif,

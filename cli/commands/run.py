@@ -8,9 +8,9 @@ import click
 
 from ..common import (
     BadInput,
-    _scenario,
     check_map,
     csv_option,
+    load_scenario_with_overrides,
     out_dir_option,
     plot_processes_option,
     scenario_argument,
@@ -20,8 +20,10 @@ from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import run_and_report, write_path, write_scenario
 
+__all__ = ["run_cmd", "load_path_file"]
 
-def _load_path(path_file: str):
+
+def load_path_file(path_file: str):
     from pushtrain.planner.path import PlannedPath
 
     try:
@@ -77,7 +79,7 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv, plot_processes):
     summary.json, run.log and plots. Progress goes to stderr, one line per phase.
     """
     phases = Phases()
-    sc = _scenario(scenario)
+    sc = load_scenario_with_overrides(scenario)
     # the plot processes get ready (import matplotlib) while the map is checked and the run
     # made
     with plotter(sc, plots=not no_plots, gif=not no_gif,
@@ -85,7 +87,7 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv, plot_processes):
         check_map(sc)
         path = None
         if path_file:
-            path = _load_path(path_file)
+            path = load_path_file(path_file)
             _check_path_fits(sc, path, path_file)
         elif sc.mission.kind == "plan":
             raise BadInput(f"{scenario}: mission.kind = 'plan' has no scripted reference: give "

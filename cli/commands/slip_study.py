@@ -10,6 +10,9 @@ import click
 from ..common import BadInput, out_dir_option
 from ..rundir import run_folder
 
+__all__ = ["slip_study_cmd"]
+
+
 _MAX_TRAILERS = 50  # SlipStudyConfig's range of n
 
 

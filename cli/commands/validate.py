@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ..common import _scenario, check_map, scenario_argument
+from ..common import check_map, load_scenario_with_overrides, scenario_argument
+
+__all__ = ["validate_cmd"]
 
 
 @click.command("validate")
@@ -16,6 +18,6 @@ def validate_cmd(scenario):
     Example:
       pushtrain validate examples/l_corridor.toml
     """
-    sc = _scenario(scenario)
+    sc = load_scenario_with_overrides(scenario)
     check_map(sc)
     click.echo(f"{scenario}: ok ({sc.mission.kind} mission, n = {sc.train.n} trailers)")

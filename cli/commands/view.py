@@ -8,6 +8,8 @@ import click
 
 from ..exits import EXIT_BAD_INPUT
 
+__all__ = ["view_cmd"]
+
 
 def _has_browser() -> bool:
     """Whether Python's webbrowser module knows a browser to start (none on a bare server)."""

@@ -1,19 +1,15 @@
-"""Corridor maps, body footprints and the train description used by the planner.
+"""A facility's free space: the :class:`World` the train moves in.
 
 A :class:`World` is free space in the plane: the inside of an optional outline polygon
-(``free``) minus any number of obstacle polygons (``obstacles`` and ``walls`` are synonyms).
-Everything is plain data (lists of ``[x, y]`` points, metres) so a scenario file can hold it.
-
-Bodies are rectangles attached to their axle midpoints (the robot's centre for body 0): a
-:class:`BodyFootprint` is ``length`` along the body heading, ``width`` across it, and ``offset``,
-the signed distance [m] from the axle midpoint to the rectangle's centre along the heading
-``theta`` (positive toward the robot, the chain convention of :mod:`pushtrain.core.kinematics`).
+(``free``) minus any number of obstacle polygons (``obstacles`` and ``walls`` are synonyms), or
+the free cells of an occupancy grid (:mod:`pushtrain.facility.loading`). Everything is plain data
+(lists of ``[x, y]`` points, metres) so a scenario file can hold it. The train's bodies are the
+planner's (:mod:`pushtrain.planner.train`).
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import re
 import threading
 from dataclasses import dataclass, field
@@ -25,15 +21,12 @@ from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
 from shapely.validation import explain_validity
 
-from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.defaults import ROBOT_LENGTH, ROBOT_WIDTH
 from pushtrain.errors import PlanningInputError
-from pushtrain.table1 import LINK, TRAILER_LENGTH, TRAILER_WIDTH
 
 from .distance_field import DEFAULT_RESOLUTION, DistanceField
 from .raster import polygon_path
 
-__all__ = ["World", "BodyFootprint", "Train", "save_diagnostic", "draw_poses"]
+__all__ = ["World", "outline_problem", "polygon_from_points"]
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +47,7 @@ def outline_problem(poly: Polygon) -> str | None:
             "touch itself")
 
 
-def _polygon(points: Any, field_name: str, outline: bool = False) -> Polygon:
+def polygon_from_points(points: Any, field_name: str, outline: bool = False) -> Polygon:
     """A valid shapely polygon from a list of [x, y] points [m]; PlanningInputError otherwise.
 
     A polygon that crosses or touches itself is an error if it is the free space's ``outline``
@@ -129,7 +122,7 @@ class World:
     def distance_field(self, resolution: float | None = None) -> DistanceField:
         """The signed distance field of this map (cached per resolution): from :attr:`occupancy`
         at its own resolution if set, else from the polygons at ``resolution`` [m] (default
-        :data:`~pushtrain.planner.distance_field.DEFAULT_RESOLUTION`)."""
+        :data:`~pushtrain.facility.distance_field.DEFAULT_RESOLUTION`)."""
         key = None if self.occupancy is not None else (resolution or DEFAULT_RESOLUTION)
         cached = self._fields.get(key)
         if cached is None:
@@ -153,7 +146,7 @@ class World:
             ``[[x, y], ...]``: outline of the free space (a simple polygon, either orientation;
             one that crosses or touches itself is repaired by ``make_valid``, with a warning:
             two rooms touching along a wall become two parts. A scenario's ``map.free`` is
-            refused instead, by :func:`~pushtrain.planner.mapworld.map_world`).
+            refused instead, by :func:`~pushtrain.facility.loading.map_world`).
         ``obstacles``, ``walls``
             ``[[[x, y], ...], ...]``: polygons removed from the free space (synonyms; both may
             be given, they are combined).
@@ -168,7 +161,7 @@ class World:
         if unknown:
             raise PlanningInputError(f"world has unknown keys {unknown}: allowed are {_WORLD_KEYS}")
         if "free" in data:
-            outline = _polygon(data["free"], "world.free")
+            outline = polygon_from_points(data["free"], "world.free")
         elif "bounds" in data:
             b = np.asarray(data["bounds"], dtype=float).reshape(-1)
             if b.size != 4 or not np.all(np.isfinite(b)) or b[2] <= b[0] or b[3] <= b[1]:
@@ -184,7 +177,7 @@ class World:
             items = data.get(key, [])
             if not isinstance(items, Sequence):
                 raise PlanningInputError(f"world.{key} must be a list of polygons")
-            obstacles += [_polygon(p, f"world.{key}[{k}]") for k, p in enumerate(items)]
+            obstacles += [polygon_from_points(p, f"world.{key}[{k}]") for k, p in enumerate(items)]
         return cls(outline, tuple(obstacles))
 
     def to_dict(self) -> dict:
@@ -242,7 +235,7 @@ class World:
     def eroded(self, margin: float):
         """Free space shrunk by ``margin`` [m] (prepared): a body inside it keeps that clearance.
         With an occupancy grid: where its distance field is at least ``margin``, traced
-        (:func:`pushtrain.planner.raster.clear_region`; exact to the grid's resolution, like the
+        (:func:`pushtrain.facility.raster.clear_region`; exact to the grid's resolution, like the
         field), within the free space.
 
         Computed once per margin; each thread gets its own prepared copy (GEOS builds a prepared
@@ -271,8 +264,8 @@ class World:
 
     def with_obstacles(self, extra: Sequence[Polygon]) -> "World":
         """A copy with ``extra`` obstacle polygons added. An occupancy grid that can burn
-        polygons in (:meth:`pushtrain.planner.maps.OccupancyGrid.burn`) gets them burned in;
-        any other is dropped, and the copy's distance field comes from its polygons."""
+        polygons in (:meth:`pushtrain.facility.occupancy_grid.OccupancyGrid.burn`) gets them burned
+        in; any other is dropped, and the copy's distance field comes from its polygons."""
         grid = self.occupancy
         if grid is None or not hasattr(grid, "burn"):
             return World(self.outline, tuple(self.obstacles) + tuple(extra),
@@ -327,264 +320,3 @@ class World:
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         return ax
-
-
-@dataclass(frozen=True)
-class BodyFootprint:
-    """Rectangle of one body in its own frame.
-
-    Parameters
-    ----------
-    length : float
-        Extent along the body heading [m], > 0.
-    width : float
-        Extent across the body heading [m], > 0.
-    offset : float
-        Rectangle centre minus axle midpoint along the heading theta (toward the robot) [m];
-        must keep the axle midpoint inside the rectangle (|offset| <= length / 2).
-    """
-
-    length: float = TRAILER_LENGTH
-    width: float = TRAILER_WIDTH
-    offset: float = 0.0
-
-    def __post_init__(self):
-        for name in ("length", "width"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0.0):
-                raise PlanningInputError(f"footprint {name} = {value!r} m: must be finite and > 0")
-        if not (np.isfinite(self.offset) and abs(self.offset) <= 0.5 * self.length):
-            raise PlanningInputError(
-                f"footprint offset = {self.offset!r} m: the axle midpoint must lie inside the "
-                f"rectangle, |offset| <= length/2 = {0.5 * self.length}"
-            )
-
-    def corners(self, x, y, theta) -> np.ndarray:
-        """Corners [m] of the rectangle at axle-midpoint poses; shape (..., 4, 2), CCW order."""
-        x, y, theta = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x, y, theta)))
-        c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
-        hl, hw = 0.5 * self.length, 0.5 * self.width
-        along = self.offset + np.array([hl, -hl, -hl, hl])
-        across = np.array([hw, hw, -hw, -hw])
-        px = x[..., None] + along * c - across * s
-        py = y[..., None] + along * s + across * c
-        return np.stack([px, py], axis=-1)
-
-    def corner_points(self, x: float, y: float, theta: float) -> tuple:
-        """Corners of the rectangle at one pose as four (x, y) tuples [m], the order of
-        :meth:`corners` (a fast scalar form for the planner's validity checks)."""
-        c, s = math.cos(theta), math.sin(theta)
-        hl, hw = 0.5 * self.length, 0.5 * self.width
-        front, back = self.offset + hl, self.offset - hl
-        return ((x + front * c - hw * s, y + front * s + hw * c),
-                (x + back * c - hw * s, y + back * s + hw * c),
-                (x + back * c + hw * s, y + back * s - hw * c),
-                (x + front * c + hw * s, y + front * s - hw * c))
-
-    def polygons(self, x, y, theta) -> np.ndarray:
-        """Shapely polygons of the rectangle at the given poses (array of the broadcast shape)."""
-        return shapely.polygons(self.corners(x, y, theta))
-
-    def to_dict(self) -> dict:
-        """Plain data."""
-        return {"length": self.length, "width": self.width, "offset": self.offset}
-
-
-@dataclass(frozen=True)
-class Train:
-    """Geometry, footprints and joint limit of a robot with n trailers.
-
-    Parameters
-    ----------
-    geometry : ChainGeometry
-        Hitch links F_i, R_i [m].
-    robot : BodyFootprint
-        Body 0 (its reference point is the robot centre).
-    trailers : tuple of BodyFootprint
-        Bodies 1..n, one per trailer (own sizes allowed).
-    phi_max : float
-        Limit on every |phi_i| [rad] (the FMU's ``phi_max``), in (0, pi).
-    """
-
-    geometry: ChainGeometry
-    robot: BodyFootprint = BodyFootprint(0.6, 0.5, 0.0)
-    trailers: tuple = ()
-    phi_max: float = 0.5 * np.pi
-
-    def __post_init__(self):
-        trailers = tuple(self.trailers) or (BodyFootprint(),) * self.geometry.n
-        if len(trailers) != self.geometry.n:
-            raise PlanningInputError(
-                f"{len(trailers)} trailer footprints for a chain of n = {self.geometry.n} trailers"
-            )
-        object.__setattr__(self, "trailers", trailers)
-        if not (np.isfinite(self.phi_max) and 0.0 < self.phi_max < np.pi):
-            raise PlanningInputError(f"phi_max = {self.phi_max!r} rad: allowed is (0, pi)")
-
-    @classmethod
-    def uniform(
-        cls,
-        n_trailers: int = 3,
-        link: float = LINK,
-        robot: BodyFootprint | None = None,
-        trailer: BodyFootprint | None = None,
-        phi_max: float = 0.5 * np.pi,
-    ) -> "Train":
-        """``n_trailers`` equal trailers (defaults: Table 1's 0.8 m x 0.6 m, D = 0.52 m)."""
-        geometry = ChainGeometry.uniform(n_trailers, link)
-        return cls(
-            geometry,
-            robot or BodyFootprint(ROBOT_LENGTH, ROBOT_WIDTH, 0.0),
-            (trailer or BodyFootprint(),) * geometry.n,
-            phi_max,
-        )
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "Train":
-        """From plain data: ``n_trailers`` (int), optional ``link`` (m, default 0.52) or
-        ``front``/``rear`` lists, ``robot`` and ``trailer`` (one dict for all) or ``trailers``
-        (a list of dicts) with ``length``/``width``/``offset``, and ``phi_max_deg``."""
-        if "front" in data or "rear" in data:
-            geometry = ChainGeometry(np.asarray(data["front"]), np.asarray(data["rear"]))
-        else:
-            geometry = ChainGeometry.uniform(int(data.get("n_trailers", 3)), data.get("link", LINK))
-        robot = (BodyFootprint(**data["robot"]) if "robot" in data
-                 else BodyFootprint(ROBOT_LENGTH, ROBOT_WIDTH))
-        if "trailers" in data:
-            trailers = tuple(BodyFootprint(**t) for t in data["trailers"])
-        else:
-            trailers = (BodyFootprint(**data.get("trailer", {})),) * geometry.n
-        phi_max = np.radians(float(data.get("phi_max_deg", 90.0)))
-        return cls(geometry, robot, trailers, phi_max)
-
-    @property
-    def n(self) -> int:
-        """Number of trailers."""
-        return self.geometry.n
-
-    @property
-    def bodies(self) -> tuple:
-        """Footprints of bodies 0..n."""
-        return (self.robot, *self.trailers)
-
-    @property
-    def last(self) -> BodyFootprint:
-        """Footprint of the last trailer (the planned body)."""
-        return self.trailers[-1]
-
-    def max_link(self) -> float:
-        """Largest hitch link max(F_i, R_i) [m]."""
-        return float(max(self.geometry.front.max(), self.geometry.rear.max()))
-
-
-def draw_poses(ax, train: Train, x, y, theta, color="tab:blue", alpha=0.6, label=None):
-    """Outline every body of ``train`` at positions ``x, y`` (n+1,) and headings (n+1,)."""
-    for i, body in enumerate(train.bodies):
-        c = body.corners(x[i], y[i], theta[i])
-        ax.fill(c[:, 0], c[:, 1], facecolor="none", edgecolor=color, alpha=alpha,
-                label=label if i == 0 else None)
-
-
-_FAILURE_STYLE = {"collision": ("x", "red"), "self_collision": ("s", "darkorange"),
-                  "joint_limit": ("^", "purple"), "pull_rule": ("v", "teal"),
-                  "goal_missed": ("o", "brown")}
-
-
-def save_diagnostic(path, world: World, start=None, goal=None, train: Train | None = None,
-                    poses=None, title: str | None = None, marks=None,
-                    failure: dict | None = None) -> None:
-    """Save a PNG of the map with the last trailer at ``start`` and ``goal`` (x, y, theta).
-
-    ``poses`` (N, 3) draws a path of the last trailer; ``marks`` is a list of (x, y, text)
-    points to flag (collisions, ...). ``failure`` is the ``details`` of a PlanningError of the
-    whole-train planner: its explored tree (``tree``: the last trailer's traces), the best
-    partial plan (``closest``), the points where motions failed (``failure_points``, marked by
-    kind and body) and the keep-out band of every clearance (``margins``: the free space shrunk
-    by each margin, dashed). No pyplot: safe in headless processes.
-    """
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(8, 8))
-    ax = fig.add_subplot()
-    world.plot(ax)
-    last = train.last if train is not None else BodyFootprint()
-    if failure:
-        _draw_failure(ax, world, failure, start)
-        closest = failure.get("closest") or {}
-        if train is not None and closest.get("x") is not None:
-            draw_poses(ax, train, closest["x"], closest["y"], closest["headings"],
-                       color="tab:blue", alpha=0.9, label="train at the best partial plan")
-    for pose, color, name in ((start, "tab:green", "start"), (goal, "tab:red", "goal")):
-        if pose is None:
-            continue
-        c = last.corners(*pose[:3])
-        ax.fill(c[:, 0], c[:, 1], facecolor=color, alpha=0.4, edgecolor=color, label=name)
-        ax.annotate("", xy=(pose[0] + 0.4 * np.cos(pose[2]), pose[1] + 0.4 * np.sin(pose[2])),
-                    xytext=(pose[0], pose[1]), arrowprops={"arrowstyle": "->", "color": color})
-    if poses is not None:
-        poses = np.asarray(poses)
-        ax.plot(poses[:, 0], poses[:, 1], "-", color="tab:blue", lw=1, label="last trailer")
-    for x, y, text in marks or []:
-        ax.plot([x], [y], "x", color="magenta", ms=10)
-        ax.annotate(text, (x, y), color="magenta", fontsize=8)
-    ax.legend(loc="best", fontsize=8)
-    if title:
-        ax.set_title(title, fontsize=9)
-    fig.savefig(path, dpi=110)
-
-
-def _draw_failure(ax, world: World, details: dict, start) -> None:
-    """The search's tree, failure points, best partial plan, keep-out margins, the route
-    through the building and the bottleneck on ``ax``."""
-    route = details.get("route")
-    if route and route.get("points"):
-        xy = np.asarray(route["points"], dtype=float)
-        ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:green", lw=2.0, alpha=0.5,
-                label=f"route ({route['length']:.1f} m)")
-    bottleneck = details.get("bottleneck")
-    what = "bottleneck"
-    if not bottleneck and route:
-        bottleneck, what = route.get("bottleneck"), "narrowest on the route"
-    if bottleneck:
-        ax.plot([bottleneck["x"]], [bottleneck["y"]], "o", ms=14, mfc="none", mew=2,
-                color="crimson", label=f"{what}: {bottleneck['width']:.2f} m wide, "
-                f"{bottleneck['needed']:.2f} m needed")
-    for k, trace in enumerate(details.get("tree") or []):
-        xy = np.asarray(trace, dtype=float)
-        if xy.ndim == 2 and xy.shape[0] > 1:
-            ax.plot(xy[:, 0], xy[:, 1], "-", color="0.6", lw=0.5,
-                    label="explored (last trailer)" if k == 0 else None)
-    for m in sorted(set(details.get("margins") or [])):
-        if m <= 0.0:
-            continue
-        band = world.eroded(m)
-        for k, poly in enumerate(getattr(band, "geoms", [band])):
-            for ring in [poly.exterior, *poly.interiors]:
-                xy = np.asarray(ring.coords)
-                ax.plot(xy[:, 0], xy[:, 1], "--", color="tab:orange", lw=0.7,
-                        label=f"keep-out {m:.3f} m" if k == 0 and ring is poly.exterior
-                        else None)
-    seen = set()
-    for p in details.get("failure_points") or []:
-        kind = p.get("kind", "collision").replace("verification_", "")
-        marker, color = _FAILURE_STYLE.get(kind, ("x", "red"))
-        label = kind.replace("_", " ") if kind not in seen else None
-        seen.add(kind)
-        ax.plot([p["x"]], [p["y"]], marker, color=color, ms=5, mfc="none", label=label)
-    closest = details.get("closest")
-    if closest and closest.get("segments") and start is not None:
-        from pushtrain.core.reference import Segment, path_points
-
-        x, y = path_points(start, [Segment.from_dict(g) for g in closest["segments"]])
-        ax.plot(x, y, "-", color="tab:blue", lw=2, label="best partial plan")
-    if details.get("failure_points"):
-        worst = {}
-        for p in details["failure_points"]:
-            if "body" in p:
-                worst[p["body"]] = worst.get(p["body"], 0) + 1
-        if worst:
-            body = max(worst, key=worst.get)
-            last = [p for p in details["failure_points"] if p.get("body") == body][-1]
-            name = "robot" if body == 0 else f"trailer {body}"
-            ax.annotate(f"{name} ({worst[body]} failures)", (last["x"], last["y"]),
-                        color="red", fontsize=8)

@@ -42,7 +42,7 @@ cell of an obstacle polygon (so a wall thinner than a cell is never lost between
 every cell whose centre is not half a cell inside a ``keep_in`` outline. The distance field, which
 the planner queries, then sees them.
 
-Worlds are made of grids in :mod:`pushtrain.planner.mapworld`.
+Worlds are made of grids in :mod:`pushtrain.facility.loading`.
 """
 
 from __future__ import annotations
@@ -192,7 +192,7 @@ class MapImage:
 @dataclass(frozen=True, eq=False)
 class OccupancyGrid:
     """An axis-aligned occupancy grid: what :attr:`World.occupancy
-    <pushtrain.planner.world.World.occupancy>` and the distance field take.
+    <pushtrain.facility.free_space.World.occupancy>` and the distance field take.
 
     Attributes
     ----------
@@ -509,7 +509,7 @@ def read_map_yaml(path) -> dict:
 def _read_pixels(image_path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None]:
     """Grey levels (H, W) in 0..255 (colour channels averaged) and the alpha channel (or None)
     of an image file; MapError ``image`` if it is missing, cannot be decoded, or has more than
-    :data:`~pushtrain.planner.distance_field.MAX_CELLS` pixels (read from its header, before
+    :data:`~pushtrain.facility.distance_field.MAX_CELLS` pixels (read from its header, before
     any pixel is decoded)."""
     import warnings
 

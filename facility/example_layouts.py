@@ -1,9 +1,10 @@
-"""Reusable test and example worlds (plain data, as in a scenario file).
+"""Example facility layouts for tests and examples (plain data, as in a scenario file).
 
 Each factory returns a dict ``{"world": {...}, "start": [x, y, theta], "goal": [x, y, theta],
-"description": str}``; ``world`` is accepted by :meth:`pushtrain.planner.World.from_dict` and
-``start``/``goal`` are last-trailer poses in the chain convention (theta toward the robot, so a
-train pushed toward +x has theta = pi). Example scenario TOML files describe the same corridors.
+"description": str}``; ``world`` is accepted by
+:meth:`pushtrain.facility.free_space.World.from_dict` and ``start``/``goal`` are last-trailer
+poses in the chain convention (theta toward the robot, so a train pushed toward +x has theta =
+pi). Example scenario TOML files describe the same corridors.
 """
 
 from __future__ import annotations

@@ -104,8 +104,9 @@ class DistanceField:
     @classmethod
     def from_world(cls, world, resolution: float = DEFAULT_RESOLUTION,
                    band: float = 1.0) -> DistanceField:
-        """The field of a polygon :class:`~pushtrain.planner.world.World` (exact within ``band``
-        [m] of a wall, see the module docstring); the grid covers the outline plus two cells."""
+        """The field of a polygon :class:`~pushtrain.facility.free_space.World` (exact within
+        ``band`` [m] of a wall, see the module docstring); the grid covers the outline plus two
+        cells."""
         h = float(resolution)
         if not (math.isfinite(h) and h > 0.0):
             raise PlanningInputError(f"resolution = {resolution!r} m: must be finite and > 0")

@@ -1,20 +1,20 @@
-"""The world of a scenario's map: polygons, an occupancy grid (ROS map_server format,
-:mod:`pushtrain.planner.maps`) and a DXF floor plan (:mod:`pushtrain.planner.dxf`), in any
-combination, and the polygons traced from a grid.
+"""Loading a scenario's map into a :class:`~pushtrain.facility.free_space.World`: polygons, an
+occupancy grid (ROS map_server format, :mod:`pushtrain.facility.occupancy_grid`) and a DXF floor
+plan (:mod:`pushtrain.facility.dxf`), in any combination, and the polygons traced from a grid.
 
-A grid world (:func:`grid_world`) is a :class:`~pushtrain.planner.world.World` with ``occupancy``
-set, so its :meth:`~pushtrain.planner.world.World.distance_field` comes from the grid (exact to the
-resolution), and polygons for what still works on shapely geometry (drawing the legacy way, the
-planner's region tests, the run's clearance check):
+A grid world (:func:`grid_world`) is a :class:`~pushtrain.facility.free_space.World` with
+``occupancy`` set, so its :meth:`~pushtrain.facility.free_space.World.distance_field` comes from
+the grid (exact to the resolution), and polygons for what still works on shapely geometry
+(drawing the legacy way, the planner's region tests, the run's clearance check):
 
 - the outline is the image's footprint (a rotated rectangle for a rotated map);
 - the obstacles are the blocked cells, traced by marching squares
-  (:func:`~pushtrain.planner.raster.blocked_polygons`: within 0.35 cell of the cells' own edges,
+  (:func:`~pushtrain.facility.raster.blocked_polygons`: within 0.35 cell of the cells' own edges,
   then simplified by a quarter cell, so that cell centres stay on their side), plus the polygons
   drawn on top, exactly;
-- :meth:`World.eroded <pushtrain.planner.world.World.eroded>` of a grid world is the level set
-  {distance >= margin} of its distance field, traced the same way
-  (:func:`~pushtrain.planner.raster.clear_region`), not a buffer of the traced polygons: on a map
+- :meth:`World.eroded <pushtrain.facility.free_space.World.eroded>` of a grid world is the level
+  set {distance >= margin} of its distance field, traced the same way
+  (:func:`~pushtrain.facility.raster.clear_region`), not a buffer of the traced polygons: on a map
   with ragged walls the buffer takes seconds (1 s for the bundled 500 x 340 warehouse), the
   level set a fraction of one (0.03 s).
 
@@ -30,7 +30,7 @@ per margin; shapely on traced polygons costs in proportion to their vertices (30
 2000 x 2000 map), and each margin is a buffer that takes seconds to a minute there.
 
 Polygons and DXF obstacles combined with a grid are burned into it
-(:meth:`~pushtrain.planner.maps.OccupancyGrid.burn`), so the distance field sees them.
+(:meth:`~pushtrain.facility.occupancy_grid.OccupancyGrid.burn`), so the distance field sees them.
 """
 
 from __future__ import annotations
@@ -43,17 +43,17 @@ from shapely.ops import unary_union
 from pushtrain.errors import MapError, PlanningInputError
 from pushtrain.validation import clipped
 
-from .maps import OccupancyGrid, load_map
+from .occupancy_grid import OccupancyGrid, load_map
 from .raster import blocked_polygons
 
 __all__ = ["grid_world", "map_world"]
 
 def grid_world(grid: OccupancyGrid, obstacles=(), keep_in: Polygon | None = None):
-    """A :class:`~pushtrain.planner.world.World` of ``grid`` with ``obstacles`` (polygons [m])
+    """A :class:`~pushtrain.facility.free_space.World` of ``grid`` with ``obstacles`` (polygons [m])
     and, if given, ``keep_in`` (an outline [m]) burned in: ``occupancy`` is the burned grid, the
     outline the map's footprint (cut to ``keep_in``), the obstacles the traced blocked cells of
     the map (one MultiPolygon) and ``obstacles`` themselves, exactly."""
-    from .world import World
+    from .free_space import World
 
     obstacles = tuple(obstacles)
     traced = blocked_polygons(grid)
@@ -77,10 +77,10 @@ def _prefixed(exc: MapError, field: str, own: tuple = ()) -> MapError:
 
 def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=None, layers=(),
               line_thickness: float | None = None, dxf_units: str | None = None):
-    """A :class:`~pushtrain.planner.world.World` from a scenario's map: polygons (``free``,
+    """A :class:`~pushtrain.facility.free_space.World` from a scenario's map: polygons (``free``,
     ``bounds``, ``obstacles``, ``walls`` as in :meth:`World.from_dict
-    <pushtrain.planner.world.World.from_dict>`), a map_server YAML file ``grid`` and a DXF
-    floor plan ``dxf`` with its ``layers`` (see :mod:`pushtrain.planner.dxf`).
+    <pushtrain.facility.free_space.World.from_dict>`), a map_server YAML file ``grid`` and a DXF
+    floor plan ``dxf`` with its ``layers`` (see :mod:`pushtrain.facility.dxf`).
 
     With a grid, the polygons and the floor plan's obstacles are burned into it and ``free`` or
     ``bounds`` cut it (:func:`grid_world`). Without one, the floor plan's obstacles join the
@@ -94,12 +94,12 @@ def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=
     PlanningInputError
         A malformed polygon.
     """
-    from .world import World, _polygon
+    from .free_space import World, polygon_from_points
 
     outline, outline_label = None, ""
     if free is not None:
         try:
-            outline, outline_label = _polygon(free, "map.free", outline=True), "map.free"
+            outline, outline_label = polygon_from_points(free, "map.free", outline=True), "map.free"
         except PlanningInputError as exc:
             if "outline_problem" not in exc.details:
                 raise
@@ -110,7 +110,7 @@ def map_world(*, free=None, bounds=None, obstacles=(), walls=(), grid=None, dxf=
     extra, labels = [], []
     for name, items in (("obstacles", obstacles), ("walls", walls)):
         for k, p in enumerate(items):
-            extra.append(_polygon(p, f"map.{name}[{k}]"))
+            extra.append(polygon_from_points(p, f"map.{name}[{k}]"))
             labels.append(f"map.{name}[{k}]")
     if dxf is not None:
         from .dxf import DEFAULT_LINE_THICKNESS, read_dxf

@@ -1,5 +1,0 @@
-"""Deprecated alias of :mod:`pushtrain.report.plots` (kept for one release)."""
-
-from pushtrain._compat import alias_module
-
-alias_module(__name__)
