@@ -67,7 +67,7 @@ from .result import (
     Result,
     summarize,
 )
-from .sensors import Measurement, SensorConfig, Sensors
+from .sensors import SensorConfig, Sensors
 from .step_loop import STEP_LOOPS, CompiledLoop, unsupported
 
 __all__ = [
@@ -89,9 +89,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-_new_tuple = tuple.__new__
-
 
 _OUTPUTS = (  # FMU output array, its result column prefix, first index
     ("x", "x", 0), ("y", "y", 0), ("theta", "theta", 0), ("v", "v", 0), ("w", "w", 0),
@@ -228,7 +225,6 @@ class _Run:
         self.recorder, self.goal, self.n = recorder, goal, sensors.n
         slid = {self.n if ev.trailer is None else ev.trailer for ev in events.slides}
         self.io = _PlantIO(slave, self.n, recorder, sorted(slid))
-        self.measure = self._measure_ideal if sensors.ideal else self._measure
 
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
         """Step from ``t0`` (communication points t0 + k step, k = 0..n_steps); the status and
@@ -237,13 +233,15 @@ class _Run:
         Per step: four FMI calls, one doStep, scalar Python and one copy of the row (the
         per-step objects are bound to locals once)."""
         recorder = self.recorder
-        self.phi_meas, self.flags = recorder.view("phi_meas"), recorder.view("flags")
+        self.flags = recorder.view("flags")
+        # the sensors read the FMU's states and write the joint readings into the row
+        measure = self.sensors.measurer(self.io.state, recorder.view("phi_meas"))
         scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
         self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
         events, io, n, goal = self.events, self.io, self.n, self.goal
         read_state, write_inputs = io.read_state, io.write_inputs
         read_outputs, read_flags = io.read_outputs, io.read_flags
-        pose, measure, command = io.pose, self.measure, self.loop.command
+        last_pose, command = io.pose[3:], self.loop.command
         scalars, flags, commit = self.scalars, self.flags, self.recorder.commit
         do_step = self.slave.do_step
         for k in range(n_steps + 1):
@@ -253,8 +251,8 @@ class _Run:
                 for bias in events.biases_due(t):
                     self.sensors.set_bias(bias.joint, bias.bias)
             read_state()
-            x0, y0, th0, x_n, y_n, th_n = pose.tolist()
-            v_cmd, w_cmd, _, ref = command(t, measure(x0, y0, th0, x_n, y_n, th_n))
+            x_n, y_n, th_n = last_pose.tolist()
+            v_cmd, w_cmd, _, ref = command(t, measure())
             push_x, push_y = events.push_force(t, th_n) if events.pushes else (0.0, 0.0)
             write_inputs((v_cmd, w_cmd, push_x, push_y))
             slide = self._slide(t) if events.slides else 0.0
@@ -280,24 +278,6 @@ class _Run:
             if bar is not None and k % 200 == 0:
                 bar.update(200 if k else 0)
         return None
-
-    def _measure_ideal(self, x0, y0, th0, x_n, y_n, th_n) -> Measurement:
-        """The measurement of sensors without noise, play or quantization: the true robot pose
-        and the joint angles plus their biases (into the row, and as floats for the controller),
-        equal to :meth:`Sensors.measure` bit for bit."""
-        reading = self.sensors.biased(self.io.phi)
-        self.phi_meas[...] = reading
-        return _new_tuple(Measurement, (x0, y0, th0, reading.tolist(), None))
-
-    def _measure(self, x0, y0, th0, x_n, y_n, th_n) -> Measurement:
-        """The measurement of :class:`Sensors` (noise drawn in its order: joints, robot pose,
-        last trailer's pose); the joint readings into the row, as floats for the controller."""
-        sensors = self.sensors
-        reading = sensors.measure_joints(self.io.phi)
-        robot = sensors.measure_pose(x0, y0, th0)
-        last = sensors.measure_pose(x_n, y_n, th_n) if sensors.config.measure_last_pose else None
-        self.phi_meas[...] = reading
-        return _new_tuple(Measurement, (*robot, reading.tolist(), last))
 
     def _slide(self, t: float) -> float:
         """Set the slide speeds [m/s] that change at ``t``; the last trailer's."""

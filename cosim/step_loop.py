@@ -55,8 +55,6 @@ CHUNK = 1024
 _PAUSE, _HORIZON, _JACKKNIFE, _GOAL_CANDIDATE, _FMI_ERROR, _CONTROL_ERROR, _ARGUMENT = range(7)
 # failed FMI calls (PT_CALL_*)
 _GET_STATE, _SET_INPUTS, _SET_SLIDE, _GET_OUTPUTS, _GET_FLAGS, _DO_STEP = range(1, 7)
-# noise blocks (PT_NOISE_*)
-_NOISE_JOINTS, _NOISE_POSITION, _NOISE_HEADING = 1, 2, 4
 
 _U_PTR, _D_PTR, _I_PTR = POINTER(c_uint), native.D_PTR, POINTER(c_int)
 
@@ -71,9 +69,8 @@ class PtMasterLoop(ctypes.Structure):
         ("n_outputs", c_int), ("n", c_int),
         ("t0", c_double), ("step", c_double), ("n_steps", c_long),
         ("track", POINTER(native.PtTrack)),
-        ("bias", _D_PTR), ("half_backlash", c_double), ("play", _D_PTR), ("has_play", c_int),
-        ("quantization", c_double), ("noise", c_int), ("measure_last_pose", c_int),
-        ("noise_values", _D_PTR), ("noise_per_step", c_int),
+        ("sensors", POINTER(native.PtSensors)), ("noise_values", _D_PTR),
+        ("noise_per_step", c_int),
         ("rows", _D_PTR), ("row_width", c_int), ("n_output_runs", c_int),
         ("output_runs", _I_PTR), ("flag_at", _I_PTR), ("scalar_at", _I_PTR),
         ("at_phi_meas", c_int), ("at_f_lat_max", c_int), ("f_lat_max", _D_PTR),
@@ -160,21 +157,9 @@ class CompiledLoop:
             ctypes.cast(r, _U_PTR) for r in self._refs)
         m.n_outputs, m.n = len(io.output_names), n
         m.track = ctypes.pointer(self.tracker._track)
-        # sensors
-        config = sensors.config
-        m.half_backlash, m.quantization = sensors._half, sensors._q
-        self._play = np.zeros(n)
-        m.play = native.dptr(self._play)
-        m.measure_last_pose = int(bool(config.measure_last_pose))
-        pose_scales = ([sensors._pos_noise] * 2 if sensors._pos_noise > 0.0 else []) + (
-            [sensors._heading_noise] if sensors._heading_noise > 0.0 else [])
-        scales = ([sensors._joint_noise] * n if sensors._joint_noise > 0.0 else []) + \
-            pose_scales * (2 if config.measure_last_pose else 1)
-        m.noise = ((_NOISE_JOINTS if sensors._joint_noise > 0.0 else 0)
-                   | (_NOISE_POSITION if sensors._pos_noise > 0.0 else 0)
-                   | (_NOISE_HEADING if sensors._heading_noise > 0.0 else 0))
-        self.noise_scales = np.array(scales, dtype=float)
-        m.noise_per_step = len(scales)
+        # sensors: the run's own model and memory (biases, play), noise drawn per call
+        m.sensors = ctypes.pointer(sensors.model)
+        m.noise_per_step = sensors.noise_scales.size
         # recording: where each value goes in a row
         recorder = run.recorder
         self._f_lat_max = np.array(recorder.view("F_lat_max"))
@@ -218,9 +203,6 @@ class CompiledLoop:
         r, m, lib = self.run_, self.m, self.lib
         slave, events, sensors, recorder = r.slave, r.events, r.sensors, r.recorder
         m.t0, m.step, m.n_steps = t0, step, n_steps
-        if sensors._play is not None:
-            self._play[:] = sensors._play
-            m.has_play = 1
         call = lib.pt_master_run
         ref = ctypes.byref(m)
         k = 0
@@ -231,7 +213,6 @@ class CompiledLoop:
                 for bias in events.biases_due(t):
                     sensors.set_bias(bias.joint, bias.bias)
             self._keep = self._events_at(t)  # arrays the struct points to
-            m.bias = native.dptr(sensors._bias)
             rows = recorder.free_rows()
             m.rows = native.dptr(rows)
             k_stop = min(n_steps + 1, k + CHUNK, k + len(rows))
@@ -245,9 +226,7 @@ class CompiledLoop:
                                and not (reason == _FMI_ERROR and m.failed_call == _GET_STATE))
             recorder.advance(recorded)
             slave.time = m.time
-            if m.has_play:
-                sensors._play = self._play
-            self.tracker._has_last = bool(m.measure_last_pose)
+            self.tracker._has_last = bool(sensors.config.measure_last_pose)
             if noise_state is not None and measured < k_stop - k:
                 self._rewind_noise(sensors, noise_state, measured)
             if bar is not None and done:
@@ -301,24 +280,18 @@ class CompiledLoop:
     def _draw_noise(self, sensors: Sensors, steps: int):
         """Draw the noise of ``steps`` steps (None without noise; else the generator's state
         before the draw)."""
-        m = self.m
-        if not m.noise:
+        if not sensors.noise_scales.size:
             return None
-        rng = sensors._rng
-        state = rng.bit_generator.state
-        z = rng.standard_normal((steps, m.noise_per_step))
-        np.multiply(z, self.noise_scales, out=z)
-        z += 0.0  # Generator.normal's loc + scale * z (-0.0 becomes 0.0)
-        self._noise = z
-        m.noise_values = native.dptr(z)
+        state = sensors.rng.bit_generator.state
+        self._noise = sensors.draw_noise(steps)
+        self.m.noise_values = native.dptr(self._noise)
         return state
 
-    def _rewind_noise(self, sensors: Sensors, state, steps: int) -> None:
-        """Leave the generator where the Python sensors would after ``steps`` steps."""
-        rng = sensors._rng
-        rng.bit_generator.state = state
-        if steps:
-            rng.standard_normal(steps * self.m.noise_per_step)
+    @staticmethod
+    def _rewind_noise(sensors: Sensors, state, steps: int) -> None:
+        """Leave the generator where the Python loop's sensors would after ``steps`` steps."""
+        sensors.rng.bit_generator.state = state
+        sensors.draw_noise(steps)
 
     def _fmi_error(self, t: float, step: float) -> CosimError:
         """The Python loop's error of the FMI call that failed at ``t``."""

@@ -40,8 +40,8 @@ __all__ = [
 ]
 
 CONTROLLER_IDENTIFIER = "BackwardController"
-CONTROLLER_SOURCES = ("control.c", "ctrl_table.c", "ctrl_model.c", "ctrl_fmi2.c")
-CONTROLLER_HEADERS = ("control.h", "ctrl_model.h", "ctrl_table.h")
+CONTROLLER_SOURCES = ("control.c", "sensors.c", "ctrl_table.c", "ctrl_model.c", "ctrl_fmi2.c")
+CONTROLLER_HEADERS = ("control.h", "sensors.h", "ctrl_model.h", "ctrl_table.h")
 TABLE_FILE = "reference.txt"
 """The mission table in the FMU's ``resources/`` (see :mod:`pushtrain.fmu.controller`)."""
 DEFAULT_STEP = 0.005

@@ -92,8 +92,8 @@ def test_noisy_quantized_biased_sensors_with_play_and_bias_switches(fmu3, last_p
     assert (c.status, c.message) == (py.status, py.message)
     assert c.data.tobytes() == py.data.tobytes()
     # the sensors end in the same state: the generator drew exactly the same numbers
-    assert sensors["c"]._rng.random() == sensors["python"]._rng.random()
-    assert np.array_equal(sensors["c"]._play, sensors["python"]._play)
+    assert sensors["c"].rng.random() == sensors["python"].rng.random()
+    assert np.array_equal(sensors["c"].play, sensors["python"].play)
     assert np.array_equal(sensors["c"].bias, sensors["python"].bias)
     # what the case is meant to test is active: quantized readings, noise, play, the switches
     d, q = c.data, math.radians(0.1)

@@ -1,8 +1,8 @@
 /*
  * The co-simulation master's step loop (master_loop.h). Every formula is the Python loop's
- * (cosim/master.py, cosim/sensors.py, cosim/events.py) in the same order, compiled with
- * -ffp-contract=off, so a run gives the Python loop's numbers bit for bit
- * (tests/test_master_loop.py).
+ * (cosim/master.py, cosim/events.py; the sensors are core/csrc/sensors.c, the Python loop's
+ * too) in the same order, compiled with -ffp-contract=off, so a run gives the Python loop's
+ * numbers bit for bit (tests/test_master_loop.py).
  */
 #include "master_loop.h"
 
@@ -13,67 +13,18 @@
 
 size_t pt_master_loop_sizeof(void) { return sizeof(PtMasterLoop); }
 
-/* The joint readings (cosim/sensors.py Sensors.measure_joints) of the true angles phi into
- * reading[0..n-1]; noise is the step's joint noise or NULL. */
-static void measure_joints(PtMasterLoop *m, const double *phi, const double *noise,
-                           double *reading) {
-    const int n = m->n;
-    int i;
-    if (m->half_backlash == 0.0) {
-        for (i = 0; i < n; i++) {
-            reading[i] = phi[i] + m->bias[i];
-        }
-    } else {
-        if (!m->has_play) {
-            memcpy(m->play, phi, (size_t)n * sizeof(double));
-            m->has_play = 1;
-        } else {
-            for (i = 0; i < n; i++) { /* np.clip(play, phi - half, phi + half) */
-                const double lo = phi[i] - m->half_backlash, hi = phi[i] + m->half_backlash;
-                double p = m->play[i];
-                p = p < lo ? lo : p;
-                m->play[i] = p > hi ? hi : p;
-            }
-        }
-        for (i = 0; i < n; i++) {
-            reading[i] = m->play[i] + m->bias[i];
-        }
-    }
-    if (noise != NULL) {
-        for (i = 0; i < n; i++) {
-            reading[i] += noise[i];
-        }
-    }
-    if (m->quantization > 0.0) {
-        for (i = 0; i < n; i++) { /* q * np.round(reading / q): round half to even */
-            reading[i] = m->quantization * rint(reading[i] / m->quantization);
-        }
-    }
-}
-
-/* One pose reading (Sensors.measure_pose): noise consumed from *noise in its order. */
-static void measure_pose(const PtMasterLoop *m, double *x, double *y, double *theta,
-                         const double **noise) {
-    if (m->noise & PT_NOISE_POSITION) {
-        *x = *x + (*noise)[0];
-        *y = *y + (*noise)[1];
-        *noise += 2;
-    }
-    if (m->noise & PT_NOISE_HEADING) {
-        *theta = *theta + (*noise)[0];
-        *noise += 1;
-    }
-}
-
 static int valid(const PtMasterLoop *m) {
     return m->component != NULL && m->get_real != NULL && m->set_real != NULL &&
            m->get_boolean != NULL && m->do_step != NULL && m->state_vr != NULL &&
            m->input_vr != NULL && m->output_vr != NULL && m->flag_vr != NULL && m->n >= 1 &&
            m->n_outputs >= 1 && m->n_output_runs >= 1 && m->output_runs != NULL &&
            m->flag_at != NULL && m->scalar_at != NULL && m->outputs != NULL &&
-           m->track != NULL && m->bias != NULL &&
-           (m->half_backlash == 0.0 || m->play != NULL) &&
-           (m->noise == 0 || (m->noise_values != NULL && m->noise_per_step > 0)) &&
+           m->track != NULL && m->sensors != NULL && m->sensors->n == m->n &&
+           m->sensors->bias != NULL &&
+           (m->sensors->half_backlash == 0.0 || m->sensors->play != NULL) &&
+           (m->sensors->noise == 0 ||
+            (m->noise_values != NULL &&
+             m->noise_per_step == pt_sensors_noise_count(m->sensors))) &&
            m->rows != NULL && m->f_lat_max != NULL && m->state != NULL && m->flags != NULL &&
            (m->n_pushes == 0 || m->pushes != NULL) &&
            (m->n_slide_writes == 0 || (m->slide_vr != NULL && m->slide_values != NULL));
@@ -93,16 +44,16 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
     }
     track = m->track;
     saved_phi = track->m.phi;
-    track->m.has_last = m->measure_last_pose;
     for (k = k_first; k < k_stop; k++) {
         const long j = k - k_first;
         const double t = m->t0 + (double)k * m->step;
         double *row = m->rows + (size_t)j * (size_t)m->row_width;
         double *phi_meas = row + m->at_phi_meas;
         const int *at = m->scalar_at;
-        const double *noise = m->noise ? m->noise_values + (size_t)j * m->noise_per_step : NULL;
+        const double *noise =
+            m->sensors->noise ? m->noise_values + (size_t)j * m->noise_per_step : NULL;
         const double *st = m->state;
-        double x0, y0, th0, x_n, y_n, th_n, push_x = 0.0, push_y = 0.0, dx, dy, c, s;
+        double x_n, y_n, th_n, push_x = 0.0, push_y = 0.0, dx, dy, c, s;
         int status, i;
         m->k = k;
         if (j > 0 && (t >= m->pause_at || m->next_bias <= t + PT_EPS_T)) {
@@ -117,18 +68,9 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
             reason = PT_LOOP_FMI_ERROR;
             break;
         }
-        x0 = st[0], y0 = st[1], th0 = st[2], x_n = st[3], y_n = st[4], th_n = st[5];
-        measure_joints(m, st + 6, (m->noise & PT_NOISE_JOINTS) ? noise : NULL, phi_meas);
-        if (m->noise & PT_NOISE_JOINTS) {
-            noise += m->n;
-        }
+        x_n = st[3], y_n = st[4], th_n = st[5];
         track->t = t;
-        track->m.x0 = x0, track->m.y0 = y0, track->m.theta0 = th0;
-        measure_pose(m, &track->m.x0, &track->m.y0, &track->m.theta0, &noise);
-        if (m->measure_last_pose) {
-            track->m.x_n = x_n, track->m.y_n = y_n, track->m.theta_n = th_n;
-            measure_pose(m, &track->m.x_n, &track->m.y_n, &track->m.theta_n, &noise);
-        }
+        pt_measure(m->sensors, st, noise, phi_meas, &track->m);
         track->m.phi = phi_meas;
         status = pt_track(track);
         if (status != PT_OK) {

@@ -4,7 +4,7 @@
  *
  * At each communication point t_k = t0 + k step, in the order of the Python loop:
  *   fmi2GetReal of the measured states (robot pose, last trailer's pose, joint angles)
- *   -> sensors (backlash, bias, noise, quantization; cosim/sensors.py, same arithmetic)
+ *   -> pt_measure (backlash, bias, noise, quantization; core/csrc/sensors.c)
  *   -> pt_track (reference sample, pull leader, command; core/csrc/control.c)
  *   -> push force of the active pushes (cosim/events.py push_force)
  *   -> fmi2SetReal(v_cmd, w_cmd, push_x, push_y) (then, at the first step of a call only, the
@@ -30,6 +30,7 @@
 #include <stddef.h>
 
 #include "control.h"
+#include "sensors.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -65,15 +66,6 @@ enum {
     PT_CALL_DO_STEP = 6
 };
 
-/* Noise of one step, in this order (each block present only if its flag is set): joint angles
- * (n), robot position (2), robot heading (1), then, with measure_last_pose, the last trailer's
- * position (2) and heading (1). Values are the Python sensors' draws, already scaled. */
-enum {
-    PT_NOISE_JOINTS = 1,
-    PT_NOISE_POSITION = 2,
-    PT_NOISE_HEADING = 4
-};
-
 typedef struct {
     /* ---- the FMU ---- */
     void *component;
@@ -97,15 +89,9 @@ typedef struct {
                                     * restored before returning */
 
     /* ---- sensors ---- */
-    const double *bias;            /* n joint biases [rad] */
-    double half_backlash;          /* half the play band [rad]; 0: no play */
-    double *play;                  /* n: the potentiometers' positions (if half_backlash > 0) */
-    int has_play;                  /* 0: play starts at the next true angles */
-    double quantization;           /* [rad]; 0: none */
-    int noise;                     /* PT_NOISE_* bits */
-    int measure_last_pose;         /* 1: the last trailer's pose is measured too */
-    const double *noise_values;    /* noise_per_step values per step, from the first step of
-                                    * the call on */
+    PtSensors *sensors;            /* the model and its play (advanced by the call) */
+    const double *noise_values;    /* noise_per_step values per step (pt_sensors_noise_count),
+                                    * from the first step of the call on; NULL without noise */
     int noise_per_step;
 
     /* ---- recording: where each value goes in a row (indices of row elements) ---- */
