@@ -220,6 +220,7 @@ _PROTOTYPES = {
                            ctypes.c_long, D_PTR, P(PtRecord), P(PtViolation)]),
     "pt_check_state": (c_int, [P(PtChain), P(PtChecks), D_PTR, ctypes.c_long, D_PTR,
                                P(PtViolation)]),
+    "pt_hold": (c_int, [P(PtChain), D_PTR, c_double, c_double, c_double, c_int, D_PTR, D_PTR]),
     "pt_sdf_at": (c_double, [P(PtChecks), c_double, c_double]),
     "pt_rects_overlap": (c_int, [D_PTR, D_PTR, D_PTR]),
 }

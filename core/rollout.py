@@ -1,11 +1,14 @@
-"""The fast closed-loop integrator: the control law in closed loop with the kinematic chain, in C.
+"""The closed-loop engine: the control law in closed loop with the kinematic chain, in C.
 
-:class:`ClosedLoop` runs what :func:`pushtrain.planner.train_check.simulate_tracking` runs (the
-reference sampled at the control instants ``t_k = t_start + k step``, the robot's own reference
-from the pull guide while pulling, the controller's command held over the step, the robot moving
-along its heading, the trailers towed, RK4 over the step on ``(x0, y0, theta_0..theta_n)``) in
-``core/csrc/rollout.c`` on top of the compiled control law, and gives the same states (tested
-to 1e-9; in practice bit for bit).
+:class:`ClosedLoop` runs the reference sampled at the control instants
+``t_k = t_start + k step``, the robot's own reference from the pull guide while pulling, the
+controller's command held over the step, the robot moving along its heading, the trailers towed,
+RK4 over the step on ``(x0, y0, theta_0..theta_n)``, in ``core/csrc/rollout.c`` on top of the
+compiled control law. The planner's search (:class:`pushtrain.planner.propagate.Propagator`) and
+its final check (:func:`pushtrain.planner.kinematic_loop.simulate_tracking`) both run it; the
+readable Python loop it is held equal to, bit for bit, is the tests' reference
+(``tests/reference/closed_loop.py``). :meth:`ClosedLoop.hold` is its integrator alone (samples
+between two control instants).
 
 Resumable
     A run returns its end :class:`LoopState` (instant index k, state, the controller's rate-limit
@@ -351,6 +354,22 @@ class ClosedLoop:
         x, y = body_positions_along(pose[None, :], th[None, :], self.plant)
         z = np.concatenate(([float(x[0, 0]), float(y[0, 0])], th))
         return LoopState(int(k), z, float(v0), float(w0), self.time(k) - self.step)
+
+    def hold(self, z: Sequence[float], v0: float, w0: float, h: float, count: int) -> np.ndarray:
+        """The plant alone under the held command ``(v0, w0)`` [m/s, rad/s]: ``count`` RK4 steps
+        of ``h`` [s] from the state ``z`` (3 + n) with the loop's own integrator; the new states,
+        (count, 3 + n). For samples between two control instants (the command is held there)."""
+        z = np.array(z, dtype=float).reshape(-1)
+        if z.shape != (self.n + 3,):
+            raise ControllerError(f"z has {z.size} entries: need 3 + n = {self.n + 3}")
+        count = int(count)
+        out = np.zeros((max(count, 0), self.n + 3))
+        status = self._lib.pt_hold(ctypes.byref(self._chain), native.dptr(z), float(v0),
+                                   float(w0), float(h), count, native.dptr(out),
+                                   native.dptr(np.zeros(self._work_size)))
+        if status:
+            raise ControllerError(f"hold: {native.STATUS.get(status, status)} (count = {count})")
+        return out
 
     # ------------------------------------------------------------------ running
     def _native(self, reference) -> NativeReference:

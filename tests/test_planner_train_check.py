@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from reference.closed_loop import towed_rates
 from scipy.integrate import solve_ivp
 from shapely.ops import unary_union
 
@@ -26,7 +27,6 @@ from pushtrain.planner.train_check import (
     body_positions_along,
     default_controller,
     reference_times,
-    towed_rates,
 )
 
 TRAIN = Train.uniform(3)

@@ -1,7 +1,8 @@
-"""The fast closed-loop integrator (core/csrc/rollout.c, core/rollout.py).
+"""The closed-loop engine (core/csrc/rollout.c, core/rollout.py).
 
-It must run planner/train_check.py's simulate_tracking (equal states at the control instants to
-1e-9 on a bay plan and random plans: push, pull, cusps, n = 1, 3, 10), resume bit for bit, stop
+It must run the Python reference loop, tests/reference/closed_loop.py (equal states at the
+control instants to 1e-9 on a bay plan and random plans: push, pull, cusps, n = 1, 3, 10; the
+planner's simulate_tracking on it bit for bit), resume bit for bit, stop
 exactly where independent computations (shapely for footprints and rectangles, scipy for the
 bilinear grid, the joint angles from the states) say a check fails, and agree with the FMU's
 kinematic motion along a path to 1 mm.
@@ -15,6 +16,7 @@ import math
 import numpy as np
 import pytest
 import shapely
+from reference.closed_loop import simulate_tracking
 from scipy.interpolate import RegularGridInterpolator
 
 from pushtrain.core import native
@@ -24,7 +26,8 @@ from pushtrain.core.native_reference import NativeReference
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.core.rollout import Checks, ClosedLoop, LoopState, rectangle_points, simulate
 from pushtrain.errors import ControllerError
-from pushtrain.planner.train_check import default_controller, simulate_tracking
+from pushtrain.planner import kinematic_loop
+from pushtrain.planner.kinematic_loop import default_controller
 
 D = 0.52
 
@@ -100,6 +103,46 @@ def test_equals_simulate_tracking_on_random_plans(n):
         got = simulate(geom, ref, heads, config, step, 1.0)
         assert_same_run(got, want)
     assert kinds == {PUSH, PULL}
+
+
+def test_the_planners_simulate_tracking_is_the_reference_loop_bit_for_bit():
+    """planner.kinematic_loop.simulate_tracking runs the engine: every row of the reference's
+    trajectory, the last instant's command, reference and direction included, bit for bit."""
+    rng = np.random.default_rng(7)
+    start, segments = bay_plan()
+    cases = [(ChainGeometry.uniform(3, D), start, segments, np.full(4, math.pi), 0.025, 2.0)]
+    for n in (1, 4):
+        geom = random_geometry(rng, n)
+        cases.append((geom, (0.5, -0.2, 1.0), random_plan(rng, 4), np.full(n + 1, 1.0), 0.05,
+                      1.0))
+    for geom, first, plan, heads, step, settle in cases:
+        ref = Reference.from_segments(first, plan, 0.08, 1.0)
+        config = default_controller(geom)
+        want = simulate_tracking(geom, ref, heads, config, step, settle)
+        got = kinematic_loop.simulate_tracking(geom, ref, heads, config, step, settle)
+        for name in ("t", "state", "command", "reference", "direction", "control"):
+            a, b = getattr(got, name), getattr(want, name)
+            assert a.shape == b.shape and a.tobytes() == b.tobytes(), name
+
+
+def test_hold_is_the_reference_rk4_bit_for_bit():
+    """ClosedLoop.hold (pt_hold: the loop's own integrator) against the reference's RK4 step of
+    the towed chain under a held command."""
+    from reference.closed_loop import rk4_hold, towed_rates
+
+    rng = np.random.default_rng(8)
+    geom = random_geometry(rng, 3)
+    loop = ClosedLoop(geom, default_controller(geom))
+    z = [0.3, -0.1, 1.0, 1.1, 0.9, 1.2]
+    got = loop.hold(z, -0.08, 0.05, 0.004, 5)
+    rates, want = towed_rates(geom), []
+    for _ in range(5):
+        z = rk4_hold(rates, z, -0.08, 0.05, 0.004)
+        want.append(z)
+    assert got.tobytes() == np.array(want).tobytes()
+    assert loop.hold(z, 0.1, 0.0, 0.01, 0).shape == (0, 6)
+    with pytest.raises(ControllerError, match="3 \\+ n"):
+        loop.hold(z[:4], 0.1, 0.0, 0.01, 2)
 
 
 def _bay_loop(checks=None, step=0.025):
