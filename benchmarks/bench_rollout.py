@@ -3,7 +3,7 @@
 Runs the same plan (a bay plan like examples/bay.toml's: pull 4.5 m, cusp, push around a 1.7 m
 arc and 2.1 m into the bay; settle 2 s; step 0.025 s) through the tests' Python reference loop
 (``tests/reference/closed_loop.py`` ``simulate_tracking``) and the engine,
-:func:`pushtrain.core.rollout.simulate` (C), in the same process, for n = 3 and n = 10, and
+:func:`pushtrain.core.engine.simulate` (C), in the same process, for n = 3 and n = 10, and
 prints simulated seconds per wall second of each and their ratio (best of several repeats, so a
 busy machine slows both alike). Also checks that both give the same states.
 
@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pushtrain.core.engine import ClosedLoopEngine, simulate
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.core.rollout import ClosedLoop, simulate
 from pushtrain.planner.kinematic_loop import default_controller
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -62,7 +62,7 @@ def main(repeat: int) -> None:
         t_c = best_of(repeat, lambda g=geom, cf=config, h=heads:
                       simulate(g, ref, h, cf, STEP, SETTLE))
         # the planner's edge cost: the loop only (reference table and pull guide prepared)
-        loop = ClosedLoop(geom, config, STEP)
+        loop = ClosedLoopEngine(geom, config, STEP)
         state = loop.start(ref.start, heads)
         k_end = loop.instant_at(ref.t_end + SETTLE)
         loop.run(ref, state, k_end)

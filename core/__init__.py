@@ -12,7 +12,7 @@ The same control law in C (``csrc/control.c``, compiled on first use and loaded 
 :class:`.native_reference.NativeReference` / :class:`.native_reference.NativeLeader`; tests
 hold it equal to the Python modules. With the sensor model (``csrc/sensors.c``) and the chain
 integration and checks (``csrc/rollout.c``) it is the one closed-loop engine: the planner's
-search and final check run it through :mod:`.rollout`, the co-simulation master's compiled step
+search and final check run it through :mod:`.engine`, the co-simulation master's compiled step
 loop and the controller FMU call its C directly.
 
 This package imports numpy and scipy only: never the planner, the co-simulation, fmpy or ompl.

@@ -3,7 +3,7 @@
 :class:`NativeController` has the interface of
 :class:`~pushtrain.core.controller.BackwardController` (``command``, ``command_from``,
 ``reset``, ``sent``, ``n``, ``guide_geometry``) and computes the same command with the C
-implementation that the fast closed-loop integrator (:mod:`pushtrain.core.rollout`) and the
+implementation that the fast closed-loop integrator (:mod:`pushtrain.core.engine`) and the
 controller FMU compile. ``tests/test_native_control.py`` holds both equal to 1e-12 on random
 states, references and limit sequences; the Python class stays the readable reference.
 

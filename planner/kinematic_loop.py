@@ -2,7 +2,7 @@
 
 The planner plans the last trailer only. Here the whole train's motion along the plan is
 predicted by running the co-simulation's own control law in closed loop with the kinematic
-chain, on the one closed-loop engine of :mod:`pushtrain.core.rollout` (``core/csrc``: the same
+chain, on the one closed-loop engine of :mod:`pushtrain.core.engine` (``core/csrc``: the same
 compiled law the co-simulation master calls):
 
 Reference
@@ -44,9 +44,9 @@ from typing import Sequence
 import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.engine import ClosedLoopEngine
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import Reference, Segment
-from pushtrain.core.rollout import ClosedLoop
 from pushtrain.errors import ControllerError, PlanningInputError
 
 __all__ = ["TrackerConfig", "Trajectory", "default_controller", "reference_times",
@@ -209,7 +209,7 @@ def simulate_tracking(
         Samples at the control instants ``k * step`` (k = 0..K-1, the last one at or after
         ``t_end + settle_time``).
     """
-    loop = ClosedLoop(geometry, controller, step)
+    loop = ClosedLoopEngine(geometry, controller, step)
     start = loop.start(reference.start, start_headings)
     n_steps = loop.instant_at(reference.t_end + settle_time)
     # one instant more than the trajectory: its command, reference and direction at the last

@@ -16,7 +16,7 @@ Rollout (:meth:`Propagator.rollout`)
     ``t0 = cursor.t`` plus one cusp dwell if the first segment turns the cursor's direction
     (the reference then rests at the cursor before ``t0``, as a longer reference would during
     its dwell), tracked by the co-simulation's control law on the kinematic chain with the one
-    closed-loop engine, :class:`pushtrain.core.rollout.ClosedLoop` (``core/csrc``: the loop
+    closed-loop engine, :class:`pushtrain.core.engine.ClosedLoopEngine` (``core/csrc``: the loop
     :func:`~pushtrain.planner.kinematic_loop.simulate_tracking` runs, RK4 of the towed chain
     under the held command, step ``tracker.step``), from the state's instant up to the first
     instant at or after the reference's end. The commands up to there depend only on these
@@ -49,8 +49,8 @@ from typing import Sequence
 import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.engine import Checks, ClosedLoopEngine, LoopState
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.core.rollout import Checks, ClosedLoop, LoopState
 
 from .distance_field import DistanceField
 from .footprint import FIELD_TOLERANCE, BodySamples, disc_cover, first_failure
@@ -160,7 +160,7 @@ def last_pose(z: Sequence[float], front, rear) -> tuple:
 
 class Propagator:
     """Closed-loop rollouts of the train along reference pieces (see the module docstring) on
-    the compiled engine (:class:`pushtrain.core.rollout.ClosedLoop`).
+    the compiled engine (:class:`pushtrain.core.engine.ClosedLoopEngine`).
 
     Parameters
     ----------
@@ -237,7 +237,7 @@ class Propagator:
                 "rectangles": rectangles}
         self.checks = Checks(train.n, points=discs, margins=disc_margins, fine_points=points,
                              fine_margins=margins, **grid)
-        self.loop = ClosedLoop(train.geometry, controller, self.step, 0.0, self.checks)
+        self.loop = ClosedLoopEngine(train.geometry, controller, self.step, 0.0, self.checks)
 
     # ------------------------------------------------------------------ states
     def initial_state(self, start: Sequence[float], headings: Sequence[float]) -> TrainState:
@@ -381,7 +381,7 @@ class Propagator:
 
 
 def _failure_of(violation, margins) -> dict:
-    """A :class:`~pushtrain.core.rollout.Violation` as a :attr:`Rollout.failure`."""
+    """A :class:`~pushtrain.core.engine.Violation` as a :attr:`Rollout.failure`."""
     base = {"k": int(violation.step), "t": float(violation.t), "body": int(violation.body),
             "x": float(violation.x), "y": float(violation.y)}
     if violation.reason == "footprint":

@@ -2,7 +2,7 @@
 
 The whole train's motion along the plan is the closed loop the co-simulation will run
 (:func:`~pushtrain.planner.kinematic_loop.simulate_tracking`: the co-simulation's controller on
-the kinematic chain, on the closed-loop engine :mod:`pushtrain.core.rollout`; see
+the kinematic chain, on the closed-loop engine :mod:`pushtrain.core.engine`; see
 :mod:`~pushtrain.planner.kinematic_loop`).
 
 Every body's rectangle is tested against the free space shrunk by a margin (shapely,
@@ -25,6 +25,7 @@ from typing import Sequence
 import numpy as np
 import shapely
 
+from pushtrain.core.engine import ClosedLoopEngine
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions_along,
@@ -33,7 +34,6 @@ from pushtrain.core.kinematics import (
     wrap_scalar,
 )
 from pushtrain.core.reference import Reference, Segment
-from pushtrain.core.rollout import ClosedLoop
 from pushtrain.errors import PlanningInputError
 
 from .kinematic_loop import (
@@ -84,7 +84,7 @@ def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution:
         return traj, x, y, corners
     rows = {name: [getattr(traj, name)] for name in ("t", "state", "command", "reference",
                                                      "direction", "control")}
-    loop = ClosedLoop(geometry, controller)  # its integrator only (pt_hold)
+    loop = ClosedLoopEngine(geometry, controller)  # its integrator only (pt_hold)
     for k in bad:
         m = int(math.ceil(move[k] / resolution * 1.05))
         h = (traj.t[k + 1] - traj.t[k]) / m

@@ -1,5 +1,5 @@
 """The closed loop of the planner's train check in plain Python: the reference the compiled
-engine (``core/csrc/rollout.c``, :mod:`pushtrain.core.rollout`) is held equal to, bit for bit.
+engine (``core/csrc/rollout.c``, :mod:`pushtrain.core.engine`) is held equal to, bit for bit.
 
 :func:`simulate_tracking` runs :class:`~pushtrain.core.controller.BackwardController` through
 :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, Python pull guide, command) at

@@ -1,14 +1,14 @@
 """The closed-loop engine: the control law in closed loop with the kinematic chain, in C.
 
-:class:`ClosedLoop` runs the reference sampled at the control instants
+:class:`ClosedLoopEngine` runs the reference sampled at the control instants
 ``t_k = t_start + k step``, the robot's own reference from the pull guide while pulling, the
 controller's command held over the step, the robot moving along its heading, the trailers towed,
 RK4 over the step on ``(x0, y0, theta_0..theta_n)``, in ``core/csrc/rollout.c`` on top of the
 compiled control law. The planner's search (:class:`pushtrain.planner.propagate.Propagator`) and
 its final check (:func:`pushtrain.planner.kinematic_loop.simulate_tracking`) both run it; the
 readable Python loop it is held equal to, bit for bit, is the tests' reference
-(``tests/reference/closed_loop.py``). :meth:`ClosedLoop.hold` is its integrator alone (samples
-between two control instants).
+(``tests/reference/closed_loop.py``). :meth:`ClosedLoopEngine.hold` is its integrator alone
+(samples between two control instants).
 
 Resumable
     A run returns its end :class:`LoopState` (instant index k, state, the controller's rate-limit
@@ -58,9 +58,9 @@ from .reference import Reference
 __all__ = [
     "REASONS",
     "Checks",
-    "ClosedLoop",
+    "ClosedLoopEngine",
     "LoopState",
-    "Rollout",
+    "EngineRun",
     "Violation",
     "rectangle_points",
     "simulate",
@@ -126,8 +126,8 @@ class Violation:
 
 
 @dataclass
-class Rollout:
-    """One run of :meth:`ClosedLoop.run` from instant k0 to the instant it ended at, k1.
+class EngineRun:
+    """One run of :meth:`ClosedLoopEngine.run` from instant k0 to the instant it ended at, k1.
 
     Attributes
     ----------
@@ -180,7 +180,7 @@ def rectangle_points(length: float, width: float, offset: float = 0.0,
 
 
 class Checks:
-    """What :class:`ClosedLoop` checks at every state it visits.
+    """What :class:`ClosedLoopEngine` checks at every state it visits.
 
     Parameters
     ----------
@@ -273,7 +273,7 @@ class Checks:
         return float(native.load().pt_sdf_at(ctypes.byref(self.struct), float(x), float(y)))
 
 
-class ClosedLoop:
+class ClosedLoopEngine:
     """The closed loop of the controller and the kinematic chain, integrated in C.
 
     Parameters
@@ -290,7 +290,7 @@ class ClosedLoop:
     guide_step : float
         RK4 step [s] of the pull guide's backward runs (PullGuide's default 0.02 s).
 
-    The C loop releases the GIL; give each thread its own ClosedLoop (it caches the last
+    The C loop releases the GIL; give each thread its own ClosedLoopEngine (it caches the last
     reference's pull guide).
     """
 
@@ -397,7 +397,7 @@ class ClosedLoop:
             self._leader_key = (ref, ref.struct.n_phases, ref.t_end)
         return self._leader
 
-    def run(self, reference, state: LoopState, k_end: int, record: bool = True) -> Rollout:
+    def run(self, reference, state: LoopState, k_end: int, record: bool = True) -> EngineRun:
         """Run from ``state`` to instant ``k_end`` (or the first violation).
 
         Parameters
@@ -458,18 +458,18 @@ class ClosedLoop:
                               float(violation.x), float(violation.y), float(violation.value))
         t = self.t_start + np.arange(state.k, k.value + 1, dtype=float) * self.step
         if record:
-            return Rollout(t, states[: done + 1], commands[:done], refs[:done],
+            return EngineRun(t, states[: done + 1], commands[:done], refs[:done],
                            dirs[:done].astype(int), end, found)
-        return Rollout(t, np.zeros((0, nz)), np.zeros((0, 2)), np.zeros((0, 3)),
+        return EngineRun(t, np.zeros((0, nz)), np.zeros((0, 2)), np.zeros((0, 3)),
                        np.zeros(0, dtype=int), end, found)
 
 
 def simulate(plant: ChainGeometry, reference: Reference, start_headings: Sequence[float],
              controller: ControllerConfig, step: float = 0.025, settle_time: float = 2.0,
-             checks: Checks | None = None) -> Rollout:
+             checks: Checks | None = None) -> EngineRun:
     """``simulate_tracking`` on the C integrator: the run from t = 0 to the first instant at or
     after ``reference.t_end + settle_time``, the last trailer starting at ``reference.start``
     with ``start_headings`` (n+1,) [rad], the robot at rest."""
-    loop = ClosedLoop(plant, controller, step, 0.0, checks)
+    loop = ClosedLoopEngine(plant, controller, step, 0.0, checks)
     state = loop.start(reference.start, start_headings)
     return loop.run(reference, state, loop.instant_at(reference.t_end + settle_time))
