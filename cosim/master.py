@@ -23,7 +23,7 @@ bit: the compiled step loop (:mod:`~pushtrain.cosim.step_loop`, ``cosim/csrc/mas
 up to :data:`~pushtrain.cosim.step_loop.CHUNK` steps per C call, back in Python only for events,
 the progress bar, the goal, a jackknife or a failure), used whenever the run allows it (an FMI 2.0
 FMU, the compiled control law tracking a line/arc reference); and the Python loop
-(:meth:`_Run.run`: the FMI calls through bare ctypes with preallocated arrays
+(:meth:`PythonLoop.run`: the FMI calls through bare ctypes with preallocated arrays
 (:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), scalar Python in between), for
 everything else (the governor, open-loop profiles, the Python control law, FMI 3.0).
 ``simulate(step_loop=...)`` picks one; ``benchmarks/bench_cosim.py`` compares both with a
@@ -53,7 +53,7 @@ from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 
-from .events import EventSchedule, Push, SetBias, Slide, _positive
+from .events import EventSchedule, Push, SetBias, Slide, positive_number
 from .fmu_slave import CosimError, CosimInputError, TrailerTrainSlave
 from .plant import InitialState, PlantConfig
 from .recorder import Recorder
@@ -205,16 +205,19 @@ class _Goal:
     @classmethod
     def of(cls, reference, check: bool, tolerance) -> _Goal:
         """The goal test of ``reference`` (none without a reference: open loop)."""
-        position = _positive("goal_tolerance[0]", tolerance[0])
-        heading = _positive("goal_tolerance[1]", tolerance[1])
+        position = positive_number("goal_tolerance[0]", tolerance[0])
+        heading = positive_number("goal_tolerance[1]", tolerance[1])
         if reference is None:
             return cls(False, np.full(3, np.nan), math.inf, position, heading)
         return cls(check, np.asarray(reference.goal, dtype=float), float(reference.t_end),
                    position, heading)
 
 
-class _Run:
-    """One run's loop: at each communication point apply the inputs, record, ``fmi2DoStep``."""
+class PythonLoop:
+    """One run's loop in Python: at each communication point apply the inputs, record,
+    ``fmi2DoStep`` (:class:`~pushtrain.cosim.step_loop.CompiledLoop` runs the same in C, given
+    this object). :meth:`goal_reached` and :meth:`jackknife` are the run's end tests, which the
+    compiled loop leaves to Python."""
 
     scalar_columns = _SCALARS
     """The row's columns besides the FMU's values and the measured joint angles."""
@@ -266,9 +269,9 @@ class _Run:
                 c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
             commit()
             if flags[n]:
-                return self._jackknife(t)
+                return self.jackknife(t)
             if goal.check and t >= goal.t_end - 1e-12:
-                reached = self._goal_reached(t, x_n, y_n, th_n)
+                reached = self.goal_reached(t, x_n, y_n, th_n)
                 if reached is not None:
                     return reached
             if k == n_steps:
@@ -285,7 +288,7 @@ class _Run:
             self.io.write_slide[i]((speed,))
         return self.events.slide_speed(self.n)
 
-    def _goal_reached(self, t: float, x_n: float, y_n: float, th_n: float):
+    def goal_reached(self, t: float, x_n: float, y_n: float, th_n: float):
         """Status and message if the last trailer's pose is within the goal's tolerance."""
         goal = self.goal
         dist = math.hypot(x_n - goal.pose[0], y_n - goal.pose[1])
@@ -295,7 +298,7 @@ class _Run:
             )
         return None
 
-    def _jackknife(self, t: float) -> tuple[str, str]:
+    def jackknife(self, t: float) -> tuple[str, str]:
         """Status and message of a jackknife at ``t``, naming the worst joint."""
         phi = np.array([self.recorder.last(f"phi{i}") for i in range(1, self.n + 1)])
         worst = int(np.argmax(np.abs(phi))) + 1
@@ -395,7 +398,7 @@ def simulate(
     if step_loop not in STEP_LOOPS:
         raise CosimInputError(f"step_loop = {step_loop!r}: allowed are "
                               f"{', '.join(map(repr, STEP_LOOPS))}")
-    step = _positive("step", step)
+    step = positive_number("step", step)
     t0, horizon = _timing(reference, initial, step, horizon, settle_time)
     n_steps = _steps(horizon, step)
     goal = _Goal.of(reference, check_goal, goal_tolerance)
@@ -436,7 +439,7 @@ def simulate(
     wall_start = _time.perf_counter()
     try:
         slave.start({**plant.start_values(), **initial.start_values()}, t0)
-        run = _Run(slave, loop, sens, schedule, recorder, goal)
+        run = PythonLoop(slave, loop, sens, schedule, recorder, goal)
         stepper = run if why_not_c is not None else CompiledLoop(run)
         with _progress_bar(show, n_steps) as bar:
             end = stepper.run(t0, step, n_steps, bar)
@@ -468,7 +471,7 @@ def _timing(reference, initial, step: float, horizon, settle_time) -> tuple[floa
     """Start time and horizon [s] of a run (a reference's end plus ``settle_time`` by default,
     rounded up to whole steps); an open-loop run (no reference) needs a horizon and an initial
     state."""
-    settle_time = _positive("settle_time", settle_time, allow_zero=True)
+    settle_time = positive_number("settle_time", settle_time, allow_zero=True)
     if reference is None:
         if horizon is None or initial is None:
             raise CosimInputError(
@@ -480,7 +483,7 @@ def _timing(reference, initial, step: float, horizon, settle_time) -> tuple[floa
     if horizon is None:
         horizon = float(reference.t_end) - t0 + settle_time
         horizon = step * math.ceil(horizon / step - 1e-9)
-    return t0, _positive("horizon", horizon)
+    return t0, positive_number("horizon", horizon)
 
 
 IMPLEMENTATIONS = {"c": NativeController, "python": BackwardController}

@@ -1,7 +1,7 @@
 """The master's compiled step loop (``cosim/csrc/master_loop.c``) and when it can run.
 
 :func:`pushtrain.cosim.master.simulate` steps a run either with its Python loop
-(``_Run.run``) or, when the run allows it, with the compiled loop: one C call runs many
+(``PythonLoop.run``) or, when the run allows it, with the compiled loop: one C call runs many
 communication steps (FMU reads and writes through the FMU's own functions, sensors, the
 compiled control law, the recorder's rows, the jackknife and goal tests, ``fmi2DoStep``) and
 returns to Python only where Python must act:
@@ -34,11 +34,10 @@ from ctypes import POINTER, c_double, c_int, c_long, c_uint, c_void_p
 import numpy as np
 
 from pushtrain.core import native
-from pushtrain.core.native_controller import _Tracker
+from pushtrain.core.native_controller import Tracker
 from pushtrain.core.reference import ReferenceSample
 from pushtrain.errors import CosimError, NativeBuildError
 
-from .events import _EPS_T, _active
 from .sensors import Measurement, Sensors
 
 __all__ = ["CHUNK", "STEP_LOOPS", "CompiledLoop", "unsupported"]
@@ -109,7 +108,7 @@ def unsupported(slave, loop, sensors) -> str | None:
     if slave.fmi_version != 2:
         return f"an FMI {slave.md.fmiVersion} FMU (the compiled loop calls FMI 2.0)"
     tracker = getattr(loop.command, "__self__", None)
-    if not isinstance(tracker, _Tracker):
+    if not isinstance(tracker, Tracker):
         return ("the control law is not the compiled one tracking a line/arc Reference "
                 "(implementation 'python', a governor, an open-loop profile or a sampled "
                 "reference)")
@@ -133,8 +132,8 @@ def _runs(indices: list[int]) -> list[tuple[int, int, int]]:
 
 
 class CompiledLoop:
-    """The compiled step loop of one run (a :class:`~pushtrain.cosim.master._Run` whose
-    :func:`unsupported` is None); :meth:`run` as ``_Run.run``."""
+    """The compiled step loop of one run (a :class:`~pushtrain.cosim.master.PythonLoop` whose
+    :func:`unsupported` is None); :meth:`run` as ``PythonLoop.run``."""
 
     goal_slack = 1e-9
     """The C loop hands a step back as a goal candidate when the last trailer is within
@@ -144,7 +143,7 @@ class CompiledLoop:
         self.run_ = run
         self.lib = _library()
         slave, io, n, sensors = run.slave, run.io, run.n, run.sensors
-        self.tracker: _Tracker = run.loop.command.__self__
+        self.tracker: Tracker = run.loop.command.__self__
         functions = slave.fmi2_functions()
         m = self.m = PtMasterLoop()
         m.component = functions["component"]
@@ -156,7 +155,7 @@ class CompiledLoop:
         m.state_vr, m.input_vr, m.output_vr, m.flag_vr = (
             ctypes.cast(r, _U_PTR) for r in self._refs)
         m.n_outputs, m.n = len(io.output_names), n
-        m.track = ctypes.pointer(self.tracker._track)
+        m.track = ctypes.pointer(self.tracker.instant)
         # sensors: the run's own model and memory (biases, play), noise drawn per call
         m.sensors = ctypes.pointer(sensors.model)
         m.noise_per_step = sensors.noise_scales.size
@@ -189,17 +188,15 @@ class CompiledLoop:
         m.outputs = native.dptr(self._outputs)
         self._flags = (c_int * (n + 1))()
         m.flags = ctypes.cast(self._flags, _I_PTR)
-        # events: the times at which a push or slide starts or ends (events.py _active)
-        events = run.events
-        self.thresholds = sorted({b for ev in (*events.pushes, *events.slides)
-                                  for b in (ev.t - _EPS_T, ev.t + ev.duration - _EPS_T)})
+        # events: the times at which a push or slide starts or ends
+        self.thresholds = run.events.switch_times()
         self._slide_refs = {i: slave.value_references([f"slide[{i}]"])[0]
                             for i in io.write_slide}
 
     # ------------------------------------------------------------------ the run
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
-        """Step from ``t0`` as ``_Run.run`` does, with the same results bit for bit: the status
-        and message of a jackknife or the goal, or None if the horizon ended first."""
+        """Step from ``t0`` as ``PythonLoop.run`` does, with the same results bit for bit: the
+        status and message of a jackknife or the goal, or None if the horizon ended first."""
         r, m, lib = self.run_, self.m, self.lib
         slave, events, sensors, recorder = r.slave, r.events, r.sensors, r.recorder
         m.t0, m.step, m.n_steps = t0, step, n_steps
@@ -226,7 +223,7 @@ class CompiledLoop:
                                and not (reason == _FMI_ERROR and m.failed_call == _GET_STATE))
             recorder.advance(recorded)
             slave.time = m.time
-            self.tracker._has_last = bool(sensors.config.measure_last_pose)
+            self.tracker.has_last = bool(sensors.config.measure_last_pose)
             if noise_state is not None and measured < k_stop - k:
                 self._rewind_noise(sensors, noise_state, measured)
             if bar is not None and done:
@@ -237,10 +234,10 @@ class CompiledLoop:
             elif reason == _HORIZON:
                 return None
             elif reason == _JACKKNIFE:
-                return r._jackknife(t_k)
+                return r.jackknife(t_k)
             elif reason == _GOAL_CANDIDATE:
                 x_n, y_n, th_n = r.io.pose.tolist()[3:]
-                reached = r._goal_reached(t_k, x_n, y_n, th_n)
+                reached = r.goal_reached(t_k, x_n, y_n, th_n)
                 if reached is not None:
                     return reached
                 if m.k == n_steps:
@@ -267,13 +264,13 @@ class CompiledLoop:
         slide_values = np.array([speed for _, speed in changes] or [0.0])
         m.n_slide_writes = len(changes)
         m.slide_vr, m.slide_values = ctypes.cast(slide_vr, _U_PTR), native.dptr(slide_values)
-        pushes = np.array([(p.fx, p.fy, p.lateral) for p in events.pushes if _active(p, t)]
-                          or [(0.0, 0.0, 0.0)], dtype=float)
-        m.n_pushes = sum(1 for p in events.pushes if _active(p, t))
+        active = events.active_pushes(t)
+        pushes = np.array([(p.fx, p.fy, p.lateral) for p in active] or [(0.0, 0.0, 0.0)],
+                          dtype=float)
+        m.n_pushes = len(active)
         m.pushes = native.dptr(pushes)
         m.pause_at = next((b for b in self.thresholds if b > t), math.inf)
-        biases = events.biases
-        m.next_bias = biases[events._next_bias].t if events._next_bias < len(biases) else math.inf
+        m.next_bias = events.next_bias_time
         self._changes = changes
         return slide_vr, slide_values, pushes
 
@@ -314,7 +311,7 @@ class CompiledLoop:
         """The exception of the control instant the C law refused at ``t`` (the tracker's own
         error for the measurement it was given)."""
         tracker = self.tracker
-        k = tracker._track
+        k = tracker.instant
         row = self.run_.recorder.free_rows()[0]  # the refused step's row, not recorded
         phi = row[self.m.at_phi_meas:self.m.at_phi_meas + self.run_.n].tolist()
         last = (k.m.x_n, k.m.y_n, k.m.theta_n) if k.m.has_last else None
@@ -322,4 +319,4 @@ class CompiledLoop:
         sample = k.sample
         ref = ReferenceSample(sample.x, sample.y, sample.theta, sample.v, sample.w,
                               sample.direction)
-        return tracker._error(self.m.control_status, t, measurement, ref)
+        return tracker.error(self.m.control_status, t, measurement, ref)

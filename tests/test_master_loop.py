@@ -157,13 +157,13 @@ def test_the_goal_stops_both_loops_and_a_rejected_candidate_steps_on(fmu3, monke
     # with a wide slack the C loop hands back candidates that Python's exact test rejects: it
     # steps on from Python and still gives the Python loop's run
     tests = []
-    original = master._Run._goal_reached
+    original = master.PythonLoop.goal_reached
 
     def counting(self, *args):
         tests.append(original(self, *args))
         return tests[-1]
 
-    monkeypatch.setattr(master._Run, "_goal_reached", counting)
+    monkeypatch.setattr(master.PythonLoop, "goal_reached", counting)
     monkeypatch.setattr(step_loop.CompiledLoop, "goal_slack", 50.0)
     initial = InitialState.behind_reference(ref, _config().geometry, lateral_offset=0.1)
     c = simulate(fmu3, ref, _config(), initial=initial, goal_tolerance=(0.004, 0.01),
