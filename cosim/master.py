@@ -6,9 +6,10 @@ the loop reads as its three steps:
 apply inputs
     the events due (:class:`~pushtrain.cosim.events.EventSchedule`: joint-bias switches, the
     push force on the last trailer, imposed slides), the FMU's states (robot pose, last
-    trailer's pose, joint angles) -> sensors (bias, noise, quantization, backlash) ->
-    :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, pull guide, Kanayama +
-    inverse chain kinematics) -> the FMU's inputs;
+    trailer's pose, joint angles) -> the engine's step (``core/csrc/step.c``: sensors with bias,
+    noise, quantization and backlash, reference sample, pull guide, Kanayama + inverse chain
+    kinematics, push force, tracking errors; one C call,
+    :class:`~pushtrain.cosim.step_loop.EngineStep`) -> the FMU's inputs;
 record
     every output (read after the inputs: the wheel forces depend directly on them) and the flags
     straight into the recorder's row, with the inputs, the reference and the tracking errors;
@@ -24,8 +25,9 @@ up to :data:`~pushtrain.cosim.step_loop.CHUNK` steps per C call, back in Python 
 the progress bar, the goal, a jackknife or a failure), used whenever the run allows it (an FMI 2.0
 FMU, the compiled control law tracking a line/arc reference); and the Python loop
 (:meth:`PythonLoop.run`: the FMI calls through bare ctypes with preallocated arrays
-(:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), scalar Python in between), for
-everything else (the governor, open-loop profiles, the Python control law, FMI 3.0).
+(:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`) and one engine call per step), for
+everything else (FMI 3.0; and the governor, open-loop profiles and the Python control law, whose
+command is Python between the compiled sensors and the push force and errors in Python).
 ``simulate(step_loop=...)`` picks one; ``benchmarks/bench_cosim.py`` compares both with a
 raw-ctypes loop doing the same calls.
 
@@ -49,7 +51,7 @@ import numpy as np
 
 from pushtrain.core.controller import BackwardController, ControllerConfig, ControllerError
 from pushtrain.core.kinematics import wrap_scalar
-from pushtrain.core.native_controller import NativeController
+from pushtrain.core.native_controller import NativeController, Tracker
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 
@@ -68,7 +70,7 @@ from .result import (
     summarize,
 )
 from .sensors import SensorConfig, Sensors
-from .step_loop import STEP_LOOPS, CompiledLoop, unsupported
+from .step_loop import STEP_LOOPS, CompiledLoop, EngineStep, unsupported
 
 __all__ = [
     "CosimError",
@@ -237,41 +239,40 @@ class PythonLoop:
         per-step objects are bound to locals once)."""
         recorder = self.recorder
         self.flags = recorder.view("flags")
-        # the sensors read the FMU's states and write the joint readings into the row
-        measure = self.sensors.measurer(self.io.state, recorder.view("phi_meas"))
+        # the engine's step reads the FMU's states and writes the joint readings into the row
+        tracker = getattr(self.loop.command, "__self__", None)
+        engine = EngineStep(self.io.state, recorder.view("phi_meas"), self.sensors, self.events,
+                            self.loop.command, tracker if isinstance(tracker, Tracker) else None)
         scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
         self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
         events, io, n, goal = self.events, self.io, self.n, self.goal
         read_state, write_inputs = io.read_state, io.write_inputs
         read_outputs, read_flags = io.read_outputs, io.read_flags
-        last_pose, command = io.pose[3:], self.loop.command
+        last_pose, engine_step = io.pose[3:], engine.step
         scalars, flags, commit = self.scalars, self.flags, self.recorder.commit
         do_step = self.slave.do_step
         for k in range(n_steps + 1):
             t = t0 + k * step
-            # apply inputs: events due, states -> sensors -> tracking loop -> FMU inputs
+            # apply inputs: events due, states -> the engine's step (sensors, law, push force,
+            # tracking errors) -> FMU inputs
             if events.biases:
                 for bias in events.biases_due(t):
                     self.sensors.set_bias(bias.joint, bias.bias)
             read_state()
-            x_n, y_n, th_n = last_pose.tolist()
-            v_cmd, w_cmd, _, ref = command(t, measure())
-            push_x, push_y = events.push_force(t, th_n) if events.pushes else (0.0, 0.0)
+            v_cmd, w_cmd, ref, outputs = engine_step(t)
+            push_x, push_y = outputs[:2]
             write_inputs((v_cmd, w_cmd, push_x, push_y))
             slide = self._slide(t) if events.slides else 0.0
             # record: every output and the flags, read after the inputs (the wheel forces depend
             # directly on them), the time, inputs, reference and errors; one copy of the row
             read_outputs()
             read_flags()
-            dx, dy = x_n - ref.x, y_n - ref.y  # the last trailer's error in the reference frame
-            c, s = math.cos(ref.theta), math.sin(ref.theta)
-            scalars[:] = (t, v_cmd, w_cmd, push_x, push_y, slide) + ref + (
-                c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
+            scalars[:] = (t, v_cmd, w_cmd, push_x, push_y, slide) + ref + outputs[2:]
             commit()
             if flags[n]:
                 return self.jackknife(t)
             if goal.check and t >= goal.t_end - 1e-12:
-                reached = self.goal_reached(t, x_n, y_n, th_n)
+                reached = self.goal_reached(t, *last_pose.tolist())
                 if reached is not None:
                     return reached
             if k == n_steps:

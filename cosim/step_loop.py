@@ -29,18 +29,20 @@ from __future__ import annotations
 
 import ctypes
 import math
+import struct
 from ctypes import POINTER, c_double, c_int, c_long, c_uint, c_void_p
 
 import numpy as np
 
 from pushtrain.core import native
+from pushtrain.core.kinematics import wrap_scalar
 from pushtrain.core.native_controller import Tracker
 from pushtrain.core.reference import ReferenceSample
 from pushtrain.errors import CosimError, NativeBuildError
 
 from .sensors import Measurement, Sensors
 
-__all__ = ["CHUNK", "STEP_LOOPS", "CompiledLoop", "unsupported"]
+__all__ = ["CHUNK", "STEP_LOOPS", "CompiledLoop", "EngineStep", "unsupported"]
 
 STEP_LOOPS = ("auto", "c", "python")
 """Values of ``simulate(step_loop=...)``: ``"auto"`` the compiled loop when the run allows it
@@ -67,8 +69,7 @@ class PtMasterLoop(ctypes.Structure):
         ("state_vr", _U_PTR), ("input_vr", _U_PTR), ("output_vr", _U_PTR), ("flag_vr", _U_PTR),
         ("n_outputs", c_int), ("n", c_int),
         ("t0", c_double), ("step", c_double), ("n_steps", c_long),
-        ("track", POINTER(native.PtTrack)),
-        ("sensors", POINTER(native.PtSensors)), ("noise_values", _D_PTR),
+        ("instant", POINTER(native.PtStep)), ("noise_values", _D_PTR),
         ("noise_per_step", c_int),
         ("rows", _D_PTR), ("row_width", c_int), ("n_output_runs", c_int),
         ("output_runs", _I_PTR), ("flag_at", _I_PTR), ("scalar_at", _I_PTR),
@@ -76,9 +77,8 @@ class PtMasterLoop(ctypes.Structure):
         ("check_goal", c_int), ("goal_from", c_double), ("goal_x", c_double),
         ("goal_y", c_double), ("goal_theta", c_double), ("goal_position", c_double),
         ("goal_heading", c_double), ("goal_slack", c_double),
-        ("pause_at", c_double), ("next_bias", c_double), ("n_pushes", c_int),
-        ("pushes", _D_PTR), ("slide", c_double), ("n_slide_writes", c_int),
-        ("slide_vr", _U_PTR), ("slide_values", _D_PTR),
+        ("pause_at", c_double), ("next_bias", c_double), ("slide", c_double),
+        ("n_slide_writes", c_int), ("slide_vr", _U_PTR), ("slide_values", _D_PTR),
         ("state", _D_PTR), ("outputs", _D_PTR), ("flags", _I_PTR),
         ("k", c_long), ("time", c_double), ("inputs", c_double * 4), ("failed_call", c_int),
         ("failed_slide", c_int), ("fmi_status", c_int), ("control_status", c_int),
@@ -119,6 +119,85 @@ def unsupported(slave, loop, sensors) -> str | None:
     return None
 
 
+_SAMPLE_CMD = struct.Struct("@5di4x2d")  # PtTrack's sample (PtSample) and cmd
+_OUTPUTS = struct.Struct("@5d")  # PtStep's push and errors
+
+
+class EngineStep:
+    """The closed-loop work of one communication step of the Python loop in C
+    (``core/csrc/step.c``), so that the loop itself keeps only the FMU calls and the recording.
+
+    With the compiled control law (``tracker``, a
+    :class:`~pushtrain.core.native_controller.Tracker`) a step is one call, ``pt_step``:
+    sensors -> reference sample, pull leader and command -> push force and tracking errors. With
+    a law in Python (the slip governor, open-loop profiles, ``implementation="python"``:
+    ``tracker`` None) the sensors are a C call (:meth:`Sensors.measurer`) before the Python
+    ``command(t, measurement)``, and the push force and errors are computed in Python, in the
+    C's order (an open loop's reference sample is NaN: the sign of a NaN result depends on how
+    a compiler orders the operands, so its bits are kept those of Python).
+
+    :attr:`step` ``(t)`` returns ``(v_cmd, w_cmd, ref, (push_x, push_y, e_lon, e_lat,
+    e_theta))`` for the FMU's true state in ``truth`` at ``t`` [s] (read before the call) and
+    writes the joint readings into ``phi_meas`` (both arrays stay bound to the object).
+    """
+
+    def __init__(self, truth: np.ndarray, phi_meas: np.ndarray, sensors: Sensors, events,
+                 command, tracker: Tracker | None):
+        self.lib = native.load()
+        self.truth, self.phi_meas, self.sensors, self.events = truth, phi_meas, sensors, events
+        self.tracker = tracker
+        self.struct = native.PtStep(None if tracker is None else ctypes.pointer(tracker.instant),
+                                    ctypes.pointer(sensors.model))
+        self._active: list = []
+        self._pushes = np.zeros((1, 3))
+        self._at_outputs = native.PtStep.push.offset
+        self._truth_ptr, self._phi_ptr = native.dptr(truth), native.dptr(phi_meas)
+        if tracker is not None:
+            tracker.has_last = bool(sensors.config.measure_last_pose)
+            self.step = self._compiled
+        else:
+            self._measure = sensors.measurer(truth, phi_meas)
+            self._command = command
+            self.step = self._python
+
+    def _set_pushes(self, t: float) -> None:
+        """The pushes acting at ``t`` into the struct (rebuilt only when they change)."""
+        active = self.events.active_pushes(t)
+        if active != self._active:
+            self._active = active
+            self._pushes = np.array([(p.fx, p.fy, p.lateral) for p in active] or [(0.0,) * 3])
+            self.struct.n_pushes = len(active)
+            self.struct.pushes = native.dptr(self._pushes)
+
+    def _compiled(self, t: float):
+        if self.events.pushes:
+            self._set_pushes(t)
+        noise = self.sensors.draw_noise(1)
+        k = self.tracker.instant
+        status = self.lib.pt_step(ctypes.byref(self.struct), t, self._truth_ptr,
+                                  None if noise is None else native.dptr(noise), self._phi_ptr)
+        out = _SAMPLE_CMD.unpack_from(k, native.PtTrack.sample.offset)
+        ref = tuple.__new__(ReferenceSample, out[:6])
+        if status:
+            raise self.tracker.error(status, t, self.measurement(), ref)
+        return out[6], out[7], ref, _OUTPUTS.unpack_from(self.struct, self._at_outputs)
+
+    def _python(self, t: float):
+        v_cmd, w_cmd, _, ref = self._command(t, self._measure())
+        x_n, y_n, th_n = self.truth[3:6].tolist()
+        push_x, push_y = self.events.push_force(t, th_n) if self.events.pushes else (0.0, 0.0)
+        dx, dy = x_n - ref.x, y_n - ref.y  # the last trailer's error in the reference frame
+        c, s = math.cos(ref.theta), math.sin(ref.theta)
+        return v_cmd, w_cmd, ref, (push_x, push_y, c * dx + s * dy, -s * dx + c * dy,
+                                   wrap_scalar(th_n - ref.theta))
+
+    def measurement(self) -> Measurement:
+        """The compiled law's last measurement (its joint angles from ``phi_meas``)."""
+        m = self.tracker.instant.m
+        last = (m.x_n, m.y_n, m.theta_n) if m.has_last else None
+        return Measurement(m.x0, m.y0, m.theta0, self.phi_meas.tolist(), last)
+
+
 def _runs(indices: list[int]) -> list[tuple[int, int, int]]:
     """``(first value, first row index, count)`` of each run of values that land side by side
     in a row (value j goes to row index ``indices[j]``)."""
@@ -155,9 +234,11 @@ class CompiledLoop:
         m.state_vr, m.input_vr, m.output_vr, m.flag_vr = (
             ctypes.cast(r, _U_PTR) for r in self._refs)
         m.n_outputs, m.n = len(io.output_names), n
-        m.track = ctypes.pointer(self.tracker.instant)
-        # sensors: the run's own model and memory (biases, play), noise drawn per call
-        m.sensors = ctypes.pointer(sensors.model)
+        # the engine's step: the law's instant, the run's own sensor model and memory (biases,
+        # play; noise drawn per call), the pushes set per call
+        self.instant = native.PtStep(ctypes.pointer(self.tracker.instant),
+                                     ctypes.pointer(sensors.model))
+        m.instant = ctypes.pointer(self.instant)
         m.noise_per_step = sensors.noise_scales.size
         # recording: where each value goes in a row
         recorder = run.recorder
@@ -267,8 +348,8 @@ class CompiledLoop:
         active = events.active_pushes(t)
         pushes = np.array([(p.fx, p.fy, p.lateral) for p in active] or [(0.0, 0.0, 0.0)],
                           dtype=float)
-        m.n_pushes = len(active)
-        m.pushes = native.dptr(pushes)
+        self.instant.n_pushes = len(active)
+        self.instant.pushes = native.dptr(pushes)
         m.pause_at = next((b for b in self.thresholds if b > t), math.inf)
         m.next_bias = events.next_bias_time
         self._changes = changes
