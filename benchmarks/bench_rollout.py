@@ -1,25 +1,30 @@
-"""Fast closed-loop integrator vs the planner's pure-Python check (issue 13's >= 20x target).
+"""The closed-loop engine vs the readable Python loop it is held equal to (issue 13's >= 20x).
 
 Runs the same plan (a bay plan like examples/bay.toml's: pull 4.5 m, cusp, push around a 1.7 m
-arc and 2.1 m into the bay; settle 2 s; step 0.025 s) through
-:func:`pushtrain.planner.kinematic_loop.simulate_tracking` (pure Python) and
-:func:`pushtrain.core.rollout.simulate` (C) in the same process, for n = 3 and n = 10, and prints
-simulated seconds per wall second of each and their ratio (best of several repeats, so a busy
-machine slows both alike). Also checks that both give the same states.
+arc and 2.1 m into the bay; settle 2 s; step 0.025 s) through the tests' Python reference loop
+(``tests/reference/closed_loop.py`` ``simulate_tracking``) and the engine,
+:func:`pushtrain.core.engine.simulate` (C), in the same process, for n = 3 and n = 10, and
+prints simulated seconds per wall second of each and their ratio (best of several repeats, so a
+busy machine slows both alike). Also checks that both give the same states.
 
 Run: python benchmarks/bench_rollout.py [--repeat R]
 """
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
+from pushtrain.core.engine import ClosedLoopEngine, simulate
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.core.rollout import ClosedLoop, simulate
-from pushtrain.planner.kinematic_loop import default_controller, simulate_tracking
+from pushtrain.planner.kinematic_loop import default_controller
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from reference.closed_loop import simulate_tracking  # noqa: E402  (the tests' reference loop)
 
 STEP = 0.025
 SETTLE = 2.0
@@ -57,13 +62,13 @@ def main(repeat: int) -> None:
         t_c = best_of(repeat, lambda g=geom, cf=config, h=heads:
                       simulate(g, ref, h, cf, STEP, SETTLE))
         # the planner's edge cost: the loop only (reference table and pull guide prepared)
-        loop = ClosedLoop(geom, config, STEP)
+        loop = ClosedLoopEngine(geom, config, STEP)
         state = loop.start(ref.start, heads)
         k_end = loop.instant_at(ref.t_end + SETTLE)
         loop.run(ref, state, k_end)
         t_loop = best_of(repeat, lambda lp=loop, s=state, k=k_end: lp.run(ref, s, k,
                                                                           record=False))
-        print(f"n = {n:2d}: simulate_tracking {simulated / t_py:9,.0f} sim-s/s "
+        print(f"n = {n:2d}: Python reference {simulated / t_py:9,.0f} sim-s/s "
               f"({t_py * 1e3:8.1f} ms) | C rollout {simulated / t_c:11,.0f} sim-s/s "
               f"({t_c * 1e3:6.2f} ms) | ratio {t_py / t_c:6.0f}x | loop only {t_py / t_loop:6.0f}x"
               f" | max state difference {diff:.1e}")

@@ -1,8 +1,9 @@
 """Build and load the compiled control law (``core/csrc``) with ctypes.
 
-The C sources (``control.c``, the law, ``rollout.c``, the closed loop, and the co-simulation
-master's step loop ``cosim/csrc/master_loop.c``) are compiled once per
-machine with the system C compiler into a shared library, ``-std=c99 -O2 -fPIC -shared
+The C sources (``control.c``, the law, ``sensors.c``, the sensor model, ``step.c``, a
+co-simulation step's closed-loop work, ``rollout.c``, the planner's closed loop, and the
+co-simulation master's step loop ``cosim/csrc/master_loop.c``) are compiled once per machine
+with the system C compiler into a shared library, ``-std=c99 -O2 -fPIC -shared
 -ffp-contract=off -lm`` (no fused multiply-add, so the C arithmetic rounds like Python's), and
 cached under ``$PUSHTRAIN_CACHE/native`` (default ``~/.cache/pushtrain/native``) by a hash of the
 sources, the compiler command, its version and the flags. The library is written under a
@@ -13,8 +14,8 @@ The compiler is ``$CC`` if set, else Python's own (``sysconfig``'s ``CC``), else
 one :class:`~pushtrain.errors.NativeBuildError` says what to install or set.
 
 :func:`load` returns the :class:`ctypes.CDLL` with every prototype declared; the ``Pt*``
-structures below mirror the C structs of ``control.h`` (their sizes are checked against the
-library at load time).
+structures below mirror the C structs of ``control.h``, ``sensors.h``, ``step.h`` and
+``rollout.h`` (their sizes are checked against the library at load time).
 """
 
 from __future__ import annotations
@@ -38,15 +39,37 @@ from pathlib import Path
 
 from pushtrain.errors import NativeBuildError
 
-__all__ = ["CFLAGS", "PtChain", "PtChecks", "PtControlInfo", "PtControlState", "PtController",
-           "PtLeader", "PtMeasurement", "PtPhase", "PtRecord", "PtReference", "PtRollout",
-           "PtSample", "PtSegment", "PtTrack", "PtViolation", "STATUS", "cache_dir",
-           "compiler_command", "dptr", "library_path", "load"]
+__all__ = [
+    "CFLAGS",
+    "PtChain",
+    "PtChecks",
+    "PtControlInfo",
+    "PtControlState",
+    "PtController",
+    "PtLeader",
+    "PtMeasurement",
+    "PtPhase",
+    "PtRecord",
+    "PtReference",
+    "PtRollout",
+    "PtSample",
+    "PtSegment",
+    "PtSensors",
+    "PtStep",
+    "PtTrack",
+    "PtViolation",
+    "STATUS",
+    "cache_dir",
+    "compiler_command",
+    "dptr",
+    "library_path",
+    "load",
+]
 
 log = logging.getLogger(__name__)
 
-SOURCES = ("control.c", "rollout.c", "master_loop.c")
-HEADERS = ("control.h", "rollout.h", "master_loop.h")
+SOURCES = ("control.c", "sensors.c", "step.c", "rollout.c", "master_loop.c")
+HEADERS = ("control.h", "sensors.h", "step.h", "rollout.h", "master_loop.h")
 _COSIM_SOURCES = ("master_loop.c", "master_loop.h")  # in cosim/csrc, the rest in core/csrc
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-ffp-contract=off")
 LDFLAGS = ("-shared",)
@@ -129,6 +152,18 @@ class PtTrack(ctypes.Structure):
                 ("cmd", c_double * 2), ("info", PtControlInfo)]
 
 
+class PtSensors(ctypes.Structure):
+    _fields_ = [("n", c_int), ("bias", D_PTR), ("half_backlash", c_double),
+                ("quantization", c_double), ("noise", c_int), ("measure_last_pose", c_int),
+                ("play", D_PTR), ("has_play", c_int)]
+
+
+class PtStep(ctypes.Structure):
+    _fields_ = [("track", POINTER(PtTrack)), ("sensors", POINTER(PtSensors)),
+                ("n_pushes", c_int), ("pushes", D_PTR), ("push", c_double * 2),
+                ("errors", c_double * 3)]
+
+
 class PtChecks(ctypes.Structure):
     _fields_ = [("nx", c_int), ("ny", c_int), ("sdf", D_PTR), ("x0", c_double), ("y0", c_double),
                 ("h", c_double), ("point_offset", POINTER(c_int)), ("px", D_PTR), ("py", D_PTR),
@@ -182,12 +217,19 @@ _PROTOTYPES = {
                             D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR]),
     "pt_leader_sample": (c_int, [P(PtLeader), c_double, P(PtSample)]),
     "pt_track": (c_int, [P(PtTrack)]),
+    "pt_sensors_sizeof": (c_size_t, []),
+    "pt_sensors_noise_count": (c_int, [P(PtSensors)]),
+    "pt_measure_joints": (None, [P(PtSensors), D_PTR, D_PTR, D_PTR]),
+    "pt_measure": (c_int, [P(PtSensors), D_PTR, D_PTR, D_PTR, P(PtMeasurement)]),
+    "pt_step_sizeof": (c_size_t, []),
+    "pt_step": (c_int, [P(PtStep), c_double, D_PTR, D_PTR, D_PTR]),
     "pt_rollout_sizeof": (c_size_t, [c_int]),
     "pt_rollout_work": (c_int, [c_int]),
     "pt_rollout": (c_int, [P(PtRollout), P(ctypes.c_long), D_PTR, P(PtControlState),
                            ctypes.c_long, D_PTR, P(PtRecord), P(PtViolation)]),
     "pt_check_state": (c_int, [P(PtChain), P(PtChecks), D_PTR, ctypes.c_long, D_PTR,
                                P(PtViolation)]),
+    "pt_hold": (c_int, [P(PtChain), D_PTR, c_double, c_double, c_double, c_int, D_PTR, D_PTR]),
     "pt_sdf_at": (c_double, [P(PtChecks), c_double, c_double]),
     "pt_rects_overlap": (c_int, [D_PTR, D_PTR, D_PTR]),
 }
@@ -338,13 +380,15 @@ def load(rebuild: bool = False) -> ctypes.CDLL:
                 function.restype, function.argtypes = restype, argtypes
             sizes = [(lib.pt_sizeof, w, st) for w, st in enumerate(_STRUCTS)]
             sizes += [(lib.pt_rollout_sizeof, w, st) for w, st in enumerate(_ROLLOUT_STRUCTS)]
+            sizes.append((lambda _: lib.pt_sensors_sizeof(), 0, PtSensors))
+            sizes.append((lambda _: lib.pt_step_sizeof(), 0, PtStep))
             for sizeof, which, struct in sizes:
                 size = sizeof(which)
                 if size != ctypes.sizeof(struct):
                     raise NativeBuildError(
                         f"{struct.__name__} is {size} bytes in {str(path)!r} but "
                         f"{ctypes.sizeof(struct)} in core/native.py: the binding does not match "
-                        "control.h")
+                        "its header in core/csrc")
             _loaded[path] = lib
         _by_setting[key] = lib
         return lib

@@ -3,7 +3,7 @@
 :class:`NativeController` has the interface of
 :class:`~pushtrain.core.controller.BackwardController` (``command``, ``command_from``,
 ``reset``, ``sent``, ``n``, ``guide_geometry``) and computes the same command with the C
-implementation that the fast closed-loop integrator (:mod:`pushtrain.core.rollout`) and the
+implementation that the fast closed-loop integrator (:mod:`pushtrain.core.engine`) and the
 controller FMU compile. ``tests/test_native_control.py`` holds both equal to 1e-12 on random
 states, references and limit sequences; the Python class stays the readable reference.
 
@@ -29,7 +29,7 @@ from .native_reference import NativeLeader, NativeReference
 from .reference import Reference, ReferenceSample
 from .tracking import TrackingLoop
 
-__all__ = ["NativeController", "controller_struct"]
+__all__ = ["NativeController", "Tracker", "controller_struct"]
 
 _MODES = {0: MODE_REST, 1: MODE_PUSH, 2: MODE_PULL}
 _POSE = struct.Struct("@3d")  # PtMeasurement's x_n, y_n, theta_n
@@ -206,7 +206,7 @@ class NativeController:
         elif not isinstance(reference, NativeReference):
             return None
         leader = None if guide is None else NativeLeader.from_guide(guide)
-        return _Tracker(self, reference, leader, info).command
+        return Tracker(self, reference, leader, info).command
 
     def command_from(self, reference, t: float, measurement):
         """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t`` (as
@@ -217,9 +217,12 @@ class NativeController:
         return self._loop.command(t, measurement)[:3]
 
 
-class _Tracker:
+class Tracker:
     """One control instant of :class:`NativeController` in C: reference sample, pull leader and
-    command (``pt_track``); :meth:`command` is what :meth:`NativeController.tracker` returns."""
+    command (``pt_track``); :meth:`command` is what :meth:`NativeController.tracker` returns.
+
+    ``instant`` is the ``PtTrack`` struct the C reads and writes (a compiled loop may run it
+    itself); ``has_last`` says whether it holds a measured last pose now."""
 
     def __init__(self, controller: NativeController, reference: NativeReference,
                  leader: NativeLeader | None, info: bool = True):
@@ -228,7 +231,7 @@ class _Tracker:
         n = controller.n
         self._phi = (ctypes.c_double * n)()
         ctrl, state = controller._ctrl, controller._state
-        k = self._track = native.PtTrack(
+        k = self.instant = native.PtTrack(
             ctypes.pointer(ctrl), ctypes.pointer(state), ctypes.pointer(reference.struct),
             None if leader is None else ctypes.pointer(leader.struct))
         k.m.phi = ctypes.cast(self._phi, native.D_PTR)
@@ -237,7 +240,7 @@ class _Tracker:
                          native.PtTrack.m.offset + native.PtMeasurement.x_n.offset,
                          native.PtTrack.info.offset)
         self._call = partial(controller._lib.pt_track, ctypes.byref(k))
-        self._has_last = False
+        self.has_last = False
 
     def command(self, t: float, measurement):
         """``(v0 [m/s], w0 [rad/s], ControlInfo or None, ReferenceSample)`` at ``t`` [s]."""
@@ -246,29 +249,31 @@ class _Tracker:
         except (ValueError, TypeError):
             self.controller._set_phi(measurement.phi)  # the controller's message on a bad length
             raise
-        k = self._track
+        k = self.instant
         at_t, at_sample, at_has_last, at_last, at_info = self._offsets
         _TIME_POSE.pack_into(k, at_t, t, measurement.x0, measurement.y0, measurement.theta0)
         last = getattr(measurement, "last_pose", None)
         if last is not None:
             _HAS_LAST.pack_into(k, at_has_last, 1)
             _POSE.pack_into(k, at_last, *last)
-        elif self._has_last:
+        elif self.has_last:
             _HAS_LAST.pack_into(k, at_has_last, 0)
-        self._has_last = last is not None
+        self.has_last = last is not None
         status = self._call()
         out = _SAMPLE_CMD.unpack_from(k, at_sample)
         ref = _new_tuple(ReferenceSample, out[:6])
         if status:
-            raise self._error(status, t, measurement, ref)
+            raise self.error(status, t, measurement, ref)
         if not self.info:
             return out[6], out[7], None, ref
         mode, *rest = _INFO.unpack_from(k, at_info)
         return out[6], out[7], ControlInfo(_MODES[mode], *rest), ref
 
-    def _error(self, status: int, t, measurement, ref):
+    def error(self, status: int, t, measurement, ref) -> Exception:
+        """The exception of a control instant the C refused with ``status`` at ``t`` [s] for
+        ``measurement`` (its reference sample ``ref``)."""
         if status == 2:  # the controller's message reads the raw command from its own info
-            ctypes.memmove(ctypes.byref(self.controller._info), ctypes.byref(self._track.info),
+            ctypes.memmove(ctypes.byref(self.controller._info), ctypes.byref(self.instant.info),
                            ctypes.sizeof(native.PtControlInfo))
         if status == 8:
             return ReferencePathError(f"t = {t!r} s is not in a pulling run of the reference")

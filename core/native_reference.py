@@ -8,7 +8,7 @@ segment: a planner appends an edge's segments to the reference so far, or starts
 computed in C by :meth:`NativeLeader.for_reference` or copied from a Python guide.
 
 Both keep their C structs and the numpy arrays behind them alive; the fast closed loop
-(:mod:`pushtrain.core.rollout`) passes the structs to C as they are.
+(:mod:`pushtrain.core.engine`) passes the structs to C as they are.
 """
 
 from __future__ import annotations

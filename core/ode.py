@@ -1,7 +1,8 @@
 """Fixed-step integration of small ODE systems held as lists of floats (for per-step loops).
 
-Used by the planner's whole-train check (the chain towed by a held robot command) and by the
-pull guide (the chain driven backward in time by the last trailer). Plain floats: a numpy call per
+Used by the pull guide (the chain driven backward in time by the last trailer) and by the tests'
+reference closed loop (the chain towed by a held robot command; the engine in ``core/csrc``
+integrates the same RK4 in C). Plain floats: a numpy call per
 stage would cost more than the arithmetic of a few-trailer chain.
 """
 

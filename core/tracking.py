@@ -1,11 +1,14 @@
-"""One step of the closed loop, shared by the co-simulation master and the planner's train check.
+"""One control instant of a controller written in Python (or called from Python).
 
-At every control instant ``t`` both do the same thing between their plants' measurement and the
-command they apply: sample the last trailer's reference at ``t`` (a rest sample during cusp
-dwells, before the start and after the goal), while pulling also the robot's own reference from the
-:class:`~pushtrain.core.pulling.PullGuide` built with the controller's chain model
-(``controller.guide_geometry``), and ask the controller for the robot command. The master adds
-the FMU, the sensors and the events around it; the train check integrates the kinematic chain.
+At every control instant ``t``: sample the last trailer's reference at ``t`` (a rest sample
+during cusp dwells, before the start and after the goal), while pulling also the robot's own
+reference from the :class:`~pushtrain.core.pulling.PullGuide` built with the controller's chain
+model (``controller.guide_geometry``), and ask the controller for the robot command. The
+co-simulation master uses it for the slip governor, open-loop profiles and the readable
+:class:`~pushtrain.core.controller.BackwardController`; with the compiled law
+(:class:`~pushtrain.core.native_controller.NativeController`) the whole instant is one C call
+(``pt_track``), which the engine (``core/csrc``) also runs inside its loops. The tests' reference
+closed loop (``tests/reference/closed_loop.py``) steps it too.
 """
 
 from __future__ import annotations

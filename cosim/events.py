@@ -16,14 +16,15 @@ from dataclasses import dataclass
 
 from pushtrain.errors import CosimInputError
 
-__all__ = ["EventSchedule", "Push", "SetBias", "Slide"]
+__all__ = ["EVENT_TOLERANCE", "EventSchedule", "Push", "SetBias", "Slide", "positive_number"]
 
 log = logging.getLogger(__name__)
 
-_EPS_T = 1e-12  # [s] tolerance of event times against communication points
+EVENT_TOLERANCE = 1e-12
+"""[s] Tolerance of event times against communication points."""
 
 
-def _positive(name: str, value, allow_zero: bool = False) -> float:
+def positive_number(name: str, value, allow_zero: bool = False) -> float:
     """``value`` as a float; CosimInputError unless finite and > 0 (>= 0 with ``allow_zero``)."""
     ok = isinstance(value, (int, float)) and math.isfinite(value)
     ok = ok and (value >= 0 if allow_zero else value > 0)
@@ -77,7 +78,7 @@ class SetBias:
 
 
 def _active(event, t: float) -> bool:
-    return event.t - _EPS_T <= t < event.t + event.duration - _EPS_T
+    return event.t - EVENT_TOLERANCE <= t < event.t + event.duration - EVENT_TOLERANCE
 
 
 class EventSchedule:
@@ -106,10 +107,10 @@ class EventSchedule:
         for k, ev in enumerate(events):
             where = f"events[{k}]"
             if isinstance(ev, Push):
-                _positive(f"{where}.duration", ev.duration)
+                positive_number(f"{where}.duration", ev.duration)
                 self.pushes.append(ev)
             elif isinstance(ev, Slide):
-                _positive(f"{where}.duration", ev.duration)
+                positive_number(f"{where}.duration", ev.duration)
                 trailer = n if ev.trailer is None else ev.trailer
                 if not (isinstance(trailer, int) and 1 <= trailer <= n):
                     raise CosimInputError(f"{where}.trailer = {ev.trailer!r}: allowed are 1..{n}")
@@ -134,10 +135,27 @@ class EventSchedule:
     def biases_due(self, t: float) -> list[SetBias]:
         """The bias switches not yet returned whose time has come at ``t`` [s], in time order."""
         start = k = self._next_bias
-        while k < len(self.biases) and self.biases[k].t <= t + _EPS_T:
+        while k < len(self.biases) and self.biases[k].t <= t + EVENT_TOLERANCE:
             k += 1
         self._next_bias = k
         return self.biases[start:k]
+
+    @property
+    def next_bias_time(self) -> float:
+        """Time [s] of the first bias switch not yet returned by :meth:`biases_due` (inf if
+        none)."""
+        k = self._next_bias
+        return self.biases[k].t if k < len(self.biases) else math.inf
+
+    def switch_times(self) -> list[float]:
+        """The instants [s] (less :data:`EVENT_TOLERANCE`) at which a push or slide starts or
+        ends, ascending, each once: between two of them the active pushes and slides stay."""
+        return sorted({b for ev in (*self.pushes, *self.slides)
+                       for b in (ev.t - EVENT_TOLERANCE, ev.t + ev.duration - EVENT_TOLERANCE)})
+
+    def active_pushes(self, t: float) -> list[Push]:
+        """The pushes acting at ``t`` [s]."""
+        return [p for p in self.pushes if _active(p, t)]
 
     def push_force(self, t: float, theta_n: float) -> tuple[float, float]:
         """World-frame force (push_x, push_y) [N] on the last trailer at ``t`` [s] when its

@@ -6,9 +6,10 @@ the loop reads as its three steps:
 apply inputs
     the events due (:class:`~pushtrain.cosim.events.EventSchedule`: joint-bias switches, the
     push force on the last trailer, imposed slides), the FMU's states (robot pose, last
-    trailer's pose, joint angles) -> sensors (bias, noise, quantization, backlash) ->
-    :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, pull guide, Kanayama +
-    inverse chain kinematics) -> the FMU's inputs;
+    trailer's pose, joint angles) -> the engine's step (``core/csrc/step.c``: sensors with bias,
+    noise, quantization and backlash, reference sample, pull guide, Kanayama + inverse chain
+    kinematics, push force, tracking errors; one C call,
+    :class:`~pushtrain.cosim.step_loop.EngineStep`) -> the FMU's inputs;
 record
     every output (read after the inputs: the wheel forces depend directly on them) and the flags
     straight into the recorder's row, with the inputs, the reference and the tracking errors;
@@ -23,9 +24,10 @@ bit: the compiled step loop (:mod:`~pushtrain.cosim.step_loop`, ``cosim/csrc/mas
 up to :data:`~pushtrain.cosim.step_loop.CHUNK` steps per C call, back in Python only for events,
 the progress bar, the goal, a jackknife or a failure), used whenever the run allows it (an FMI 2.0
 FMU, the compiled control law tracking a line/arc reference); and the Python loop
-(:meth:`_Run.run`: the FMI calls through bare ctypes with preallocated arrays
-(:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`), scalar Python in between), for
-everything else (the governor, open-loop profiles, the Python control law, FMI 3.0).
+(:meth:`PythonLoop.run`: the FMI calls through bare ctypes with preallocated arrays
+(:class:`~pushtrain.cosim.fmu_slave.TrailerTrainSlave`) and one engine call per step), for
+everything else (FMI 3.0; and the governor, open-loop profiles and the Python control law, whose
+command is Python between the compiled sensors and the push force and errors in Python).
 ``simulate(step_loop=...)`` picks one; ``benchmarks/bench_cosim.py`` compares both with a
 raw-ctypes loop doing the same calls.
 
@@ -49,14 +51,14 @@ import numpy as np
 
 from pushtrain.core.controller import BackwardController, ControllerConfig
 from pushtrain.core.kinematics import wrap_scalar
-from pushtrain.core.native_controller import NativeController
+from pushtrain.core.native_controller import NativeController, Tracker
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.defaults import GOAL_TOLERANCE, SETTLE_TIME
 from pushtrain.errors import ControllerError, CosimError, CosimInputError
 from pushtrain.table1 import SAMPLING_TIME
 
-from .events import EventSchedule, _positive
+from .events import EventSchedule, positive_number
 from .fmu_slave import TrailerTrainSlave
 from .plant import InitialState, PlantConfig
 from .recorder import Recorder
@@ -70,15 +72,12 @@ from .result import (
     Result,
     summarize,
 )
-from .sensors import Measurement, SensorConfig, Sensors
-from .step_loop import STEP_LOOPS, CompiledLoop, unsupported
+from .sensors import SensorConfig, Sensors
+from .step_loop import STEP_LOOPS, CompiledLoop, EngineStep, unsupported
 
 __all__ = ["simulate", "IMPLEMENTATIONS"]
 
 log = logging.getLogger(__name__)
-
-_new_tuple = tuple.__new__
-
 
 _OUTPUTS = (  # FMU output array, its result column prefix, first index
     ("x", "x", 0), ("y", "y", 0), ("theta", "theta", 0), ("v", "v", 0), ("w", "w", 0),
@@ -195,16 +194,19 @@ class _Goal:
     @classmethod
     def of(cls, reference, check: bool, tolerance) -> _Goal:
         """The goal test of ``reference`` (none without a reference: open loop)."""
-        position = _positive("goal_tolerance[0]", tolerance[0])
-        heading = _positive("goal_tolerance[1]", tolerance[1])
+        position = positive_number("goal_tolerance[0]", tolerance[0])
+        heading = positive_number("goal_tolerance[1]", tolerance[1])
         if reference is None:
             return cls(False, np.full(3, np.nan), math.inf, position, heading)
         return cls(check, np.asarray(reference.goal, dtype=float), float(reference.t_end),
                    position, heading)
 
 
-class _Run:
-    """One run's loop: at each communication point apply the inputs, record, ``fmi2DoStep``."""
+class PythonLoop:
+    """One run's loop in Python: at each communication point apply the inputs, record,
+    ``fmi2DoStep`` (:class:`~pushtrain.cosim.step_loop.CompiledLoop` runs the same in C, given
+    this object). :meth:`goal_reached` and :meth:`jackknife` are the run's end tests, which the
+    compiled loop leaves to Python."""
 
     scalar_columns = _SCALARS
     """The row's columns besides the FMU's values and the measured joint angles."""
@@ -215,7 +217,6 @@ class _Run:
         self.recorder, self.goal, self.n = recorder, goal, sensors.n
         slid = {self.n if ev.trailer is None else ev.trailer for ev in events.slides}
         self.io = _PlantIO(slave, self.n, recorder, sorted(slid))
-        self.measure = self._measure_ideal if sensors.ideal else self._measure
 
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
         """Step from ``t0`` (communication points t0 + k step, k = 0..n_steps); the status and
@@ -224,40 +225,41 @@ class _Run:
         Per step: four FMI calls, one doStep, scalar Python and one copy of the row (the
         per-step objects are bound to locals once)."""
         recorder = self.recorder
-        self.phi_meas, self.flags = recorder.view("phi_meas"), recorder.view("flags")
+        self.flags = recorder.view("flags")
+        # the engine's step reads the FMU's states and writes the joint readings into the row
+        tracker = getattr(self.loop.command, "__self__", None)
+        engine = EngineStep(self.io.state, recorder.view("phi_meas"), self.sensors, self.events,
+                            self.loop.command, tracker if isinstance(tracker, Tracker) else None)
         scalars = recorder.view("scalars")  # t, inputs, reference sample, errors: set at once
         self.scalars = (ctypes.c_double * len(scalars)).from_buffer(scalars)
         events, io, n, goal = self.events, self.io, self.n, self.goal
         read_state, write_inputs = io.read_state, io.write_inputs
         read_outputs, read_flags = io.read_outputs, io.read_flags
-        pose, measure, command = io.pose, self.measure, self.loop.command
+        last_pose, engine_step = io.pose[3:], engine.step
         scalars, flags, commit = self.scalars, self.flags, self.recorder.commit
         do_step = self.slave.do_step
         for k in range(n_steps + 1):
             t = t0 + k * step
-            # apply inputs: events due, states -> sensors -> tracking loop -> FMU inputs
+            # apply inputs: events due, states -> the engine's step (sensors, law, push force,
+            # tracking errors) -> FMU inputs
             if events.biases:
                 for bias in events.biases_due(t):
                     self.sensors.set_bias(bias.joint, bias.bias)
             read_state()
-            x0, y0, th0, x_n, y_n, th_n = pose.tolist()
-            v_cmd, w_cmd, _, ref = command(t, measure(x0, y0, th0, x_n, y_n, th_n))
-            push_x, push_y = events.push_force(t, th_n) if events.pushes else (0.0, 0.0)
+            v_cmd, w_cmd, ref, outputs = engine_step(t)
+            push_x, push_y = outputs[:2]
             write_inputs((v_cmd, w_cmd, push_x, push_y))
             slide = self._slide(t) if events.slides else 0.0
             # record: every output and the flags, read after the inputs (the wheel forces depend
             # directly on them), the time, inputs, reference and errors; one copy of the row
             read_outputs()
             read_flags()
-            dx, dy = x_n - ref.x, y_n - ref.y  # the last trailer's error in the reference frame
-            c, s = math.cos(ref.theta), math.sin(ref.theta)
-            scalars[:] = (t, v_cmd, w_cmd, push_x, push_y, slide) + ref + (
-                c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
+            scalars[:] = (t, v_cmd, w_cmd, push_x, push_y, slide) + ref + outputs[2:]
             commit()
             if flags[n]:
-                return self._jackknife(t)
+                return self.jackknife(t)
             if goal.check and t >= goal.t_end - 1e-12:
-                reached = self._goal_reached(t, x_n, y_n, th_n)
+                reached = self.goal_reached(t, *last_pose.tolist())
                 if reached is not None:
                     return reached
             if k == n_steps:
@@ -268,31 +270,13 @@ class _Run:
                 bar.update(200 if k else 0)
         return None
 
-    def _measure_ideal(self, x0, y0, th0, x_n, y_n, th_n) -> Measurement:
-        """The measurement of sensors without noise, play or quantization: the true robot pose
-        and the joint angles plus their biases (into the row, and as floats for the controller),
-        equal to :meth:`Sensors.measure` bit for bit."""
-        reading = self.sensors.biased(self.io.phi)
-        self.phi_meas[...] = reading
-        return _new_tuple(Measurement, (x0, y0, th0, reading.tolist(), None))
-
-    def _measure(self, x0, y0, th0, x_n, y_n, th_n) -> Measurement:
-        """The measurement of :class:`Sensors` (noise drawn in its order: joints, robot pose,
-        last trailer's pose); the joint readings into the row, as floats for the controller."""
-        sensors = self.sensors
-        reading = sensors.measure_joints(self.io.phi)
-        robot = sensors.measure_pose(x0, y0, th0)
-        last = sensors.measure_pose(x_n, y_n, th_n) if sensors.config.measure_last_pose else None
-        self.phi_meas[...] = reading
-        return _new_tuple(Measurement, (*robot, reading.tolist(), last))
-
     def _slide(self, t: float) -> float:
         """Set the slide speeds [m/s] that change at ``t``; the last trailer's."""
         for i, speed in self.events.slide_changes(t):
             self.io.write_slide[i]((speed,))
         return self.events.slide_speed(self.n)
 
-    def _goal_reached(self, t: float, x_n: float, y_n: float, th_n: float):
+    def goal_reached(self, t: float, x_n: float, y_n: float, th_n: float):
         """Status and message if the last trailer's pose is within the goal's tolerance."""
         goal = self.goal
         dist = math.hypot(x_n - goal.pose[0], y_n - goal.pose[1])
@@ -302,7 +286,7 @@ class _Run:
             )
         return None
 
-    def _jackknife(self, t: float) -> tuple[str, str]:
+    def jackknife(self, t: float) -> tuple[str, str]:
         """Status and message of a jackknife at ``t``, naming the worst joint."""
         phi = np.array([self.recorder.last(f"phi{i}") for i in range(1, self.n + 1)])
         worst = int(np.argmax(np.abs(phi))) + 1
@@ -404,7 +388,7 @@ def simulate(
     if step_loop not in STEP_LOOPS:
         raise CosimInputError(f"step_loop = {step_loop!r}: allowed are "
                               f"{', '.join(map(repr, STEP_LOOPS))}")
-    step = _positive("step", step)
+    step = positive_number("step", step)
     t0, horizon = _timing(reference, initial, step, horizon, settle_time)
     n_steps = _steps(horizon, step)
     goal = _Goal.of(reference, check_goal, goal_tolerance)
@@ -445,7 +429,7 @@ def simulate(
     wall_start = _time.perf_counter()
     try:
         slave.start({**plant.start_values(), **initial.start_values()}, t0)
-        run = _Run(slave, loop, sens, schedule, recorder, goal)
+        run = PythonLoop(slave, loop, sens, schedule, recorder, goal)
         stepper = run if why_not_c is not None else CompiledLoop(run)
         with _progress_bar(show, n_steps) as bar:
             end = stepper.run(t0, step, n_steps, bar)
@@ -477,7 +461,7 @@ def _timing(reference, initial, step: float, horizon, settle_time) -> tuple[floa
     """Start time and horizon [s] of a run (a reference's end plus ``settle_time`` by default,
     rounded up to whole steps); an open-loop run (no reference) needs a horizon and an initial
     state."""
-    settle_time = _positive("settle_time", settle_time, allow_zero=True)
+    settle_time = positive_number("settle_time", settle_time, allow_zero=True)
     if reference is None:
         if horizon is None or initial is None:
             raise CosimInputError(
@@ -489,7 +473,7 @@ def _timing(reference, initial, step: float, horizon, settle_time) -> tuple[floa
     if horizon is None:
         horizon = float(reference.t_end) - t0 + settle_time
         horizon = step * math.ceil(horizon / step - 1e-9)
-    return t0, _positive("horizon", horizon)
+    return t0, positive_number("horizon", horizon)
 
 
 IMPLEMENTATIONS = {"c": NativeController, "python": BackwardController}

@@ -1,4 +1,4 @@
-"""Sensor models: robot localization and joint potentiometers (pure numpy, seeded).
+"""Sensor models: robot localization and joint potentiometers (seeded noise, compiled model).
 
 The controller sees the chain only through these measurements: the robot pose
 ``(x0, y0, theta0)`` from localization and the joint angles ``phi_i`` (i = 1..n) from the
@@ -17,11 +17,17 @@ Joint-angle pipeline, in this order, for joint i::
     theta0_meas = theta0 + N(0, heading_noise_std²)
 
 All noise comes from one ``numpy.random.Generator`` seeded by ``SensorConfig.seed``; a
-disabled source (std 0) draws nothing.
+disabled source (std 0) draws nothing. The model itself is written once, in C
+(``core/csrc/sensors.c``, through :mod:`pushtrain.core.native`): the co-simulation master's
+compiled step loop and the controller FMU measure with the same code. This module validates the
+configuration, draws the noise (:meth:`Sensors.draw_noise`, in the model's order) and holds the
+model's memory (biases, play) where the C reads and writes it. The readable numpy version of the
+model is the tests' reference (``tests/reference/sensors.py``), held equal bit for bit.
 """
 
 from __future__ import annotations
 
+import ctypes
 import logging
 from dataclasses import dataclass, field
 from math import isfinite
@@ -29,6 +35,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from pushtrain.core import native
 from pushtrain.errors import SensorError
 
 __all__ = ["Measurement", "SensorConfig", "Sensors"]
@@ -134,39 +141,73 @@ class SensorConfig:
         return self._bias.copy()
 
 
+# the noise blocks of one measurement (sensors.h PT_NOISE_*)
+NOISE_JOINTS, NOISE_POSITION, NOISE_HEADING = 1, 2, 4
+
+
 class Sensors:
     """Turns the true state into a :class:`Measurement` (see the module docstring for the model).
 
     Parameters
     ----------
     config : SensorConfig
+
+    Attributes
+    ----------
+    n : int
+        Joints.
+    rng : numpy.random.Generator
+        The noise generator (reseeded by :meth:`reset`).
+    noise_scales : numpy.ndarray
+        Standard deviation of each noise value of one measurement, in the model's order (joint
+        angles, robot position and heading, then the last trailer's if measured; a source with
+        std 0 has no entry) [rad or m].
+    model : pushtrain.core.native.PtSensors
+        The C model (``sensors.h``): it points at this object's bias and play arrays, so a
+        compiled loop given it measures with this object's memory.
     """
 
     def __init__(self, config: SensorConfig):
         if not isinstance(config, SensorConfig):
             raise SensorError(f"config = {config!r}: must be a SensorConfig")
         self.config = config
-        self.n = config.n_joints
-        self._shape = (self.n,)
-        self._half = 0.5 * config.joint_backlash
-        self._joint_noise, self._q = config.joint_noise_std, config.joint_quantization
-        self._pos_noise, self._heading_noise = config.pos_noise_std, config.heading_noise_std
-        self.ideal = not (self._half or self._joint_noise or self._q or self._pos_noise
-                          or self._heading_noise or config.measure_last_pose)
-        """No noise, play, quantization or last-pose measurement: a reading is the true value
-        (plus the joint biases), see :meth:`biased`."""
+        self.n = n = config.n_joints
+        self._lib = native.load()
+        joint, pos, heading = (config.joint_noise_std, config.pos_noise_std,
+                               config.heading_noise_std)
+        pose = [pos, pos] * (pos > 0.0) + [heading] * (heading > 0.0)
+        self.noise_scales = np.array([joint] * n * (joint > 0.0)
+                                     + pose * (2 if config.measure_last_pose else 1), dtype=float)
+        self._biases = config.bias
+        self._play = np.zeros(n)
+        self.model = native.PtSensors(
+            n, native.dptr(self._biases), 0.5 * config.joint_backlash, config.joint_quantization,
+            (NOISE_JOINTS if joint > 0.0 else 0) | (NOISE_POSITION if pos > 0.0 else 0)
+            | (NOISE_HEADING if heading > 0.0 else 0), int(bool(config.measure_last_pose)),
+            native.dptr(self._play), 0)
+        if self._lib.pt_sensors_noise_count(ctypes.byref(self.model)) != self.noise_scales.size:
+            raise SensorError("the compiled sensor model counts its noise values differently "
+                              "from cosim/sensors.py: the binding does not match sensors.h")
+        self._truth = np.zeros(n + 6)
+        self._measurement = native.PtMeasurement()
         self.reset()
 
     def reset(self) -> None:
         """Restart: reseed the generator, restore the configured biases, forget the backlash."""
-        self._rng = np.random.default_rng(self.config.seed)
-        self._bias = self.config.bias
-        self._play = None
+        self.rng = np.random.default_rng(self.config.seed)
+        self._biases[:] = self.config.bias
+        self.model.has_play = 0
 
     @property
     def bias(self) -> np.ndarray:
         """Current per-joint bias, shape (n,) [rad] (a copy)."""
-        return self._bias.copy()
+        return self._biases.copy()
+
+    @property
+    def play(self) -> np.ndarray | None:
+        """The potentiometers' positions, shape (n,) [rad] (a copy), or None before the first
+        measurement or without backlash."""
+        return self._play.copy() if self.model.has_play else None
 
     def set_bias(self, joint: int, value: float) -> None:
         """Set the bias of joint ``joint`` (1..n, as ``phi[joint]``) to ``value`` [rad] from now."""
@@ -174,58 +215,62 @@ class Sensors:
             raise SensorError(f"joint = {joint!r}: must be an integer in 1..{self.n}")
         if not isfinite(value):
             raise SensorError(f"bias of joint {joint} = {value!r} rad: must be finite")
-        self._bias[int(joint) - 1] = float(value)
+        self._biases[int(joint) - 1] = float(value)
         logger.debug("joint %d bias set to %g rad", joint, value)
 
-    def biased(self, phi: np.ndarray) -> np.ndarray:
-        """``phi`` (n,) [rad] plus the current joint biases (a new array): the joint readings of
-        :attr:`ideal` sensors, equal to :meth:`measure_joints` for them (no checks: per step)."""
-        return phi + self._bias
+    def draw_noise(self, measurements: int) -> np.ndarray | None:
+        """The noise of the next ``measurements`` measurements, shape (measurements,
+        ``noise_scales.size``), or None without noise: what ``Generator.normal`` would draw value
+        by value in the model's order (``0.0 + std * z``), drawn in one block."""
+        if not self.noise_scales.size:
+            return None
+        z = self.rng.standard_normal((measurements, self.noise_scales.size))
+        np.multiply(z, self.noise_scales, out=z)
+        z += 0.0  # Generator.normal's loc + scale * z (-0.0 becomes 0.0)
+        return z
 
-    def measure_joints(self, phi) -> np.ndarray:
-        """Measured joint angles, shape (n,) [rad] (a new array), from the true ones (advances
-        the backlash)."""
-        phi = np.asarray(phi, dtype=float)
-        if phi.shape != self._shape:
-            raise SensorError(f"phi has shape {phi.shape}: need ({self.n},)")
-        half = self._half
-        if half == 0.0:  # no play: the potentiometer follows the joint
-            reading = phi + self._bias
-        else:
-            if self._play is None:
-                self._play = phi.copy()
-            else:
-                np.clip(self._play, phi - half, phi + half, out=self._play)
-            reading = self._play + self._bias
-        if self._joint_noise > 0.0:
-            reading += self._rng.normal(0.0, self._joint_noise, self.n)
-        if self._q > 0.0:
-            reading = self._q * np.round(reading / self._q)
-        return reading
+    def measurer(self, truth: np.ndarray, phi_meas: np.ndarray):
+        """A function of no arguments that measures the true state in ``truth`` ((n + 6,):
+        x0, y0, theta0, x_n, y_n, theta_n [m, rad], phi_1..phi_n [rad], the plant's order) with
+        the next noise, writes the joint readings into ``phi_meas`` ((n,), contiguous) and returns
+        the :class:`Measurement` (``phi`` a list of floats). For a loop: the arrays stay bound.
+        """
+        if truth.shape != (self.n + 6,) or phi_meas.shape != (self.n,):
+            raise SensorError(f"truth has shape {truth.shape} and phi_meas {phi_meas.shape}: "
+                              f"need ({self.n + 6},) and ({self.n},)")
+        call, model, out = self._lib.pt_measure, ctypes.byref(self.model), self._measurement
+        truth_ptr, phi_ptr, draw = native.dptr(truth), native.dptr(phi_meas), self.draw_noise
+        noisy, last = self.noise_scales.size > 0, self.config.measure_last_pose
+        new = tuple.__new__
 
-    def measure_pose(self, x: float, y: float, theta: float) -> tuple[float, float, float]:
-        """One pose reading [m, m, rad] (noisy if the config says so) of a true pose."""
-        if self._pos_noise > 0.0:
-            ex, ey = self._rng.normal(0.0, self._pos_noise, 2)
-            x, y = x + ex, y + ey
-        if self._heading_noise > 0.0:
-            theta = theta + self._rng.normal(0.0, self._heading_noise)
-        return float(x), float(y), float(theta)
+        def measure() -> Measurement:
+            noise = draw(1) if noisy else None
+            call(model, truth_ptr, None if noise is None else native.dptr(noise), phi_ptr, out)
+            return new(Measurement, (out.x0, out.y0, out.theta0, phi_meas.tolist(),
+                                     (out.x_n, out.y_n, out.theta_n) if last else None))
+
+        return measure
 
     def measure(self, x0: float, y0: float, theta0: float, phi, last_pose=None) -> Measurement:
         """Measurement of the true robot pose (x0, y0 [m], theta0 [rad]) and joint angles phi (n,).
 
         ``last_pose`` is the true (x_n, y_n, theta_n) [m, m, rad]; required when
-        ``config.measure_last_pose`` is set, ignored otherwise.
+        ``config.measure_last_pose`` is set, ignored otherwise. ``phi`` of the result is a new
+        array.
         """
-        phi_meas = self.measure_joints(phi)
-        robot = self.measure_pose(x0, y0, theta0)
-        last = None
+        phi = np.asarray(phi, dtype=float)
+        if phi.shape != (self.n,):
+            raise SensorError(f"phi has shape {phi.shape}: need ({self.n},)")
+        truth = self._truth
+        truth[:3] = x0, y0, theta0
+        truth[6:] = phi
         if self.config.measure_last_pose:
             if last_pose is None or len(last_pose) != 3:
                 raise SensorError(
                     f"last_pose = {last_pose!r}: measure_last_pose is set, so the true"
                     " (x_n, y_n, theta_n) must be given"
                 )
-            last = self.measure_pose(*last_pose)
-        return Measurement(*robot, phi_meas, last)
+            truth[3:6] = last_pose
+        reading = np.empty(self.n)
+        m = self.measurer(truth, reading)()
+        return Measurement(m.x0, m.y0, m.theta0, reading, m.last_pose)

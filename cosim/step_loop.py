@@ -1,7 +1,7 @@
 """The master's compiled step loop (``cosim/csrc/master_loop.c``) and when it can run.
 
 :func:`pushtrain.cosim.master.simulate` steps a run either with its Python loop
-(``_Run.run``) or, when the run allows it, with the compiled loop: one C call runs many
+(``PythonLoop.run``) or, when the run allows it, with the compiled loop: one C call runs many
 communication steps (FMU reads and writes through the FMU's own functions, sensors, the
 compiled control law, the recorder's rows, the jackknife and goal tests, ``fmi2DoStep``) and
 returns to Python only where Python must act:
@@ -29,19 +29,20 @@ from __future__ import annotations
 
 import ctypes
 import math
+import struct
 from ctypes import POINTER, c_double, c_int, c_long, c_uint, c_void_p
 
 import numpy as np
 
 from pushtrain.core import native
-from pushtrain.core.native_controller import _Tracker
+from pushtrain.core.kinematics import wrap_scalar
+from pushtrain.core.native_controller import Tracker
 from pushtrain.core.reference import ReferenceSample
 from pushtrain.errors import CosimError, NativeBuildError
 
-from .events import _EPS_T, _active
 from .sensors import Measurement, Sensors
 
-__all__ = ["CHUNK", "STEP_LOOPS", "CompiledLoop", "unsupported"]
+__all__ = ["CHUNK", "STEP_LOOPS", "CompiledLoop", "EngineStep", "unsupported"]
 
 STEP_LOOPS = ("auto", "c", "python")
 """Values of ``simulate(step_loop=...)``: ``"auto"`` the compiled loop when the run allows it
@@ -55,8 +56,6 @@ CHUNK = 1024
 _PAUSE, _HORIZON, _JACKKNIFE, _GOAL_CANDIDATE, _FMI_ERROR, _CONTROL_ERROR, _ARGUMENT = range(7)
 # failed FMI calls (PT_CALL_*)
 _GET_STATE, _SET_INPUTS, _SET_SLIDE, _GET_OUTPUTS, _GET_FLAGS, _DO_STEP = range(1, 7)
-# noise blocks (PT_NOISE_*)
-_NOISE_JOINTS, _NOISE_POSITION, _NOISE_HEADING = 1, 2, 4
 
 _U_PTR, _D_PTR, _I_PTR = POINTER(c_uint), native.D_PTR, POINTER(c_int)
 
@@ -70,19 +69,16 @@ class PtMasterLoop(ctypes.Structure):
         ("state_vr", _U_PTR), ("input_vr", _U_PTR), ("output_vr", _U_PTR), ("flag_vr", _U_PTR),
         ("n_outputs", c_int), ("n", c_int),
         ("t0", c_double), ("step", c_double), ("n_steps", c_long),
-        ("track", POINTER(native.PtTrack)),
-        ("bias", _D_PTR), ("half_backlash", c_double), ("play", _D_PTR), ("has_play", c_int),
-        ("quantization", c_double), ("noise", c_int), ("measure_last_pose", c_int),
-        ("noise_values", _D_PTR), ("noise_per_step", c_int),
+        ("instant", POINTER(native.PtStep)), ("noise_values", _D_PTR),
+        ("noise_per_step", c_int),
         ("rows", _D_PTR), ("row_width", c_int), ("n_output_runs", c_int),
         ("output_runs", _I_PTR), ("flag_at", _I_PTR), ("scalar_at", _I_PTR),
         ("at_phi_meas", c_int), ("at_f_lat_max", c_int), ("f_lat_max", _D_PTR),
         ("check_goal", c_int), ("goal_from", c_double), ("goal_x", c_double),
         ("goal_y", c_double), ("goal_theta", c_double), ("goal_position", c_double),
         ("goal_heading", c_double), ("goal_slack", c_double),
-        ("pause_at", c_double), ("next_bias", c_double), ("n_pushes", c_int),
-        ("pushes", _D_PTR), ("slide", c_double), ("n_slide_writes", c_int),
-        ("slide_vr", _U_PTR), ("slide_values", _D_PTR),
+        ("pause_at", c_double), ("next_bias", c_double), ("slide", c_double),
+        ("n_slide_writes", c_int), ("slide_vr", _U_PTR), ("slide_values", _D_PTR),
         ("state", _D_PTR), ("outputs", _D_PTR), ("flags", _I_PTR),
         ("k", c_long), ("time", c_double), ("inputs", c_double * 4), ("failed_call", c_int),
         ("failed_slide", c_int), ("fmi_status", c_int), ("control_status", c_int),
@@ -112,7 +108,7 @@ def unsupported(slave, loop, sensors) -> str | None:
     if slave.fmi_version != 2:
         return f"an FMI {slave.md.fmiVersion} FMU (the compiled loop calls FMI 2.0)"
     tracker = getattr(loop.command, "__self__", None)
-    if not isinstance(tracker, _Tracker):
+    if not isinstance(tracker, Tracker):
         return ("the control law is not the compiled one tracking a line/arc Reference "
                 "(implementation 'python', a governor, an open-loop profile or a sampled "
                 "reference)")
@@ -121,6 +117,85 @@ def unsupported(slave, loop, sensors) -> str | None:
     if type(sensors) is not Sensors:
         return f"sensors of type {type(sensors).__name__} (the compiled loop models Sensors)"
     return None
+
+
+_SAMPLE_CMD = struct.Struct("@5di4x2d")  # PtTrack's sample (PtSample) and cmd
+_OUTPUTS = struct.Struct("@5d")  # PtStep's push and errors
+
+
+class EngineStep:
+    """The closed-loop work of one communication step of the Python loop in C
+    (``core/csrc/step.c``), so that the loop itself keeps only the FMU calls and the recording.
+
+    With the compiled control law (``tracker``, a
+    :class:`~pushtrain.core.native_controller.Tracker`) a step is one call, ``pt_step``:
+    sensors -> reference sample, pull leader and command -> push force and tracking errors. With
+    a law in Python (the slip governor, open-loop profiles, ``implementation="python"``:
+    ``tracker`` None) the sensors are a C call (:meth:`Sensors.measurer`) before the Python
+    ``command(t, measurement)``, and the push force and errors are computed in Python, in the
+    C's order (an open loop's reference sample is NaN: the sign of a NaN result depends on how
+    a compiler orders the operands, so its bits are kept those of Python).
+
+    :attr:`step` ``(t)`` returns ``(v_cmd, w_cmd, ref, (push_x, push_y, e_lon, e_lat,
+    e_theta))`` for the FMU's true state in ``truth`` at ``t`` [s] (read before the call) and
+    writes the joint readings into ``phi_meas`` (both arrays stay bound to the object).
+    """
+
+    def __init__(self, truth: np.ndarray, phi_meas: np.ndarray, sensors: Sensors, events,
+                 command, tracker: Tracker | None):
+        self.lib = native.load()
+        self.truth, self.phi_meas, self.sensors, self.events = truth, phi_meas, sensors, events
+        self.tracker = tracker
+        self.struct = native.PtStep(None if tracker is None else ctypes.pointer(tracker.instant),
+                                    ctypes.pointer(sensors.model))
+        self._active: list = []
+        self._pushes = np.zeros((1, 3))
+        self._at_outputs = native.PtStep.push.offset
+        self._truth_ptr, self._phi_ptr = native.dptr(truth), native.dptr(phi_meas)
+        if tracker is not None:
+            tracker.has_last = bool(sensors.config.measure_last_pose)
+            self.step = self._compiled
+        else:
+            self._measure = sensors.measurer(truth, phi_meas)
+            self._command = command
+            self.step = self._python
+
+    def _set_pushes(self, t: float) -> None:
+        """The pushes acting at ``t`` into the struct (rebuilt only when they change)."""
+        active = self.events.active_pushes(t)
+        if active != self._active:
+            self._active = active
+            self._pushes = np.array([(p.fx, p.fy, p.lateral) for p in active] or [(0.0,) * 3])
+            self.struct.n_pushes = len(active)
+            self.struct.pushes = native.dptr(self._pushes)
+
+    def _compiled(self, t: float):
+        if self.events.pushes:
+            self._set_pushes(t)
+        noise = self.sensors.draw_noise(1)
+        k = self.tracker.instant
+        status = self.lib.pt_step(ctypes.byref(self.struct), t, self._truth_ptr,
+                                  None if noise is None else native.dptr(noise), self._phi_ptr)
+        out = _SAMPLE_CMD.unpack_from(k, native.PtTrack.sample.offset)
+        ref = tuple.__new__(ReferenceSample, out[:6])
+        if status:
+            raise self.tracker.error(status, t, self.measurement(), ref)
+        return out[6], out[7], ref, _OUTPUTS.unpack_from(self.struct, self._at_outputs)
+
+    def _python(self, t: float):
+        v_cmd, w_cmd, _, ref = self._command(t, self._measure())
+        x_n, y_n, th_n = self.truth[3:6].tolist()
+        push_x, push_y = self.events.push_force(t, th_n) if self.events.pushes else (0.0, 0.0)
+        dx, dy = x_n - ref.x, y_n - ref.y  # the last trailer's error in the reference frame
+        c, s = math.cos(ref.theta), math.sin(ref.theta)
+        return v_cmd, w_cmd, ref, (push_x, push_y, c * dx + s * dy, -s * dx + c * dy,
+                                   wrap_scalar(th_n - ref.theta))
+
+    def measurement(self) -> Measurement:
+        """The compiled law's last measurement (its joint angles from ``phi_meas``)."""
+        m = self.tracker.instant.m
+        last = (m.x_n, m.y_n, m.theta_n) if m.has_last else None
+        return Measurement(m.x0, m.y0, m.theta0, self.phi_meas.tolist(), last)
 
 
 def _runs(indices: list[int]) -> list[tuple[int, int, int]]:
@@ -136,8 +211,8 @@ def _runs(indices: list[int]) -> list[tuple[int, int, int]]:
 
 
 class CompiledLoop:
-    """The compiled step loop of one run (a :class:`~pushtrain.cosim.master._Run` whose
-    :func:`unsupported` is None); :meth:`run` as ``_Run.run``."""
+    """The compiled step loop of one run (a :class:`~pushtrain.cosim.master.PythonLoop` whose
+    :func:`unsupported` is None); :meth:`run` as ``PythonLoop.run``."""
 
     goal_slack = 1e-9
     """The C loop hands a step back as a goal candidate when the last trailer is within
@@ -147,7 +222,7 @@ class CompiledLoop:
         self.run_ = run
         self.lib = _library()
         slave, io, n, sensors = run.slave, run.io, run.n, run.sensors
-        self.tracker: _Tracker = run.loop.command.__self__
+        self.tracker: Tracker = run.loop.command.__self__
         functions = slave.fmi2_functions()
         m = self.m = PtMasterLoop()
         m.component = functions["component"]
@@ -159,22 +234,12 @@ class CompiledLoop:
         m.state_vr, m.input_vr, m.output_vr, m.flag_vr = (
             ctypes.cast(r, _U_PTR) for r in self._refs)
         m.n_outputs, m.n = len(io.output_names), n
-        m.track = ctypes.pointer(self.tracker._track)
-        # sensors
-        config = sensors.config
-        m.half_backlash, m.quantization = sensors._half, sensors._q
-        self._play = np.zeros(n)
-        m.play = native.dptr(self._play)
-        m.measure_last_pose = int(bool(config.measure_last_pose))
-        pose_scales = ([sensors._pos_noise] * 2 if sensors._pos_noise > 0.0 else []) + (
-            [sensors._heading_noise] if sensors._heading_noise > 0.0 else [])
-        scales = ([sensors._joint_noise] * n if sensors._joint_noise > 0.0 else []) + \
-            pose_scales * (2 if config.measure_last_pose else 1)
-        m.noise = ((_NOISE_JOINTS if sensors._joint_noise > 0.0 else 0)
-                   | (_NOISE_POSITION if sensors._pos_noise > 0.0 else 0)
-                   | (_NOISE_HEADING if sensors._heading_noise > 0.0 else 0))
-        self.noise_scales = np.array(scales, dtype=float)
-        m.noise_per_step = len(scales)
+        # the engine's step: the law's instant, the run's own sensor model and memory (biases,
+        # play; noise drawn per call), the pushes set per call
+        self.instant = native.PtStep(ctypes.pointer(self.tracker.instant),
+                                     ctypes.pointer(sensors.model))
+        m.instant = ctypes.pointer(self.instant)
+        m.noise_per_step = sensors.noise_scales.size
         # recording: where each value goes in a row
         recorder = run.recorder
         self._f_lat_max = np.array(recorder.view("F_lat_max"))
@@ -204,23 +269,18 @@ class CompiledLoop:
         m.outputs = native.dptr(self._outputs)
         self._flags = (c_int * (n + 1))()
         m.flags = ctypes.cast(self._flags, _I_PTR)
-        # events: the times at which a push or slide starts or ends (events.py _active)
-        events = run.events
-        self.thresholds = sorted({b for ev in (*events.pushes, *events.slides)
-                                  for b in (ev.t - _EPS_T, ev.t + ev.duration - _EPS_T)})
+        # events: the times at which a push or slide starts or ends
+        self.thresholds = run.events.switch_times()
         self._slide_refs = {i: slave.value_references([f"slide[{i}]"])[0]
                             for i in io.write_slide}
 
     # ------------------------------------------------------------------ the run
     def run(self, t0: float, step: float, n_steps: int, bar=None) -> tuple[str, str] | None:
-        """Step from ``t0`` as ``_Run.run`` does, with the same results bit for bit: the status
-        and message of a jackknife or the goal, or None if the horizon ended first."""
+        """Step from ``t0`` as ``PythonLoop.run`` does, with the same results bit for bit: the
+        status and message of a jackknife or the goal, or None if the horizon ended first."""
         r, m, lib = self.run_, self.m, self.lib
         slave, events, sensors, recorder = r.slave, r.events, r.sensors, r.recorder
         m.t0, m.step, m.n_steps = t0, step, n_steps
-        if sensors._play is not None:
-            self._play[:] = sensors._play
-            m.has_play = 1
         call = lib.pt_master_run
         ref = ctypes.byref(m)
         k = 0
@@ -231,7 +291,6 @@ class CompiledLoop:
                 for bias in events.biases_due(t):
                     sensors.set_bias(bias.joint, bias.bias)
             self._keep = self._events_at(t)  # arrays the struct points to
-            m.bias = native.dptr(sensors._bias)
             rows = recorder.free_rows()
             m.rows = native.dptr(rows)
             k_stop = min(n_steps + 1, k + CHUNK, k + len(rows))
@@ -245,9 +304,7 @@ class CompiledLoop:
                                and not (reason == _FMI_ERROR and m.failed_call == _GET_STATE))
             recorder.advance(recorded)
             slave.time = m.time
-            if m.has_play:
-                sensors._play = self._play
-            self.tracker._has_last = bool(m.measure_last_pose)
+            self.tracker.has_last = bool(sensors.config.measure_last_pose)
             if noise_state is not None and measured < k_stop - k:
                 self._rewind_noise(sensors, noise_state, measured)
             if bar is not None and done:
@@ -258,10 +315,10 @@ class CompiledLoop:
             elif reason == _HORIZON:
                 return None
             elif reason == _JACKKNIFE:
-                return r._jackknife(t_k)
+                return r.jackknife(t_k)
             elif reason == _GOAL_CANDIDATE:
                 x_n, y_n, th_n = r.io.pose.tolist()[3:]
-                reached = r._goal_reached(t_k, x_n, y_n, th_n)
+                reached = r.goal_reached(t_k, x_n, y_n, th_n)
                 if reached is not None:
                     return reached
                 if m.k == n_steps:
@@ -288,37 +345,31 @@ class CompiledLoop:
         slide_values = np.array([speed for _, speed in changes] or [0.0])
         m.n_slide_writes = len(changes)
         m.slide_vr, m.slide_values = ctypes.cast(slide_vr, _U_PTR), native.dptr(slide_values)
-        pushes = np.array([(p.fx, p.fy, p.lateral) for p in events.pushes if _active(p, t)]
-                          or [(0.0, 0.0, 0.0)], dtype=float)
-        m.n_pushes = sum(1 for p in events.pushes if _active(p, t))
-        m.pushes = native.dptr(pushes)
+        active = events.active_pushes(t)
+        pushes = np.array([(p.fx, p.fy, p.lateral) for p in active] or [(0.0, 0.0, 0.0)],
+                          dtype=float)
+        self.instant.n_pushes = len(active)
+        self.instant.pushes = native.dptr(pushes)
         m.pause_at = next((b for b in self.thresholds if b > t), math.inf)
-        biases = events.biases
-        m.next_bias = biases[events._next_bias].t if events._next_bias < len(biases) else math.inf
+        m.next_bias = events.next_bias_time
         self._changes = changes
         return slide_vr, slide_values, pushes
 
     def _draw_noise(self, sensors: Sensors, steps: int):
         """Draw the noise of ``steps`` steps (None without noise; else the generator's state
         before the draw)."""
-        m = self.m
-        if not m.noise:
+        if not sensors.noise_scales.size:
             return None
-        rng = sensors._rng
-        state = rng.bit_generator.state
-        z = rng.standard_normal((steps, m.noise_per_step))
-        np.multiply(z, self.noise_scales, out=z)
-        z += 0.0  # Generator.normal's loc + scale * z (-0.0 becomes 0.0)
-        self._noise = z
-        m.noise_values = native.dptr(z)
+        state = sensors.rng.bit_generator.state
+        self._noise = sensors.draw_noise(steps)
+        self.m.noise_values = native.dptr(self._noise)
         return state
 
-    def _rewind_noise(self, sensors: Sensors, state, steps: int) -> None:
-        """Leave the generator where the Python sensors would after ``steps`` steps."""
-        rng = sensors._rng
-        rng.bit_generator.state = state
-        if steps:
-            rng.standard_normal(steps * self.m.noise_per_step)
+    @staticmethod
+    def _rewind_noise(sensors: Sensors, state, steps: int) -> None:
+        """Leave the generator where the Python loop's sensors would after ``steps`` steps."""
+        sensors.rng.bit_generator.state = state
+        sensors.draw_noise(steps)
 
     def _fmi_error(self, t: float, step: float) -> CosimError:
         """The Python loop's error of the FMI call that failed at ``t``."""
@@ -341,7 +392,7 @@ class CompiledLoop:
         """The exception of the control instant the C law refused at ``t`` (the tracker's own
         error for the measurement it was given)."""
         tracker = self.tracker
-        k = tracker._track
+        k = tracker.instant
         row = self.run_.recorder.free_rows()[0]  # the refused step's row, not recorded
         phi = row[self.m.at_phi_meas:self.m.at_phi_meas + self.run_.n].tolist()
         last = (k.m.x_n, k.m.y_n, k.m.theta_n) if k.m.has_last else None
@@ -349,4 +400,4 @@ class CompiledLoop:
         sample = k.sample
         ref = ReferenceSample(sample.x, sample.y, sample.theta, sample.v, sample.w,
                               sample.direction)
-        return tracker._error(self.m.control_status, t, measurement, ref)
+        return tracker.error(self.m.control_status, t, measurement, ref)

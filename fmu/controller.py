@@ -1,10 +1,11 @@
 """Build the BackwardController FMU: pushtrain's control law as an FMI 2.0 Co-Simulation FMU.
 
 The FMU compiles the project's one control law, ``core/csrc/control.c`` (the C twin of
-:class:`pushtrain.core.controller.BackwardController`, held equal to it by the tests), with the
-plant's FMI glue (``fmu/src``: ``instance.c`` under ``fmi2.c``, see ``fmu_model.h``), the
-controller's model in ``fmu/controller_src`` (its variables, the sensor model, the mission
-table) and the files rendered from :mod:`.controller_variables`. The mission is data: the last
+:class:`pushtrain.core.controller.BackwardController`, held equal to it by the tests) and its one
+sensor model, ``core/csrc/sensors.c`` (the co-simulation master's), with the plant's FMI glue
+(``fmu/src``: ``instance.c`` under ``fmi2.c``, see ``fmu_model.h``), the controller's model in
+``fmu/controller_src`` (its variables, the mission table) and the files rendered from
+:mod:`.controller_variables`. The mission is data: the last
 trailer's line/arc segments and the robot's pull-guide rows, written as a small text table into
 the FMU's ``resources/`` (:func:`render_table`), so one compiled binary (cached by a hash of its
 sources, like the plant) serves every mission with the same n.
@@ -50,7 +51,7 @@ log = logging.getLogger(__name__)
 
 BUILD_FORMAT = "1"  # bump when the rendering or packaging of the controller changes
 TABLE_FORMAT = 1
-LAW_FILES = ("control.c", "control.h")  # the control law, from core/csrc
+LAW_FILES = ("control.c", "control.h", "sensors.c", "sensors.h")  # law and sensors: core/csrc
 GLUE_FILES = ("instance.c", "fmi2.c", "fmu_model.h", "instance.h")  # the FMI glue, from fmu/src
 EXPORTS_MAP = "ctrl_exports.map"
 EXPORTS = "{\n  global: fmi2*;\n  local: *;\n};\n"

@@ -29,7 +29,7 @@ from pushtrain import __version__
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS
 from pushtrain.table1 import LINK
 
-from .render import _BASE_UNITS, _fmt, _to_bytes, check_n, generation_time
+from .render import BASE_UNITS, check_n, generation_time, xml_bytes, xml_number
 
 __all__ = [
     "CONTROLLER_IDENTIFIER",
@@ -43,10 +43,10 @@ __all__ = [
 ]
 
 CONTROLLER_IDENTIFIER = "BackwardController"
-CONTROLLER_SOURCES = ("control.c", "ctrl_table.c", "ctrl_model.c", "ctrl_instance.c",
-                      "instance.c", "fmi2.c")
-CONTROLLER_HEADERS = ("control.h", "ctrl_model.h", "ctrl_table.h", "ctrl_instance.h",
-                      "fmu_model.h", "instance.h")
+CONTROLLER_SOURCES = ("control.c", "sensors.c", "ctrl_table.c", "ctrl_model.c",
+                      "ctrl_instance.c", "instance.c", "fmi2.c")
+CONTROLLER_HEADERS = ("control.h", "sensors.h", "ctrl_model.h", "ctrl_table.h",
+                      "ctrl_instance.h", "fmu_model.h", "instance.h")
 TABLE_FILE = "reference.txt"
 """The mission table in the FMU's ``resources/`` (see :mod:`pushtrain.fmu.controller`)."""
 DEFAULT_STEP = 0.005
@@ -264,14 +264,14 @@ def render_controller_description(n_trailers: int, guid: str,
     units = ET.SubElement(root, "UnitDefinitions")
     for name in _UNITS:
         unit = ET.SubElement(units, "Unit", {"name": name})
-        ET.SubElement(unit, "BaseUnit", _BASE_UNITS.get(name) or _EXTRA_UNITS[name])
+        ET.SubElement(unit, "BaseUnit", BASE_UNITS.get(name) or _EXTRA_UNITS[name])
     categories = ET.SubElement(root, "LogCategories")
     for name, text in (("logStatusError", "Errors: bad parameters, refused calls, bad table"),
                        ("logStatusWarning", "Warnings"),
                        ("logDebug", "One message per communication step")):
         ET.SubElement(categories, "Category", {"name": name, "description": text})
     ET.SubElement(root, "DefaultExperiment",
-                  {"startTime": "0.0", "stopTime": "10.0", "stepSize": _fmt(DEFAULT_STEP)})
+                  {"startTime": "0.0", "stopTime": "10.0", "stepSize": xml_number(DEFAULT_STEP)})
 
     model_vars = ET.SubElement(root, "ModelVariables")
     for var in variables:
@@ -286,11 +286,11 @@ def render_controller_description(n_trailers: int, guid: str,
         if row.unit:
             type_attrs["unit"] = row.unit
         if row.min is not None:
-            type_attrs["min"] = _fmt(float(row.min))
+            type_attrs["min"] = xml_number(float(row.min))
             if math.isfinite(row.max):
-                type_attrs["max"] = _fmt(float(row.max))
+                type_attrs["max"] = xml_number(float(row.max))
         if row.start is not None:
-            type_attrs["start"] = _fmt(row.start)
+            type_attrs["start"] = xml_number(row.start)
         ET.SubElement(sv, row.type, type_attrs)
 
     index = {var.vr: k + 1 for k, var in enumerate(variables)}
@@ -307,7 +307,7 @@ def render_controller_description(n_trailers: int, guid: str,
     for var in variables:
         if var.row.causality in ("output", "calculatedParameter"):
             ET.SubElement(initial, "Unknown", {"index": str(index[var.vr])})
-    return _to_bytes(root)
+    return xml_bytes(root)
 
 
 _C_TYPE = {"Real": "ctrl_real", "Integer": "ctrl_integer", "Boolean": "ctrl_boolean"}

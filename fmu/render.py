@@ -32,7 +32,10 @@ from .variables import (
 )
 
 __all__ = [
+    "BASE_UNITS",
     "MODEL_IDENTIFIER",
+    "xml_bytes",
+    "xml_number",
     "source_files",
     "check_n",
     "generation_time",
@@ -51,7 +54,7 @@ HEADER_FILES = ("model.h", "fmu_model.h", "instance.h")
 DEFAULT_STEP = 0.005
 
 UNITS = ("m", "m/s", "m/s2", "rad", "rad/s", "rad/s2", "N", "kg", "kg.m2", "s")
-_BASE_UNITS = {
+BASE_UNITS = {  # each unit of UNITS in SI base units (the modelDescription's UnitDefinitions)
     "m": {"m": "1"},
     "m/s": {"m": "1", "s": "-1"},
     "m/s2": {"m": "1", "s": "-2"},
@@ -87,7 +90,9 @@ def check_n(n_trailers) -> int:
     return n
 
 
-def _fmt(value) -> str:
+def xml_number(value) -> str:
+    """``value`` as a modelDescription attribute: booleans as true/false, floats by ``repr``
+    (the shortest text that reads back as the same double)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
@@ -113,7 +118,7 @@ def _common_sections(root: ET.Element) -> None:
     units = ET.SubElement(root, "UnitDefinitions")
     for name in UNITS:
         unit = ET.SubElement(units, "Unit", {"name": name})
-        ET.SubElement(unit, "BaseUnit", _BASE_UNITS[name])
+        ET.SubElement(unit, "BaseUnit", BASE_UNITS[name])
 
     categories = ET.SubElement(root, "LogCategories")
     for name, text in (
@@ -126,11 +131,12 @@ def _common_sections(root: ET.Element) -> None:
     ET.SubElement(
         root,
         "DefaultExperiment",
-        {"startTime": "0.0", "stopTime": "10.0", "stepSize": _fmt(DEFAULT_STEP)},
+        {"startTime": "0.0", "stopTime": "10.0", "stepSize": xml_number(DEFAULT_STEP)},
     )
 
 
-def _to_bytes(root: ET.Element) -> bytes:
+def xml_bytes(root: ET.Element) -> bytes:
+    """The indented UTF-8 document of ``root`` with its XML declaration."""
     ET.indent(root, space="  ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
 
@@ -193,13 +199,13 @@ def render_model_description(n_trailers: int, guid: str, generated: str | None =
         if var.unit:
             type_attrs["unit"] = var.unit
         if var.min is not None:
-            type_attrs["min"] = _fmt(var.min)
+            type_attrs["min"] = xml_number(var.min)
         if var.max is not None:
-            type_attrs["max"] = _fmt(var.max)
+            type_attrs["max"] = xml_number(var.max)
         if var.name == "n":
             type_attrs["start"] = str(n)
         elif var.start is not None:
-            type_attrs["start"] = _fmt(var.start)
+            type_attrs["start"] = xml_number(var.start)
         ET.SubElement(sv, var.type, type_attrs)
 
     index = {var.name: k + 1 for k, var in enumerate(variables)}
@@ -218,7 +224,7 @@ def render_model_description(n_trailers: int, guid: str, generated: str | None =
     for var in variables:
         if _is_initial_unknown(var):
             ET.SubElement(initial, "Unknown", {"index": str(index[var.name])})
-    return _to_bytes(root)
+    return xml_bytes(root)
 
 
 def describe_array(block) -> str:
@@ -254,9 +260,9 @@ def _fmi3_attrs(row, description: str, vr: int) -> dict:
     if row.unit:
         attrs["unit"] = row.unit
     if row.min is not None:
-        attrs["min"] = _fmt(row.min)
+        attrs["min"] = xml_number(row.min)
     if row.max is not None:
-        attrs["max"] = _fmt(row.max)
+        attrs["max"] = xml_number(row.max)
     return attrs
 
 
@@ -295,12 +301,12 @@ def render_model_description3(guid: str, generated: str | None = None) -> bytes:
     for var in scalars:
         attrs = _fmi3_attrs(var, var.description, var.vr)
         if var.start is not None:
-            attrs["start"] = _fmt(var.start)
+            attrs["start"] = xml_number(var.start)
         ET.SubElement(model_vars, _FMI3_TYPES[var.type], attrs)
     for block in ARRAYS:
         attrs = _fmi3_attrs(block, describe_array(block), vr_of[block.name])
         if block.start is not None:
-            attrs["start"] = " ".join([_fmt(block.start)] * block.count(DEFAULT_TRAILERS))
+            attrs["start"] = " ".join([xml_number(block.start)] * block.count(DEFAULT_TRAILERS))
         element = ET.SubElement(model_vars, _FMI3_TYPES[block.type], attrs)
         ET.SubElement(element, "Dimension", {"valueReference": str(vr_of[block.size_variable])})
 
@@ -316,7 +322,7 @@ def render_model_description3(guid: str, generated: str | None = None) -> bytes:
     for row in [*scalars, *ARRAYS]:
         if _is_initial_unknown(row):
             ET.SubElement(structure, "InitialUnknown", {"valueReference": str(vr_of[row.name])})
-    return _to_bytes(root)
+    return xml_bytes(root)
 
 
 def _fmi3_unknown(structure: ET.Element, tag: str, vr: int, refs: list[int]) -> None:
@@ -333,7 +339,7 @@ def render_build_description() -> bytes:
     files = ET.SubElement(config, "SourceFileSet", {"language": "C99"})
     for name in source_files(3):
         ET.SubElement(files, "SourceFile", {"name": name})
-    return _to_bytes(root)
+    return xml_bytes(root)
 
 
 def render_build_config(fmi_version: int, n_trailers: int | None, guid: str) -> str:

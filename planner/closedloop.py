@@ -50,7 +50,7 @@ from .heuristic import Heuristic
 from .kinematic_loop import TrackerConfig, Trajectory, reference_times
 from .lattice import Search, SearchSettings
 from .path import PlannedPath
-from .propagate import Cursor, Propagator, make_propagator
+from .propagate import Cursor, Propagator
 from .route import find_route, widest_gap
 from .smooth import merge, path_cost, shortcut
 from .train import Train
@@ -88,8 +88,8 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     controller = tracker.controller_for(train.geometry)
     samples = body_samples(train, margins, spacing=config.sample_spacing)
     phi_limit = train.phi_max - config.joint_margin
-    prop = make_propagator(train, controller, tracker, field, samples, phi_limit,
-                           goal_phi=config.goal_max_phi)
+    prop = Propagator(train, controller, tracker, field, samples, phi_limit,
+                      goal_phi=config.goal_max_phi)
     headings = (np.full(train.n + 1, float(start[2])) if start_headings is None
                 else np.asarray(start_headings, dtype=float))
     state0 = prop.initial_state(start, headings)

@@ -42,7 +42,7 @@ from pushtrain.facility.distance_field import DistanceField
 from .train import BodyFootprint, Train
 
 __all__ = ["BodySamples", "body_samples", "body_positions", "disc_cover", "first_failure",
-           "FIELD_TOLERANCE", "body_name"]
+           "FIELD_TOLERANCE", "body_name", "self_overlap"]
 
 FIELD_TOLERANCE = 0.002
 """Allowance [m] for the distance field's interpolation error at clearance distances (bilinear
@@ -226,7 +226,7 @@ def disc_cover(body: BodyFootprint, cell: float):
     return np.column_stack([uu.ravel(), vv.ravel()]), 0.5 * math.hypot(du, dv)
 
 
-def _self_overlap(train: Train, x, y, th):
+def self_overlap(train: Train, x, y, th):
     """First state where two bodies i, j >= i + 2 overlap (separating-axis test of the two
     rectangles), as (k, i, j, x, y) with the midpoint of their centres, or None."""
     n1 = x.shape[1]
@@ -302,7 +302,7 @@ def first_failure(train: Train, field: DistanceField, samples: BodySamples, z: n
         candidates.append({"kind": "collision", "k": k, "body": i, "x": px, "y": py,
                            "distance": d, "threshold": thr,
                            "margin": float(samples.margins[i])})
-    selfhit = _self_overlap(train, x, y, th)
+    selfhit = self_overlap(train, x, y, th)
     if selfhit is not None:
         k, i, j, px, py = selfhit
         candidates.append({"kind": "self_collision", "k": k, "body": i, "other": j, "x": px,

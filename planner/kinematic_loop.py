@@ -1,38 +1,38 @@
 """The co-simulation's closed loop on the kinematic chain: what the planner predicts of a plan.
 
 The planner plans the last trailer only. Here the whole train's motion along the plan is
-predicted by running the co-simulation's own controller,
-:class:`~pushtrain.core.controller.BackwardController`, in closed loop with the kinematic chain:
+predicted by running the co-simulation's own control law in closed loop with the kinematic
+chain, on the one closed-loop engine of :mod:`pushtrain.core.engine` (``core/csrc``: the same
+compiled law the co-simulation master calls):
 
 Reference
     ``Reference.from_segments(start, segments, tracker.speed, tracker.cusp_dwell)``, the same
     time-parameterized reference :meth:`~pushtrain.planner.path.PlannedPath.to_reference`
     hands to the co-simulation master.
 Controller
-    ``BackwardController(tracker.controller)`` (gains, robot limits, rate limits and its own
-    chain model, from which the robot's pulling reference, a
-    :class:`~pushtrain.core.pulling.PullGuide`, is built), called every ``tracker.step``
-    seconds at ``t_k = k * step`` through the master's own per-step logic,
-    :class:`~pushtrain.core.tracking.TrackingLoop`, with a perfect measurement (robot pose and
-    joint angles ``phi_i = theta_{i-1} - theta_i``); the command is held over the step
-    (zero-order hold) and the rate limits start from rest one step before t = 0, as in the
-    master.
+    ``tracker.controller`` (gains, robot limits, rate limits and its own chain model, from which
+    the robot's pulling reference, the pull guide, is built), called every ``tracker.step``
+    seconds at ``t_k = k * step`` with a perfect measurement (robot pose and joint angles
+    ``phi_i = theta_{i-1} - theta_i``); the command is held over the step (zero-order hold) and
+    the rate limits start from rest one step before t = 0, as in the master.
 Plant
     The robot moves along its heading with the commanded ``(v0, w0)`` (no first-order velocity
-    lag: the FMU's ``tau`` = 0.05 s is ignored, no slip), the trailers are towed:
-    ``d(theta)/dt`` from the forward velocity map of :mod:`pushtrain.core.kinematics`
-    (:func:`~pushtrain.core.kinematics.forward_velocities`, here as the fast scalar
-    :func:`towed_rates`), with the train's own geometry (the controller's model may differ).
-    The state ``(x0, y0, theta_0..theta_n)`` is integrated with RK4 over each step (the
-    command is constant within a step). The error is that of the zero-order hold, first
-    order in the step: on a bay plan with a cusp and 0.24 m transients (3 trailers) the last
-    trailer's trajectory differs from a 0.002 s run by 2.4 cm with a 0.1 s step, 1.0 cm with
-    0.05 s and 0.36 cm with the default 0.025 s (a test keeps it below 1 cm).
+    lag: the FMU's ``tau`` = 0.05 s is ignored, no slip), the trailers are towed (the forward
+    velocity map of :mod:`pushtrain.core.kinematics`) with the train's own geometry (the
+    controller's model may differ). The state ``(x0, y0, theta_0..theta_n)`` is integrated with
+    RK4 over each step (the command is constant within a step). The error is that of the
+    zero-order hold, first order in the step: on a bay plan with a cusp and 0.24 m transients
+    (3 trailers) the last trailer's trajectory differs from a 0.002 s run by 2.4 cm with a
+    0.1 s step, 1.0 cm with 0.05 s and 0.36 cm with the default 0.025 s (a test keeps it below
+    1 cm).
 Start and end
     The last trailer starts at ``start`` with the given headings (the co-simulation's
     ``InitialState.behind_reference``), at rest. The run continues ``tracker.settle_time``
     seconds past the reference's end (the reference then rests and the robot brakes to a
     stop within its acceleration limit).
+
+The readable Python loop this engine runs is the tests' reference
+(``tests/reference/closed_loop.py``), held equal to it bit for bit.
 """
 
 from __future__ import annotations
@@ -43,15 +43,14 @@ from typing import Sequence
 
 import numpy as np
 
-from pushtrain.core.controller import BackwardController, ControllerConfig
-from pushtrain.core.kinematics import ChainGeometry, body_positions_along
-from pushtrain.core.ode import rk4_step
+from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.engine import ClosedLoopEngine
+from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import Reference, Segment
-from pushtrain.core.tracking import TrackingLoop
-from pushtrain.errors import PlanningInputError
+from pushtrain.errors import ControllerError, PlanningInputError
 
 __all__ = ["TrackerConfig", "Trajectory", "default_controller", "reference_times",
-           "simulate_tracking", "towed_rates"]
+           "simulate_tracking"]
 
 
 def default_controller(geometry: ChainGeometry) -> ControllerConfig:
@@ -124,43 +123,6 @@ class TrackerConfig:
         return config
 
 
-def towed_rates(geometry: ChainGeometry):
-    """A fast scalar form of :func:`pushtrain.core.kinematics.forward_velocities` (yaw rates).
-
-    Returns ``f(theta, v0, w0) -> list`` of d(theta_i)/dt [rad/s], i = 0..n, for headings
-    ``theta`` (n+1,) [rad] and the robot's (v0 [m/s], w0 [rad/s]): the same recursion
-    v_i = c v_{i-1} + R_{i-1} s w_{i-1}, w_i = (s v_{i-1} - R_{i-1} c w_{i-1}) / F_i with
-    c, s of phi_i = theta_{i-1} - theta_i.
-    """
-    front = [float(a) for a in geometry.front]
-    rear = [float(a) for a in geometry.rear]
-    n = geometry.n
-
-    def rates(theta, v0: float, w0: float, cos=math.cos, sin=math.sin):
-        w = [0.0] * (n + 1)
-        v, w[0] = v0, w0
-        for i in range(1, n + 1):
-            phi = theta[i - 1] - theta[i]
-            c, s = cos(phi), sin(phi)
-            r = rear[i - 1]
-            v, w[i] = c * v + r * s * w[i - 1], (s * v - r * c * w[i - 1]) / front[i - 1]
-        return w
-
-    return rates
-
-
-def _robot_positions(state: np.ndarray, geometry: ChainGeometry):
-    """Positions (x, y), each (N, n+1), of all bodies from states (N, 3 + n) = (x0, y0, theta)."""
-    th = state[:, 2:]
-    c, s = np.cos(th), np.sin(th)
-    step_x = -geometry.rear * c[:, :-1] - geometry.front * c[:, 1:]
-    step_y = -geometry.rear * s[:, :-1] - geometry.front * s[:, 1:]
-    zero = np.zeros((state.shape[0], 1))
-    x = state[:, :1] + np.concatenate((zero, np.cumsum(step_x, axis=1)), axis=1)
-    y = state[:, 1:2] + np.concatenate((zero, np.cumsum(step_y, axis=1)), axis=1)
-    return x, y
-
-
 def reference_times(segments: Sequence[Segment], speed: float, cusp_dwell: float, s):
     """Time [s] at which the reference of :class:`~pushtrain.core.reference.Reference` (t0 = 0)
     reaches the travelled distance ``s`` [m] (array); at a cusp the arrival (start of the dwell).
@@ -217,27 +179,6 @@ class Trajectory:
     control: np.ndarray
 
 
-def _rk4_step(rates, state, v0: float, w0: float, h: float):
-    """One RK4 step of (x0, y0, theta...) under the constant robot command (v0, w0)."""
-    def f(_t, z):
-        th = z[2:]
-        return [v0 * math.cos(th[0]), v0 * math.sin(th[0])] + rates(th, v0, w0)
-
-    return rk4_step(f, 0.0, state, h)
-
-
-class _Measurement:
-    """Perfect measurement handed to the controller (robot pose and joint angles)."""
-
-    __slots__ = ("x0", "y0", "theta0", "phi")
-    last_pose = None  # the last trailer's pose is estimated from the joints, as in the master
-
-    def __init__(self, state):
-        self.x0, self.y0, self.theta0 = state[0], state[1], state[2]
-        th = state[2:]
-        self.phi = [th[i - 1] - th[i] for i in range(1, len(th))]
-
-
 def simulate_tracking(
     geometry: ChainGeometry,
     reference: Reference,
@@ -268,22 +209,14 @@ def simulate_tracking(
         Samples at the control instants ``k * step`` (k = 0..K-1, the last one at or after
         ``t_end + settle_time``).
     """
-    ctrl = BackwardController(controller)
-    ctrl.reset(0.0, 0.0, -step)
-    loop = TrackingLoop(ctrl, reference)
-    rates = towed_rates(geometry)
-    th0 = np.asarray(start_headings, dtype=float)
-    x, y = body_positions_along(np.asarray(reference.start, dtype=float)[None, :], th0[None, :],
-                                geometry)
-    state = [float(x[0, 0]), float(y[0, 0])] + [float(a) for a in th0]
-    n_steps = int(math.ceil((reference.t_end + settle_time) / step - 1e-9))
-    states, commands, refs, dirs = [], [], [], []
-    for k in range(n_steps + 1):
-        t = k * step
-        v0, w0, _, ref = loop.command(t, _Measurement(state))
-        states.append(state), commands.append((v0, w0))
-        refs.append((ref.x, ref.y, ref.theta)), dirs.append(ref.direction)
-        if k < n_steps:
-            state = _rk4_step(rates, state, v0, w0, step)
-    return Trajectory(step * np.arange(n_steps + 1), np.array(states), np.array(commands),
-                      np.array(refs), np.array(dirs, dtype=int), np.ones(n_steps + 1, dtype=bool))
+    loop = ClosedLoopEngine(geometry, controller, step)
+    start = loop.start(reference.start, start_headings)
+    n_steps = loop.instant_at(reference.t_end + settle_time)
+    # one instant more than the trajectory: its command, reference and direction at the last
+    # instant (the state after it is dropped)
+    run = loop.run(reference, start, n_steps + 1)
+    if run.violation is not None:
+        raise ControllerError(f"the closed loop stopped at t = {run.violation.t:.6g} s: "
+                              f"{run.violation.reason} (value {run.violation.value:g})")
+    return Trajectory(step * np.arange(n_steps + 1), run.states[:n_steps + 1], run.commands,
+                      run.reference, run.direction, np.ones(n_steps + 1, dtype=bool))

@@ -15,34 +15,32 @@ Rollout (:meth:`Propagator.rollout`)
     ``Reference.from_segments(cursor pose, segments, speed, cusp_dwell, t0)`` with
     ``t0 = cursor.t`` plus one cusp dwell if the first segment turns the cursor's direction
     (the reference then rests at the cursor before ``t0``, as a longer reference would during
-    its dwell), tracked by :class:`~pushtrain.core.controller.BackwardController` through
-    :class:`~pushtrain.core.tracking.TrackingLoop` exactly as
-    :func:`~pushtrain.planner.train_check.simulate_tracking` does (RK4 of the towed chain under
-    the held command, step ``tracker.step``), from the state's instant up to the first instant
-    at or after the reference's end. The commands up to there depend only on these segments,
-    so appending pushes is exact: a rollout continued piece by piece gives the run of the whole
-    reference. Pulls are not: the robot's pulling reference
-    (:class:`~pushtrain.core.pulling.PullGuide`) is computed backward from the end of the whole
-    pulling run, so the search rolls a growing pull out again from where the run began (see
-    :mod:`~pushtrain.planner.lattice`).
+    its dwell), tracked by the co-simulation's control law on the kinematic chain with the one
+    closed-loop engine, :class:`pushtrain.core.engine.ClosedLoopEngine` (``core/csrc``: the loop
+    :func:`~pushtrain.planner.kinematic_loop.simulate_tracking` runs, RK4 of the towed chain
+    under the held command, step ``tracker.step``), from the state's instant up to the first
+    instant at or after the reference's end. The commands up to there depend only on these
+    segments, so appending pushes is exact: a rollout continued piece by piece gives the run of
+    the whole reference. Pulls are not: the robot's pulling reference (the pull guide) is
+    computed backward from the end of the whole pulling run, so the search rolls a growing pull
+    out again from where the run began (see :mod:`~pushtrain.planner.lattice`).
 Checks
-    Every ``check_every``-th state (and the last) is tested with
-    :func:`~pushtrain.planner.footprint.first_failure`: every body's clearance against the
-    distance field, the joint limit and self-collision; a rollout stops at its first failure.
+    The engine checks every state it visits (see :class:`Propagator`): every body's clearance
+    against the distance field, the joint limit and self-collision; a rollout stops at its first
+    failure.
 Goal
     With ``goal`` given, the run goes on past the reference's end at rest until the last
     trailer is within ``tracker.goal_tolerance`` of it (the co-simulation's goal test: the first
     control instant at or after the end within the tolerance) or ``tracker.settle_time`` has
     passed.
 
-This is the readable implementation (the same Python controller the co-simulation calls);
-its cost is that of :func:`~pushtrain.planner.train_check.simulate_tracking`, about 60 us per
-simulated step for three trailers. Units: SI, radians.
+About 2 us per simulated step with its checks for three trailers
+(``benchmarks/bench_rollout.py`` times the engine alone). The engine needs a C compiler, as the
+FMUs do (compiled on first use). Units: SI, radians.
 """
 
 from __future__ import annotations
 
-import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -50,20 +48,16 @@ from typing import Sequence
 
 import numpy as np
 
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.engine import Checks, ClosedLoopEngine, LoopState
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.core.tracking import TrackingLoop
-from pushtrain.errors import NativeBuildError
 from pushtrain.facility.distance_field import DistanceField
 
 from .footprint import FIELD_TOLERANCE, BodySamples, disc_cover, first_failure
-from .kinematic_loop import TrackerConfig, _Measurement, _rk4_step, towed_rates
+from .kinematic_loop import TrackerConfig
 from .train import Train
 
-__all__ = ["TrainState", "Cursor", "Rollout", "Propagator", "NativePropagator",
-           "make_propagator", "last_pose"]
-
-log = logging.getLogger(__name__)
+__all__ = ["TrainState", "Cursor", "Rollout", "Propagator", "last_pose"]
 
 
 @dataclass(frozen=True)
@@ -115,8 +109,11 @@ class Rollout:
     ok : bool
         No failure (and, with a goal, the goal reached).
     failure : dict or None
-        :func:`~pushtrain.planner.footprint.first_failure`'s dict with ``t`` [s] added, or
-        ``{"kind": "goal_missed", "distance", "heading_error", ...}``.
+        The first failure: ``kind`` (``"collision"``, ``"joint_limit"``, ``"self_collision"``,
+        ``"non_finite"``, ``"control"`` from the engine's checks; ``"pull_rule"``,
+        ``"budget"``, ``"deadline"``, ``"goal_missed"``), the instant ``k``, its time ``t`` [s],
+        ``body`` and where (``x``, ``y`` [m]), with the numbers of its kind (``distance`` and
+        ``margin``, ``phi``, ``other``, ``heading_error``, ...).
     state : TrainState
         At the first instant at or after the reference's end (with a goal: where it was
         reached, or the end of the settling); at a failure the last state simulated.
@@ -126,13 +123,13 @@ class Rollout:
         Every simulated state, the first one the start state's.
     reference : (K, 3) array
         The last trailer's reference pose at each state's time.
-    reserve : float
-        Smallest clearance excess [m] over the checked states (see
-        :func:`~pushtrain.planner.footprint.first_failure`).
     steps : int
         Control steps simulated (the unit of the planner's work budget).
     goal_error : (float, float) or None
         Distance [m] and |heading error| [rad] of the last trailer to the goal at the end.
+    extra : dict
+        With ``record``: ``command`` (K, 2) [m/s, rad/s] held from each state on (zeros at the
+        last), ``direction`` (K,) of the reference there and ``t`` (K,) [s].
     """
 
     ok: bool
@@ -141,7 +138,6 @@ class Rollout:
     cursor: Cursor
     z: np.ndarray
     reference: np.ndarray
-    reserve: float
     steps: int
     goal_error: tuple | None = None
     extra: dict = field(default_factory=dict)
@@ -163,7 +159,8 @@ def last_pose(z: Sequence[float], front, rear) -> tuple:
 
 
 class Propagator:
-    """Closed-loop rollouts of the train along reference pieces (see the module docstring).
+    """Closed-loop rollouts of the train along reference pieces (see the module docstring) on
+    the compiled engine (:class:`pushtrain.core.engine.ClosedLoopEngine`).
 
     Parameters
     ----------
@@ -180,8 +177,6 @@ class Propagator:
         (:func:`~pushtrain.planner.footprint.body_samples`).
     phi_limit : float
         Largest |phi_i| [rad] allowed along a rollout.
-    check_every : int
-        Test every ``check_every``-th simulated state (and the last one).
     goal_phi : float or None
         The goal also needs every |phi_i| <= ``goal_phi`` [rad] (a straight train); None: any
         chain.
@@ -189,11 +184,29 @@ class Propagator:
         Cell size [m] of each body's disc cover (:func:`~pushtrain.planner.footprint.disc_cover`):
         a body whose discs all keep its clearance plus their radius is clear at that state
         whatever its sample points say (both tests are conservative; either proves it).
+
+    The engine checks every state it visits: the joint limit, self-collision and the walls, the
+    walls in two tiers at each state:
+
+    coarse
+        Each body's rectangle covered by a few discs (cells of at most ``cover`` metres, about
+        0.2 m radius for a 0.8 m x 0.6 m trailer); a body keeps its clearance, inside included,
+        if every disc centre keeps the clearance plus the radius. Six lookups per trailer
+        instead of a hundred: a train in a corridor wider than itself passes it.
+    fine
+        Only for a body that failed the coarse test at that state: its perimeter points
+        (:attr:`BodySamples.threshold` of the perimeter as the body's margin) decide. The
+        compiled loop has no per-point thresholds, so the interior points of
+        :func:`~pushtrain.planner.footprint.body_samples` (an obstacle wholly inside a body,
+        smaller than it) are left to the exact test of the final path.
+
+    The pull rule, the goal test, ``max_steps`` and the deadline are applied between runs of the
+    loop (a run stops at every pulling run's first instant, and runs ``chunk`` states at most).
     """
 
     def __init__(self, train: Train, controller: ControllerConfig, tracker: TrackerConfig,
                  field: DistanceField, samples: BodySamples, phi_limit: float,
-                 check_every: int = 1, goal_phi: float | None = None, cover: float = 0.3):
+                 goal_phi: float | None = None, cover: float = 0.3):
         self.train = train
         self.covers = []
         for i, body in enumerate(train.bodies):
@@ -204,14 +217,27 @@ class Propagator:
         self.field = field
         self.samples = samples
         self.phi_limit = float(phi_limit)
-        self.check_every = max(1, int(check_every))
         self.goal_phi = None if goal_phi is None else float(goal_phi)
         self.step = float(tracker.step)
-        self._rates = towed_rates(train.geometry)
         self._front = [float(a) for a in train.geometry.front]
         self._rear = [float(a) for a in train.geometry.rear]
         self.steps = 0
         """Control steps simulated by this propagator so far (all rollouts)."""
+        points, margins = [], []
+        for i in range(train.n + 1):
+            sel = samples.body == i
+            perimeter = sel & (samples.threshold == samples.threshold[sel].min())
+            points.append(np.column_stack([samples.u[perimeter], samples.v[perimeter]]))
+            margins.append(float(samples.threshold[perimeter][0]))
+        discs = [c for c, _ in self.covers]
+        disc_margins = [m for _, m in self.covers]
+        rectangles = [[b.offset, 0.0, 0.5 * b.length, 0.5 * b.width] for b in train.bodies]
+        grid = {"sdf": field.values, "origin": (field.x0, field.y0),
+                "resolution": field.resolution, "phi_max": self.phi_limit,
+                "rectangles": rectangles}
+        self.checks = Checks(train.n, points=discs, margins=disc_margins, fine_points=points,
+                             fine_margins=margins, **grid)
+        self.loop = ClosedLoopEngine(train.geometry, controller, self.step, 0.0, self.checks)
 
     # ------------------------------------------------------------------ states
     def initial_state(self, start: Sequence[float], headings: Sequence[float]) -> TrainState:
@@ -245,7 +271,7 @@ class Propagator:
     def rollout(self, state: TrainState, cursor: Cursor, segments: Sequence[Segment],
                 goal: Sequence[float] | None = None, pull_phi: float | None = None,
                 max_steps: int | None = None, deadline: float | None = None,
-                record: bool = False, chunk: int = 40) -> Rollout:
+                record: bool = False, chunk: int = 4000) -> Rollout:
         """Track ``segments`` from ``state`` with the reference continued from ``cursor``.
 
         Parameters
@@ -266,178 +292,9 @@ class Propagator:
             Keep the commands and reference directions (``extra["command"]``,
             ``extra["direction"]``) for :func:`~pushtrain.planner.train_check.check_train`.
         chunk : int
-            States simulated between two checks.
+            Most states one call of the engine runs (the deadline is looked at in between).
         """
         ref = self.reference(cursor, segments)
-        step = self.step
-        t_end = ref.t_end
-        end = ref.sample_at(t_end)
-        new_cursor = Cursor(end.x, end.y, end.theta, t_end, segments[-1].direction)
-        k_end = max(state.k, int(math.ceil(t_end / step - 1e-9)))
-        k_stop = k_end
-        if goal is not None:
-            k_stop = max(k_end, int(math.ceil((t_end + self.tracker.settle_time) / step - 1e-9)))
-            tol = self.tracker.goal_tolerance or (math.inf, math.inf)
-        ctrl = BackwardController(self.controller)
-        ctrl.reset(*state.memory)
-        loop = TrackingLoop(ctrl, ref)
-        rates = self._rates
-        z = list(state.z)
-        rows, refs = [z], []
-        k = state.k
-        checked = 0  # rows[:checked] passed the checks
-        reserve = math.inf
-        failure = None
-        reached, goal_error = False, None
-        memory = state.memory
-        pull_starts = ([k_a for k_a in (int(math.ceil(a / step - 1e-9))
-                                        for a, _ in ref.pull_intervals()) if k_a >= state.k]
-                       if pull_phi is not None else [])
-        commands, directions = [], []
-        limit = math.inf if max_steps is None else state.k + int(max_steps)
-        while True:
-            if pull_starts and k == pull_starts[0]:
-                pull_starts.pop(0)
-                worst = _max_abs_phi(z)
-                if worst > pull_phi:
-                    x, y, _ = last_pose(z, self._front, self._rear)
-                    failure = {"kind": "pull_rule", "k": k - state.k, "body": self.train.n,
-                               "x": x, "y": y, "phi": worst}
-                    break
-            if k >= limit or (deadline is not None and (k - state.k) % chunk == 0
-                              and time.perf_counter() >= deadline):
-                x, y, _ = last_pose(z, self._front, self._rear)
-                failure = {"kind": "budget" if k >= limit else "deadline", "k": k - state.k,
-                           "body": self.train.n, "x": x, "y": y}
-                break
-            if goal is not None and k >= k_end:
-                x, y, th = last_pose(z, self._front, self._rear)
-                dist = math.hypot(x - goal[0], y - goal[1])
-                head = abs(math.remainder(th - goal[2], 2.0 * math.pi))
-                goal_error = (dist, head)
-                if dist <= tol[0] and head <= tol[1] and (
-                        self.goal_phi is None or _max_abs_phi(z) <= self.goal_phi):
-                    reached = True
-            if reached or k >= k_stop:
-                r = ref.sample_at(k * step)
-                refs.append((r.x, r.y, r.theta))
-                break
-            t = k * step
-            v0, w0, _, r = loop.command(t, _Measurement(z))
-            refs.append((r.x, r.y, r.theta))
-            if record:
-                commands.append((v0, w0))
-                directions.append(r.direction)
-            z = _rk4_step(rates, z, v0, w0, step)
-            memory = ctrl.state
-            rows.append(z)
-            k += 1
-            if len(rows) - checked >= chunk:
-                failure, res = self._check_rows(rows, checked)
-                reserve = min(reserve, res)
-                checked = len(rows)
-                if failure is not None:
-                    break
-        self.steps += k - state.k
-        if checked < len(rows):
-            late, res = self._check_rows(rows, checked)
-            reserve = min(reserve, res)
-            if late is not None and (failure is None or late["k"] <= failure["k"]):
-                failure = late
-        z_all = np.array(rows)
-        while len(refs) < len(rows):
-            r = ref.sample_at((state.k + len(refs)) * step)
-            refs.append((r.x, r.y, r.theta))
-        reference = np.array(refs[:len(rows)])
-        if failure is not None:
-            failure["t"] = (state.k + failure["k"]) * step
-            failure["k"] += state.k
-        elif goal is not None and not reached:
-            x, y, th = last_pose(z, self._front, self._rear)
-            failure = {"kind": "goal_missed", "k": k, "t": k * step, "body": self.train.n,
-                       "x": x, "y": y, "distance": goal_error[0],
-                       "heading_error": goal_error[1], "max_abs_phi": _max_abs_phi(z)}
-        final = TrainState(k, tuple(z), memory)
-        extra = {}
-        if record:
-            extra = {"command": np.array(commands + [(0.0, 0.0)] * (len(rows) - len(commands))),
-                     "direction": np.array(directions + [0] * (len(rows) - len(directions)),
-                                           dtype=int),
-                     "t": step * np.arange(state.k, state.k + len(rows))}
-        return Rollout(failure is None, failure, final, new_cursor, z_all, reference, reserve,
-                       k - state.k, goal_error, extra)
-
-    def _check_rows(self, rows: list, start: int):
-        """Check rows[start:] (each check includes the stride's last row)."""
-        z = np.array(rows[start:])
-        idx = np.arange(0, z.shape[0], self.check_every)
-        if idx[-1] != z.shape[0] - 1:
-            idx = np.append(idx, z.shape[0] - 1)
-        failure, reserve = self.check(z[idx])
-        if failure is not None:
-            failure["k"] = int(start + idx[failure["k"]])
-        return failure, reserve
-
-
-class NativePropagator(Propagator):
-    """:class:`Propagator` on the compiled closed loop (:class:`pushtrain.core.rollout.ClosedLoop`).
-
-    The same rollouts (the same reference, controller, integrator and checks; a test holds the
-    two equal), about 29 times faster (its rollouts; whole plans about 12 times:
-    ``benchmarks/bench_fallback.py``). The compiled loop checks every state it visits: the
-    joint limit, self-collision and the walls, the walls in two tiers at each state:
-
-    coarse
-        Each body's rectangle covered by a few discs (cells of at most ``cover`` metres, about
-        0.2 m radius for a 0.8 m x 0.6 m trailer); a body keeps its clearance, inside included,
-        if every disc centre keeps the clearance plus the radius. Six lookups per trailer
-        instead of a hundred: a train in a corridor wider than itself passes it.
-    fine
-        Only for a body that failed the coarse test at that state: its perimeter points
-        (:attr:`BodySamples.threshold` of the perimeter as the body's margin) decide. The
-        compiled loop has no per-point thresholds, so the interior points of
-        :func:`~pushtrain.planner.footprint.body_samples` (an obstacle wholly inside a body,
-        smaller than it) are left to the exact test of the final path.
-
-    The pull rule, the goal test, ``max_steps`` and the deadline are applied between runs of the
-    loop (a run stops at every pulling run's first instant, and runs ``chunk`` states at most).
-    """
-
-    def __init__(self, train: Train, controller: ControllerConfig, tracker: TrackerConfig,
-                 field: DistanceField, samples: BodySamples, phi_limit: float,
-                 check_every: int = 1, goal_phi: float | None = None, cover: float = 0.3):
-        from pushtrain.core.rollout import Checks, ClosedLoop
-
-        super().__init__(train, controller, tracker, field, samples, phi_limit, check_every,
-                         goal_phi, cover)
-        points, margins = [], []
-        for i in range(train.n + 1):
-            sel = samples.body == i
-            perimeter = sel & (samples.threshold == samples.threshold[sel].min())
-            points.append(np.column_stack([samples.u[perimeter], samples.v[perimeter]]))
-            margins.append(float(samples.threshold[perimeter][0]))
-        discs = [c for c, _ in self.covers]
-        disc_margins = [m for _, m in self.covers]
-        rectangles = [[b.offset, 0.0, 0.5 * b.length, 0.5 * b.width] for b in train.bodies]
-        grid = {"sdf": field.values, "origin": (field.x0, field.y0),
-                "resolution": field.resolution, "phi_max": self.phi_limit,
-                "rectangles": rectangles}
-        self.checks = Checks(train.n, points=discs, margins=disc_margins, fine_points=points,
-                             fine_margins=margins, **grid)
-        self.loop = ClosedLoop(train.geometry, controller, self.step, 0.0, self.checks)
-
-    def rollout(self, state: TrainState, cursor: Cursor, segments: Sequence[Segment],
-                goal: Sequence[float] | None = None, pull_phi: float | None = None,
-                max_steps: int | None = None, deadline: float | None = None,
-                record: bool = False, chunk: int = 4000) -> Rollout:
-        """:meth:`Propagator.rollout` in C (see the class docstring)."""
-        return self._run(self.reference(cursor, segments), state, cursor, segments, goal,
-                         pull_phi, max_steps, deadline, record, chunk)
-
-    def _run(self, ref, state, cursor, segments, goal, pull_phi, max_steps, deadline, record,
-             chunk) -> Rollout:
-        from pushtrain.core.rollout import LoopState
-
         loop, step = self.loop, self.step
         t_end = ref.t_end
         end = ref.sample_at(t_end)
@@ -519,13 +376,12 @@ class NativePropagator(Propagator):
             extra = {"command": np.vstack(commands + [np.zeros((1, 2))]),
                      "direction": np.concatenate(directions + [np.zeros(1, dtype=int)]),
                      "t": step * np.arange(state.k, here.k + 1)}
-        reserve = math.nan  # the compiled checks do not measure it
-        return Rollout(failure is None, failure, final, new_cursor, z_all, reference, reserve,
+        return Rollout(failure is None, failure, final, new_cursor, z_all, reference,
                        here.k - state.k, goal_error, extra)
 
 
 def _failure_of(violation, margins) -> dict:
-    """A :class:`~pushtrain.core.rollout.Violation` as :meth:`Propagator.rollout`'s failure."""
+    """A :class:`~pushtrain.core.engine.Violation` as a :attr:`Rollout.failure`."""
     base = {"k": int(violation.step), "t": float(violation.t), "body": int(violation.body),
             "x": float(violation.x), "y": float(violation.y)}
     if violation.reason == "footprint":
@@ -536,19 +392,3 @@ def _failure_of(violation, margins) -> dict:
     if violation.reason == "self_collision":
         return {"kind": "self_collision", **base, "other": violation.other}
     return {"kind": violation.reason, **base}
-
-
-def make_propagator(*args, native: bool | None = None, **kwargs) -> Propagator:
-    """A :class:`NativePropagator` (the compiled loop) if it can be built, else the Python
-    :class:`Propagator` (``native=False`` forces Python, ``True`` refuses the fallback);
-    arguments as :class:`Propagator`."""
-    if native is False:
-        return Propagator(*args, **kwargs)
-    try:
-        return NativePropagator(*args, **kwargs)
-    except NativeBuildError as exc:
-        if native:
-            raise
-        log.warning("the compiled closed loop is not available (%s): planning with the Python "
-                    "one, about 12 times slower", exc)
-        return Propagator(*args, **kwargs)

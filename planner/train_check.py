@@ -2,7 +2,8 @@
 
 The whole train's motion along the plan is the closed loop the co-simulation will run
 (:func:`~pushtrain.planner.kinematic_loop.simulate_tracking`: the co-simulation's controller on
-the kinematic chain; see :mod:`~pushtrain.planner.kinematic_loop`).
+the kinematic chain, on the closed-loop engine :mod:`pushtrain.core.engine`; see
+:mod:`~pushtrain.planner.kinematic_loop`).
 
 Every body's rectangle is tested against the free space shrunk by a margin (shapely,
 vectorized) at samples spaced so that no corner of any body travels more than ``resolution``
@@ -24,6 +25,7 @@ from typing import Sequence
 import numpy as np
 import shapely
 
+from pushtrain.core.engine import ClosedLoopEngine
 from pushtrain.core.kinematics import (
     ChainGeometry,
     joint_angles,
@@ -37,11 +39,8 @@ from pushtrain.facility.free_space import World
 from .kinematic_loop import (
     TrackerConfig,
     Trajectory,
-    _rk4_step,
-    _robot_positions,
     reference_times,
     simulate_tracking,
-    towed_rates,
 )
 from .train import Train
 
@@ -50,10 +49,23 @@ __all__ = ["TrainCheckResult", "check_train"]
 log = logging.getLogger(__name__)
 
 
-def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution: float):
+def _robot_positions(state: np.ndarray, geometry: ChainGeometry):
+    """Positions (x, y), each (N, n+1), of all bodies from states (N, 3 + n) = (x0, y0, theta)."""
+    th = state[:, 2:]
+    c, s = np.cos(th), np.sin(th)
+    step_x = -geometry.rear * c[:, :-1] - geometry.front * c[:, 1:]
+    step_y = -geometry.rear * s[:, :-1] - geometry.front * s[:, 1:]
+    zero = np.zeros((state.shape[0], 1))
+    x = state[:, :1] + np.concatenate((zero, np.cumsum(step_x, axis=1)), axis=1)
+    y = state[:, 1:2] + np.concatenate((zero, np.cumsum(step_y, axis=1)), axis=1)
+    return x, y
+
+
+def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution: float,
+            controller):
     """Subdivide the steps in which some corner moves more than ``resolution`` (RK4 substeps
-    under the held command). Returns (trajectory, x, y, corners)."""
-    rates = towed_rates(geometry)
+    under the held command, the closed-loop engine's integrator). Returns (trajectory, x, y,
+    corners)."""
     x, y = _robot_positions(traj.state, geometry)
     corners = _corners(train, x, y, traj.state[:, 2:])
     move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
@@ -62,13 +74,12 @@ def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution:
         return traj, x, y, corners
     rows = {name: [getattr(traj, name)] for name in ("t", "state", "command", "reference",
                                                      "direction", "control")}
+    loop = ClosedLoopEngine(geometry, controller)  # its integrator only (pt_hold)
     for k in bad:
         m = int(math.ceil(move[k] / resolution * 1.05))
         h = (traj.t[k + 1] - traj.t[k]) / m
         v0, w0 = traj.command[k]
-        z = [float(a) for a in traj.state[k]]
-        for j in range(1, m):
-            z = _rk4_step(rates, z, v0, w0, h)
+        for j, z in enumerate(loop.hold(traj.state[k], v0, w0, h, m - 1), start=1):
             rows["t"].append([traj.t[k] + j * h]), rows["state"].append([z])
             rows["command"].append([traj.command[k]]), rows["reference"].append([traj.reference[k]])
             rows["direction"].append([traj.direction[k]]), rows["control"].append([False])
@@ -242,7 +253,7 @@ def check_train(
     if traj is None:
         traj = simulate_tracking(train.geometry, reference, theta0, controller, tracker.step,
                                  tracker.settle_time)
-    traj, x_all, y_all, corners = _refine(traj, train.geometry, train, resolution)
+    traj, x_all, y_all, corners = _refine(traj, train.geometry, train, resolution, controller)
     move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
     keep = _thin(move, resolution)
     headings_all = traj.state[:, 2:]
@@ -285,9 +296,9 @@ def check_train(
     t_joint = traj.t[k_joint[0]] if k_joint.size else math.inf
     folded = None
     if self_collision:
-        from .footprint import _self_overlap
+        from .footprint import self_overlap
 
-        folded = _self_overlap(train, x_all[keep], y_all[keep], headings_all[keep])
+        folded = self_overlap(train, x_all[keep], y_all[keep], headings_all[keep])
     t_fold = traj.t[keep[folded[0]]] if folded is not None else math.inf
 
     def where(k):

@@ -209,7 +209,7 @@ TIME_CAP = 120.0
 """Seconds of wall time of one CLI call before its child is killed (a quick run takes 1-3 s,
 at most about 25 s under load: the planner's own safety cap is 10 x 0.5 + 10 s)."""
 _WARM = ("pushtrain.mission.runner", "pushtrain.planner.closedloop", "pushtrain.facility.loading",
-         "pushtrain.cosim.master", "pushtrain.cosim.step_loop", "pushtrain.core.rollout",
+         "pushtrain.cosim.master", "pushtrain.cosim.step_loop", "pushtrain.core.engine",
          "pushtrain.core.native_controller", "scipy.ndimage")
 
 

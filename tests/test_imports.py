@@ -344,18 +344,6 @@ def test_the_home_rules_would_catch_a_re_export(tmp_path):
     assert offered == ["np"]
 
 
-ENGINE_FILES = {"cosim/master.py", "cosim/step_loop.py", "planner/propagate.py",
-                "planner/train_check.py"}
-"""TEMPORARY allowance, to be removed when issue #25's closed-loop engine lands: the files the
-``engine`` branch rewrites (one closed-loop engine in core/) keep their private crossings until
-then; every other module of the package already passes."""
-
-FMU_FILES = {"fmu/controller_variables.py"}
-"""TEMPORARY allowance, for the ``fmu-c`` branch of issue #25 (fmu/ is its room): the controller
-FMU's variable table imports ``_BASE_UNITS``, ``_fmt`` and ``_to_bytes`` from fmu/render.py,
-which should become public there."""
-
-
 def _private_crossings(path: Path) -> list[str]:
     here = _module_name(path)
     return [f"{path.relative_to(ROOT)}:{line}: {module}.{name}"
@@ -367,7 +355,6 @@ def test_no_private_name_crosses_a_module():
     """A module imports or reads no ``_name`` of another pushtrain module: a name used by two
     modules is public (documented, in ``__all__``) or stays home."""
     wrong = [crossing for _, path in _sources()
-             if str(path.relative_to(ROOT)) not in ENGINE_FILES | FMU_FILES
              for crossing in _private_crossings(path)]
     assert not wrong, "\n".join(wrong)
 
@@ -383,7 +370,3 @@ def test_the_privacy_rule_would_catch_a_crossing():
     assert [f.split(": ")[1] for f in found] == ["pushtrain.cli.common._scenario"] * 2, found
 
 
-@pytest.mark.parametrize("allowed", sorted(ENGINE_FILES | FMU_FILES))
-def test_each_privacy_allowance_is_still_needed(allowed):
-    """Once a file of the allowance stops crossing, it must leave the allowance."""
-    assert _private_crossings(ROOT / allowed), f"{allowed} no longer needs its allowance"

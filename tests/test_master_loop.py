@@ -87,8 +87,8 @@ def test_noisy_quantized_biased_sensors_with_play_and_bias_switches(fmu3, last_p
     assert (c.status, c.message) == (py.status, py.message)
     assert c.data.tobytes() == py.data.tobytes()
     # the sensors end in the same state: the generator drew exactly the same numbers
-    assert sensors["c"]._rng.random() == sensors["python"]._rng.random()
-    assert np.array_equal(sensors["c"]._play, sensors["python"]._play)
+    assert sensors["c"].rng.random() == sensors["python"].rng.random()
+    assert np.array_equal(sensors["c"].play, sensors["python"].play)
     assert np.array_equal(sensors["c"].bias, sensors["python"].bias)
     # what the case is meant to test is active: quantized readings, noise, play, the switches
     d, q = c.data, math.radians(0.1)
@@ -152,13 +152,13 @@ def test_the_goal_stops_both_loops_and_a_rejected_candidate_steps_on(fmu3, monke
     # with a wide slack the C loop hands back candidates that Python's exact test rejects: it
     # steps on from Python and still gives the Python loop's run
     tests = []
-    original = master._Run._goal_reached
+    original = master.PythonLoop.goal_reached
 
     def counting(self, *args):
         tests.append(original(self, *args))
         return tests[-1]
 
-    monkeypatch.setattr(master._Run, "_goal_reached", counting)
+    monkeypatch.setattr(master.PythonLoop, "goal_reached", counting)
     monkeypatch.setattr(step_loop.CompiledLoop, "goal_slack", 50.0)
     initial = InitialState.behind_reference(ref, _config().geometry, lateral_offset=0.1)
     c = simulate(fmu3, ref, _config(), initial=initial, goal_tolerance=(0.004, 0.01),

@@ -84,7 +84,7 @@ def test_the_c_path_takes_one_call_per_instant_and_equals_the_python_loop():
     ref = _push_pull()
     c_loop = TrackingLoop(NativeController(_config(geom)), ref)
     py_loop = TrackingLoop(BackwardController(_config(geom)), ref)
-    assert type(c_loop.command.__self__).__name__ == "_Tracker"  # the one-call path is used
+    assert type(c_loop.command.__self__).__name__ == "Tracker"  # the one-call path is used
     for loop in (c_loop, py_loop):
         loop.controller.reset(0.0, 0.0, -0.05)
     rng = np.random.default_rng(3)

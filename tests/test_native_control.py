@@ -91,7 +91,7 @@ def test_wrap_equals_python_modulo_on_edge_cases_and_random_angles():
 
 @pytest.mark.parametrize("n", [1, 3, 10])
 def test_chain_kinematics_equal_python(n):
-    from pushtrain.planner.kinematic_loop import towed_rates
+    from reference.closed_loop import towed_rates
 
     lib = native.load()
     rng = np.random.default_rng(10 + n)
@@ -382,14 +382,17 @@ def test_leader_sampling_equals_python():
 
 
 def test_native_controller_drops_into_the_closed_loop(monkeypatch):
-    """simulate_tracking with the C controller in place of the Python one: the same run."""
-    import pushtrain.planner.kinematic_loop as tc
+    """The reference closed loop (tests/reference/closed_loop.py) with the C controller in place
+    of the Python one: the same run."""
+    import reference.closed_loop as tc
+
+    from pushtrain.planner.kinematic_loop import default_controller
 
     geom = ChainGeometry(np.array([0.5, 0.6, 0.45]), np.array([0.3, 0.52, 0.7]))
     ref = Reference.from_segments((0.0, 0.0, math.pi), [
         Segment("line", 0.6), Segment("arc", 0.8, 0.8), Segment("line", 0.5, 0.0, PULL),
         Segment("arc", 0.5, -0.6, PULL)], speed=0.08, cusp_dwell=1.0)
-    config = tc.default_controller(geom)
+    config = default_controller(geom)
     heads = np.full(4, math.pi) + np.array([0.1, 0.05, 0.0, 0.0])
     want = tc.simulate_tracking(geom, ref, heads, config, 0.05, 1.0)
     monkeypatch.setattr(tc, "BackwardController", NativeController)

@@ -4,11 +4,12 @@ import math
 
 import numpy as np
 import pytest
+from reference.closed_loop import simulate_tracking
 
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.facility.free_space import World
 from pushtrain.planner.footprint import body_samples
-from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller, simulate_tracking
+from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller
 from pushtrain.planner.propagate import Cursor, Propagator
 from pushtrain.planner.train import Train
 
@@ -32,7 +33,8 @@ HEADINGS = math.pi + np.array([0.4, 0.25, 0.1, 0.0])
 
 def test_pieces_rolled_out_one_after_another_equal_the_whole_run():
     """Pushes continue exactly; a pulling run rolled out from where it began equals its part
-    of the whole run (bit for bit: the same controller, reference and integrator)."""
+    of the whole run of the Python reference loop (tests/reference/closed_loop.py), bit for bit:
+    states, reference samples, commands and the controller's memory."""
     whole = simulate_tracking(TRAIN.geometry, Reference.from_segments(START, SEGMENTS, 0.08, 1.0),
                               HEADINGS, CONTROLLER, 0.025, 0.0)
     prop = _propagator()
@@ -40,10 +42,14 @@ def test_pieces_rolled_out_one_after_another_equal_the_whole_run():
     assert np.array_equal(np.array(state.z), whole.state[0])
     cursor = Cursor(*START, 0.0, 0)
     for piece in ([SEGMENTS[0]], [SEGMENTS[1]], [SEGMENTS[2]], SEGMENTS[3:5], [SEGMENTS[5]]):
-        run = prop.rollout(state, cursor, piece)
+        run = prop.rollout(state, cursor, piece, pull_phi=math.radians(30.0), record=True)
         assert run.ok, run.failure
-        k0 = state.k
-        assert np.array_equal(run.z, whole.state[k0:run.state.k + 1])
+        k0, k1 = state.k, run.state.k
+        assert np.array_equal(run.z, whole.state[k0:k1 + 1])
+        assert np.array_equal(run.reference, whole.reference[k0:k1 + 1])
+        assert np.array_equal(run.extra["command"][:-1], whole.command[k0:k1])
+        assert np.array_equal(run.extra["direction"][:-1], whole.direction[k0:k1])
+        assert run.state.memory[:2] == tuple(whole.command[k1 - 1])
         state, cursor = run.state, run.cursor
     assert state.k == whole.t.size - 1
     assert prop.steps == state.k
@@ -113,49 +119,3 @@ def test_a_wall_stops_the_rollout_with_the_body_and_point():
     assert run.failure["body"] == 3  # the last trailer leads into the upper wall
     assert run.failure["y"] > 0.4
     assert run.state.k < state.k + int(1.5 / 0.08 / 0.025)
-
-
-def _native(tracker=None, world=OPEN, margin=0.0):
-    from pushtrain.planner.propagate import NativePropagator
-
-    tracker = tracker or TrackerConfig(controller=CONTROLLER)
-    return NativePropagator(TRAIN, CONTROLLER, tracker, world.distance_field(),
-                            body_samples(TRAIN, margin), TRAIN.phi_max)
-
-
-def test_the_compiled_propagator_gives_the_python_rollouts():
-    """Piece by piece, a pull run from its start, the goal test and the pull rule: the compiled
-    loop (core.rollout) and the Python one agree to 1e-9 (the same law, the same integrator)."""
-    tracker = TrackerConfig(controller=CONTROLLER, goal_tolerance=(0.02, math.radians(2.0)))
-    py, c = _propagator(tracker), _native(tracker)
-    states = {p: p.initial_state(START, HEADINGS) for p in (py, c)}
-    cursors = {p: Cursor(*START, 0.0, 0) for p in (py, c)}
-    goal = Reference.from_segments(START, SEGMENTS, 0.08, 1.0).goal
-    pieces = ([SEGMENTS[0]], [SEGMENTS[1]], [SEGMENTS[2]], SEGMENTS[3:5], [SEGMENTS[5]])
-    for j, piece in enumerate(pieces):
-        runs = {p: p.rollout(states[p], cursors[p], piece, goal=goal if j == 4 else None,
-                             pull_phi=math.radians(30.0), record=True) for p in (py, c)}
-        a, b = runs[py], runs[c]
-        assert a.ok == b.ok and a.state.k == b.state.k and a.z.shape == b.z.shape
-        assert np.abs(a.z - b.z).max() < 1e-9
-        assert np.abs(a.reference - b.reference).max() < 1e-9
-        assert np.abs(np.array(a.state.memory[:2]) - np.array(b.state.memory[:2])).max() < 1e-9
-        assert np.abs(a.extra["command"][:-1] - b.extra["command"][:-1]).max() < 1e-9
-        for p in (py, c):
-            states[p], cursors[p] = runs[p].state, runs[p].cursor
-    assert py.steps == c.steps
-    # the same failures at the same instant
-    bent = {p: p.initial_state(START, HEADINGS) for p in (py, c)}
-    pull = [Segment("line", 0.5, 0.0, PULL)]
-    for p in (py, c):
-        run = p.rollout(bent[p], Cursor(*START, 0.0, 0), pull, pull_phi=math.radians(5.0))
-        assert not run.ok and run.failure["kind"] == "pull_rule"
-    world = World.from_dict({"free": [[-6, -0.6], [6, -0.6], [6, 0.6], [-6, 0.6]]})
-    walls = [_propagator(world=world, margin=0.05), _native(world=world, margin=0.05)]
-    fails = []
-    for p in walls:
-        s0 = p.initial_state((2.0, 0.0, math.pi), np.full(4, math.pi))
-        run = p.rollout(s0, Cursor(2.0, 0.0, math.pi, 0.0, 0), [Segment("arc", 1.5, 1.0)])
-        fails.append(run.failure)
-    assert fails[0]["kind"] == fails[1]["kind"] == "collision"
-    assert fails[0]["body"] == fails[1]["body"] and fails[0]["k"] == fails[1]["k"]

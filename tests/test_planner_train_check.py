@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from reference.closed_loop import towed_rates
 from scipy.integrate import solve_ivp
 from shapely.ops import unary_union
 
@@ -27,7 +28,6 @@ from pushtrain.planner.kinematic_loop import (
     TrackerConfig,
     default_controller,
     reference_times,
-    towed_rates,
 )
 from pushtrain.planner.train import Train
 from pushtrain.planner.train_check import check_train

@@ -81,7 +81,7 @@ def test_the_controller_gets_the_scenarios_gains_limits_and_model():
 
 def test_joint_biases_reach_the_joint_readings_in_radians_with_their_sign():
     sc = _scenario(sensors={"joint_bias_deg": [1.0, -2.0, 3.0]})
-    reading = Sensors(sensors_of(sc)).measure_joints(np.zeros(3))
+    reading = Sensors(sensors_of(sc)).measure(0.0, 0.0, 0.0, np.zeros(3)).phi
     assert reading == pytest.approx(np.radians([1.0, -2.0, 3.0]), abs=1e-15)
 
 
@@ -89,7 +89,7 @@ def test_the_scenario_seed_drives_the_sensor_noise():
     def readings(seed):
         sc = _scenario(seed=seed, sensors={"joint_noise_deg": 1.0, "position_noise": 0.01})
         sensors = Sensors(sensors_of(sc))
-        return np.concatenate([sensors.measure_joints(np.zeros(3)) for _ in range(5)])
+        return np.concatenate([sensors.measure(0.0, 0.0, 0.0, np.zeros(3)).phi for _ in range(5)])
 
     assert np.array_equal(readings(1), readings(1))  # a run repeats exactly
     assert not np.allclose(readings(1), readings(2))  # another seed, other noise

@@ -59,6 +59,21 @@ static void plant_rk4(const PtChain *plant, double *z, double v0, double w0, dou
     }
 }
 
+int pt_hold(const PtChain *plant, double *z, double v0, double w0, double h, int count,
+            double *states, double *work) {
+    const int nz = plant == NULL ? 0 : 3 + plant->n;
+    int j;
+    if (plant == NULL || plant->n < 1 || z == NULL || work == NULL || count < 0 ||
+        (count > 0 && states == NULL)) {
+        return PT_ERR_ARGUMENT;
+    }
+    for (j = 0; j < count; j++) {
+        plant_rk4(plant, z, v0, w0, h, work);
+        memcpy(states + (size_t)j * (size_t)nz, z, sizeof(double) * (size_t)nz);
+    }
+    return PT_OK;
+}
+
 /* ------------------------------------------------------------------ checks */
 
 double pt_sdf_at(const PtChecks *c, double x, double y) {

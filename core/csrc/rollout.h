@@ -115,6 +115,13 @@ PT_API int pt_rollout_work(int n);
 PT_API int pt_rollout(const PtRollout *r, long *k, double *z, PtControlState *control,
                       long k_end, double *work, const PtRecord *record, PtViolation *violation);
 
+/* The plant alone under a held command: count RK4 steps of h [s] from z (3 + n, advanced in
+ * place) with the robot's (v0, w0), each new state into states (count x (3 + n), row-major).
+ * The loop's own integrator, for finer samples within a step. work: pt_rollout_work(n)
+ * doubles. Returns PT_OK or PT_ERR_ARGUMENT. */
+PT_API int pt_hold(const PtChain *plant, double *z, double v0, double w0, double h, int count,
+                   double *states, double *work);
+
 /* The checks alone on one state z (3 + n) at instant k (a violation's step is k); returns 1 and
  * fills violation if a check fails, else 0. work: pt_rollout_work(n) doubles. */
 PT_API int pt_check_state(const PtChain *plant, const PtChecks *checks, const double *z, long k,

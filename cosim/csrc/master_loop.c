@@ -1,8 +1,8 @@
 /*
  * The co-simulation master's step loop (master_loop.h). Every formula is the Python loop's
- * (cosim/master.py, cosim/sensors.py, cosim/events.py) in the same order, compiled with
- * -ffp-contract=off, so a run gives the Python loop's numbers bit for bit
- * (tests/test_master_loop.py).
+ * (cosim/master.py, cosim/events.py; the sensors are core/csrc/sensors.c, the Python loop's
+ * too) in the same order, compiled with -ffp-contract=off, so a run gives the Python loop's
+ * numbers bit for bit (tests/test_master_loop.py).
  */
 #include "master_loop.h"
 
@@ -13,75 +13,25 @@
 
 size_t pt_master_loop_sizeof(void) { return sizeof(PtMasterLoop); }
 
-/* The joint readings (cosim/sensors.py Sensors.measure_joints) of the true angles phi into
- * reading[0..n-1]; noise is the step's joint noise or NULL. */
-static void measure_joints(PtMasterLoop *m, const double *phi, const double *noise,
-                           double *reading) {
-    const int n = m->n;
-    int i;
-    if (m->half_backlash == 0.0) {
-        for (i = 0; i < n; i++) {
-            reading[i] = phi[i] + m->bias[i];
-        }
-    } else {
-        if (!m->has_play) {
-            memcpy(m->play, phi, (size_t)n * sizeof(double));
-            m->has_play = 1;
-        } else {
-            for (i = 0; i < n; i++) { /* np.clip(play, phi - half, phi + half) */
-                const double lo = phi[i] - m->half_backlash, hi = phi[i] + m->half_backlash;
-                double p = m->play[i];
-                p = p < lo ? lo : p;
-                m->play[i] = p > hi ? hi : p;
-            }
-        }
-        for (i = 0; i < n; i++) {
-            reading[i] = m->play[i] + m->bias[i];
-        }
-    }
-    if (noise != NULL) {
-        for (i = 0; i < n; i++) {
-            reading[i] += noise[i];
-        }
-    }
-    if (m->quantization > 0.0) {
-        for (i = 0; i < n; i++) { /* q * np.round(reading / q): round half to even */
-            reading[i] = m->quantization * rint(reading[i] / m->quantization);
-        }
-    }
-}
-
-/* One pose reading (Sensors.measure_pose): noise consumed from *noise in its order. */
-static void measure_pose(const PtMasterLoop *m, double *x, double *y, double *theta,
-                         const double **noise) {
-    if (m->noise & PT_NOISE_POSITION) {
-        *x = *x + (*noise)[0];
-        *y = *y + (*noise)[1];
-        *noise += 2;
-    }
-    if (m->noise & PT_NOISE_HEADING) {
-        *theta = *theta + (*noise)[0];
-        *noise += 1;
-    }
-}
-
 static int valid(const PtMasterLoop *m) {
     return m->component != NULL && m->get_real != NULL && m->set_real != NULL &&
            m->get_boolean != NULL && m->do_step != NULL && m->state_vr != NULL &&
            m->input_vr != NULL && m->output_vr != NULL && m->flag_vr != NULL && m->n >= 1 &&
            m->n_outputs >= 1 && m->n_output_runs >= 1 && m->output_runs != NULL &&
            m->flag_at != NULL && m->scalar_at != NULL && m->outputs != NULL &&
-           m->track != NULL && m->bias != NULL &&
-           (m->half_backlash == 0.0 || m->play != NULL) &&
-           (m->noise == 0 || (m->noise_values != NULL && m->noise_per_step > 0)) &&
+           m->instant != NULL && m->instant->track != NULL && m->instant->sensors != NULL &&
+           m->instant->sensors->n == m->n && m->instant->sensors->bias != NULL &&
+           (m->instant->sensors->half_backlash == 0.0 || m->instant->sensors->play != NULL) &&
+           (m->instant->sensors->noise == 0 ||
+            (m->noise_values != NULL &&
+             m->noise_per_step == pt_sensors_noise_count(m->instant->sensors))) &&
            m->rows != NULL && m->f_lat_max != NULL && m->state != NULL && m->flags != NULL &&
-           (m->n_pushes == 0 || m->pushes != NULL) &&
+           (m->instant->n_pushes == 0 || m->instant->pushes != NULL) &&
            (m->n_slide_writes == 0 || (m->slide_vr != NULL && m->slide_values != NULL));
 }
 
 int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
-    PtTrack *track;
-    const double *saved_phi;
+    const PtTrack *track;
     int reason = PT_LOOP_PAUSE;
     long k;
     if (m == NULL || !valid(m)) {
@@ -91,25 +41,22 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
         m->k = k_first;
         return PT_LOOP_ARGUMENT;
     }
-    track = m->track;
-    saved_phi = track->m.phi;
-    track->m.has_last = m->measure_last_pose;
+    track = m->instant->track;
     for (k = k_first; k < k_stop; k++) {
         const long j = k - k_first;
         const double t = m->t0 + (double)k * m->step;
         double *row = m->rows + (size_t)j * (size_t)m->row_width;
         double *phi_meas = row + m->at_phi_meas;
         const int *at = m->scalar_at;
-        const double *noise = m->noise ? m->noise_values + (size_t)j * m->noise_per_step : NULL;
-        const double *st = m->state;
-        double x0, y0, th0, x_n, y_n, th_n, push_x = 0.0, push_y = 0.0, dx, dy, c, s;
+        const double *noise = m->instant->sensors->noise
+                                  ? m->noise_values + (size_t)j * m->noise_per_step : NULL;
         int status, i;
         m->k = k;
         if (j > 0 && (t >= m->pause_at || m->next_bias <= t + PT_EPS_T)) {
             reason = PT_LOOP_PAUSE;
             break;
         }
-        /* apply inputs: states -> sensors -> tracking -> FMU inputs */
+        /* apply inputs: states -> the engine's step (sensors, law, push) -> FMU inputs */
         status = m->get_real(m->component, m->state_vr, (size_t)(m->n + 6), m->state);
         if (status > 1) {
             m->failed_call = PT_CALL_GET_STATE;
@@ -117,32 +64,14 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
             reason = PT_LOOP_FMI_ERROR;
             break;
         }
-        x0 = st[0], y0 = st[1], th0 = st[2], x_n = st[3], y_n = st[4], th_n = st[5];
-        measure_joints(m, st + 6, (m->noise & PT_NOISE_JOINTS) ? noise : NULL, phi_meas);
-        if (m->noise & PT_NOISE_JOINTS) {
-            noise += m->n;
-        }
-        track->t = t;
-        track->m.x0 = x0, track->m.y0 = y0, track->m.theta0 = th0;
-        measure_pose(m, &track->m.x0, &track->m.y0, &track->m.theta0, &noise);
-        if (m->measure_last_pose) {
-            track->m.x_n = x_n, track->m.y_n = y_n, track->m.theta_n = th_n;
-            measure_pose(m, &track->m.x_n, &track->m.y_n, &track->m.theta_n, &noise);
-        }
-        track->m.phi = phi_meas;
-        status = pt_track(track);
+        status = pt_step(m->instant, t, m->state, noise, phi_meas);
         if (status != PT_OK) {
             m->control_status = status;
             reason = PT_LOOP_CONTROL_ERROR;
             break;
         }
-        for (i = 0; i < m->n_pushes; i++) { /* events.py push_force */
-            const double *p = m->pushes + 3 * i;
-            push_x += p[0] - sin(th_n) * p[2];
-            push_y += p[1] + cos(th_n) * p[2];
-        }
         m->inputs[0] = track->cmd[0], m->inputs[1] = track->cmd[1];
-        m->inputs[2] = push_x, m->inputs[3] = push_y;
+        m->inputs[2] = m->instant->push[0], m->inputs[3] = m->instant->push[1];
         status = m->set_real(m->component, m->input_vr, 4, m->inputs);
         if (status > 1) {
             m->failed_call = PT_CALL_SET_INPUTS;
@@ -151,7 +80,7 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
             break;
         }
         if (j == 0) {
-            for (i = 0; i < m->n_slide_writes; i++) { /* one call per trailer, as _Run._slide */
+            for (i = 0; i < m->n_slide_writes; i++) { /* one call per trailer, as PythonLoop */
                 status = m->set_real(m->component, m->slide_vr + i, 1, m->slide_values + i);
                 if (status > 1) {
                     m->failed_call = PT_CALL_SET_SLIDE;
@@ -188,15 +117,11 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
             row[m->flag_at[i]] = (double)m->flags[i];
         }
         memcpy(row + m->at_f_lat_max, m->f_lat_max, (size_t)m->n * sizeof(double));
-        dx = x_n - track->sample.x; /* the last trailer's error in the reference frame */
-        dy = y_n - track->sample.y;
-        c = cos(track->sample.theta);
-        s = sin(track->sample.theta);
         row[at[0]] = t;
         row[at[1]] = m->inputs[0];
         row[at[2]] = m->inputs[1];
-        row[at[3]] = push_x;
-        row[at[4]] = push_y;
+        row[at[3]] = m->inputs[2];
+        row[at[4]] = m->inputs[3];
         row[at[5]] = m->slide;
         row[at[6]] = track->sample.x;
         row[at[7]] = track->sample.y;
@@ -204,17 +129,18 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
         row[at[9]] = track->sample.v;
         row[at[10]] = track->sample.w;
         row[at[11]] = (double)track->sample.direction;
-        row[at[12]] = c * dx + s * dy;
-        row[at[13]] = -s * dx + c * dy;
-        row[at[14]] = pt_wrap(th_n - track->sample.theta);
+        row[at[12]] = m->instant->errors[0];
+        row[at[13]] = m->instant->errors[1];
+        row[at[14]] = m->instant->errors[2];
         if (m->flags[m->n] != 0) {
             reason = PT_LOOP_JACKKNIFE;
             break;
         }
         if (m->check_goal && t >= m->goal_from) {
-            const double dist = hypot(x_n - m->goal_x, y_n - m->goal_y);
+            const double *last = m->state + 3; /* the last trailer's true pose */
+            const double dist = hypot(last[0] - m->goal_x, last[1] - m->goal_y);
             if (dist <= m->goal_position * (1.0 + m->goal_slack) &&
-                fabs(pt_wrap(th_n - m->goal_theta)) <= m->goal_heading * (1.0 + m->goal_slack)) {
+                fabs(pt_wrap(last[2] - m->goal_theta)) <= m->goal_heading * (1.0 + m->goal_slack)) {
                 reason = PT_LOOP_GOAL_CANDIDATE;
                 break;
             }
@@ -234,6 +160,5 @@ int pt_master_run(PtMasterLoop *m, long k_first, long k_stop) {
         m->time = t + m->step;
         m->k = k + 1;
     }
-    track->m.phi = saved_phi;
     return reason;
 }

@@ -4,9 +4,9 @@
  *
  * At each communication point t_k = t0 + k step, in the order of the Python loop:
  *   fmi2GetReal of the measured states (robot pose, last trailer's pose, joint angles)
- *   -> sensors (backlash, bias, noise, quantization; cosim/sensors.py, same arithmetic)
- *   -> pt_track (reference sample, pull leader, command; core/csrc/control.c)
- *   -> push force of the active pushes (cosim/events.py push_force)
+ *   -> pt_step, the engine's closed-loop work (core/csrc/step.c): sensors (backlash, bias,
+ *      noise, quantization), reference sample, pull leader, command, the push force of the
+ *      active pushes and the tracking errors
  *   -> fmi2SetReal(v_cmd, w_cmd, push_x, push_y) (then, at the first step of a call only, the
  *      slide speeds that change there)
  *   -> fmi2GetReal of every recorded output and fmi2GetBoolean of the flags; the row (in the
@@ -30,6 +30,8 @@
 #include <stddef.h>
 
 #include "control.h"
+#include "sensors.h"
+#include "step.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -51,7 +53,7 @@ enum {
     PT_LOOP_GOAL_CANDIDATE = 3,  /* step k recorded, the last trailer within goal_slack of the
                                   * goal's tolerance: the caller decides; no doStep done */
     PT_LOOP_FMI_ERROR = 4,       /* an FMI call of step k failed (failed_call, fmi_status) */
-    PT_LOOP_CONTROL_ERROR = 5,   /* pt_track refused step k (control_status); nothing recorded */
+    PT_LOOP_CONTROL_ERROR = 5,   /* pt_step refused step k (control_status); nothing recorded */
     PT_LOOP_ARGUMENT = 6         /* a NULL pointer or a bad size */
 };
 
@@ -63,15 +65,6 @@ enum {
     PT_CALL_GET_OUTPUTS = 4,
     PT_CALL_GET_FLAGS = 5,
     PT_CALL_DO_STEP = 6
-};
-
-/* Noise of one step, in this order (each block present only if its flag is set): joint angles
- * (n), robot position (2), robot heading (1), then, with measure_last_pose, the last trailer's
- * position (2) and heading (1). Values are the Python sensors' draws, already scaled. */
-enum {
-    PT_NOISE_JOINTS = 1,
-    PT_NOISE_POSITION = 2,
-    PT_NOISE_HEADING = 4
 };
 
 typedef struct {
@@ -92,20 +85,10 @@ typedef struct {
     double t0, step;               /* t_k = t0 + k step [s] */
     long n_steps;                  /* the last communication point is k = n_steps */
 
-    /* ---- control ---- */
-    PtTrack *track;                /* the controller's instant (pointers, state); its m.phi is
-                                    * restored before returning */
-
-    /* ---- sensors ---- */
-    const double *bias;            /* n joint biases [rad] */
-    double half_backlash;          /* half the play band [rad]; 0: no play */
-    double *play;                  /* n: the potentiometers' positions (if half_backlash > 0) */
-    int has_play;                  /* 0: play starts at the next true angles */
-    double quantization;           /* [rad]; 0: none */
-    int noise;                     /* PT_NOISE_* bits */
-    int measure_last_pose;         /* 1: the last trailer's pose is measured too */
-    const double *noise_values;    /* noise_per_step values per step, from the first step of
-                                    * the call on */
+    /* ---- the engine: sensors, control law, pushes ---- */
+    PtStep *instant;               /* its track, sensors and the call's active pushes */
+    const double *noise_values;    /* noise_per_step values per step (pt_sensors_noise_count),
+                                    * from the first step of the call on; NULL without noise */
     int noise_per_step;
 
     /* ---- recording: where each value goes in a row (indices of row elements) ---- */
@@ -132,8 +115,6 @@ typedef struct {
     double pause_at;               /* return at the top of a later step with t >= pause_at */
     double next_bias;              /* return at the top of a later step with
                                     * next_bias <= t + 1e-12 */
-    int n_pushes;                  /* active pushes: (fx, fy, lateral) each */
-    const double *pushes;
     double slide;                  /* the last trailer's slide speed (the row's column) */
     int n_slide_writes;            /* written at the call's first step, after the inputs */
     const unsigned int *slide_vr;

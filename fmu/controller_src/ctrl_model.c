@@ -117,27 +117,20 @@ void ctrl_model_start(CtrlModel *m) {
     m->have_next = false;
 }
 
-/* The sensor model of cosim/sensors.py for the joints (noise aside): backlash (play operator),
- * bias, quantization (round half to even, as numpy.round). */
+/* The joint readings of the inputs phi (core/csrc/sensors.c, noise aside): the play advances
+ * in next, the memory committed at the step. */
 static void measure_joints(const CtrlModel *m, CtrlMemory *next, double *phi_meas) {
-    const double q = m->r[R_joint_quantization];
-    const double half = 0.5 * m->r[R_joint_backlash];
-    int k;
-    for (k = 0; k < CTRL_N; k++) {
-        const double phi = m->r[R_phi + k];
-        double reading;
-        if (!next->play_valid || half == 0.0) {
-            next->play[k] = phi;
-        } else {
-            next->play[k] = fmin(fmax(next->play[k], phi - half), phi + half);
-        }
-        reading = next->play[k] + m->r[R_joint_bias + k];
-        if (q > 0.0) {
-            reading = q * nearbyint(reading / q);
-        }
-        phi_meas[k] = reading;
-    }
-    next->play_valid = 1;
+    PtSensors sensors;
+    sensors.n = CTRL_N;
+    sensors.bias = &m->r[R_joint_bias];
+    sensors.half_backlash = 0.5 * m->r[R_joint_backlash];
+    sensors.quantization = m->r[R_joint_quantization];
+    sensors.noise = 0;
+    sensors.measure_last_pose = 0;
+    sensors.play = next->play;
+    sensors.has_play = next->play_valid;
+    pt_measure_joints(&sensors, &m->r[R_phi], NULL, phi_meas);
+    next->play_valid = sensors.has_play;
 }
 
 static void set_outputs(CtrlModel *m, const PtSample *ref, const PtControlInfo *info,

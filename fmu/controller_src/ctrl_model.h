@@ -1,6 +1,7 @@
 /*
- * The BackwardController model: its variables, the sensor model, one evaluation of the control
- * law at a communication point and the memory carried from one point to the next.
+ * The BackwardController model: its variables, the joint sensors (core/csrc/sensors.c), one
+ * evaluation of the control law at a communication point and the memory carried from one point
+ * to the next.
  *
  * Outputs at time t are a function of t, the inputs at t and the memory committed at the
  * previous point (the previous command for the rate limits, the backlash play, done). They are
@@ -23,6 +24,7 @@
 #include <stddef.h>
 
 #include "control.h"
+#include "sensors.h"
 #include "ctrl_table.h"
 #include "ctrl_variables.h"
 

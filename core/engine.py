@@ -1,11 +1,14 @@
-"""The fast closed-loop integrator: the control law in closed loop with the kinematic chain, in C.
+"""The closed-loop engine: the control law in closed loop with the kinematic chain, in C.
 
-:class:`ClosedLoop` runs what :func:`pushtrain.planner.train_check.simulate_tracking` runs (the
-reference sampled at the control instants ``t_k = t_start + k step``, the robot's own reference
-from the pull guide while pulling, the controller's command held over the step, the robot moving
-along its heading, the trailers towed, RK4 over the step on ``(x0, y0, theta_0..theta_n)``) in
-``core/csrc/rollout.c`` on top of the compiled control law, and gives the same states (tested
-to 1e-9; in practice bit for bit).
+:class:`ClosedLoopEngine` runs the reference sampled at the control instants
+``t_k = t_start + k step``, the robot's own reference from the pull guide while pulling, the
+controller's command held over the step, the robot moving along its heading, the trailers towed,
+RK4 over the step on ``(x0, y0, theta_0..theta_n)``, in ``core/csrc/rollout.c`` on top of the
+compiled control law. The planner's search (:class:`pushtrain.planner.propagate.Propagator`) and
+its final check (:func:`pushtrain.planner.kinematic_loop.simulate_tracking`) both run it; the
+readable Python loop it is held equal to, bit for bit, is the tests' reference
+(``tests/reference/closed_loop.py``). :meth:`ClosedLoopEngine.hold` is its integrator alone
+(samples between two control instants).
 
 Resumable
     A run returns its end :class:`LoopState` (instant index k, state, the controller's rate-limit
@@ -55,9 +58,9 @@ from .reference import Reference
 __all__ = [
     "REASONS",
     "Checks",
-    "ClosedLoop",
+    "ClosedLoopEngine",
     "LoopState",
-    "Rollout",
+    "EngineRun",
     "Violation",
     "rectangle_points",
     "simulate",
@@ -123,8 +126,8 @@ class Violation:
 
 
 @dataclass
-class Rollout:
-    """One run of :meth:`ClosedLoop.run` from instant k0 to the instant it ended at, k1.
+class EngineRun:
+    """One run of :meth:`ClosedLoopEngine.run` from instant k0 to the instant it ended at, k1.
 
     Attributes
     ----------
@@ -177,7 +180,7 @@ def rectangle_points(length: float, width: float, offset: float = 0.0,
 
 
 class Checks:
-    """What :class:`ClosedLoop` checks at every state it visits.
+    """What :class:`ClosedLoopEngine` checks at every state it visits.
 
     Parameters
     ----------
@@ -270,7 +273,7 @@ class Checks:
         return float(native.load().pt_sdf_at(ctypes.byref(self.struct), float(x), float(y)))
 
 
-class ClosedLoop:
+class ClosedLoopEngine:
     """The closed loop of the controller and the kinematic chain, integrated in C.
 
     Parameters
@@ -287,7 +290,7 @@ class ClosedLoop:
     guide_step : float
         RK4 step [s] of the pull guide's backward runs (PullGuide's default 0.02 s).
 
-    The C loop releases the GIL; give each thread its own ClosedLoop (it caches the last
+    The C loop releases the GIL; give each thread its own ClosedLoopEngine (it caches the last
     reference's pull guide).
     """
 
@@ -352,6 +355,22 @@ class ClosedLoop:
         z = np.concatenate(([float(x[0, 0]), float(y[0, 0])], th))
         return LoopState(int(k), z, float(v0), float(w0), self.time(k) - self.step)
 
+    def hold(self, z: Sequence[float], v0: float, w0: float, h: float, count: int) -> np.ndarray:
+        """The plant alone under the held command ``(v0, w0)`` [m/s, rad/s]: ``count`` RK4 steps
+        of ``h`` [s] from the state ``z`` (3 + n) with the loop's own integrator; the new states,
+        (count, 3 + n). For samples between two control instants (the command is held there)."""
+        z = np.array(z, dtype=float).reshape(-1)
+        if z.shape != (self.n + 3,):
+            raise ControllerError(f"z has {z.size} entries: need 3 + n = {self.n + 3}")
+        count = int(count)
+        out = np.zeros((max(count, 0), self.n + 3))
+        status = self._lib.pt_hold(ctypes.byref(self._chain), native.dptr(z), float(v0),
+                                   float(w0), float(h), count, native.dptr(out),
+                                   native.dptr(np.zeros(self._work_size)))
+        if status:
+            raise ControllerError(f"hold: {native.STATUS.get(status, status)} (count = {count})")
+        return out
+
     # ------------------------------------------------------------------ running
     def _native(self, reference) -> NativeReference:
         if isinstance(reference, NativeReference):
@@ -378,7 +397,7 @@ class ClosedLoop:
             self._leader_key = (ref, ref.struct.n_phases, ref.t_end)
         return self._leader
 
-    def run(self, reference, state: LoopState, k_end: int, record: bool = True) -> Rollout:
+    def run(self, reference, state: LoopState, k_end: int, record: bool = True) -> EngineRun:
         """Run from ``state`` to instant ``k_end`` (or the first violation).
 
         Parameters
@@ -439,18 +458,18 @@ class ClosedLoop:
                               float(violation.x), float(violation.y), float(violation.value))
         t = self.t_start + np.arange(state.k, k.value + 1, dtype=float) * self.step
         if record:
-            return Rollout(t, states[: done + 1], commands[:done], refs[:done],
+            return EngineRun(t, states[: done + 1], commands[:done], refs[:done],
                            dirs[:done].astype(int), end, found)
-        return Rollout(t, np.zeros((0, nz)), np.zeros((0, 2)), np.zeros((0, 3)),
+        return EngineRun(t, np.zeros((0, nz)), np.zeros((0, 2)), np.zeros((0, 3)),
                        np.zeros(0, dtype=int), end, found)
 
 
 def simulate(plant: ChainGeometry, reference: Reference, start_headings: Sequence[float],
              controller: ControllerConfig, step: float = 0.025, settle_time: float = 2.0,
-             checks: Checks | None = None) -> Rollout:
+             checks: Checks | None = None) -> EngineRun:
     """``simulate_tracking`` on the C integrator: the run from t = 0 to the first instant at or
     after ``reference.t_end + settle_time``, the last trailer starting at ``reference.start``
     with ``start_headings`` (n+1,) [rad], the robot at rest."""
-    loop = ClosedLoop(plant, controller, step, 0.0, checks)
+    loop = ClosedLoopEngine(plant, controller, step, 0.0, checks)
     state = loop.start(reference.start, start_headings)
     return loop.run(reference, state, loop.instant_at(reference.t_end + settle_time))

@@ -1,7 +1,8 @@
-"""The fast closed-loop integrator (core/csrc/rollout.c, core/rollout.py).
+"""The closed-loop engine (core/csrc/rollout.c, core/engine.py).
 
-It must run planner/train_check.py's simulate_tracking (equal states at the control instants to
-1e-9 on a bay plan and random plans: push, pull, cusps, n = 1, 3, 10), resume bit for bit, stop
+It must run the Python reference loop, tests/reference/closed_loop.py (equal states at the
+control instants to 1e-9 on a bay plan and random plans: push, pull, cusps, n = 1, 3, 10; the
+planner's simulate_tracking on it bit for bit), resume bit for bit, stop
 exactly where independent computations (shapely for footprints and rectangles, scipy for the
 bilinear grid, the joint angles from the states) say a check fails, and agree with the FMU's
 kinematic motion along a path to 1 mm.
@@ -15,16 +16,18 @@ import math
 import numpy as np
 import pytest
 import shapely
+from reference.closed_loop import simulate_tracking
 from scipy.interpolate import RegularGridInterpolator
 
 from pushtrain.core import native
 from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.engine import Checks, ClosedLoopEngine, LoopState, rectangle_points, simulate
 from pushtrain.core.kinematics import ChainGeometry, body_positions, joint_angles, wrap_angle
 from pushtrain.core.native_reference import NativeReference
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.core.rollout import Checks, ClosedLoop, LoopState, rectangle_points, simulate
 from pushtrain.errors import ControllerError
-from pushtrain.planner.kinematic_loop import default_controller, simulate_tracking
+from pushtrain.planner import kinematic_loop
+from pushtrain.planner.kinematic_loop import default_controller
 
 D = 0.52
 
@@ -102,11 +105,51 @@ def test_equals_simulate_tracking_on_random_plans(n):
     assert kinds == {PUSH, PULL}
 
 
+def test_the_planners_simulate_tracking_is_the_reference_loop_bit_for_bit():
+    """planner.kinematic_loop.simulate_tracking runs the engine: every row of the reference's
+    trajectory, the last instant's command, reference and direction included, bit for bit."""
+    rng = np.random.default_rng(7)
+    start, segments = bay_plan()
+    cases = [(ChainGeometry.uniform(3, D), start, segments, np.full(4, math.pi), 0.025, 2.0)]
+    for n in (1, 4):
+        geom = random_geometry(rng, n)
+        cases.append((geom, (0.5, -0.2, 1.0), random_plan(rng, 4), np.full(n + 1, 1.0), 0.05,
+                      1.0))
+    for geom, first, plan, heads, step, settle in cases:
+        ref = Reference.from_segments(first, plan, 0.08, 1.0)
+        config = default_controller(geom)
+        want = simulate_tracking(geom, ref, heads, config, step, settle)
+        got = kinematic_loop.simulate_tracking(geom, ref, heads, config, step, settle)
+        for name in ("t", "state", "command", "reference", "direction", "control"):
+            a, b = getattr(got, name), getattr(want, name)
+            assert a.shape == b.shape and a.tobytes() == b.tobytes(), name
+
+
+def test_hold_is_the_reference_rk4_bit_for_bit():
+    """ClosedLoopEngine.hold (pt_hold: the loop's own integrator) against the reference's RK4
+    step of the towed chain under a held command."""
+    from reference.closed_loop import rk4_hold, towed_rates
+
+    rng = np.random.default_rng(8)
+    geom = random_geometry(rng, 3)
+    loop = ClosedLoopEngine(geom, default_controller(geom))
+    z = [0.3, -0.1, 1.0, 1.1, 0.9, 1.2]
+    got = loop.hold(z, -0.08, 0.05, 0.004, 5)
+    rates, want = towed_rates(geom), []
+    for _ in range(5):
+        z = rk4_hold(rates, z, -0.08, 0.05, 0.004)
+        want.append(z)
+    assert got.tobytes() == np.array(want).tobytes()
+    assert loop.hold(z, 0.1, 0.0, 0.01, 0).shape == (0, 6)
+    with pytest.raises(ControllerError, match="3 \\+ n"):
+        loop.hold(z[:4], 0.1, 0.0, 0.01, 2)
+
+
 def _bay_loop(checks=None, step=0.025):
     start, segments = bay_plan()
     geom = ChainGeometry.uniform(3, D)
     ref = Reference.from_segments(start, segments, 0.08, 1.0)
-    loop = ClosedLoop(geom, default_controller(geom), step, checks=checks)
+    loop = ClosedLoopEngine(geom, default_controller(geom), step, checks=checks)
     return loop, ref, loop.start(start, np.full(4, math.pi) + [0.05, 0.0, -0.05, 0.0])
 
 
@@ -139,7 +182,7 @@ def test_planner_edges_continue_the_reference_and_the_state_bit_for_bit():
     segments = [Segment("line", 0.8), Segment("arc", 0.6, 0.7), Segment("line", 0.4),
                 Segment("line", 1.5, 0.0, PULL), Segment("arc", 0.7, -0.5, PUSH)]
     geom = ChainGeometry(np.array([0.5, 0.6, 0.45]), np.array([0.3, 0.52, 0.7]))
-    loop = ClosedLoop(geom, default_controller(geom), 0.025)
+    loop = ClosedLoopEngine(geom, default_controller(geom), 0.025)
     whole_ref = NativeReference(start, 0.08, 1.0, segments=segments)
     state0 = loop.start(start, np.full(4, math.pi))
     k_end = loop.instant_at(whole_ref.t_end + 2.0)
@@ -244,11 +287,12 @@ def test_footprint_check_stops_where_shapely_says_and_not_before():
     # ... and at the stop the reported body does not
     assert exact_min(run.states[-1])[v.body] < 0.05 + interp_err
     # the unchecked run passes the same states: the checks do not change the motion
-    plain = ClosedLoop(loop.plant, loop.controller, loop.step).run(ref, state, k_end)
+    plain = ClosedLoopEngine(loop.plant, loop.controller, loop.step).run(ref, state, k_end)
     assert np.array_equal(plain.states[: run.states.shape[0]], run.states)
     # with the block gone (a wider map) nothing fires
     wide = Checks(3, np.full((50, 50), 10.0), (-5.0, -5.0), 1.0, points, 0.05)
-    clear = ClosedLoop(loop.plant, loop.controller, loop.step, checks=wide).run(ref, state, k_end)
+    clear = ClosedLoopEngine(loop.plant, loop.controller, loop.step, checks=wide).run(
+        ref, state, k_end)
     assert clear.violation is None and clear.end.k == k_end
 
 
@@ -267,7 +311,7 @@ def test_a_second_tier_of_points_decides_only_for_bodies_that_fail_the_first():
     def run_with(first_margin, k_stop=k_end):
         checks = Checks(3, points=centre, margins=first_margin, fine_points=points,
                         fine_margins=0.05, **grid)
-        return ClosedLoop(loop.plant, loop.controller, loop.step, checks=checks).run(
+        return ClosedLoopEngine(loop.plant, loop.controller, loop.step, checks=checks).run(
             ref, state, k_stop)
 
     # a first tier nobody passes: the second decides everywhere, as if alone
@@ -305,14 +349,14 @@ def test_joint_limit_check_stops_at_the_first_excess():
     geom = ChainGeometry.uniform(3, D)
     segs = [Segment("arc", 1.2, 1 / 0.9), Segment("arc", 1.0, -1 / 0.8)]
     ref = Reference.from_segments((0.0, 0.0, 0.0), segs, 0.08, 1.0)
-    plain_loop = ClosedLoop(geom, default_controller(geom), 0.025)
+    plain_loop = ClosedLoopEngine(geom, default_controller(geom), 0.025)
     state = plain_loop.start(ref.start, np.zeros(4) + rng.uniform(-0.01, 0.01, 4) * [1, 1, 1, 0])
     plain = plain_loop.run(ref, state, plain_loop.instant_at(ref.t_end + 1.0))
     phi = np.abs(joint_angles(plain.states[:, 2:]))
     for phi_max in (0.3, 0.5, 0.7):
         over = np.flatnonzero((phi > phi_max).any(axis=1))
         checks = Checks(3, phi_max=phi_max)
-        run = ClosedLoop(geom, default_controller(geom), 0.025, checks=checks).run(
+        run = ClosedLoopEngine(geom, default_controller(geom), 0.025, checks=checks).run(
             ref, state, plain.end.k)
         if over.size == 0:
             assert run.violation is None
@@ -400,7 +444,7 @@ def test_self_collision_check_equals_shapely_on_random_states():
 
 def test_non_finite_states_and_refused_commands_stop_a_run():
     geom = ChainGeometry.uniform(2, D)
-    loop = ClosedLoop(geom, default_controller(geom), 0.025)
+    loop = ClosedLoopEngine(geom, default_controller(geom), 0.025)
     ref = Reference.from_segments((0.0, 0.0, 0.0), [Segment("line", 1.0)], 0.08)
     good = loop.start(ref.start, np.zeros(3))
     bad = LoopState(good.k, np.array([0.0, math.nan, 0.0, 0.0, 0.0]), 0.0, 0.0, -0.025)

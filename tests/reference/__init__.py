@@ -1,0 +1,5 @@
+"""Readable Python references the compiled engine (``core/csrc``) is held equal to, bit for bit.
+
+They are the formulas the C implements, in the same order, kept here for the tests only: the
+product measures and steps with the C.
+"""
