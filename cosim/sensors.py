@@ -8,13 +8,13 @@ e.g. from wheel misalignment) plus backlash, noise and quantization.
 Joint-angle pipeline, in this order, for joint i::
 
     play_i   <- clip(play_i, phi_i - b/2, phi_i + b/2)       backlash (play operator, band b)
-    reading  =  play_i + bias_i + N(0, joint_noise_std²)
+    reading  =  play_i + bias_i + N(0, joint_noise²)
     measured =  q * round(reading / q)                        quantization (if q > 0)
 
 ``play_i`` starts at the first true angle seen (after :meth:`Sensors.reset`). Robot pose::
 
-    x0_meas = x0 + N(0, pos_noise_std²),  y0_meas likewise
-    theta0_meas = theta0 + N(0, heading_noise_std²)
+    x0_meas = x0 + N(0, position_noise²),  y0_meas likewise
+    theta0_meas = theta0 + N(0, heading_noise²)
 
 All noise comes from one ``numpy.random.Generator`` seeded by ``SensorConfig.seed``; a
 disabled source (std 0) draws nothing. The model itself is written once, in C
@@ -31,12 +31,14 @@ import ctypes
 import logging
 from dataclasses import dataclass, field
 from math import isfinite
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 
 from pushtrain.core import native
 from pushtrain.errors import SensorError
+from pushtrain.settings import angle_setting, setting
+from pushtrain.validation import FiniteFloat, NonNegFloat
 
 __all__ = ["Measurement", "SensorConfig", "Sensors"]
 
@@ -70,34 +72,40 @@ class SensorConfig:
     ----------
     n_joints : int
         Number of joints n (= trailers), >= 1.
-    joint_bias : float or array of shape (n,)
+    joint_bias : float or sequence of n floats
         Constant bias added to each joint reading [rad] from the start (Section 3.1); a scalar
         applies to every joint. :meth:`Sensors.set_bias` changes it during a run.
-    joint_noise_std : float
+    joint_noise : float
         Standard deviation of white Gaussian noise on each joint reading [rad], >= 0.
     joint_quantization : float
         Resolution of the joint readings [rad], >= 0 (0: none).
     joint_backlash : float
         Width of the dead band (play) between joint and potentiometer [rad], >= 0 (0: none).
-    pos_noise_std : float
+    position_noise : float
         Standard deviation of the noise on x0 and y0 [m], >= 0.
-    heading_noise_std : float
+    heading_noise : float
         Standard deviation of the noise on theta0 [rad], >= 0.
-    measure_last_pose : bool
-        Also measure the last trailer's pose directly (same position and heading noise as the
-        robot's); :meth:`Sensors.measure` then needs the true ``last_pose``.
+    localize : {"robot", "last_trailer"}
+        What localization measures: the robot (the last trailer's pose is computed from the
+        joint angles, the paper's prototype), or also the last trailer directly (the setting
+        of Eq. 6-9; same position and heading noise as the robot's; :meth:`Sensors.measure`
+        then needs the true ``last_pose``).
     seed : int or None
         Seed of the noise generator (``None``: fresh entropy, not reproducible).
+
+    The fields but ``n_joints`` and ``seed`` are the scenario's ``[sensors]`` section (an angle
+    as ``NAME_deg``, in degrees), generated from their declarations
+    (:mod:`pushtrain.settings`).
     """
 
     n_joints: int
-    joint_bias: float | np.ndarray = 0.0
-    joint_noise_std: float = 0.0
-    joint_quantization: float = 0.0
-    joint_backlash: float = 0.0
-    pos_noise_std: float = 0.0
-    heading_noise_std: float = 0.0
-    measure_last_pose: bool = False
+    joint_bias: float | tuple = angle_setting(0.0, FiniteFloat | list[FiniteFloat])
+    joint_noise: float = angle_setting(0.0, NonNegFloat)
+    joint_quantization: float = angle_setting(0.0, NonNegFloat)
+    joint_backlash: float = angle_setting(0.0, NonNegFloat)
+    position_noise: float = setting(0.0, NonNegFloat)
+    heading_noise: float = angle_setting(0.0, NonNegFloat)
+    localize: str = setting("robot", Literal["robot", "last_trailer"])
     seed: int | None = 0
     _bias: np.ndarray = field(init=False, repr=False, compare=False)
 
@@ -120,12 +128,15 @@ class SensorConfig:
         if bad.size:
             raise SensorError(f"joint_bias[{bad[0]}] = {bias[bad[0]]!r} rad: must be finite")
         object.__setattr__(self, "_bias", bias)
+        if self.localize not in ("robot", "last_trailer"):
+            raise SensorError(f"localize = {self.localize!r}: allowed are 'robot' and "
+                              "'last_trailer'")
         for name in (
-            "joint_noise_std",
+            "joint_noise",
             "joint_quantization",
             "joint_backlash",
-            "pos_noise_std",
-            "heading_noise_std",
+            "position_noise",
+            "heading_noise",
         ):
             value = getattr(self, name)
             if not (isfinite(value) and value >= 0.0):
@@ -139,6 +150,11 @@ class SensorConfig:
     def bias(self) -> np.ndarray:
         """Initial per-joint bias, shape (n,) [rad] (a copy)."""
         return self._bias.copy()
+
+    @property
+    def measure_last_pose(self) -> bool:
+        """Localization measures the last trailer too (``localize = "last_trailer"``)."""
+        return self.localize == "last_trailer"
 
 
 # the noise blocks of one measurement (sensors.h PT_NOISE_*)
@@ -173,8 +189,8 @@ class Sensors:
         self.config = config
         self.n = n = config.n_joints
         self._lib = native.load()
-        joint, pos, heading = (config.joint_noise_std, config.pos_noise_std,
-                               config.heading_noise_std)
+        joint, pos, heading = (config.joint_noise, config.position_noise,
+                               config.heading_noise)
         pose = [pos, pos] * (pos > 0.0) + [heading] * (heading > 0.0)
         self.noise_scales = np.array([joint] * n * (joint > 0.0)
                                      + pose * (2 if config.measure_last_pose else 1), dtype=float)

@@ -118,15 +118,9 @@ def governed(sc: Scenario, config: ControllerConfig):
 
 
 def sensors_of(sc: Scenario) -> SensorConfig:
-    s = sc.sensors
-    return SensorConfig(
-        n_joints=sc.train.n, joint_bias=np.radians(_per_trailer(s.joint_bias_deg, sc.train.n)),
-        joint_noise_std=math.radians(s.joint_noise_deg),
-        joint_quantization=math.radians(s.joint_quantization_deg),
-        joint_backlash=math.radians(s.joint_backlash_deg), pos_noise_std=s.position_noise,
-        heading_noise_std=math.radians(s.heading_noise_deg),
-        measure_last_pose=s.localize == "last_trailer", seed=sc.seed,
-    )
+    """The co-simulation's sensor model: the ``[sensors]`` section for ``train.n`` joints, its
+    noise seeded by the scenario's ``seed``."""
+    return SensorConfig(sc.train.n, **config_values(SensorConfig, sc.sensors), seed=sc.seed)
 
 
 def events_of(sc: Scenario) -> list:

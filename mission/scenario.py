@@ -26,6 +26,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from pushtrain import defaults, table1
+from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import FieldErrors, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
@@ -173,16 +174,10 @@ class ControllerSection(_Section):
     implementation: Literal["c", "python"] = "c"
 
 
-class SensorSection(_Section):
-    # "robot": localize the robot, compute the last trailer from the joint angles (the paper's
-    # prototype); "last_trailer": localize the last trailer directly (the setting of Eq. 6-9)
-    localize: Literal["robot", "last_trailer"] = "robot"
-    joint_bias_deg: FiniteFloat | list[FiniteFloat] = 0.0
-    joint_noise_deg: NonNegFloat = 0.0
-    joint_quantization_deg: NonNegFloat = 0.0
-    joint_backlash_deg: NonNegFloat = 0.0
-    position_noise: NonNegFloat = 0.0
-    heading_noise_deg: NonNegFloat = 0.0
+SensorSection = file_section(SensorConfig, "SensorSection", _Section)
+"""``[sensors]``: the file settings of :class:`~pushtrain.cosim.sensors.SensorConfig`, with its
+defaults (``localize``: "robot" computes the last trailer from the joint angles, as the paper's
+prototype; "last_trailer" localizes it directly, the setting of Eq. 6-9)."""
 
 
 class EventSpec(_Section):

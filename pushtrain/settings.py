@@ -51,11 +51,9 @@ class FileKey:
         tuple, since configs are frozen)."""
         if value is None:
             return None
-        if self.degrees:
-            return math.radians(value)
         if isinstance(value, list):
-            return tuple(value)
-        return value
+            return tuple(math.radians(v) if self.degrees else v for v in value)
+        return math.radians(value) if self.degrees else value
 
 
 _META = "pushtrain.file"

@@ -199,7 +199,7 @@ def test_circle_pushed_backward_converges():
 def _steady_bias_run(joint, eps, measure_last_pose, n=3, t_end=60.0):
     geom = ChainGeometry.uniform(n, D)
     ref = straight_push(6.0)
-    sensors = Sensors(SensorConfig(n, measure_last_pose=measure_last_pose))
+    sensors = Sensors(SensorConfig(n, localize="last_trailer" if measure_last_pose else "robot"))
     sensors.set_bias(joint, eps)
     plant = KinematicPlant(geom, 0.0, 0.0, np.zeros(n + 1))
     log = run_closed_loop(BackwardController(ControllerConfig(geom)), ref, plant, t_end, sensors)

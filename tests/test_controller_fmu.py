@@ -200,7 +200,8 @@ def test_fmu_command_equals_the_python_controller(controller_sim, seed):
         loop = TrackingLoop(ctrl, reference)
         sensors = Sensors(SensorConfig(
             n_joints=n, joint_bias=sensor["bias"], joint_quantization=sensor["quantization"],
-            joint_backlash=sensor["backlash"], measure_last_pose=sensor["last"]))
+            joint_backlash=sensor["backlash"],
+            localize="last_trailer" if sensor["last"] else "robot"))
         for _ in range(12):
             robot, phi, last = _random_state(rng, reference, config.geometry, t)
             inputs = {"x0": robot[0], "y0": robot[1], "theta0": robot[2], "x_last": last[0],

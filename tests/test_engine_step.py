@@ -23,9 +23,9 @@ N = 3
 REFERENCE = Reference.from_segments((0.0, 0.0, math.pi), [
     Segment("line", 0.4), Segment("arc", 0.5, 0.8), Segment("line", 0.4, 0.0, PULL),
     Segment("arc", 0.4, -0.7, PULL)], speed=0.08, cusp_dwell=1.0)
-SENSORS = SensorConfig(N, joint_bias=[0.01, -0.02, 0.005], joint_noise_std=0.002,
-                       joint_quantization=0.001, joint_backlash=0.004, pos_noise_std=0.01,
-                       heading_noise_std=0.003, measure_last_pose=True, seed=5)
+SENSORS = SensorConfig(N, joint_bias=[0.01, -0.02, 0.005], joint_noise=0.002,
+                       joint_quantization=0.001, joint_backlash=0.004, position_noise=0.01,
+                       heading_noise=0.003, localize="last_trailer", seed=5)
 EVENTS = [Push(1.0, 3.0, lateral=25.0), Push(2.0, 5.0, fx=5.0, fy=-3.0, lateral=-10.0)]
 
 

@@ -145,7 +145,7 @@ def test_joint_bias_steady_offset_matches_the_analysis_fig14(fmu3, bias_deg, joi
 
     biases = np.zeros(3)
     biases[joint - 1] = math.radians(bias_deg)
-    sensors = SensorConfig(n_joints=3, joint_bias=biases, measure_last_pose=True)
+    sensors = SensorConfig(n_joints=3, joint_bias=biases, localize="last_trailer")
     ref = Reference.from_segments((0.0, 0.0, math.pi), [Segment("line", 14.0)], speed=0.08)
     cfg = ControllerConfig.uniform(3)
     result = simulate(fmu3, ref, cfg, sensors, horizon=170.0, check_goal=False)

@@ -70,11 +70,11 @@ def _both(fmu, reference, controller=None, **kwargs):
 @pytest.mark.parametrize("last_pose", [False, True], ids=["robot_pose", "last_pose"])
 def test_noisy_quantized_biased_sensors_with_play_and_bias_switches(fmu3, last_pose,
                                                                     monkeypatch):
-    config = SensorConfig(3, joint_bias=[0.0, 0.01, -0.005], joint_noise_std=math.radians(0.3),
+    config = SensorConfig(3, joint_bias=[0.0, 0.01, -0.005], joint_noise=math.radians(0.3),
                           joint_quantization=math.radians(0.1),
-                          joint_backlash=math.radians(0.6), pos_noise_std=0.003,
-                          heading_noise_std=math.radians(0.3), measure_last_pose=last_pose,
-                          seed=11)
+                          joint_backlash=math.radians(0.6), position_noise=0.003,
+                          heading_noise=math.radians(0.3),
+                          localize="last_trailer" if last_pose else "robot", seed=11)
     events = [SetBias(3.0, 2, math.radians(3.0)), SetBias(3.0, 1, -0.02),
               SetBias(7.2525, 3, 0.015)]  # two switches at once, one between two steps
     monkeypatch.setattr(step_loop, "CHUNK", 337)  # calls end inside and between the events
@@ -181,7 +181,7 @@ def test_fmu_and_control_law_failures_end_both_loops_alike(fmu3):
     c, _ = _both(fmu3, ref, events=[Push(0.5, 0.1, fx=math.inf)])
     assert c.status == "fmu_error" and c.message.startswith("setting ['v_cmd', 'w_cmd'")
     assert len(c.data) == 100
-    sensors = SensorConfig(3, joint_quantization=1e-320, joint_noise_std=0.01)
+    sensors = SensorConfig(3, joint_quantization=1e-320, joint_noise=0.01)
     with np.errstate(over="ignore"):
         c, _ = _both(fmu3, ref, sensors=sensors)
     assert c.status == "fmu_error" and "non-finite measurement at t = 0.0 s" in c.message

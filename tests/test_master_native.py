@@ -59,9 +59,9 @@ def test_c_and_python_master_runs_are_bit_identical_on_a_push_pull_mission(fmu3)
 
 def test_c_and_python_agree_with_noisy_sensors_a_pose_fix_and_the_governor(fmu3):
     ref = _push_pull()
-    sensors = SensorConfig(n_joints=3, joint_noise_std=math.radians(0.2),
-                           pos_noise_std=0.002, heading_noise_std=math.radians(0.2),
-                           measure_last_pose=True, seed=7)
+    sensors = SensorConfig(n_joints=3, joint_noise=math.radians(0.2),
+                           position_noise=0.002, heading_noise=math.radians(0.2),
+                           localize="last_trailer", seed=7)
     runs = {impl: simulate(fmu3, ref, _config(), sensors, implementation=impl, horizon=30.0,
                            check_goal=False) for impl in ("c", "python")}
     _same_runs(runs["c"], runs["python"])

@@ -7,7 +7,7 @@ from reference.sensors import ReferenceSensors
 from pushtrain.cosim.sensors import Measurement, SensorConfig, Sensors
 from pushtrain.errors import SensorError
 
-NOISY = dict(joint_noise_std=0.01, pos_noise_std=0.02, heading_noise_std=0.005)
+NOISY = dict(joint_noise=0.01, position_noise=0.02, heading_noise=0.005)
 
 
 def run(sensors, steps=50, n=3):
@@ -104,7 +104,7 @@ def test_noise_statistics():
 
 
 def test_last_pose_measurement():
-    s = Sensors(SensorConfig(2, measure_last_pose=True))
+    s = Sensors(SensorConfig(2, localize="last_trailer"))
     m = s.measure(0.0, 0.0, 0.0, [0.0, 0.0], last_pose=(-2.08, 0.0, 0.0))
     assert m.last_pose == (-2.08, 0.0, 0.0)
     with pytest.raises(SensorError, match="last_pose"):
@@ -116,10 +116,10 @@ def test_last_pose_measurement():
     [
         (dict(n_joints=0), "n_joints"),
         (dict(n_joints=3, joint_bias=[0.1, 0.2]), "joint_bias"),
-        (dict(n_joints=3, joint_noise_std=-1.0), "joint_noise_std"),
+        (dict(n_joints=3, joint_noise=-1.0), "joint_noise"),
         (dict(n_joints=3, joint_quantization=np.nan), "joint_quantization"),
         (dict(n_joints=3, joint_backlash=-0.1), "joint_backlash"),
-        (dict(n_joints=3, pos_noise_std=-0.1), "pos_noise_std"),
+        (dict(n_joints=3, position_noise=-0.1), "position_noise"),
         (dict(n_joints=3, seed=-2), "seed"),
     ],
 )
@@ -141,11 +141,11 @@ def test_bad_calls_raise():
 
 
 @pytest.mark.parametrize("kwargs", [
-    {}, dict(joint_noise_std=0.01), dict(joint_quantization=0.001),
-    dict(joint_backlash=0.01), dict(pos_noise_std=0.01), dict(heading_noise_std=0.01),
-    dict(measure_last_pose=True, pos_noise_std=0.02),
-    dict(joint_noise_std=0.004, joint_quantization=0.002, joint_backlash=0.03,
-         pos_noise_std=0.02, heading_noise_std=0.01, measure_last_pose=True)])
+    {}, dict(joint_noise=0.01), dict(joint_quantization=0.001),
+    dict(joint_backlash=0.01), dict(position_noise=0.01), dict(heading_noise=0.01),
+    dict(localize="last_trailer", position_noise=0.02),
+    dict(joint_noise=0.004, joint_quantization=0.002, joint_backlash=0.03,
+         position_noise=0.02, heading_noise=0.01, localize="last_trailer")])
 def test_compiled_model_equals_the_numpy_reference_bit_for_bit(kwargs):
     """core/csrc/sensors.c against tests/reference/sensors.py: the same readings and poses, bit
     for bit, through bias switches, backlash reversals, quantization ties and a reset."""
@@ -177,7 +177,7 @@ def test_a_nan_joint_angle_reads_nan_with_play_too():
 
 
 def test_measurer_writes_the_readings_where_it_is_told():
-    s = Sensors(SensorConfig(2, joint_bias=0.1, measure_last_pose=True))
+    s = Sensors(SensorConfig(2, joint_bias=0.1, localize="last_trailer"))
     truth, out = np.array([1.0, 2.0, 0.5, -1.0, 2.0, 0.4, 0.2, -0.1]), np.zeros(2)
     m = s.measurer(truth, out)()
     assert out.tolist() == m.phi == [0.2 + 0.1, -0.1 + 0.1]

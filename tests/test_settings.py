@@ -5,26 +5,28 @@ import math
 
 import pytest
 
+from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import ScenarioError
-from pushtrain.mission.scenario import PlannerSection, parse_scenario
+from pushtrain.mission.scenario import PlannerSection, SensorSection, parse_scenario
 from pushtrain.planner.config import PlannerConfig
 from pushtrain.settings import config_values, file_keys
 
-SECTIONS = [(PlannerConfig, PlannerSection)]
+SECTIONS = [(PlannerConfig, PlannerSection, {}), (SensorConfig, SensorSection, {"n_joints": 3})]
+"""Each library config, its scenario section, and the arguments that come from elsewhere."""
 
 
-@pytest.mark.parametrize(("config", "section"), SECTIONS)
-def test_a_default_file_gives_the_library_defaults(config, section):
+@pytest.mark.parametrize(("config", "section", "required"), SECTIONS)
+def test_a_default_file_gives_the_library_defaults(config, section, required):
     """No default can drift: the config made from an empty section equals the default config,
     field by field."""
-    made = config(**config_values(config, section()))
-    default = config()
+    made = config(**required, **config_values(config, section()))
+    default = config(**required)
     for name in file_keys(config):
         assert getattr(made, name) == getattr(default, name), name
 
 
-@pytest.mark.parametrize(("config", "section"), SECTIONS)
-def test_the_section_has_exactly_the_file_settings(config, section):
+@pytest.mark.parametrize(("config", "section", "required"), SECTIONS)
+def test_the_section_has_exactly_the_file_settings(config, section, required):
     keys = {k.key for k in file_keys(config).values()}
     assert set(section.model_fields) == keys
 
@@ -52,6 +54,29 @@ def test_every_file_field_reaches_the_config():
     for f in dataclasses.fields(PlannerConfig):
         if f.name in file_keys(PlannerConfig):
             assert getattr(config, f.name) != getattr(default, f.name), f.name
+
+
+def test_every_sensor_field_reaches_the_sensor_model():
+    """The walk of joint_bias_deg and its neighbours: file (degrees) -> SensorConfig (radians)
+    -> the model the C reads (its bias array)."""
+    from pushtrain.cosim.sensors import Sensors
+    from pushtrain.mission.runner import sensors_of
+
+    data = {"mission": {"kind": "scripted"}, "start": {"x": 0.0, "y": 0.0},
+            "reference": {"segments": [{"kind": "line", "length": 1.0}]},
+            "sensors": {"joint_bias_deg": [1.0, -2.0, 3.0], "joint_noise_deg": 0.5,
+                        "joint_quantization_deg": 0.1, "joint_backlash_deg": 0.2,
+                        "position_noise": 0.01, "heading_noise_deg": 0.3,
+                        "localize": "last_trailer"}}
+    assert set(data["sensors"]) == set(SensorSection.model_fields)
+    config = sensors_of(parse_scenario(data))
+    assert config.joint_bias == tuple(math.radians(a) for a in (1.0, -2.0, 3.0))
+    assert (config.joint_noise, config.joint_quantization, config.joint_backlash,
+            config.heading_noise) == tuple(math.radians(a) for a in (0.5, 0.1, 0.2, 0.3))
+    assert config.position_noise == 0.01 and config.measure_last_pose
+    sensors = Sensors(config)
+    assert list(sensors.bias) == [math.radians(a) for a in (1.0, -2.0, 3.0)]
+    assert sensors.model.measure_last_pose == 1
 
 
 def test_the_time_budget_default_is_one_value():

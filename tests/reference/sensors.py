@@ -2,7 +2,7 @@
 is held equal to, bit for bit (``tests/test_sensors.py``).
 
 Joint i: ``play_i <- clip(play_i, phi_i - b/2, phi_i + b/2)``, ``reading = play_i + bias_i +
-N(0, joint_noise_std²)``, ``measured = q * round(reading / q)``; poses: true + N(0, std²). Noise is
+N(0, joint_noise²)``, ``measured = q * round(reading / q)``; poses: true + N(0, std²). Noise is
 drawn value block by value block with ``Generator.normal`` (joints, robot position, robot heading,
 last trailer's position and heading), from a generator seeded as the product's.
 """
@@ -40,8 +40,8 @@ class ReferenceSensors:
             else:
                 np.clip(self.play, phi - half, phi + half, out=self.play)
             reading = self.play + self.bias
-        if c.joint_noise_std > 0.0:
-            reading += self.rng.normal(0.0, c.joint_noise_std, self.n)
+        if c.joint_noise > 0.0:
+            reading += self.rng.normal(0.0, c.joint_noise, self.n)
         if c.joint_quantization > 0.0:
             q = c.joint_quantization
             reading = q * np.round(reading / q)
@@ -50,11 +50,11 @@ class ReferenceSensors:
     def measure_pose(self, x: float, y: float, theta: float) -> tuple[float, float, float]:
         """One pose reading [m, m, rad]."""
         c = self.config
-        if c.pos_noise_std > 0.0:
-            ex, ey = self.rng.normal(0.0, c.pos_noise_std, 2)
+        if c.position_noise > 0.0:
+            ex, ey = self.rng.normal(0.0, c.position_noise, 2)
             x, y = x + ex, y + ey
-        if c.heading_noise_std > 0.0:
-            theta = theta + self.rng.normal(0.0, c.heading_noise_std)
+        if c.heading_noise > 0.0:
+            theta = theta + self.rng.normal(0.0, c.heading_noise)
         return float(x), float(y), float(theta)
 
     def measure(self, x0, y0, theta0, phi, last_pose=None) -> Measurement:
