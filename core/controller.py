@@ -62,6 +62,7 @@ with these gains; with the pose estimated from the biased joints it is about 4 t
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from math import cos, isfinite, sin
 from typing import NamedTuple
@@ -69,6 +70,8 @@ from typing import NamedTuple
 import numpy as np
 
 from pushtrain.errors import ControllerError
+from pushtrain.settings import angle_setting, setting
+from pushtrain.validation import PositiveFloat
 
 from .kinematics import ChainGeometry, robot_velocity_from_last, wrap_scalar
 from .reference import PULL, PUSH, REST, ReferenceSample
@@ -106,20 +109,25 @@ class ControllerConfig:
     w_max : float
         Robot yaw-rate limit [rad/s], > 0 (Table: 0.1).
     acc_max, alpha_max : float or None
-        Optional rate limits of the command [m/s², rad/s²], > 0; ``None`` disables. If one is
-        given the other may stay ``None`` (unlimited).
+        Rate limits of the command [m/s², rad/s²], > 0; ``None`` disables one. Default 0.2
+        m/s² and 10 deg/s²: the paper keeps |alpha| <= 10 deg/s² to avoid lateral slip
+        (Sec. 4.4).
     rest_speed : float
         |v_d| [m/s] at or below which the reference counts as resting (>= 0).
+
+    The gains and rate limits are the scenario's ``[controller]`` section, ``v_max`` and
+    ``w_max`` (as ``w_max_deg``) its ``[robot]`` section: generated from these declarations
+    (:mod:`pushtrain.settings`), so the file's defaults are these.
     """
 
     geometry: ChainGeometry
-    k_x: float = 1.0
-    k_y: float = 4.0
-    k_theta: float = 4.0
-    v_max: float = 0.1
-    w_max: float = 0.1
-    acc_max: float | None = None
-    alpha_max: float | None = None
+    k_x: float = setting(1.0, PositiveFloat)
+    k_y: float = setting(4.0, PositiveFloat)
+    k_theta: float = setting(4.0, PositiveFloat)
+    v_max: float = setting(0.1, PositiveFloat, part="robot")
+    w_max: float = angle_setting(math.degrees(0.1), PositiveFloat, part="robot")
+    acc_max: float | None = setting(0.2, PositiveFloat | None)
+    alpha_max: float | None = angle_setting(10.0, PositiveFloat | None)
     rest_speed: float = 1e-9
 
     def __post_init__(self):

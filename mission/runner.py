@@ -95,11 +95,8 @@ def controller_of(sc: Scenario) -> ControllerConfig:
         geom = geometry_of(sc)
     else:
         geom = ChainGeometry.uniform(sc.train.n, c.model_link)
-    return ControllerConfig(
-        geometry=geom, k_x=c.k_x, k_y=c.k_y, k_theta=c.k_theta, v_max=sc.robot.v_max,
-        w_max=math.radians(sc.robot.w_max_deg), acc_max=c.acc_max,
-        alpha_max=None if c.alpha_max_deg is None else math.radians(c.alpha_max_deg),
-    )
+    return ControllerConfig(geom, **config_values(ControllerConfig, sc.controller),
+                            **config_values(ControllerConfig, sc.robot, part="robot"))
 
 
 def governed(sc: Scenario, config: ControllerConfig):

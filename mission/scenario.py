@@ -26,9 +26,11 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from pushtrain import defaults, table1
+from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.governor import GovernorConfig
 from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import FieldErrors, ScenarioError
-from pushtrain.fmu.variables import MAX_TRAILERS
+from pushtrain.fmu.variables import MAX_TRAILERS, scalars_for
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
 from pushtrain.planner.config import PlannerConfig
 from pushtrain.settings import file_section
@@ -74,12 +76,17 @@ class TrainSection(_Section):
     phi_max_deg: Annotated[float, Field(gt=0, lt=180)] = 90.0
 
 
-class RobotSection(_Section):
-    v_max: PositiveFloat = 0.1
-    w_max_deg: PositiveFloat = math.degrees(0.1)
-    tau: PositiveFloat = 0.05
-    acc_max: PositiveFloat = 1.0
-    alpha_max_deg: PositiveFloat = math.degrees(2.0)
+_FMU_START = {v.name: v.start for v in scalars_for(2)}
+"""The plant FMU's start values (its variable table): the robot's velocity loop defaults."""
+
+RobotSection = file_section(ControllerConfig, "RobotSection", _Section, part="robot", extra={
+    "tau": (PositiveFloat, _FMU_START["robot_tau"]),
+    "acc_max": (PositiveFloat, _FMU_START["robot_acc_max"]),
+    "alpha_max_deg": (PositiveFloat, math.degrees(_FMU_START["robot_alpha_max"])),
+})
+"""``[robot]``: the speed limits of :class:`~pushtrain.core.controller.ControllerConfig`
+(``v_max``, ``w_max_deg``) and the plant's velocity loop (``tau``, ``acc_max``,
+``alpha_max_deg``, defaults from the FMU's variable table)."""
 
 
 class Pose(_Section):
@@ -157,21 +164,21 @@ class ReferenceSection(_Section):
     segments: Annotated[list[SegmentSpec], Field(min_length=1)]
 
 
-class ControllerSection(_Section):
-    k_x: PositiveFloat = 1.0
-    k_y: PositiveFloat = 4.0
-    k_theta: PositiveFloat = 4.0
-    model_link: PositiveFloat | None = None  # the controller's own D (None: the plant's links)
-    # Command rate limits; the paper keeps |alpha| <= 10 deg/s^2 to avoid lateral slip (Sec. 4.4).
-    acc_max: PositiveFloat | None = 0.2
-    alpha_max_deg: PositiveFloat | None = 10.0
-    # slip-aware governor: limit command changes so the predicted lateral wheel forces stay below
-    # governor_fraction of friction (computed with the controller's own model of the train)
-    governor: bool = False
-    governor_fraction: Annotated[float, Field(gt=0, le=1)] = 0.8
+ControllerSection = file_section(ControllerConfig, "ControllerSection", _Section, extra={
+    # the controller's own D (None: the plant's links)
+    "model_link": (PositiveFloat | None, None),
+    # slip-aware governor: limit command changes so the predicted lateral wheel forces stay
+    # below governor_fraction of friction (computed with the controller's own model of the train)
+    "governor": (bool, False),
+    "governor_fraction": (Annotated[float, Field(gt=0, le=1)], GovernorConfig.fraction),
     # the control law in the co-simulation: "c" the compiled one (core/csrc, one call per step),
     # "python" the readable BackwardController (both give the same commands)
-    implementation: Literal["c", "python"] = "c"
+    "implementation": (Literal["c", "python"], "c"),
+})
+"""``[controller]``: the gains and rate limits of
+:class:`~pushtrain.core.controller.ControllerConfig` (the paper keeps |alpha| <= 10 deg/s² to
+avoid lateral slip, Sec. 4.4), the controller's own link, the governor and the law's
+implementation."""
 
 
 SensorSection = file_section(SensorConfig, "SensorSection", _Section)

@@ -54,14 +54,9 @@ __all__ = ["TrackerConfig", "Trajectory", "default_controller", "reference_times
 
 
 def default_controller(geometry: ChainGeometry) -> ControllerConfig:
-    """The scenario defaults of :class:`~pushtrain.core.controller.ControllerConfig` for a chain.
-
-    Default gains (K_x = 1 1/s, K_y = 4 1/m², K_theta = 4 1/m), v_max = 0.1 m/s,
-    w_max = 0.1 rad/s, acc_max = 0.2 m/s², alpha_max = 10 deg/s² (``mission/scenario.py``'s
-    robot and controller sections) and ``geometry`` as the controller's chain model.
-    """
-    return ControllerConfig(geometry=geometry, v_max=0.1, w_max=0.1, acc_max=0.2,
-                            alpha_max=math.radians(10.0))
+    """:class:`~pushtrain.core.controller.ControllerConfig`'s defaults (the scenario's) with
+    ``geometry`` as the controller's chain model."""
+    return ControllerConfig(geometry=geometry)
 
 
 @dataclass(frozen=True)

@@ -39,12 +39,16 @@ class FileKey:
         The file's default, in the file's units (degrees for an angle).
     degrees : bool
         The file gives degrees, the library takes radians.
+    part : str or None
+        The file section that holds it, when not the config's own (e.g. ``"robot"`` for the
+        controller's speed limits).
     """
 
     key: str
     annotation: Any
     default: Any
     degrees: bool = False
+    part: str | None = None
 
     def to_library(self, value):
         """The library's value of the file's ``value`` (radians of degrees; a list becomes a
@@ -59,39 +63,45 @@ class FileKey:
 _META = "pushtrain.file"
 
 
-def setting(default, annotation):
+def setting(default, annotation, *, part: str | None = None):
     """A dataclass field the scenario file sets under the same name, with ``annotation`` (its
-    pydantic type and constraints) and the same ``default``."""
-    return dataclasses.field(default=default, metadata={_META: (annotation, False, default)})
+    pydantic type and constraints) and the same ``default``; ``part``: the file section that
+    holds it, if not the config's own."""
+    return dataclasses.field(default=default,
+                             metadata={_META: (annotation, False, default, part)})
 
 
-def angle_setting(default_deg, annotation):
+def angle_setting(default_deg, annotation, *, part: str | None = None):
     """A dataclass field for an angle [rad] that the file gives in degrees as ``NAME_deg``
     (``annotation`` constrains the degrees); the default is written in degrees, the field's
     default is its radians (None stays None)."""
     default = None if default_deg is None else math.radians(default_deg)
-    return dataclasses.field(default=default, metadata={_META: (annotation, True, default_deg)})
+    return dataclasses.field(default=default,
+                             metadata={_META: (annotation, True, default_deg, part)})
 
 
-def file_keys(config_class) -> dict[str, FileKey]:
-    """{field name: :class:`FileKey`} of every field of ``config_class`` a file sets."""
+def file_keys(config_class, part: str | None = None) -> dict[str, FileKey]:
+    """{field name: :class:`FileKey`} of every field of ``config_class`` that the file section
+    ``part`` sets (None: the config's own section)."""
     out = {}
     for f in dataclasses.fields(config_class):
         meta = f.metadata.get(_META)
-        if meta is None:
+        if meta is None or meta[3] != part:
             continue
-        annotation, degrees, default = meta
+        annotation, degrees, default, _ = meta
         if default is MISSING:
             raise TypeError(f"{config_class.__name__}.{f.name}: a file setting needs a default")
-        out[f.name] = FileKey(f.name + ("_deg" if degrees else ""), annotation, default, degrees)
+        out[f.name] = FileKey(f.name + ("_deg" if degrees else ""), annotation, default, degrees,
+                              part)
     return out
 
 
-def file_section(config_class, name: str, base, extra: dict | None = None):
-    """The pydantic model of a scenario section holding ``config_class``'s file settings (on
-    ``base``, the scenario's strict model), plus the section's ``extra`` fields that belong to
-    no library config ({key: (annotation, default)})."""
-    fields = {k.key: (k.annotation, k.default) for k in file_keys(config_class).values()}
+def file_section(config_class, name: str, base, extra: dict | None = None,
+                 part: str | None = None):
+    """The pydantic model of a scenario section holding ``config_class``'s file settings of
+    ``part`` (on ``base``, the scenario's strict model), plus the section's ``extra`` fields
+    that belong to no library config ({key: (annotation, default)})."""
+    fields = {k.key: (k.annotation, k.default) for k in file_keys(config_class, part).values()}
     for key in extra or {}:
         if key in fields:
             raise TypeError(f"{name}.{key} is both a {config_class.__name__} setting and extra")
@@ -102,7 +112,8 @@ def file_section(config_class, name: str, base, extra: dict | None = None):
     return model
 
 
-def config_values(config_class, section) -> dict:
-    """``config_class``'s keyword arguments from a validated ``section`` (every file setting)."""
+def config_values(config_class, section, part: str | None = None) -> dict:
+    """``config_class``'s keyword arguments from a validated ``section`` (every file setting of
+    ``part``)."""
     return {name: k.to_library(getattr(section, k.key))
-            for name, k in file_keys(config_class).items()}
+            for name, k in file_keys(config_class, part).items()}

@@ -5,30 +5,56 @@ import math
 
 import pytest
 
+from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import ScenarioError
-from pushtrain.mission.scenario import PlannerSection, SensorSection, parse_scenario
+from pushtrain.mission.scenario import (
+    ControllerSection,
+    PlannerSection,
+    RobotSection,
+    SensorSection,
+    parse_scenario,
+)
 from pushtrain.planner.config import PlannerConfig
 from pushtrain.settings import config_values, file_keys
 
-SECTIONS = [(PlannerConfig, PlannerSection, {}), (SensorConfig, SensorSection, {"n_joints": 3})]
-"""Each library config, its scenario section, and the arguments that come from elsewhere."""
+SECTIONS = [
+    (PlannerConfig, PlannerSection, None, {}, set()),
+    (SensorConfig, SensorSection, None, {"n_joints": 3}, set()),
+    (ControllerConfig, ControllerSection, None, {"geometry": ChainGeometry.uniform(3)},
+     {"model_link", "governor", "governor_fraction", "implementation"}),
+    (ControllerConfig, RobotSection, "robot", {"geometry": ChainGeometry.uniform(3)},
+     {"tau", "acc_max", "alpha_max_deg"}),
+]
+"""Each library config, its scenario section, the part of the config the section holds, the
+arguments that come from elsewhere, and the section's own fields that feed no library config."""
 
 
-@pytest.mark.parametrize(("config", "section", "required"), SECTIONS)
-def test_a_default_file_gives_the_library_defaults(config, section, required):
+@pytest.mark.parametrize(("config", "section", "part", "required", "own"), SECTIONS)
+def test_a_default_file_gives_the_library_defaults(config, section, part, required, own):
     """No default can drift: the config made from an empty section equals the default config,
     field by field."""
-    made = config(**required, **config_values(config, section()))
+    made = config(**required, **config_values(config, section(), part))
     default = config(**required)
-    for name in file_keys(config):
+    for name in file_keys(config, part):
         assert getattr(made, name) == getattr(default, name), name
 
 
-@pytest.mark.parametrize(("config", "section", "required"), SECTIONS)
-def test_the_section_has_exactly_the_file_settings(config, section, required):
-    keys = {k.key for k in file_keys(config).values()}
-    assert set(section.model_fields) == keys
+@pytest.mark.parametrize(("config", "section", "part", "required", "own"), SECTIONS)
+def test_the_section_has_exactly_the_file_settings(config, section, part, required, own):
+    keys = {k.key for k in file_keys(config, part).values()}
+    assert set(section.model_fields) == keys | own and not keys & own
+
+
+def test_the_robot_section_defaults_are_the_fmus():
+    """The robot's velocity loop: the file's defaults are the plant FMU's start values."""
+    from pushtrain.fmu.variables import scalars_for
+
+    start = {v.name: v.start for v in scalars_for(2)}
+    robot = RobotSection()
+    assert (robot.tau, robot.acc_max, math.radians(robot.alpha_max_deg)) == pytest.approx(
+        (start["robot_tau"], start["robot_acc_max"], start["robot_alpha_max"]), rel=1e-15)
 
 
 def test_angles_are_degrees_in_the_file_and_radians_in_the_library():
