@@ -78,7 +78,7 @@ class PlannerConfig:
         Margin of the radius rule (0.6: steady joint angle = phi_max / 1.6).
     planner : str
         One of :data:`PLANNERS`. ``lattice`` (default): the whole-train closed-loop search
-        (:func:`~pushtrain.planner.closedloop.plan_lattice`); its settings are ``clearance``,
+        (:func:`~pushtrain.planner.whole_train.plan_lattice`); its settings are ``clearance``,
         ``goal_tolerance``, ``joint_margin``, ``pull_max_phi``, ``step_length``,
         ``search_weight``, ``sample_spacing``, ``smooth`` and ``time_budget``. The OMPL
         planners of the last trailer: ``rrtconnect`` returns its first solution fast,

@@ -33,7 +33,6 @@ from pushtrain.errors import PlanningError, PlanningInputError
 from pushtrain.facility.free_space import World
 
 from .budget import STEPS_PER_CHECK, Work
-from .closedloop import plan_lattice
 from .config import ANYTIME_PLANNERS, PlannerConfig
 from .curves import (
     chain_to_planner_state,
@@ -44,6 +43,7 @@ from .path import PlannedPath
 from .search import Attempt, solve_once, solve_restarts
 from .train import Train
 from .train_check import check_train
+from .whole_train import plan_lattice
 
 __all__ = ["plan"]
 

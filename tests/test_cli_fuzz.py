@@ -208,7 +208,7 @@ measured: a 9 m x 1095 m map, at the distance field's 25 M-cell limit, 1.1 GiB p
 TIME_CAP = 120.0
 """Seconds of wall time of one CLI call before its child is killed (a quick run takes 1-3 s,
 at most about 25 s under load: the planner's own safety cap is 10 x 0.5 + 10 s)."""
-_WARM = ("pushtrain.mission.runner", "pushtrain.planner.closedloop", "pushtrain.facility.loading",
+_WARM = ("pushtrain.mission.runner", "pushtrain.planner.whole_train", "pushtrain.facility.loading",
          "pushtrain.cosim.master", "pushtrain.cosim.step_loop", "pushtrain.core.engine",
          "pushtrain.core.native_controller", "scipy.ndimage")
 

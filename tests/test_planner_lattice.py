@@ -207,22 +207,22 @@ def test_an_exact_test_that_would_end_past_the_safety_cap_is_not_started(monkeyp
     """The exact test cannot be interrupted: with its cost estimated past the wall-clock safety
     cap (10 x time_budget + 10 s) the planner stops, says the clock cut it short, and names the
     cap; with a small estimate the same problem plans."""
-    from pushtrain.planner import closedloop
+    from pushtrain.planner import whole_train
 
     case = example_layouts.l_corridor(2.0)
     world = World.from_dict(case["world"])
     config = PlannerConfig(time_budget=2.0)
-    monkeypatch.setattr(closedloop, "_EXACT_RATE", [1.0])  # 1 s per state and body
+    monkeypatch.setattr(whole_train, "_EXACT_RATE", [1.0])  # 1 s per state and body
     with pytest.raises(PlanningError) as info:
         plan(world, case["start"], case["goal"], TRAIN, config)
     err = info.value
     assert err.reason == "budget_exhausted" and err.details["time_capped"]
     assert err.details["constraint"] == "budget" and "safety cap of 30 s" in str(err)
-    monkeypatch.setattr(closedloop, "_EXACT_RATE", [1e-9])
+    monkeypatch.setattr(whole_train, "_EXACT_RATE", [1e-9])
     path = plan(world, case["start"], case["goal"], TRAIN, config)
     assert not path.info["time_capped"]
     # the rate is measured again by every exact test
-    assert closedloop._EXACT_RATE[0] > 1e-9
+    assert whole_train._EXACT_RATE[0] > 1e-9
 
 
 def _corridor_into_a_hall(corridor: float = 2.0, hall: float = 2.0) -> dict:

@@ -9,7 +9,8 @@
    says so with those numbers.
 2. **Search.** :class:`~pushtrain.planner.lattice.Search` over closed-loop train states,
    within ``budget_steps`` simulated control steps (``time_budget`` at
-   :data:`~pushtrain.planner.budget.STEPS_PER_SECOND`) and the wall clock ``time_budget``.
+   :data:`~pushtrain.planner.budget.STEPS_PER_SECOND`); the wall clock only as a safety net
+   far above it (``PlannerConfig.wall_cap``).
 3. **Verification.** A path the search found is simulated again in one go from the start with
    exactly the co-simulation's reference (one :class:`~pushtrain.core.reference.Reference`,
    cusp dwells, pull guides over whole pulling runs) and the search's checks.
