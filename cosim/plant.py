@@ -6,39 +6,63 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field
 
 from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last
 from pushtrain.core.reference import Reference
 from pushtrain.errors import CosimInputError
+from pushtrain.fmu.variables import scalars_for, variables_for
+from pushtrain.settings import angle_setting, setting
 from pushtrain.table1 import LINK
+from pushtrain.validation import NonNegFloat, PositiveFloat, no_bool
 
 __all__ = ["PlantConfig", "InitialState"]
+
+_START = {v.name.split("[")[0]: v.start for v in (*scalars_for(2), *variables_for(1))
+          if v.name != "rear[0]"}
+"""The FMU's start value of each parameter (its variable table; a per-trailer array's is the
+first trailer's, the same for every trailer)."""
 
 
 @dataclass
 class PlantConfig:
     """Parameters of the TrailerTrain FMU (names as in the FMU; arrays per trailer i = 1..n).
 
-    ``None`` keeps the FMU's default (Table 1 of the paper). ``front`` holds F_1..F_n, ``rear``
-    R_0..R_{n-1} [m]; ``mass``, ``payload`` [kg], ``inertia`` [kg m^2], ``mu`` [-] per trailer.
+    ``front`` holds F_1..F_n, ``rear`` R_0..R_{n-1} [m]; ``mass``, ``payload`` [kg],
+    ``inertia`` [kg m^2], ``mu`` [-] per trailer (one value or n). ``None`` keeps the FMU's
+    default. The defaults are the FMU's own start values (its variable table, which reads
+    Table 1), and the fields a scenario sets say where: ``[train]`` (``mass``, ``inertia``,
+    ``payload``, ``mu``, ``phi_max_deg``), ``[robot]`` (``tau``, ``acc_max``,
+    ``alpha_max_deg``: the robot's velocity loop) and ``[fmu]`` (``slip_mode``,
+    ``max_substep``); the scenario's sections are generated from these declarations
+    (:mod:`pushtrain.settings`).
     """
 
     n_trailers: int
     front: Sequence[float] | float | None = None
     rear: Sequence[float] | float | None = None
-    mass: Sequence[float] | float | None = None
-    inertia: Sequence[float] | float | None = None
-    payload: Sequence[float] | float | None = None
-    mu: Sequence[float] | float | None = None
+    mass: Sequence[float] | float | None = setting(
+        _START["mass"], PositiveFloat | list[PositiveFloat], part="train")
+    inertia: Sequence[float] | float | None = setting(
+        _START["inertia"], PositiveFloat | list[PositiveFloat], part="train")
+    payload: Sequence[float] | float | None = setting(
+        _START["payload"], NonNegFloat | list[NonNegFloat], part="train")
+    mu: Sequence[float] | float | None = setting(
+        _START["mu"], NonNegFloat | list[NonNegFloat], part="train")
     g: float | None = None
-    robot_tau: float | None = None
-    robot_acc_max: float | None = None
-    robot_alpha_max: float | None = None
-    phi_max: float | None = None
-    slip_mode: int | None = None
-    max_substep: float | None = None
+    robot_tau: float | None = setting(_START["robot_tau"], PositiveFloat, part="robot", key="tau")
+    robot_acc_max: float | None = setting(_START["robot_acc_max"], PositiveFloat, part="robot",
+                                          key="acc_max")
+    robot_alpha_max: float | None = angle_setting(
+        math.degrees(_START["robot_alpha_max"]), PositiveFloat, part="robot", key="alpha_max_deg")
+    phi_max: float | None = angle_setting(
+        math.degrees(_START["phi_max"]), Annotated[float, Field(gt=0, lt=180)], part="train")
+    slip_mode: int | None = setting(
+        _START["slip_mode"], Annotated[Literal[0, 1], no_bool("0 or 1")], part="fmu")
+    max_substep: float | None = setting(_START["max_substep"], PositiveFloat, part="fmu")
     slip_substep: float | None = None
 
     def _array(self, name: str, first: int):

@@ -77,15 +77,13 @@ def train_of(sc: Scenario):
 
 
 def plant_of(sc: Scenario) -> PlantConfig:
-    t, r = sc.train, sc.robot
+    """The plant FMU's parameters: the links, and the ``[train]``, ``[robot]`` and ``[fmu]``
+    settings of :class:`~pushtrain.cosim.plant.PlantConfig`."""
     geom = geometry_of(sc)
-    return PlantConfig(
-        n_trailers=t.n, front=geom.front, rear=geom.rear, mass=_per_trailer(t.mass, t.n),
-        inertia=_per_trailer(t.inertia, t.n), payload=_per_trailer(t.payload, t.n),
-        mu=_per_trailer(t.mu, t.n), robot_tau=r.tau, robot_acc_max=r.acc_max,
-        robot_alpha_max=math.radians(r.alpha_max_deg), phi_max=math.radians(t.phi_max_deg),
-        slip_mode=sc.fmu.slip_mode, max_substep=sc.fmu.max_substep,
-    )
+    return PlantConfig(sc.train.n, front=geom.front, rear=geom.rear,
+                       **config_values(PlantConfig, sc.train, part="train"),
+                       **config_values(PlantConfig, sc.robot, part="robot"),
+                       **config_values(PlantConfig, sc.fmu, part="fmu"))
 
 
 def controller_of(sc: Scenario) -> ControllerConfig:

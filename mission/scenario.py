@@ -28,9 +28,10 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from pushtrain import defaults, table1
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.governor import GovernorConfig
+from pushtrain.cosim.plant import PlantConfig
 from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import FieldErrors, ScenarioError
-from pushtrain.fmu.variables import MAX_TRAILERS, scalars_for
+from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
 from pushtrain.planner.config import PlannerConfig
 from pushtrain.settings import file_section
@@ -60,33 +61,23 @@ class Size(_Section):
     offset: FiniteFloat = 0.0
 
 
-class TrainSection(_Section):
-    """The robot's trailers: links, masses and footprints (per trailer lists or one value)."""
-
-    n: Annotated[Integer, Field(ge=1, le=MAX_TRAILERS)] = 3
-    link: PositiveFloat = table1.LINK
-    front: list[PositiveFloat] | None = None
-    rear: list[PositiveFloat] | None = None
-    mass: PositiveFloat | list[PositiveFloat] = table1.TRAILER_MASS
-    inertia: PositiveFloat | list[PositiveFloat] = table1.TRAILER_INERTIA
-    payload: NonNegFloat | list[NonNegFloat] = 0.0
-    mu: NonNegFloat | list[NonNegFloat] = table1.MU
-    trailer_size: Size = Size(length=table1.TRAILER_LENGTH, width=table1.TRAILER_WIDTH)
-    robot_size: Size = Size(length=defaults.ROBOT_LENGTH, width=defaults.ROBOT_WIDTH)
-    phi_max_deg: Annotated[float, Field(gt=0, lt=180)] = 90.0
-
-
-_FMU_START = {v.name: v.start for v in scalars_for(2)}
-"""The plant FMU's start values (its variable table): the robot's velocity loop defaults."""
-
-RobotSection = file_section(ControllerConfig, "RobotSection", _Section, part="robot", extra={
-    "tau": (PositiveFloat, _FMU_START["robot_tau"]),
-    "acc_max": (PositiveFloat, _FMU_START["robot_acc_max"]),
-    "alpha_max_deg": (PositiveFloat, math.degrees(_FMU_START["robot_alpha_max"])),
+TrainSection = file_section(PlantConfig, "TrainSection", _Section, part="train", extra={
+    "n": (Annotated[Integer, Field(ge=1, le=MAX_TRAILERS)], 3),
+    "link": (PositiveFloat, table1.LINK),
+    "front": (list[PositiveFloat] | None, None),
+    "rear": (list[PositiveFloat] | None, None),
+    "trailer_size": (Size, Size(length=table1.TRAILER_LENGTH, width=table1.TRAILER_WIDTH)),
+    "robot_size": (Size, Size(length=defaults.ROBOT_LENGTH, width=defaults.ROBOT_WIDTH)),
 })
+"""``[train]``: n, the links and footprints, and the trailers' physics of
+:class:`~pushtrain.cosim.plant.PlantConfig` (``mass``, ``inertia``, ``payload``, ``mu``: one
+value or a list of n; ``phi_max_deg``), with the FMU's defaults (Table 1)."""
+
+RobotSection = file_section(ControllerConfig, "RobotSection", _Section, part="robot",
+                            also=((PlantConfig, "robot"),))
 """``[robot]``: the speed limits of :class:`~pushtrain.core.controller.ControllerConfig`
-(``v_max``, ``w_max_deg``) and the plant's velocity loop (``tau``, ``acc_max``,
-``alpha_max_deg``, defaults from the FMU's variable table)."""
+(``v_max``, ``w_max_deg``) and the plant's velocity loop of
+:class:`~pushtrain.cosim.plant.PlantConfig` (``tau``, ``acc_max``, ``alpha_max_deg``)."""
 
 
 class Pose(_Section):
@@ -217,11 +208,12 @@ class RotationSection(_Section):
     duration: PositiveFloat = 30.0
 
 
-class FmuSection(_Section):
-    slip_mode: Annotated[Literal[0, 1], no_bool("0 or 1")] = 0
-    max_substep: PositiveFloat = table1.SAMPLING_TIME
+FmuSection = file_section(PlantConfig, "FmuSection", _Section, part="fmu", extra={
     # 2: an FMI 2.0 FMU built for train.n (cached per n); 3: the one FMI 3.0 FMU, n set at start
-    fmi_version: Annotated[Literal[2, 3], no_bool("2 or 3")] = 2
+    "fmi_version": (Annotated[Literal[2, 3], no_bool("2 or 3")], 2),
+})
+"""``[fmu]``: the plant's ``slip_mode`` and ``max_substep`` (:class:`~pushtrain.cosim.plant.
+PlantConfig`) and which FMI version runs it."""
 
 
 class SimSection(_Section):

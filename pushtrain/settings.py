@@ -63,21 +63,21 @@ class FileKey:
 _META = "pushtrain.file"
 
 
-def setting(default, annotation, *, part: str | None = None):
-    """A dataclass field the scenario file sets under the same name, with ``annotation`` (its
-    pydantic type and constraints) and the same ``default``; ``part``: the file section that
-    holds it, if not the config's own."""
+def setting(default, annotation, *, part: str | None = None, key: str | None = None):
+    """A dataclass field the scenario file sets under the same name (or ``key``), with
+    ``annotation`` (its pydantic type and constraints) and the same ``default``; ``part``: the
+    file section that holds it, if not the config's own."""
     return dataclasses.field(default=default,
-                             metadata={_META: (annotation, False, default, part)})
+                             metadata={_META: (annotation, False, default, part, key)})
 
 
-def angle_setting(default_deg, annotation, *, part: str | None = None):
-    """A dataclass field for an angle [rad] that the file gives in degrees as ``NAME_deg``
-    (``annotation`` constrains the degrees); the default is written in degrees, the field's
-    default is its radians (None stays None)."""
+def angle_setting(default_deg, annotation, *, part: str | None = None, key: str | None = None):
+    """A dataclass field for an angle [rad] that the file gives in degrees as ``NAME_deg`` (or
+    ``key``; ``annotation`` constrains the degrees); the default is written in degrees, the
+    field's default is its radians (None stays None)."""
     default = None if default_deg is None else math.radians(default_deg)
     return dataclasses.field(default=default,
-                             metadata={_META: (annotation, True, default_deg, part)})
+                             metadata={_META: (annotation, True, default_deg, part, key)})
 
 
 def file_keys(config_class, part: str | None = None) -> dict[str, FileKey]:
@@ -88,20 +88,26 @@ def file_keys(config_class, part: str | None = None) -> dict[str, FileKey]:
         meta = f.metadata.get(_META)
         if meta is None or meta[3] != part:
             continue
-        annotation, degrees, default, _ = meta
+        annotation, degrees, default, _, key = meta
         if default is MISSING:
             raise TypeError(f"{config_class.__name__}.{f.name}: a file setting needs a default")
-        out[f.name] = FileKey(f.name + ("_deg" if degrees else ""), annotation, default, degrees,
-                              part)
+        key = key or f.name + ("_deg" if degrees else "")
+        out[f.name] = FileKey(key, annotation, default, degrees, part)
     return out
 
 
 def file_section(config_class, name: str, base, extra: dict | None = None,
-                 part: str | None = None):
+                 part: str | None = None, also: tuple = ()):
     """The pydantic model of a scenario section holding ``config_class``'s file settings of
-    ``part`` (on ``base``, the scenario's strict model), plus the section's ``extra`` fields
+    ``part`` (on ``base``, the scenario's strict model), those of the ``(config class, part)``
+    pairs in ``also`` (a section that feeds two configs), plus the section's ``extra`` fields
     that belong to no library config ({key: (annotation, default)})."""
-    fields = {k.key: (k.annotation, k.default) for k in file_keys(config_class, part).values()}
+    fields: dict = {}
+    for cls, of in ((config_class, part), *also):
+        for k in file_keys(cls, of).values():
+            if k.key in fields:
+                raise TypeError(f"{name}.{k.key} is set by two configs")
+            fields[k.key] = (k.annotation, k.default)
     for key in extra or {}:
         if key in fields:
             raise TypeError(f"{name}.{key} is both a {config_class.__name__} setting and extra")

@@ -7,13 +7,16 @@ import pytest
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.cosim.plant import PlantConfig
 from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import ScenarioError
 from pushtrain.mission.scenario import (
     ControllerSection,
+    FmuSection,
     PlannerSection,
     RobotSection,
     SensorSection,
+    TrainSection,
     parse_scenario,
 )
 from pushtrain.planner.config import PlannerConfig
@@ -26,6 +29,10 @@ SECTIONS = [
      {"model_link", "governor", "governor_fraction", "implementation"}),
     (ControllerConfig, RobotSection, "robot", {"geometry": ChainGeometry.uniform(3)},
      {"tau", "acc_max", "alpha_max_deg"}),
+    (PlantConfig, RobotSection, "robot", {"n_trailers": 3}, {"v_max", "w_max_deg"}),
+    (PlantConfig, TrainSection, "train", {"n_trailers": 3},
+     {"n", "link", "front", "rear", "trailer_size", "robot_size"}),
+    (PlantConfig, FmuSection, "fmu", {"n_trailers": 3}, {"fmi_version"}),
 ]
 """Each library config, its scenario section, the part of the config the section holds, the
 arguments that come from elsewhere, and the section's own fields that feed no library config."""
