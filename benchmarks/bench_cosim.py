@@ -115,13 +115,22 @@ class RawLoop:
                                modelIdentifier=md.coSimulation.modelIdentifier,
                                instanceName="raw")
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.types = {v.name: v.type for v in md.modelVariables}
         self.slave.instantiate()
 
     def start(self, start_values: dict, t0: float) -> None:
+        """Set the plant's parameters and initial state, each with the setter of its type (the
+        plant's start values hold Reals and the Integer ``slip_mode``)."""
         s = self.slave
         s.setupExperiment(startTime=t0)
-        for name, value in start_values.items():  # all Reals here (plant defaults, initial state)
-            s.setReal([self.vr[name]], [float(value)])
+        for name, value in start_values.items():
+            kind = self.types[name]
+            if kind == "Integer":
+                s.setInteger([self.vr[name]], [int(value)])
+            elif kind == "Boolean":
+                s.setBoolean([self.vr[name]], [bool(value)])
+            else:
+                s.setReal([self.vr[name]], [float(value)])
         s.enterInitializationMode()
         s.exitInitializationMode()
 
