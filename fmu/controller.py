@@ -1,7 +1,7 @@
 """Build the BackwardController FMU: pushtrain's control law as an FMI 2.0 Co-Simulation FMU.
 
 The FMU compiles the project's one control law, ``core/csrc/control.c`` (the C twin of
-:class:`pushtrain.core.controller.BackwardController`, held equal to it by the tests) and its one
+the tests' readable ``tests/reference/controller.py``, held equal to it) and its one
 sensor model, ``core/csrc/sensors.c`` (the co-simulation master's), with the plant's FMI glue
 (``fmu/src``: ``instance.c`` under ``fmi2.c``, see ``fmu_model.h``), the controller's model in
 ``fmu/controller_src`` (its variables, the mission table) and the files rendered from
