@@ -110,7 +110,7 @@ def unsupported(slave, loop, sensors) -> str | None:
     tracker = getattr(loop.command, "__self__", None)
     if not isinstance(tracker, Tracker):
         return ("the control law is not the compiled one tracking a line/arc Reference "
-                "(implementation 'python', a governor, an open-loop profile or a sampled "
+                "(a governor, an open-loop profile, a law written in Python or a sampled "
                 "reference)")
     if tracker.info:
         return "the tracking loop records ControlInfo"
