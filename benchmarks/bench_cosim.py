@@ -8,8 +8,8 @@ For n = 3 and n = 50, in one process, on the same FMI 2.0 FMU:
     Judged: the default, the compiled step loop (``step_loop="auto"`` picks it: many steps per
     C call, ``cosim/csrc/master_loop.c``) with the compiled control law. Side by side: the
     Python step loop with the same compiled law (``step_loop="python"``) and the Python loop
-    with the Python law (``implementation="python"``); all three must give the same run bit for
-    bit.
+    with the tests' readable Python law (``tests/reference/controller.py``, passed in built); all
+    three must give the same run bit for bit.
 (b) raw
     a loop of bare ctypes calls on the FMU's own functions with preallocated value-reference and
     value arrays, doing per step the FMI calls the master does: ``fmi2GetReal`` of the states
@@ -41,16 +41,18 @@ import math
 import pstats
 import shutil
 import statistics
+import sys
 import tempfile
 import time
 from ctypes import c_double, c_int, c_size_t, c_uint, c_void_p
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference, Segment
 from pushtrain.core.tracking import TrackingLoop
@@ -58,6 +60,9 @@ from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState, PlantConfig
 from pushtrain.cosim.sensors import Measurement
 from pushtrain.fmu.build import build_fmu
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from reference.controller import BackwardController  # noqa: E402  (the tests' reference law)
 
 STEP = 0.005  # [s]
 HORIZON = {3: 60.0, 50: 20.0}  # [s] per run: 12,000 and 4,000 steps
@@ -69,10 +74,10 @@ def mission(n: int):
     return ref, ControllerConfig.uniform(n)
 
 
-MASTERS = {  # label -> simulate's keywords
-    "C loop": {},
-    "Py loop": {"step_loop": "python"},
-    "Py law": {"implementation": "python"},
+MASTERS = {  # label -> (controller class or None for the ControllerConfig, simulate's keywords)
+    "C loop": (None, {}),
+    "Py loop": (None, {"step_loop": "python"}),
+    "Py law": (BackwardController, {}),
 }
 """The masters timed: the default (judged), the Python step loop, the Python control law."""
 
@@ -80,9 +85,10 @@ MASTERS = {  # label -> simulate's keywords
 def run_master(fmu, n: int, horizon: float, label: str = "C loop"):
     """(microseconds per step, Result) of one :func:`simulate` run of master ``label``."""
     ref, cfg = mission(n)
+    law, keywords = MASTERS[label]
     start = time.process_time()
-    result = simulate(fmu, ref, cfg, horizon=horizon, check_goal=False, progress=False,
-                      **MASTERS[label])
+    result = simulate(fmu, ref, cfg if law is None else law(cfg), horizon=horizon,
+                      check_goal=False, progress=False, **keywords)
     wall = time.process_time() - start
     if not result.ok:
         raise SystemExit(f"master run n = {n} ended early: {result.status}: {result.message}")

@@ -1,16 +1,17 @@
 """The backward-motion controller on the compiled control law (``core/csrc/control.c``).
 
-:class:`NativeController` has the interface of
-:class:`~pushtrain.core.controller.BackwardController` (``command``, ``command_from``,
-``reset``, ``sent``, ``n``, ``guide_geometry``) and computes the same command with the C
+:class:`NativeController` (``command``, ``command_from``, ``reset``, ``sent``, ``n``,
+``guide_geometry``) computes the command of :mod:`pushtrain.core.controller`'s scheme with the C
 implementation that the fast closed-loop integrator (:mod:`pushtrain.core.engine`) and the
-controller FMU compile. ``tests/test_native_control.py`` holds both equal to 1e-12 on random
-states, references and limit sequences; the Python class stays the readable reference.
+controller FMU compile: the product's one control law. ``tests/test_native_control.py`` holds
+it equal to 1e-12 on random states, references and limit sequences, and the master's runs bit
+for bit, to the readable Python reference ``BackwardController`` of
+``tests/reference/controller.py``.
 
 One difference, on purpose: the C law refuses every non-finite measured value and every
-non-finite raw command with :class:`~pushtrain.errors.ControllerError`, where the Python class
-refuses a non-finite last-trailer pose or an infinite command only (and passes a NaN command
-on).
+non-finite raw command with :class:`~pushtrain.errors.ControllerError`, where the Python
+reference refuses a non-finite last-trailer pose or an infinite command only (and passes a NaN
+command on).
 """
 
 from __future__ import annotations
@@ -137,8 +138,19 @@ class NativeController:
         self._phi[:] = phi
 
     def command(self, t: float, measurement, ref, leader=None):
-        """Robot command ``(v0 [m/s], w0 [rad/s], ControlInfo)``: as
-        :meth:`BackwardController.command <pushtrain.core.controller.BackwardController.command>`.
+        """Robot command ``(v0 [m/s], w0 [rad/s], ControlInfo)`` at time ``t`` [s].
+
+        ``measurement`` has ``x0, y0, theta0`` (measured robot pose [m, m, rad]), ``phi`` (the
+        n measured joint angles [rad]) and optionally ``last_pose`` (a direct measurement of the
+        last trailer's pose, used in place of the estimate from the joints when not None);
+        ``ref`` is the last trailer's :class:`~pushtrain.core.reference.ReferenceSample` at
+        ``t``, ``leader`` the robot's own (pull guide) sample, needed only while pulling.
+
+        Raises
+        ------
+        ControllerError
+            A wrong number of joint angles, a non-finite measurement or command, pulling
+            without ``leader``, or an unknown ``ref.direction``.
         """
         self._set_phi(measurement.phi)
         m = self._meas
@@ -209,9 +221,9 @@ class NativeController:
         return Tracker(self, reference, leader, info).command
 
     def command_from(self, reference, t: float, measurement):
-        """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t`` (as
-        :meth:`BackwardController.command_from
-        <pushtrain.core.controller.BackwardController.command_from>`)."""
+        """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t`` [s],
+        through a :class:`~pushtrain.core.tracking.TrackingLoop` of this controller kept while
+        the calls pass the same reference object."""
         if self._loop is None or self._loop.reference is not reference:
             self._loop = TrackingLoop(self, reference)
         return self._loop.command(t, measurement)[:3]

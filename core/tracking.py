@@ -4,11 +4,11 @@ At every control instant ``t``: sample the last trailer's reference at ``t`` (a 
 during cusp dwells, before the start and after the goal), while pulling also the robot's own
 reference from the :class:`~pushtrain.core.pulling.PullGuide` built with the controller's chain
 model (``controller.guide_geometry``), and ask the controller for the robot command. The
-co-simulation master uses it for the slip governor, open-loop profiles and the readable
-:class:`~pushtrain.core.controller.BackwardController`; with the compiled law
+co-simulation master uses it for the slip governor and open-loop profiles; with the compiled law
 (:class:`~pushtrain.core.native_controller.NativeController`) the whole instant is one C call
 (``pt_track``), which the engine (``core/csrc``) also runs inside its loops. The tests' reference
-closed loop (``tests/reference/closed_loop.py``) steps it too.
+closed loop (``tests/reference/closed_loop.py``) steps it with the readable reference law
+(``tests/reference/controller.py``).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ class TrackingLoop:
     Parameters
     ----------
     controller
-        A :class:`~pushtrain.core.controller.BackwardController`, or anything with its
+        A :class:`~pushtrain.core.native_controller.NativeController`, or anything with its
         ``command(t, measurement, ref, leader)`` (the slip governor, open-loop profiles). Its
         ``guide_geometry`` (None for open-loop profiles, which ignore the reference) is the chain
         model of the pull guide.

@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import wrap_scalar
 from pushtrain.core.native_controller import NativeController, Tracker
 from pushtrain.core.reference import Reference
@@ -75,7 +75,7 @@ from .result import (
 from .sensors import SensorConfig, Sensors
 from .step_loop import STEP_LOOPS, CompiledLoop, EngineStep, unsupported
 
-__all__ = ["simulate", "IMPLEMENTATIONS"]
+__all__ = ["simulate"]
 
 log = logging.getLogger(__name__)
 
@@ -314,7 +314,7 @@ def _horizon_end(recorder: Recorder, goal: _Goal, horizon: float, n: int) -> tup
 def simulate(
     fmu,
     reference: Reference,
-    controller: ControllerConfig | BackwardController,
+    controller: ControllerConfig | NativeController,
     sensors: SensorConfig | Sensors | None = None,
     events: Sequence = (),
     *,
@@ -327,7 +327,6 @@ def simulate(
     check_goal: bool = True,
     progress: bool | None = None,
     out_dir=None,
-    implementation: str = "c",
     step_loop: str = "auto",
 ) -> Result:
     """Co-simulate the FMU with the backward controller tracking ``reference``.
@@ -339,9 +338,12 @@ def simulate(
         controller's n, or FMI 3.0 (configured for that n).
     reference : Reference or SampledReference
         The last trailer's reference.
-    controller : ControllerConfig, BackwardController or NativeController
-        Gains, limits and the controller's own chain model (or a controller built from them,
-        possibly wrapped: slip governor, open-loop profile).
+    controller : ControllerConfig or a built controller
+        Gains, limits and the controller's own chain model, computed by the compiled control
+        law (:class:`~pushtrain.core.native_controller.NativeController`: reference sample, pull
+        leader and command in one C call per step); or a controller built already (a
+        NativeController, possibly wrapped by the slip governor: GovernedController; or an
+        open-loop profile), used as it is.
     sensors : SensorConfig or Sensors, optional
         Measurement errors; default perfect sensors.
     events : sequence of Push, Slide, SetBias
@@ -365,12 +367,6 @@ def simulate(
         Save the results there (also when the run ends in an error status): ``results.npz``
         and ``summary.json`` (:meth:`~pushtrain.cosim.result.Result.save`; call it yourself
         with ``csv=True`` for ``results.csv`` too).
-    implementation : {"c", "python"}
-        How a ``ControllerConfig`` is computed: ``"c"`` the compiled control law
-        (:class:`~pushtrain.core.native_controller.NativeController`: reference sample, pull
-        leader and command in one C call per step), ``"python"`` the readable
-        :class:`~pushtrain.core.controller.BackwardController`. A controller passed in built is
-        used as it is.
     step_loop : {"auto", "c", "python"}
         Which loop steps the run: ``"auto"`` the compiled step loop
         (:mod:`~pushtrain.cosim.step_loop`: many steps per C call) when the run allows it (an
@@ -392,7 +388,7 @@ def simulate(
     t0, horizon = _timing(reference, initial, step, horizon, settle_time)
     n_steps = _steps(horizon, step)
     goal = _Goal.of(reference, check_goal, goal_tolerance)
-    ctrl, sens, plant = _parts(controller, sensors, plant, implementation)
+    ctrl, sens, plant = _parts(controller, sensors, plant)
     n = ctrl.n
     schedule = EventSchedule(events, n, t0 + horizon)
     if schedule.slides and plant.slip_mode == 1:
@@ -476,23 +472,17 @@ def _timing(reference, initial, step: float, horizon, settle_time) -> tuple[floa
     return t0, positive_number("horizon", horizon)
 
 
-IMPLEMENTATIONS = {"c": NativeController, "python": BackwardController}
-"""The controller classes :func:`simulate` builds from a ``ControllerConfig``, by name."""
-
-
-def _parts(controller, sensors, plant, implementation="c"):
+def _parts(controller, sensors, plant):
     """The controller, the sensors and the plant configuration of a run, checked against each
     other's number of trailers."""
-    if implementation not in IMPLEMENTATIONS:
-        raise CosimInputError(f"implementation = {implementation!r}: allowed are "
-                              f"{', '.join(map(repr, IMPLEMENTATIONS))}")
     if isinstance(controller, ControllerConfig):
-        ctrl = IMPLEMENTATIONS[implementation](controller)
+        ctrl = NativeController(controller)
     elif hasattr(controller, "command") and hasattr(controller, "n"):
-        ctrl = controller  # BackwardController or an open-loop command profile
+        ctrl = controller  # a built controller, the slip governor or an open-loop profile
     else:
         raise CosimInputError(
-            f"controller = {controller!r}: need a ControllerConfig or BackwardController"
+            f"controller = {controller!r}: need a ControllerConfig or a built controller "
+            "(NativeController, GovernedController, an open-loop profile)"
         )
     n = ctrl.n
     sens = sensors if isinstance(sensors, Sensors) else Sensors(sensors or SensorConfig(n_joints=n))

@@ -110,7 +110,7 @@ def unsupported(slave, loop, sensors) -> str | None:
     tracker = getattr(loop.command, "__self__", None)
     if not isinstance(tracker, Tracker):
         return ("the control law is not the compiled one tracking a line/arc Reference "
-                "(implementation 'python', a governor, an open-loop profile or a sampled "
+                "(a governor, an open-loop profile, a law written in Python or a sampled "
                 "reference)")
     if tracker.info:
         return "the tracking loop records ControlInfo"
@@ -130,11 +130,11 @@ class EngineStep:
     With the compiled control law (``tracker``, a
     :class:`~pushtrain.core.native_controller.Tracker`) a step is one call, ``pt_step``:
     sensors -> reference sample, pull leader and command -> push force and tracking errors. With
-    a law in Python (the slip governor, open-loop profiles, ``implementation="python"``:
-    ``tracker`` None) the sensors are a C call (:meth:`Sensors.measurer`) before the Python
-    ``command(t, measurement)``, and the push force and errors are computed in Python, in the
-    C's order (an open loop's reference sample is NaN: the sign of a NaN result depends on how
-    a compiler orders the operands, so its bits are kept those of Python).
+    a law in Python (the slip governor, open-loop profiles: ``tracker`` None) the sensors are a
+    C call (:meth:`Sensors.measurer`) before the Python ``command(t, measurement)``, and the
+    push force and errors are computed in Python, in the C's order (an open loop's reference
+    sample is NaN: the sign of a NaN result depends on how a compiler orders the operands, so
+    its bits are kept those of Python).
 
     :attr:`step` ``(t)`` returns ``(v_cmd, w_cmd, ref, (push_x, push_y, e_lon, e_lat,
     e_theta))`` for the FMU's true state in ``truth`` at ``t`` [s] (read before the call) and

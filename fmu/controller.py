@@ -1,8 +1,9 @@
 """Build the BackwardController FMU: pushtrain's control law as an FMI 2.0 Co-Simulation FMU.
 
 The FMU compiles the project's one control law, ``core/csrc/control.c`` (the C twin of
-:class:`pushtrain.core.controller.BackwardController`, held equal to it by the tests) and its one
-sensor model, ``core/csrc/sensors.c`` (the co-simulation master's), with the plant's FMI glue
+the tests' readable ``tests/reference/controller.py``, held equal to it) and its one
+sensor model, ``core/csrc/sensors.c`` (the co-simulation master's), and the co-simulation step's
+tracking errors, ``core/csrc/step.c`` (``pt_tracking_errors``), with the plant's FMI glue
 (``fmu/src``: ``instance.c`` under ``fmi2.c``, see ``fmu_model.h``), the controller's model in
 ``fmu/controller_src`` (its variables, the mission table) and the files rendered from
 :mod:`.controller_variables`. The mission is data: the last
@@ -51,7 +52,8 @@ log = logging.getLogger(__name__)
 
 BUILD_FORMAT = "1"  # bump when the rendering or packaging of the controller changes
 TABLE_FORMAT = 1
-LAW_FILES = ("control.c", "control.h", "sensors.c", "sensors.h")  # law and sensors: core/csrc
+LAW_FILES = ("control.c", "control.h", "sensors.c", "sensors.h", "step.c", "step.h")
+"""From core/csrc: the law, the sensors and the step's tracking errors (``pt_tracking_errors``)."""
 GLUE_FILES = ("instance.c", "fmi2.c", "fmu_model.h", "instance.h")  # the FMI glue, from fmu/src
 EXPORTS_MAP = "ctrl_exports.map"
 EXPORTS = "{\n  global: fmi2*;\n  local: *;\n};\n"

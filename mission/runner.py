@@ -98,9 +98,9 @@ def controller_of(sc: Scenario) -> ControllerConfig:
 
 
 def governed(sc: Scenario, config: ControllerConfig):
-    """The tracking controller behind a slip-aware governor built from the scenario's train."""
+    """The compiled control law behind a slip-aware governor built from the scenario's train."""
     from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
-    from pushtrain.cosim.master import IMPLEMENTATIONS
+    from pushtrain.core.native_controller import NativeController
 
     t, r = sc.train, sc.robot
     gov = SlipGovernor(GovernorConfig(
@@ -108,8 +108,7 @@ def governed(sc: Scenario, config: ControllerConfig):
         _per_trailer(t.inertia, t.n), _per_trailer(t.mu, t.n),
         fraction=sc.controller.governor_fraction,
         tau=r.tau, acc_max=r.acc_max, alpha_max=math.radians(r.alpha_max_deg)))
-    controller = IMPLEMENTATIONS[sc.controller.implementation](config)
-    return GovernedController(controller, gov, dt=sc.sim.step)
+    return GovernedController(NativeController(config), gov, dt=sc.sim.step)
 
 
 def sensors_of(sc: Scenario) -> SensorConfig:
@@ -265,8 +264,7 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
         fmu, reference, controller, sensors_of(sc), events_of(sc), plant=plant, initial=initial,
         step=sc.sim.step, horizon=horizon, settle_time=sc.sim.settle_time,
         goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
-        progress=progress, implementation=sc.controller.implementation,
-        step_loop=sc.sim.step_loop,
+        progress=progress, step_loop=sc.sim.step_loop,
     )
     result.summary["scenario"] = sc.name
     result.summary["mission"] = sc.mission.kind

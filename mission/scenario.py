@@ -162,14 +162,10 @@ ControllerSection = file_section(ControllerConfig, "ControllerSection", _Section
     # below governor_fraction of friction (computed with the controller's own model of the train)
     "governor": (bool, False),
     "governor_fraction": (Annotated[float, Field(gt=0, le=1)], GovernorConfig.fraction),
-    # the control law in the co-simulation: "c" the compiled one (core/csrc, one call per step),
-    # "python" the readable BackwardController (both give the same commands)
-    "implementation": (Literal["c", "python"], "c"),
 })
 """``[controller]``: the gains and rate limits of
 :class:`~pushtrain.core.controller.ControllerConfig` (the paper keeps |alpha| <= 10 deg/s² to
-avoid lateral slip, Sec. 4.4), the controller's own link, the governor and the law's
-implementation."""
+avoid lateral slip, Sec. 4.4), the controller's own link and the governor."""
 
 
 SensorSection = file_section(SensorConfig, "SensorSection", _Section)

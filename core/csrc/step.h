@@ -30,6 +30,12 @@ typedef struct {
                              * in its frame: e_lon, e_lat [m], e_theta [rad] (wrapped) */
 } PtStep;
 
+/* The pose (x, y [m], theta [rad]) against the reference sample, in the sample's frame:
+ * errors = (e_lon, e_lat [m], e_theta [rad], wrapped), the recorder's tracking errors. pt_step
+ * computes them for the last trailer's true pose; the controller FMU for its estimated pose. */
+PT_API void pt_tracking_errors(const PtSample *sample, double x, double y, double theta,
+                               double errors[3]);
+
 /* Size of PtStep in bytes (a binding checks its layout). */
 PT_API size_t pt_step_sizeof(void);
 

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "ctrl_model.h"
+#include "step.h"
 
 static const char *law_error(int status) {
     switch (status) {
@@ -135,15 +136,15 @@ static void measure_joints(const CtrlModel *m, CtrlMemory *next, double *phi_mea
 
 static void set_outputs(CtrlModel *m, const PtSample *ref, const PtControlInfo *info,
                         const double cmd[2], const double *phi_meas, int done) {
-    const double dx = info->x_n - ref->x, dy = info->y_n - ref->y;
-    const double c = cos(ref->theta), s = sin(ref->theta);
+    double errors[3];
     int k;
     m->r[R_v_cmd] = cmd[0];
     m->r[R_w_cmd] = cmd[1];
-    /* the last trailer's error in the reference's frame, as pushtrain's recorder */
-    m->r[R_e_lon] = c * dx + s * dy;
-    m->r[R_e_lat] = -s * dx + c * dy;
-    m->r[R_e_theta] = pt_wrap(info->theta_n - ref->theta);
+    /* the last trailer's error in the reference's frame, as pushtrain's recorder (step.c) */
+    pt_tracking_errors(ref, info->x_n, info->y_n, info->theta_n, errors);
+    m->r[R_e_lon] = errors[0];
+    m->r[R_e_lat] = errors[1];
+    m->r[R_e_theta] = errors[2];
     m->r[R_x_d] = ref->x;
     m->r[R_y_d] = ref->y;
     m->r[R_theta_d] = ref->theta;

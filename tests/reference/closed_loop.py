@@ -16,12 +16,13 @@ from typing import Sequence
 
 import numpy as np
 
-from pushtrain.core.controller import BackwardController, ControllerConfig
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, body_positions_along
 from pushtrain.core.ode import rk4_step
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.planner.kinematic_loop import Trajectory
+from reference.controller import BackwardController
 
 
 def towed_rates(geometry: ChainGeometry):
