@@ -36,6 +36,7 @@ from pushtrain.core.reference import Reference, Segment
 from pushtrain.errors import PlanningInputError
 from pushtrain.facility.free_space import World
 
+from .footprint import body_positions, self_overlap
 from .kinematic_loop import (
     TrackerConfig,
     Trajectory,
@@ -49,24 +50,12 @@ __all__ = ["TrainCheckResult", "check_train"]
 log = logging.getLogger(__name__)
 
 
-def _robot_positions(state: np.ndarray, geometry: ChainGeometry):
-    """Positions (x, y), each (N, n+1), of all bodies from states (N, 3 + n) = (x0, y0, theta)."""
-    th = state[:, 2:]
-    c, s = np.cos(th), np.sin(th)
-    step_x = -geometry.rear * c[:, :-1] - geometry.front * c[:, 1:]
-    step_y = -geometry.rear * s[:, :-1] - geometry.front * s[:, 1:]
-    zero = np.zeros((state.shape[0], 1))
-    x = state[:, :1] + np.concatenate((zero, np.cumsum(step_x, axis=1)), axis=1)
-    y = state[:, 1:2] + np.concatenate((zero, np.cumsum(step_y, axis=1)), axis=1)
-    return x, y
-
-
 def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution: float,
             controller):
     """Subdivide the steps in which some corner moves more than ``resolution`` (RK4 substeps
     under the held command, the closed-loop engine's integrator). Returns (trajectory, x, y,
     corners)."""
-    x, y = _robot_positions(traj.state, geometry)
+    x, y = body_positions(traj.state, geometry)
     corners = _corners(train, x, y, traj.state[:, 2:])
     move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
     bad = np.flatnonzero(move > resolution)
@@ -86,7 +75,7 @@ def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution:
     merged = {name: np.concatenate([np.asarray(r) for r in parts]) for name, parts in rows.items()}
     order = np.argsort(merged["t"], kind="stable")
     traj = Trajectory(**{name: value[order] for name, value in merged.items()})
-    x, y = _robot_positions(traj.state, geometry)
+    x, y = body_positions(traj.state, geometry)
     return traj, x, y, _corners(train, x, y, traj.state[:, 2:])
 
 
@@ -296,7 +285,6 @@ def check_train(
     t_joint = traj.t[k_joint[0]] if k_joint.size else math.inf
     folded = None
     if self_collision:
-        from .footprint import self_overlap
 
         folded = self_overlap(train, x_all[keep], y_all[keep], headings_all[keep])
     t_fold = traj.t[keep[folded[0]]] if folded is not None else math.inf
