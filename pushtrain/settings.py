@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import MISSING
 from typing import Any
 
 from pydantic import create_model
@@ -89,8 +88,6 @@ def file_keys(config_class, part: str | None = None) -> dict[str, FileKey]:
         if meta is None or meta[3] != part:
             continue
         annotation, degrees, default, _, key = meta
-        if default is MISSING:
-            raise TypeError(f"{config_class.__name__}.{f.name}: a file setting needs a default")
         key = key or f.name + ("_deg" if degrees else "")
         out[f.name] = FileKey(key, annotation, default, degrees, part)
     return out
