@@ -87,8 +87,10 @@ class PlannerConfig:
         keeps the shortest; ``rrtstar``,
         ``bitstar`` and ``prmstar`` are OMPL's asymptotically optimal planners.
     time_budget : float
-        Budget [s] of planning and all replanning together, counted as work, not read from
-        the clock (:mod:`~pushtrain.planner.budget`): 1000 motion checks per second (the
+        Budget [s] of planning and all replanning together (default 1 s, the scenario's),
+        counted as work, not read from the clock (:mod:`~pushtrain.planner.budget`): for
+        ``lattice`` 150 000 simulated control steps per second; for the OMPL planners 1000
+        motion checks per second (the
         validation of one local Reeds-Shepp curve, about 1 ms on a current laptop core; BIT*:
         500, as its other work grows after its first solution), and each whole-train check
         counts one motion check per 10 simulated control steps (a 10 m plan at 0.08 m/s:
