@@ -75,6 +75,7 @@ import numpy as np
 
 from pushtrain.errors import ControllerError
 from pushtrain.settings import angle_setting, setting
+from pushtrain.table1 import LINK
 from pushtrain.validation import PositiveFloat
 
 from .kinematics import ChainGeometry
@@ -148,7 +149,7 @@ class ControllerConfig:
             raise ControllerError(f"rest_speed = {self.rest_speed!r} m/s: must be finite and >= 0")
 
     @classmethod
-    def uniform(cls, n_trailers: int, link: float = 0.52, **kwargs) -> ControllerConfig:
+    def uniform(cls, n_trailers: int, link: float = LINK, **kwargs) -> ControllerConfig:
         """Config for a chain with every F_i = R_i = ``link`` [m]; ``kwargs`` as the fields."""
         try:
             geometry = ChainGeometry.uniform(n_trailers, link)

@@ -33,6 +33,8 @@ from math import cos, sin
 
 import numpy as np
 
+from pushtrain.table1 import LINK
+
 __all__ = [
     "ChainGeometry",
     "wrap_angle",
@@ -98,7 +100,7 @@ class ChainGeometry:
         object.__setattr__(self, "rear", rear)
 
     @classmethod
-    def uniform(cls, n_trailers: int, link: float = 0.52) -> "ChainGeometry":
+    def uniform(cls, n_trailers: int, link: float = LINK) -> "ChainGeometry":
         """A chain of ``n_trailers`` with every F_i = R_i = ``link`` [m] (the paper's D)."""
         if int(n_trailers) < 1:
             raise ValueError(f"n_trailers = {n_trailers!r}: need at least 1 trailer")
@@ -224,7 +226,7 @@ def robot_velocity_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[
     return v, w[0]
 
 
-def steady_joint_angle(radius: float, link: float = 0.52) -> float:
+def steady_joint_angle(radius: float, link: float = LINK) -> float:
     """Steady joint angle [rad] on a circle of ``radius`` [m] when F = R = ``link`` [m].
 
     It is 2 atan(D/rho), with D = ``link`` and rho = ``radius``.

@@ -1,4 +1,4 @@
-"""Build and load the compiled control law (``core/csrc``) with ctypes.
+"""Build and load the closed-loop engine (``core/csrc``) with ctypes.
 
 The C sources (``control.c``, the law, ``sensors.c``, the sensor model, ``step.c``, a
 co-simulation step's closed-loop work, ``rollout.c``, the planner's closed loop, and the

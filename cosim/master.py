@@ -334,7 +334,7 @@ def simulate(
     Parameters
     ----------
     fmu : path-like
-        A TrailerTrain ``.fmu`` (see :func:`pushtrain.fmu.build_fmu`): FMI 2.0 built for the
+        A TrailerTrain ``.fmu`` (see :func:`pushtrain.fmu.build.build_fmu`): FMI 2.0 built for the
         controller's n, or FMI 3.0 (configured for that n).
     reference : Reference or SampledReference
         The last trailer's reference.

@@ -283,7 +283,7 @@ class Sensors:
         if self.config.measure_last_pose:
             if last_pose is None or len(last_pose) != 3:
                 raise SensorError(
-                    f"last_pose = {last_pose!r}: measure_last_pose is set, so the true"
+                    f"last_pose = {last_pose!r}: localize = 'last_trailer', so the true"
                     " (x_n, y_n, theta_n) must be given"
                 )
             truth[3:6] = last_pose

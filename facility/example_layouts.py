@@ -124,7 +124,7 @@ def parallel_slot(aisle: float = 2.4, depth: float = 1.1, slot: float = 8.0) -> 
     """Parking along a wall: an aisle ``aisle`` wide along x with a slot ``depth`` deep and
     ``slot`` long in its upper wall between two blocks (parked loads). The train comes along the
     aisle pushing toward +x and ends in the slot; the examples ask for the whole train
-    straight there (``goal_phi``), so the S into the slot must end a train length before the
+    straight there (``goal_max_phi_deg``), so the S into the slot must end a train length before the
     goal."""
     a, d, ls = float(aisle), float(depth), float(slot)
     x0 = 3.0

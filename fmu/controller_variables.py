@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 from pushtrain import __version__
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS
-from pushtrain.table1 import LINK
+from pushtrain.table1 import LINK, SAMPLING_TIME
 
 from .render import BASE_UNITS, check_n, generation_time, xml_bytes, xml_number
 
@@ -49,7 +49,7 @@ CONTROLLER_HEADERS = ("control.h", "sensors.h", "step.h", "ctrl_model.h", "ctrl_
                       "ctrl_instance.h", "fmu_model.h", "instance.h")
 TABLE_FILE = "reference.txt"
 """The mission table in the FMU's ``resources/`` (see :mod:`pushtrain.fmu.controller`)."""
-DEFAULT_STEP = 0.005
+DEFAULT_STEP = SAMPLING_TIME  # one communication step [s]
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from datetime import UTC, datetime
 from pushtrain import __version__
 from pushtrain.errors import FmuInputError
 from pushtrain.limits import BOUNDS
+from pushtrain.table1 import SAMPLING_TIME
 
 from .variables import (
     ARRAYS,
@@ -51,7 +52,7 @@ MODEL_IDENTIFIER = "TrailerTrain"
 MODEL_SOURCES = ("model.c", "variables.c", "chain.c", "forces.c", "slip.c", "slip_solver.c",
                  "instance.c")
 HEADER_FILES = ("model.h", "fmu_model.h", "instance.h")
-DEFAULT_STEP = 0.005
+DEFAULT_STEP = SAMPLING_TIME  # the modelDescription's DefaultExperiment stepSize [s]
 
 UNITS = ("m", "m/s", "m/s2", "rad", "rad/s", "rad/s2", "N", "kg", "kg.m2", "s")
 BASE_UNITS = {  # each unit of UNITS in SI base units (the modelDescription's UnitDefinitions)

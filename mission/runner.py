@@ -27,7 +27,7 @@ from pushtrain.settings import config_values
 
 from .scenario import Scenario
 
-__all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "events_of",
+__all__ = ["train_of", "plant_of", "controller_of", "sensors_of", "goal_tolerance_of", "events_of",
            "scripted_reference", "plan_path", "fmu_build_args", "run_scenario"]
 
 log = logging.getLogger(__name__)
@@ -102,13 +102,19 @@ def governed(sc: Scenario, config: ControllerConfig):
     from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
     from pushtrain.core.native_controller import NativeController
 
-    t, r = sc.train, sc.robot
+    t, plant = sc.train, plant_of(sc)
     gov = SlipGovernor(GovernorConfig(
         config.geometry, _per_trailer(t.mass, t.n) + _per_trailer(t.payload, t.n),
         _per_trailer(t.inertia, t.n), _per_trailer(t.mu, t.n),
         fraction=sc.controller.governor_fraction,
-        tau=r.tau, acc_max=r.acc_max, alpha_max=math.radians(r.alpha_max_deg)))
+        tau=plant.robot_tau, acc_max=plant.robot_acc_max, alpha_max=plant.robot_alpha_max))
     return GovernedController(NativeController(config), gov, dt=sc.sim.step)
+
+
+def goal_tolerance_of(sc: Scenario) -> tuple[float, float]:
+    """The co-simulation's goal test, ``[sim]``'s tolerances [m, rad]: the planner plans to it
+    and the master stops on it."""
+    return (sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg))
 
 
 def sensors_of(sc: Scenario) -> SensorConfig:
@@ -200,7 +206,7 @@ def plan_path(sc: Scenario):
 
     config = PlannerConfig(
         **config_values(PlannerConfig, sc.planner), seed=sc.seed, controller=controller_of(sc),
-        goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
+        goal_tolerance=goal_tolerance_of(sc),
     )
     goal = (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg))
     return plan(world_of(sc), _start_pose(sc), goal, train_of(sc), config,
@@ -263,7 +269,7 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
     result = simulate(
         fmu, reference, controller, sensors_of(sc), events_of(sc), plant=plant, initial=initial,
         step=sc.sim.step, horizon=horizon, settle_time=sc.sim.settle_time,
-        goal_tolerance=(sc.sim.goal_tolerance, math.radians(sc.sim.goal_heading_tolerance_deg)),
+        goal_tolerance=goal_tolerance_of(sc),
         progress=progress, step_loop=sc.sim.step_loop,
     )
     result.summary["scenario"] = sc.name

@@ -38,8 +38,6 @@ PLANNERS = ("lattice", "rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"
 (:mod:`~pushtrain.planner.lattice`); the others plan the last trailer with OMPL and check the
 train afterwards: ``rrtconnect`` stops at its first solution, the rest are anytime optimal."""
 
-_OMPL = {"rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar"}
-
 ANYTIME_PLANNERS = {"restarts", "rrtstar", "bitstar", "prmstar"}
 OPTIMIZING_PLANNERS = {"rrtstar", "bitstar", "prmstar"}  # OMPL planners given a length objective
 

@@ -47,6 +47,7 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import ClosedLoopEngine
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import Reference, Segment
+from pushtrain.defaults import CUSP_DWELL, GOAL_TOLERANCE, REFERENCE_SPEED
 from pushtrain.errors import ControllerError, PlanningInputError
 
 __all__ = ["TrackerConfig", "Trajectory", "default_controller", "reference_times",
@@ -82,11 +83,11 @@ class TrackerConfig:
     """
 
     controller: ControllerConfig | None = None
-    speed: float = 0.08
-    cusp_dwell: float = 1.0
+    speed: float = REFERENCE_SPEED
+    cusp_dwell: float = CUSP_DWELL
     step: float = 0.025
     settle_time: float = 2.0
-    goal_tolerance: tuple[float, float] | None = (0.05, math.radians(5.0))
+    goal_tolerance: tuple[float, float] | None = GOAL_TOLERANCE
 
     def __post_init__(self):
         if self.controller is not None and not isinstance(self.controller, ControllerConfig):

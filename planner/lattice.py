@@ -663,8 +663,7 @@ class Search:
         if not self._route_crosses_goal():
             return self._pullback_starts
         s = self.s
-        geometry = self.train.geometry
-        train_length = float(np.sum(geometry.front) + np.sum(geometry.rear))
+        train_length = self.train.hitch_length
         candidates = []
         for extra in s.pullback_extra:
             for turn in s.pullback_turns:
@@ -702,8 +701,7 @@ class Search:
         last = push[-1]
         if last.kind != "line":
             return False
-        geometry = self.train.geometry
-        if last.length >= float(np.sum(geometry.front) + np.sum(geometry.rear)):
+        if last.length >= self.train.hitch_length:
             return True
         return len(push) == 1 and np.abs(node.state.phi()).max() <= self.s.pull_phi
 

@@ -166,6 +166,12 @@ class Train:
         """Footprint of the last trailer (the planned body)."""
         return self.trailers[-1]
 
+    @property
+    def hitch_length(self) -> float:
+        """Distance [m] from the last trailer's axle to the robot's centre along a straight
+        chain: the sum of every F_i and R_i."""
+        return float(np.sum(self.geometry.front) + np.sum(self.geometry.rear))
+
     def max_link(self) -> float:
         """Largest hitch link max(F_i, R_i) [m]."""
         return float(max(self.geometry.front.max(), self.geometry.rear.max()))

@@ -118,7 +118,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
 
     # with a straight train asked for at the goal, the final straight approach is as long as
     # the train (the followers line up behind the last trailer on it)
-    approach = 1.5 if config.goal_max_phi is None else max(1.5, _train_length(train) + 0.5)
+    approach = 1.5 if config.goal_max_phi is None else max(1.5, train.hitch_length + 0.5)
     settings = SearchSettings(
         radius=radius, step_length=config.step_length, weight=config.search_weight,
         pull_phi=config.pull_max_phi, budget_steps=config.budget_steps(), deadline=deadline,
@@ -199,11 +199,6 @@ def _unreachable(field, train: Train, start, goal, half_width: float) -> Plannin
                                                        "width": gap.width,
                                                        "needed": 2 * half_width}}
     return PlanningError("unreachable", f"impossible here: {text}", where=where, details=details)
-
-
-def _train_length(train: Train) -> float:
-    """Distance [m] from the last trailer's axle to the robot's centre, straight chain."""
-    return float(np.sum(train.geometry.front) + np.sum(train.geometry.rear))
 
 
 # --------------------------------------------------------------------------- the ends

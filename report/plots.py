@@ -1,9 +1,10 @@
 """Figures and an animation of a co-simulation run (matplotlib with the Agg canvas, no pyplot).
 
 Every function takes the structured array ``data`` of :attr:`pushtrain.cosim.result.Result.data`
-(columns as in ``master._columns(n)``) and the number of trailers ``n``. :func:`plot_all` writes
-the standard set into a folder and :func:`plot_file` one file of it by name; each file is written
-atomically (a temporary file in the same folder, then ``os.replace``).
+(a run folder's table, :func:`pushtrain.cosim.result.load_results`) and the number of trailers
+``n``. :func:`plot_all` writes the standard set into a folder and :func:`plot_file` one file
+of it by name; each file is written atomically (a temporary file in the same folder, then
+``os.replace``).
 
 The figures live by concern, each imported from its own module: :mod:`~pushtrain.report.mapview`
 (top view: ``plot_map``, ``map_figure``), :mod:`~pushtrain.report.timeseries` (inputs, joint

@@ -1,11 +1,11 @@
 """The closed loop of the planner's train check in plain Python: the reference the compiled
 engine (``core/csrc/rollout.c``, :mod:`pushtrain.core.engine`) is held equal to, bit for bit.
 
-:func:`simulate_tracking` runs :class:`~pushtrain.core.controller.BackwardController` through
-:class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, Python pull guide, command) at
-the control instants ``t_k = k * step`` with a perfect measurement, holds each command over the
-step and integrates the robot (along its heading) and the towed trailers with RK4
-(:func:`pushtrain.core.ode.rk4_step`) on ``z = (x0, y0, theta_0..theta_n)``: the loop
+:func:`simulate_tracking` runs the reference law (``reference.controller.BackwardController``)
+through :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, Python pull guide,
+command) at the control instants ``t_k = k * step`` with a perfect measurement, holds each
+command over the step and integrates the robot (along its heading) and the towed trailers with
+RK4 (:func:`pushtrain.core.ode.rk4_step`) on ``z = (x0, y0, theta_0..theta_n)``: the loop
 :func:`pushtrain.planner.kinematic_loop.simulate_tracking` runs in C. SI units, radians.
 """
 
