@@ -73,6 +73,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from pushtrain import defaults
 from pushtrain.errors import ControllerError
 from pushtrain.settings import angle_setting, setting
 from pushtrain.table1 import LINK
@@ -121,14 +122,14 @@ class ControllerConfig:
     """
 
     geometry: ChainGeometry
-    k_x: float = setting(1.0, PositiveFloat)
-    k_y: float = setting(4.0, PositiveFloat)
-    k_theta: float = setting(4.0, PositiveFloat)
-    v_max: float = setting(0.1, PositiveFloat, part="robot")
-    w_max: float = angle_setting(math.degrees(0.1), PositiveFloat, part="robot")
-    acc_max: float | None = setting(0.2, PositiveFloat | None)
-    alpha_max: float | None = angle_setting(10.0, PositiveFloat | None)
-    rest_speed: float = 1e-9
+    k_x: float = setting(defaults.K_X, PositiveFloat)
+    k_y: float = setting(defaults.K_Y, PositiveFloat)
+    k_theta: float = setting(defaults.K_THETA, PositiveFloat)
+    v_max: float = setting(defaults.V_MAX, PositiveFloat, part="robot")
+    w_max: float = angle_setting(math.degrees(defaults.W_MAX), PositiveFloat, part="robot")
+    acc_max: float | None = setting(defaults.ACC_MAX, PositiveFloat | None)
+    alpha_max: float | None = angle_setting(defaults.ALPHA_MAX_DEG, PositiveFloat | None)
+    rest_speed: float = defaults.REST_SPEED
 
     def __post_init__(self):
         if not isinstance(self.geometry, ChainGeometry):

@@ -25,7 +25,7 @@ import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
-from pushtrain import __version__
+from pushtrain import __version__, defaults
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS
 from pushtrain.table1 import LINK, SAMPLING_TIME
 
@@ -103,22 +103,24 @@ ROWS: tuple[CtrlVar, ...] = (
             "(used if measure_last_pose)", 0.0, "m"),
     CtrlVar("theta_last", "Real", "input", _MEASURED + "heading of the last trailer (used if "
             "measure_last_pose)", 0.0, "rad"),
-    _bound(CtrlVar("k_x", "Real", "parameter", "Along-track gain K_x (Eq. 3)", 1.0, "1/s"),
-           "controller.gain"),
-    _bound(CtrlVar("k_y", "Real", "parameter", "Lateral gain K_y (Eq. 4)", 4.0, "1/m2"),
-           "controller.gain"),
-    _bound(CtrlVar("k_theta", "Real", "parameter", "Heading gain K_theta (Eq. 4)", 4.0, "1/m"),
-           "controller.gain"),
+    _bound(CtrlVar("k_x", "Real", "parameter", "Along-track gain K_x (Eq. 3)", defaults.K_X,
+                   "1/s"), "controller.gain"),
+    _bound(CtrlVar("k_y", "Real", "parameter", "Lateral gain K_y (Eq. 4)", defaults.K_Y,
+                   "1/m2"), "controller.gain"),
+    _bound(CtrlVar("k_theta", "Real", "parameter", "Heading gain K_theta (Eq. 4)",
+                   defaults.K_THETA, "1/m"), "controller.gain"),
     _bound(CtrlVar("v_max", "Real", "parameter", "Robot speed limit (common-factor scaling)",
-                   0.1, "m/s"), "robot.v_max"),
+                   defaults.V_MAX, "m/s"), "robot.v_max"),
     _bound(CtrlVar("w_max", "Real", "parameter", "Robot yaw-rate limit (common-factor scaling)",
-                   0.1, "rad/s"), "robot.w_max"),
+                   defaults.W_MAX, "rad/s"), "robot.w_max"),
     _nonneg(CtrlVar("acc_max", "Real", "parameter", "Rate limit of the speed command; 0: none",
-                    0.0, "m/s2"), "0 switches the rate limit off"),
+                    defaults.ACC_MAX, "m/s2"), "0 switches the rate limit off"),
     _nonneg(CtrlVar("alpha_max", "Real", "parameter", "Rate limit of the yaw-rate command; "
-                    "0: none", 0.0, "rad/s2"), "0 switches the rate limit off"),
+                    "0: none", math.radians(defaults.ALPHA_MAX_DEG), "rad/s2"),
+            "0 switches the rate limit off"),
     _nonneg(CtrlVar("rest_speed", "Real", "parameter", "|v_d| at or below which the reference "
-                    "counts as resting (zero command)", 1e-9, "m/s"), "a speed is not negative"),
+                    "counts as resting (zero command)", defaults.REST_SPEED, "m/s"),
+            "a speed is not negative"),
     _bound(CtrlVar("front", "Real", "parameter", "The controller's model of the front link "
                    "F_{i} of trailer {i}", LINK, "m", per="trailer"), "front"),
     _bound(CtrlVar("rear", "Real", "parameter", "The controller's model of the rear link R_{i} "
@@ -141,10 +143,11 @@ ROWS: tuple[CtrlVar, ...] = (
                     "first command is not rate limited", DEFAULT_STEP, "s"),
             "a time interval is not negative"),
     CtrlVar("goal_tolerance", "Real", "parameter", "Distance of the last trailer from the goal "
-            "at which done turns true (once the reference has ended)", 0.05, "m",
+            "at which done turns true (once the reference has ended)", defaults.GOAL_TOLERANCE[0],
+            "m",
             min=1e-6, max=100.0, reason="a goal is a point of the map, not a region over 100 m"),
     CtrlVar("goal_heading_tolerance", "Real", "parameter", "Heading error of the last trailer "
-            "at the goal at which done turns true", math.radians(5.0), "rad",
+            "at the goal at which done turns true", defaults.GOAL_TOLERANCE[1], "rad",
             min=1e-6, max=math.pi, reason="a tolerance above pi accepts any heading"),
     CtrlVar("v_cmd", "Real", "output", "Robot speed command", unit="m/s"),
     CtrlVar("w_cmd", "Real", "output", "Robot yaw-rate command", unit="rad/s"),

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["CUSP_DWELL", "GOAL_HEADING_TOLERANCE_DEG", "GOAL_TOLERANCE", "REFERENCE_SPEED",
-           "ROBOT_LENGTH", "ROBOT_WIDTH", "SETTLE_TIME"]
+__all__ = ["ACC_MAX", "ALPHA_MAX_DEG", "CUSP_DWELL", "GOAL_HEADING_TOLERANCE_DEG",
+           "GOAL_TOLERANCE", "K_THETA", "K_X", "K_Y", "REFERENCE_SPEED", "REST_SPEED",
+           "ROBOT_LENGTH", "ROBOT_WIDTH", "SETTLE_TIME", "V_MAX", "W_MAX"]
 
 REFERENCE_SPEED = 0.08
 """Speed of a planned path's reference [m/s]: below the robot's 0.1 m/s, so that along-track
@@ -24,6 +25,32 @@ GOAL_HEADING_TOLERANCE_DEG = 5.0
 
 GOAL_TOLERANCE = (0.05, math.radians(GOAL_HEADING_TOLERANCE_DEG))
 """The goal test: the last trailer within 0.05 m and 5 deg of the goal [m, rad]."""
+
+K_X = 1.0
+"""Kanayama's along-track gain K_x [1/s] (Eq. 3)."""
+
+K_Y = 4.0
+"""Kanayama's lateral gain K_y [1/m^2] (Eq. 4): lateral errors decay over about 0.5 m."""
+
+K_THETA = 4.0
+"""Kanayama's heading gain K_theta [1/m] (Eq. 4)."""
+
+V_MAX = 0.1
+"""The robot's speed limit [m/s] (the paper's robot)."""
+
+W_MAX = 0.1
+"""The robot's yaw-rate limit [rad/s] (the paper's robot; a scenario gives it as
+``w_max_deg``, whose radians differ from this in the last bit)."""
+
+ACC_MAX = 0.2
+"""Rate limit of the speed command [m/s^2]."""
+
+ALPHA_MAX_DEG = 10.0
+"""Rate limit of the yaw-rate command [deg/s^2]: the paper keeps |alpha| <= 10 deg/s^2 to avoid
+lateral wheel slip (Sec. 4.4)."""
+
+REST_SPEED = 1e-9
+"""|v_d| [m/s] at or below which the reference counts as resting (the command is zero)."""
 
 ROBOT_LENGTH = 0.6
 """The robot's footprint along its heading [m]."""
