@@ -5,7 +5,7 @@ Usage: python benchmarks/bench_maps.py [--seeds 3] [--resolution 0.05] [--budget
 A 100 m x 100 m hall with rack rows, a cross aisle and a few boxes turned by 30 deg is given
 twice: as polygons (a World built from them), and rendered into a map_server map (PGM + YAML,
 a pixel free when its centre is in the free space; 2000 x 2000 pixels at 5 cm) that is loaded
-with ``pushtrain.facility.occupancy_grid.load_map`` and turned into a World (``grid_world``). The
+with ``pushtrain.facility.map_server.load_map`` and turned into a World (``grid_world``). The
 same planner (whatever ``pushtrain.planner.planner.plan`` is in this checkout; it is named in the
 output)
 plans the same mission on both with the same seeds, and the script prints, side by side:
@@ -34,7 +34,7 @@ from shapely.geometry import box
 from pushtrain.errors import PlanningError
 from pushtrain.facility.free_space import World
 from pushtrain.facility.loading import grid_world
-from pushtrain.facility.occupancy_grid import load_map
+from pushtrain.facility.map_server import load_map
 from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.planner import plan
 from pushtrain.planner.train import Train

@@ -43,7 +43,8 @@ from shapely.ops import unary_union
 from pushtrain.errors import MapError, PlanningInputError
 from pushtrain.validation import clipped
 
-from .occupancy_grid import OccupancyGrid, load_map
+from .map_server import load_map
+from .occupancy_grid import OccupancyGrid
 from .raster import blocked_polygons
 
 __all__ = ["grid_world", "map_world"]

@@ -14,7 +14,7 @@ from shapely.geometry import Point, box
 
 from pushtrain.errors import MapError
 from pushtrain.facility.loading import grid_world
-from pushtrain.facility.occupancy_grid import load_map, occupancy_values, read_map_yaml
+from pushtrain.facility.map_server import load_map, occupancy_values, read_map_yaml
 
 MAP_SAVER = {"resolution": 0.05, "origin": [0.0, 0.0, 0.0], "negate": 0,
              "occupied_thresh": 0.65, "free_thresh": 0.196}

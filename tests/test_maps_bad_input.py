@@ -23,7 +23,7 @@ from PIL import Image
 from pushtrain.cli.main import cli
 from pushtrain.errors import MapError, PlanningInputError
 from pushtrain.facility.free_space import World, polygon_from_points
-from pushtrain.facility.occupancy_grid import load_map, read_map_yaml
+from pushtrain.facility.map_server import load_map, read_map_yaml
 
 MAX_MESSAGE = 4000
 """Longest error output [characters] a bad map may give ("a few kB")."""

@@ -408,9 +408,9 @@ def _runaway(monkeypatch, folder: Path, read_pixels) -> Path:
     """A small grid scenario whose image reading is ``read_pixels`` (in the child only)."""
     from PIL import Image
 
-    from pushtrain.facility import occupancy_grid
+    from pushtrain.facility import map_server
 
-    monkeypatch.setattr(occupancy_grid, "_read_pixels", read_pixels)
+    monkeypatch.setattr(map_server, "_read_pixels", read_pixels)
     Image.fromarray(np.full((20, 20), 254, np.uint8)).save(folder / "map.pgm")
     (folder / "fuzz.yaml").write_text("image: map.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n"
                                       "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")

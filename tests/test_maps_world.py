@@ -17,7 +17,7 @@ from pushtrain.cli.main import cli
 from pushtrain.facility import example_layouts
 from pushtrain.facility.free_space import World
 from pushtrain.facility.loading import grid_world
-from pushtrain.facility.occupancy_grid import load_map
+from pushtrain.facility.map_server import load_map
 from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.planner import plan
 from pushtrain.planner.train import BodyFootprint, Train
