@@ -44,10 +44,10 @@ Heuristic
     (:class:`~pushtrain.planner.heuristic.Heuristic`), times ``weight`` (>= 1: a faster, less
     optimal search).
 Goal
-    Reached only by a connection from a node (:meth:`Search._connections`): the driver's corner
-    (straight, arc, straight), the same after a straightening push, a pull-back where the route
-    comes in across the goal (pushed round into the far branch of the junction until the
-    train is straight, then pulled back onto the goal: :meth:`Search._pullbacks`), and
+    Reached only by a connection from a node (:mod:`~pushtrain.planner.goal_connections`):
+    the driver's corner (straight, arc, straight), the same after a straightening push, a
+    pull-back where the route comes in across the goal (pushed round into the far branch of
+    the junction until the train is straight, then pulled back onto the goal), and
     Reeds-Shepp paths (radius ``turning radius * f`` for f in ``analytic_radii``). Each is
     first checked cheaply (the last trailer's own footprint along it), then tracked in closed
     loop until the simulated last trailer rests within the goal tolerance (the co-simulation's
@@ -77,133 +77,22 @@ import numpy as np
 
 from pushtrain.core.reference import PULL, PUSH, Segment
 
-from .config import PlannerConfig
 from .connect import corner_segments, rs_segments, sample_reference
 from .footprint import body_positions
+from .goal_connections import GoalConnections
 from .heuristic import Heuristic
 from .propagate import Cursor, Propagator, Rollout, TrainState
-from .route import Route, comes_in_across
+from .route import Route
+from .search_settings import SearchSettings, segments_cost
 from .train import Train
 
-__all__ = ["SearchSettings", "Node", "Search", "Solution", "segments_cost"]
+__all__ = ["Node", "Search", "Solution"]
 
 log = logging.getLogger(__name__)
 
 REFERENCE_CHUNK = 200_000
 """Most footprint points :meth:`Search.reference_clear` tests at once (about 10 arrays of this
 many floats: 16 MB)."""
-
-
-@dataclass(frozen=True)
-class SearchSettings:
-    """Settings of :class:`Search` (SI units, radians; see the module docstring).
-
-    Attributes
-    ----------
-    radius : float
-        The turning radius [m]: pushing primitives' curvatures are ``k / radius`` for k in
-        ``curvatures``, pulling ones for k in ``pull_curvatures`` (a driver pulls straight or
-        gently turning); connections use multiples of it.
-    step_length, pull_length, long_straight : float
-        Length [m] of a pushing primitive, of a pulling one, and of the one long straight push.
-    approach : float
-        Length [m] of the straight push onto the goal that ends the approach connections.
-    grid_xy, grid_theta, grid_bend : float
-        Cells of the duplicate pruning: reference position [m], heading [rad], and the chain's
-        bend (robot heading minus last trailer heading) [rad].
-    weight : float
-        Heuristic weight (>= 1).
-    turn_weight, pull_turn_weight, change_weight, cusp_cost, pull_factor : float
-        The cost (:func:`segments_cost`): per radian turned pushing and pulling, per change of
-        curvature, per cusp, and the factor of a pulled metre.
-    pull_phi : float
-        The pull rule: the largest |phi_i| [rad] a pulling run may start from.
-    max_pull_run : float
-        Longest pulling run [m] of primitives (each continuation rolls the run out again).
-    inch_fractions : tuple of float
-        Fractions of the primitives' lengths tried, in turn, from a start none of whose
-        full-length motions succeeded (inching out of a tight spot). Only from the start:
-        inside the search, a node whose motions all fail is a dead end, and inching from every
-        such node doubled the expansions of the three-point turn.
-    follow_lengths : tuple of float
-        How far ahead along the route [m] the route-following pushes aim (see
-        :meth:`Search._follow`).
-    follow_offset, follow_angle : float
-        Farthest distance [m] of the reference from the route, and largest angle [rad] between
-        the direction it pushes and the route's, for a route-following push.
-    follow_turn, follow_turn_bent : float
-        Largest turn [rad] of the route over the stretch a route-following push covers, from a
-        straight chain (every |phi_i| <= ``pull_phi``) and from a bent one: sharper corners and
-        junctions are left to the primitives and the connections. Without the limit, pushes
-        round the corner of the 1.3 m L with five trailers cost 4 times the expansions; with one
-        limit for all, 60 deg gave that L two cusps and 45 deg lost the bookstore's U-turn.
-    analytic_radii, corner_radii : tuple of float
-        Radii (in turning radii) of the Reeds-Shepp connections and of the corner connections,
-        in the order tried (the tightest corner first: the shortest path).
-    straighten : tuple of float
-        Lengths [m] of the straight pushes tried before a pulled corner connection when the
-        chain is too bent to pull.
-    pullback_enter : float
-        Angle [rad] between the route's direction of travel into the goal (over its last
-        metre) and the direction the train is pushed at the goal beyond which the search also
-        tries the pull-back connections (see :meth:`Search._pullbacks`): the route comes in
-        across the goal, as up a corridor into a T junction whose goal faces along the hall.
-    pullback_turns, pullback_extra : tuple of float
-        The pull-back's last pull: the heading it turns [rad] on an arc of the turning radius
-        after a straight pull as long as the train plus each of ``pullback_extra`` [m].
-    pullback_keep : int
-        How many of those pulls are kept: the ones farthest from the walls.
-    pullback_settle : float
-        Length [m] of the straight pull after the pull-back's arc: the last trailer, which
-        cuts the arc's inside while pulled, settles onto the goal's line on it.
-    analytic_every, analytic_per_node : int
-        Reeds-Shepp connections are tried every ``analytic_every`` expansions; at most
-        ``analytic_per_node`` closed-loop connection attempts per node otherwise.
-    car_after : int
-        Expansions without a path after which the car heuristic is built.
-    budget_steps : int
-        Simulated control steps the search may spend (all rollouts together).
-    deadline : float
-        ``time.perf_counter()`` value at which the search stops.
-    """
-
-    radius: float
-    curvatures: tuple = (0.0, 1.0, -1.0, 0.5, -0.5)
-    pull_curvatures: tuple = (0.0, 0.5, -0.5)
-    step_length: float = PlannerConfig.step_length
-    pull_length: float = 1.0
-    long_straight: float = 1.5
-    approach: float = 1.5
-    grid_xy: float = 0.15
-    grid_theta: float = math.radians(7.5)
-    grid_bend: float = 0.3
-    weight: float = PlannerConfig.search_weight
-    turn_weight: float = 0.3
-    pull_turn_weight: float = 1.0
-    change_weight: float = 0.25
-    cusp_cost: float = 2.0
-    pull_factor: float = 1.2
-    pull_phi: float = PlannerConfig.pull_max_phi
-    max_pull_run: float = 8.0
-    analytic_radii: tuple = (1.6, 1.0)
-    corner_radii: tuple = (1.0, 1.6, 3.0)
-    straighten: tuple = (1.5, 3.0)
-    inch_fractions: tuple = (0.4, 0.15)
-    follow_lengths: tuple = (2.0, 4.0, 8.0)
-    follow_offset: float = 1.0
-    follow_angle: float = math.radians(45.0)
-    follow_turn: float = math.radians(60.0)
-    follow_turn_bent: float = math.radians(30.0)
-    pullback_enter: float = math.radians(60.0)
-    pullback_turns: tuple = tuple(math.radians(a) for a in range(-90, 91, 5))
-    pullback_extra: tuple = (0.5, 2.0)
-    pullback_keep: int = 3
-    pullback_settle: float = 1.0
-    analytic_every: int = 4
-    analytic_per_node: int = 2
-    car_after: int = 20
-    budget_steps: int = 10**9
-    deadline: float = math.inf
 
 
 @dataclass(eq=False)
@@ -315,7 +204,8 @@ class Search:
         self.nodes: list[Node] = []
         self._last_analytic = -10**9
         self._pending: Node | None = None
-        self._pullback_starts: list | None = None
+        self.connections = GoalConnections(train, propagator, self.goal, settings, self.reach,
+                                           lambda: self.route, self.reference_clear)
         root = Node(start, start_cursor, 0.0, heuristic(start_cursor.pose))
         self.root = root
         self.closest = root
@@ -567,7 +457,7 @@ class Search:
         due = (self.stats.expansions - self._last_analytic >= s.analytic_every
                or node is self.root)
         attempts = 0
-        for kind, segments in self._connections(node):
+        for kind, segments in self.connections.candidates(node.cursor.pose, node.state.phi()):
             if kind[0] in ("pullback", "approach", "direct") and not due:
                 break
             if attempts >= s.analytic_per_node and not due:
@@ -586,151 +476,6 @@ class Search:
             if rollout.failure["kind"] not in ("budget", "deadline"):
                 self.stats.record(rollout.failure)
         return None
-
-
-    def _connections(self, node: Node):
-        """Candidate ways to the goal from ``node``, the driver's first: straight, one arc,
-        straight (:func:`corner_segments`, pushing or pulling, with the radii of
-        ``corner_radii``), also after a straight push
-        of ``straighten`` metres where the chain is too bent to pull; the pull-backs
-        (:meth:`_pullbacks`: a corner push to where the pull starts, its last straight as
-        long as the train, and the pull onto the goal); then Reeds-Shepp paths
-        (radius ``turning radius * f`` for f in ``analytic_radii``) to a pose ``approach``
-        metres before the goal followed by a straight push onto it (the followers line up
-        behind the last trailer before it arrives), and straight to the goal."""
-        s = self.s
-        pose = node.cursor.pose
-        bent = np.abs(node.state.phi()).max() > s.pull_phi
-        for direction in (PUSH, PULL):
-            if direction == PULL and bent:
-                continue
-            for factor in s.corner_radii:
-                path = corner_segments(pose, self.goal, direction, s.radius * factor,
-                                       max_reach=self.reach)
-                if path:
-                    yield ("corner", direction, factor), path
-        if bent:
-            for d in s.straighten:
-                push = Segment("line", d, 0.0, PUSH)
-                ahead = sample_reference(pose, [push], d)[-1]
-                for factor in s.corner_radii:
-                    path = corner_segments(ahead, self.goal, PULL, s.radius * factor,
-                                           max_reach=self.reach)
-                    if path:
-                        yield ("straighten", d, factor), [push] + path
-        for start, pull in self._pullbacks():
-            for factor in s.corner_radii:  # the tightest corner whose reference is clear
-                push = corner_segments(pose, start, PUSH, s.radius * factor,
-                                       max_reach=self.reach)
-                if (push and self._straightens(node, push)
-                        and self._reference_clear(node.cursor, push)):
-                    yield ("pullback", factor), push + pull
-                    break
-        gx, gy, gth = self.goal
-        pre = (gx + s.approach * math.cos(gth), gy + s.approach * math.sin(gth), gth)
-        for factor in s.analytic_radii:
-            radius = s.radius * factor
-            if s.approach > 0.0:
-                head = rs_segments(pose, pre, radius)
-                if head:
-                    yield ("approach", factor), head + [Segment("line", s.approach, 0.0, PUSH)]
-            direct = rs_segments(pose, self.goal, radius)
-            if direct is not None:
-                yield ("direct", factor), direct
-
-
-    # ------------------------------------------------------------------ turning round
-    def _pullbacks(self) -> list:
-        """The pull-back connections' pulls onto the goal: (the pose the pull starts from, its
-        segments), made once; none unless the route comes in across the goal.
-
-        A tugger driver whose train comes up a corridor into a T junction, and must leave it
-        at the junction pushed along the hall, cannot push round onto it: the train behind
-        the last trailer would have to lie in the hall the other way. He pushes round the
-        corner into the hall's other branch until the train is straight there, then pulls it
-        back onto the junction, straight and turning at the end. Each pull here is such a
-        pull, computed backward from the goal: a straight pull as long as the train plus
-        ``pullback_extra`` (the whole train lies straight on it, as the pull rule asks),
-        then an arc of the turning radius turning ``pullback_turns`` and a straight pull of
-        ``pullback_settle`` onto the goal. Of these, the ``pullback_keep`` whose reference
-        keeps farthest from the walls (the middle of the branch, where a driver straightens
-        his train) among those where the last trailer's footprint clears the pull and the
-        straight train fits at its start.
-        """
-        if self._pullback_starts is not None:
-            return self._pullback_starts
-        self._pullback_starts = []
-        if not self._route_crosses_goal():
-            return self._pullback_starts
-        s = self.s
-        train_length = self.train.hitch_length
-        candidates = []
-        for extra in s.pullback_extra:
-            for turn in s.pullback_turns:
-                pull = [Segment("line", train_length + extra, 0.0, PULL)]
-                if turn != 0.0:
-                    pull.append(Segment("arc", abs(turn) * s.radius,
-                                        math.copysign(self.kappa, turn), PULL))
-                    pull.append(Segment("line", s.pullback_settle, 0.0, PULL))
-                poses = sample_reference(self.goal, _reversed(pull), 0.05)
-                room = float(self.prop.field.at(poses[:, 0], poses[:, 1]).min())
-                candidates.append((-room, len(candidates), tuple(map(float, poses[-1])), pull))
-        # the roomiest first, checked until enough pass (the checks cost a millisecond each)
-        for _, _, start, pull in sorted(candidates):
-            if len(self._pullback_starts) >= s.pullback_keep:
-                break
-            if not self.reference_clear(start, pull):
-                continue
-            state = self.prop.initial_state(start, np.full(self.train.n + 1, start[2]))
-            failure, _ = self.prop.check(np.array([state.z]))
-            if failure is None:
-                self._pullback_starts.append((start, pull))
-        log.debug("pull-back connections from %s", [p for p, _ in self._pullback_starts])
-        return self._pullback_starts
-
-    def _route_crosses_goal(self) -> bool:
-        """Whether the route's direction of travel over its last metre differs from the
-        direction the train is pushed at the goal by more than ``pullback_enter``."""
-        route = self.route
-        return route is not None and comes_in_across(route, self.goal, self.s.pullback_enter)
-
-    def _straightens(self, node: Node, push: list[Segment]) -> bool:
-        """Whether the push before a pull-back ends on a straight as long as the train (the
-        chain straightens on it, so the pull may start), or is one straight push of a train
-        that is straight already."""
-        last = push[-1]
-        if last.kind != "line":
-            return False
-        if last.length >= self.train.hitch_length:
-            return True
-        return len(push) == 1 and np.abs(node.state.phi()).max() <= self.s.pull_phi
-
-
-def _reversed(segments: list[Segment]) -> list[Segment]:
-    """The segments travelled backward: from their end to their start."""
-    return [Segment(g.kind, g.length, -g.curvature, -g.direction) for g in reversed(segments)]
-
-
-def segments_cost(segments, settings: SearchSettings, direction: int = 0,
-                  curvature: float | None = None) -> float:
-    """The search's cost of ``segments`` after a motion in ``direction`` (0: none) with
-    ``curvature`` (None: none): length (pulls times ``pull_factor``), the heading turned (times
-    ``turn_weight`` pushing, ``pull_turn_weight`` pulling: a turning pull starts from a chain
-    its guide did not expect, so the last trailer swings off its path), ``change_weight`` per
-    change of curvature and ``cusp_cost`` per direction change."""
-    s = settings
-    cost = 0.0
-    for seg in segments:
-        pull = seg.direction == PULL
-        turned = abs(seg.curvature) * seg.length
-        cost += seg.length * (s.pull_factor if pull else 1.0)
-        cost += (s.pull_turn_weight if pull else s.turn_weight) * turned
-        if direction in (PUSH, PULL) and seg.direction != direction:
-            cost += s.cusp_cost
-        if curvature is not None and seg.curvature != curvature:
-            cost += s.change_weight
-        direction, curvature = seg.direction, seg.curvature
-    return cost
 
 
 def _trace(rollout: Rollout, geometry, every: int = 25) -> np.ndarray:

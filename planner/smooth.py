@@ -27,7 +27,7 @@ from collections.abc import Callable, Sequence
 from pushtrain.core.reference import Segment
 
 from .connect import corner_segments, rs_segments, sample_reference
-from .lattice import SearchSettings, segments_cost
+from .search_settings import SearchSettings, segments_cost
 
 __all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]
 
@@ -51,8 +51,8 @@ def total_turning(segments: Sequence[Segment]) -> float:
 
 
 def path_cost(segments: Sequence[Segment], settings: SearchSettings | None = None) -> float:
-    """The path's cost as the search prices it (:func:`~pushtrain.planner.lattice.segments_cost`
-    with ``settings``, default :class:`~pushtrain.planner.lattice.SearchSettings`)."""
+    """The path's cost as the search prices it (:func:`~pushtrain.planner.search_settings.segments_cost`
+    with ``settings``, default :class:`~pushtrain.planner.search_settings.SearchSettings`)."""
     return segments_cost(segments, settings or SearchSettings(radius=1.0))
 
 

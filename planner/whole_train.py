@@ -49,10 +49,11 @@ from pushtrain.facility.free_space import World
 from .footprint import body_name, body_positions, body_samples
 from .heuristic import Heuristic
 from .kinematic_loop import TrackerConfig, Trajectory, reference_times
-from .lattice import Search, SearchSettings
+from .lattice import Search
 from .path import PlannedPath
 from .propagate import Cursor, Propagator
 from .route import find_route, widest_gap
+from .search_settings import SearchSettings
 from .smooth import merge, path_cost, shortcut
 from .train import Train
 from .train_check import check_train

@@ -241,7 +241,7 @@ def test_the_pull_back_of_a_turn_round_lands_on_the_goal():
     """The pull-back connections' pulls, computed backward from the goal, end on it."""
     from pushtrain.core.reference import Segment
     from pushtrain.planner.connect import sample_reference
-    from pushtrain.planner.lattice import _reversed
+    from pushtrain.planner.goal_connections import _reversed
 
     goal = (15.0, 46.8, math.pi)
     pull = [Segment("line", 3.62, 0.0, PULL), Segment("arc", 0.6, -1.03, PULL),

@@ -20,8 +20,8 @@ from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.facility.free_space import World
 from pushtrain.planner.footprint import body_positions, body_samples, first_failure
 from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller
-from pushtrain.planner.lattice import SearchSettings, segments_cost
 from pushtrain.planner.propagate import Cursor, Propagator
+from pushtrain.planner.search_settings import SearchSettings, segments_cost
 from pushtrain.planner.train import Train
 
 # ------------------------------------------------------------------------------- the search cost

@@ -1,0 +1,178 @@
+"""The lattice search's ways to the goal: the connections a node tries to reach it in one go.
+
+From a node's reference pose, in the order tried (the driver's first):
+
+- **corner**: straight, one arc, straight (:func:`~pushtrain.planner.connect.corner_segments`),
+  pushing, or pulling where the chain is straight enough to pull, with the radii of
+  ``corner_radii``;
+- **straighten**: where the chain is too bent to pull, a straight push of ``straighten``
+  metres first, then the pulled corner;
+- **pullback**: where the route comes in across the goal (up a corridor into a T junction whose
+  goal faces along the hall), a corner push into the junction's far branch whose last straight
+  is as long as the train, then a pull back onto the goal (:meth:`GoalConnections.pullbacks`);
+- **approach** and **direct**: Reeds-Shepp paths (radius ``turning radius * f`` for f in
+  ``analytic_radii``) to a pose ``approach`` metres before the goal followed by a straight push
+  onto it (the followers line up behind the last trailer before it arrives), and straight to
+  the goal.
+
+Each candidate is a list of segments; the search checks it cheaply and then tracks it in closed
+loop (:class:`~pushtrain.planner.lattice.Search`). Units: SI, radians.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Iterator
+
+import numpy as np
+
+from pushtrain.core.reference import PULL, PUSH, Segment
+
+from .connect import corner_segments, rs_segments, sample_reference
+from .propagate import Propagator
+from .route import Route, comes_in_across
+from .train import Train
+
+__all__ = ["GoalConnections"]
+
+log = logging.getLogger(__name__)
+
+
+class GoalConnections:
+    """The connections to ``goal`` of one search.
+
+    Parameters
+    ----------
+    train : Train
+    propagator : Propagator
+        Its distance field and its checks of a train state (the pull-backs' starts).
+    goal : (x, y, theta)
+        The last trailer's goal pose [m, m, rad].
+    settings : SearchSettings
+        The search's settings (radii, pull rule, pull-back parameters).
+    reach : float
+        The longest straight a connection may have [m] (the map's diagonal).
+    route : callable
+        Returns the route through the building, or None (asked only for the pull-backs).
+    clear : callable
+        ``clear(pose, segments)``: whether the last trailer's footprint keeps its clearance
+        along ``segments`` from ``pose`` (the search's cheap reference test).
+    """
+
+    def __init__(self, train: Train, propagator: Propagator, goal, settings, reach: float,
+                 route: Callable[[], Route | None], clear: Callable[..., bool]):
+        self.train = train
+        self.prop = propagator
+        self.goal = goal
+        self.s = settings
+        self.reach = reach
+        self._route = route
+        self._clear = clear
+        self._pullback_starts: list | None = None
+
+    def candidates(self, pose, phi) -> Iterator[tuple[tuple, list[Segment]]]:
+        """(kind, segments) of every connection from reference ``pose`` (x, y, theta) with the
+        chain's joint angles ``phi`` (n,) [rad], in the order of the module docstring."""
+        s = self.s
+        bend = float(np.abs(phi).max())
+        bent = bend > s.pull_phi
+        for direction in (PUSH, PULL):
+            if direction == PULL and bent:
+                continue
+            for factor in s.corner_radii:
+                path = corner_segments(pose, self.goal, direction, s.radius * factor,
+                                       max_reach=self.reach)
+                if path:
+                    yield ("corner", direction, factor), path
+        if bent:
+            for d in s.straighten:
+                push = Segment("line", d, 0.0, PUSH)
+                ahead = sample_reference(pose, [push], d)[-1]
+                for factor in s.corner_radii:
+                    path = corner_segments(ahead, self.goal, PULL, s.radius * factor,
+                                           max_reach=self.reach)
+                    if path:
+                        yield ("straighten", d, factor), [push] + path
+        for start, pull in self.pullbacks():
+            for factor in s.corner_radii:  # the tightest corner whose reference is clear
+                push = corner_segments(pose, start, PUSH, s.radius * factor,
+                                       max_reach=self.reach)
+                if push and self._straightens(push, bend) and self._clear(pose, push):
+                    yield ("pullback", factor), push + pull
+                    break
+        gx, gy, gth = self.goal
+        pre = (gx + s.approach * math.cos(gth), gy + s.approach * math.sin(gth), gth)
+        for factor in s.analytic_radii:
+            radius = s.radius * factor
+            if s.approach > 0.0:
+                head = rs_segments(pose, pre, radius)
+                if head:
+                    yield ("approach", factor), head + [Segment("line", s.approach, 0.0, PUSH)]
+            direct = rs_segments(pose, self.goal, radius)
+            if direct is not None:
+                yield ("direct", factor), direct
+
+    def pullbacks(self) -> list:
+        """The pull-back connections' pulls onto the goal: (the pose the pull starts from, its
+        segments), made once; none unless the route comes in across the goal.
+
+        A tugger driver whose train comes up a corridor into a T junction, and must leave it
+        at the junction pushed along the hall, cannot push round onto it: the train behind
+        the last trailer would have to lie in the hall the other way. He pushes round the
+        corner into the hall's other branch until the train is straight there, then pulls it
+        back onto the junction, straight and turning at the end. Each pull here is such a
+        pull, computed backward from the goal: a straight pull as long as the train plus
+        ``pullback_extra`` (the whole train lies straight on it, as the pull rule asks),
+        then an arc of the turning radius turning ``pullback_turns`` and a straight pull of
+        ``pullback_settle`` onto the goal. Of these, the ``pullback_keep`` whose reference
+        keeps farthest from the walls (the middle of the branch, where a driver straightens
+        his train) among those where the last trailer's footprint clears the pull and the
+        straight train fits at its start.
+        """
+        if self._pullback_starts is not None:
+            return self._pullback_starts
+        self._pullback_starts = []
+        route = self._route()
+        if route is None or not comes_in_across(route, self.goal, self.s.pullback_enter):
+            return self._pullback_starts
+        s = self.s
+        candidates = []
+        for extra in s.pullback_extra:
+            for turn in s.pullback_turns:
+                pull = [Segment("line", self.train.hitch_length + extra, 0.0, PULL)]
+                if turn != 0.0:
+                    pull.append(Segment("arc", abs(turn) * s.radius,
+                                        math.copysign(1.0 / s.radius, turn), PULL))
+                    pull.append(Segment("line", s.pullback_settle, 0.0, PULL))
+                poses = sample_reference(self.goal, _reversed(pull), 0.05)
+                room = float(self.prop.field.at(poses[:, 0], poses[:, 1]).min())
+                candidates.append((-room, len(candidates), tuple(map(float, poses[-1])), pull))
+        # the roomiest first, checked until enough pass (the checks cost a millisecond each)
+        for _, _, start, pull in sorted(candidates):
+            if len(self._pullback_starts) >= s.pullback_keep:
+                break
+            if not self._clear(start, pull):
+                continue
+            state = self.prop.initial_state(start, np.full(self.train.n + 1, start[2]))
+            failure, _ = self.prop.check(np.array([state.z]))
+            if failure is None:
+                self._pullback_starts.append((start, pull))
+        log.debug("pull-back connections from %s", [p for p, _ in self._pullback_starts])
+        return self._pullback_starts
+
+    def _straightens(self, push: list[Segment], bend: float) -> bool:
+        """Whether the push before a pull-back ends on a straight as long as the train (the
+        chain straightens on it, so the pull may start), or is one straight push of a train
+        whose largest |phi_i| ``bend`` [rad] is within the pull rule already."""
+        last = push[-1]
+        if last.kind != "line":
+            return False
+        if last.length >= self.train.hitch_length:
+            return True
+        return len(push) == 1 and bend <= self.s.pull_phi
+
+
+def _reversed(segments: list[Segment]) -> list[Segment]:
+    """The segments travelled backward: from their end to their start."""
+    return [Segment(g.kind, g.length, -g.curvature, -g.direction) for g in reversed(segments)]
