@@ -51,8 +51,8 @@ def total_turning(segments: Sequence[Segment]) -> float:
 
 
 def path_cost(segments: Sequence[Segment], settings: SearchSettings | None = None) -> float:
-    """The path's cost as the search prices it (:func:`~pushtrain.planner.search_settings.segments_cost`
-    with ``settings``, default :class:`~pushtrain.planner.search_settings.SearchSettings`)."""
+    """The path's cost as the search prices it (:func:`segments_cost` with ``settings``,
+    default :class:`~pushtrain.planner.search_settings.SearchSettings`)."""
     return segments_cost(segments, settings or SearchSettings(radius=1.0))
 
 
