@@ -24,7 +24,7 @@ from shapely.validation import explain_validity
 from pushtrain.errors import PlanningInputError
 
 from .distance_field import DEFAULT_RESOLUTION, DistanceField
-from .raster import polygon_path
+from .raster import fill_polygons, frame_map
 
 __all__ = ["World", "outline_problem", "polygon_from_points"]
 
@@ -301,22 +301,11 @@ class World:
         """Draw the map on ``ax``: the occupancy grid's own picture (its image, rotated as it
         lies, and the polygons drawn on top) if it has one, else the free space (light) and
         everything else inside the bounds (dark)."""
-        from matplotlib.patches import PathPatch
-
         if self.occupancy is not None and hasattr(self.occupancy, "plot"):
             return self.occupancy.plot(ax, obstacle_color=obstacle_color)
-        xmin, ymin, xmax, ymax = self.outline.bounds
+        xmin, ymin, xmax, ymax = bounds = self.outline.bounds
         pad = 0.05 * max(xmax - xmin, ymax - ymin, 1e-9)
         frame = box(xmin - pad, ymin - pad, xmax + pad, ymax + pad)
-        blocked = frame.difference(self.free)
-        for geom, color in ((blocked, obstacle_color), (self.free, free_color)):
-            for poly in getattr(geom, "geoms", [geom]):
-                if not isinstance(poly, Polygon) or poly.is_empty:
-                    continue
-                ax.add_patch(PathPatch(polygon_path(poly), facecolor=color, edgecolor="none"))
-        ax.set_xlim(xmin - pad, xmax + pad)
-        ax.set_ylim(ymin - pad, ymax + pad)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
-        return ax
+        fill_polygons(ax, frame.difference(self.free), facecolor=obstacle_color, edgecolor="none")
+        fill_polygons(ax, self.free, facecolor=free_color, edgecolor="none")
+        return frame_map(ax, bounds, pad)

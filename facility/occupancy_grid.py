@@ -334,9 +334,7 @@ class OccupancyGrid:
     # ------------------------------------------------------------------ drawing
     def plot(self, ax, obstacle_color: str = "#606060"):
         """Draw the map image (rotated as it lies) and the polygons burned on top."""
-        from matplotlib.patches import PathPatch
-
-        from .raster import polygon_path
+        from .raster import fill_polygons, frame_map
 
         if self.image is not None:
             self.image.plot(ax)
@@ -348,15 +346,7 @@ class OccupancyGrid:
         if self.keep_in is not None:
             drawn.append(self.footprint().envelope.buffer(self.resolution).difference(self.keep_in))
         for geom in drawn:
-            for poly in getattr(geom, "geoms", [geom]):
-                if isinstance(poly, Polygon) and not poly.is_empty:
-                    ax.add_patch(PathPatch(polygon_path(poly), facecolor=obstacle_color,
-                                           edgecolor="none", alpha=0.9, zorder=0.5))
-        xmin, ymin, xmax, ymax = self.footprint().bounds
-        pad = 0.02 * max(xmax - xmin, ymax - ymin, 1e-9)
-        ax.set_xlim(xmin - pad, xmax + pad)
-        ax.set_ylim(ymin - pad, ymax + pad)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
-        return ax
+            fill_polygons(ax, geom, facecolor=obstacle_color, edgecolor="none", alpha=0.9,
+                          zorder=0.5)
+        xmin, ymin, xmax, ymax = bounds = self.footprint().bounds
+        return frame_map(ax, bounds, 0.02 * max(xmax - xmin, ymax - ymin, 1e-9))

@@ -10,7 +10,7 @@ import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 
-__all__ = ["blocked_polygons", "clear_region", "polygon_path"]
+__all__ = ["blocked_polygons", "clear_region", "fill_polygons", "frame_map", "polygon_path"]
 
 _TRACE_LEVEL = 0.49
 """Marching-squares level between free (0) and blocked (1) cell centres: a hair below 1/2, so a
@@ -82,3 +82,25 @@ def polygon_path(poly: Polygon):
         verts += xy.tolist()
         codes += [MplPath.MOVETO] + [MplPath.LINETO] * (len(xy) - 2) + [MplPath.CLOSEPOLY]
     return MplPath(verts, codes)
+
+
+def fill_polygons(ax, geom, **patch) -> None:
+    """Fill every non-empty polygon of ``geom`` (a Polygon, MultiPolygon or collection) on
+    ``ax`` with its holes, with the PathPatch settings ``patch``."""
+    from matplotlib.patches import PathPatch
+
+    for poly in getattr(geom, "geoms", [geom]):
+        if isinstance(poly, Polygon) and not poly.is_empty:
+            ax.add_patch(PathPatch(polygon_path(poly), **patch))
+
+
+def frame_map(ax, bounds, pad: float):
+    """Frame ``ax`` on a map's ``bounds`` (xmin, ymin, xmax, ymax) [m] plus ``pad`` [m] on every
+    side, at equal scale, with the axes labelled in metres; returns ``ax``."""
+    xmin, ymin, xmax, ymax = bounds
+    ax.set_xlim(xmin - pad, xmax + pad)
+    ax.set_ylim(ymin - pad, ymax + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    return ax
