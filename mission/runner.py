@@ -102,10 +102,10 @@ def governed(sc: Scenario, config: ControllerConfig):
     from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
     from pushtrain.core.native_controller import NativeController
 
-    t, plant = sc.train, plant_of(sc)
+    n, plant = sc.train.n, plant_of(sc)
     gov = SlipGovernor(GovernorConfig(
-        config.geometry, _per_trailer(t.mass, t.n) + _per_trailer(t.payload, t.n),
-        _per_trailer(t.inertia, t.n), _per_trailer(t.mu, t.n),
+        config.geometry, _per_trailer(plant.mass, n) + _per_trailer(plant.payload, n),
+        _per_trailer(plant.inertia, n), _per_trailer(plant.mu, n),
         fraction=sc.controller.governor_fraction,
         tau=plant.robot_tau, acc_max=plant.robot_acc_max, alpha_max=plant.robot_alpha_max))
     return GovernedController(NativeController(config), gov, dt=sc.sim.step)
