@@ -77,10 +77,8 @@ def _draw_failure(ax, world: World, details: dict, start) -> None:
         ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:green", lw=2.0, alpha=0.5,
                 label=f"route ({route['length']:.1f} m)")
     bottleneck = details.get("bottleneck")
-    what = "bottleneck"
-    if not bottleneck and route:
-        bottleneck, what = route.get("bottleneck"), "narrowest on the route"
     if bottleneck:
+        what = bottleneck.get("what", "bottleneck")
         ax.plot([bottleneck["x"]], [bottleneck["y"]], "o", ms=14, mfc="none", mew=2,
                 color="crimson", label=f"{what}: {bottleneck['width']:.2f} m wide, "
                 f"{bottleneck['needed']:.2f} m needed")
