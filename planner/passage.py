@@ -6,9 +6,12 @@ Widest way (:func:`widest_gap`)
     the distance field's nodes with at least ``d*`` join start and goal (8-connected
     components, :func:`scipy.ndimage.label`, bisected to a sixteenth of a map cell), on the
     field's own nodes (no resampling, so it agrees with any distance transform of the same
-    map within one cell). Its width is ``2 d*``: wall to wall through its narrowest point, the
-    widest thing that passes there. The start and the goal themselves are always open (a train
-    parked in a dock only just its width is there already: the question is the way between).
+    map within one cell). Its width is ``2 d*`` plus what the nodes miss of the passage's
+    middle (at most one cell: the shortest chord through its narrowest node, wall to wall, is
+    never below ``2 d*`` and exact across straight walls), so a message does not name a
+    passage narrower than the map's. The start and the goal themselves are always open (a
+    train parked in a dock only just its width is there already: the question is the way
+    between).
 Impossible here (:func:`passable`)
     The last trailer's axle midpoint carries a disc of its ``reach`` (half its width, or less
     if the rectangle is shorter) plus its clearance wherever it goes, so no way narrower than
@@ -16,8 +19,24 @@ Impossible here (:func:`passable`)
     field and level), before any search; the level is lowered by half a map cell so that the
     rasterization of the map never makes a train that fits "impossible".
 
-Lengths in metres. Node (i, j) of a :class:`~pushtrain.facility.distance_field.DistanceField`
-is at ``(x0 + j h, y0 + i h)``.
+Turning (:func:`swept_band`, :func:`corner_need`, :func:`tight_corners`)
+    On a steady arc whose last trailer's axle midpoint runs on a circle of radius ``rho``,
+    body i's midpoint runs on ``rho_i`` (``rho_{i-1}² = rho_i² - R_{i-1}² + F_i²``, the chain's
+    steady off-tracking; all equal when F = R) with its rectangle tangent there, so the train
+    sweeps the ring between ``r_in = min_i (rho_i - w_i/2) - m_i`` (the inner side at the
+    axle) and ``r_out = max_i sqrt((rho_i + w_i/2)² + e_i²) + m_i`` (the outer corner farthest
+    along, ``e_i = |offset_i| + l_i/2``), margins ``m_i`` included. Turning by ``turn`` round
+    the inside corner of two corridors of width ``W``, the ring's centre can sit behind that
+    corner at most ``r_in`` from it, which gives back ``r_in cos(turn/2)`` of corridor: the
+    corner needs ``W >= r_out - r_in cos(turn / 2)`` (a straight corridor the ring's width,
+    a right-angle corner more). Links enter through ``rho_i``; the number of trailers
+    through the bodies on the ring (and, not counted here, the transients entering an arc, in
+    which followers cut inside by 0.1-0.2 m: the bound is what a steady turn needs at least).
+    :func:`tight_corners` finds the corners of a route (turns of more than 30 deg within
+    2 m) and measures the corridors' widths across each leg on the distance field.
+
+Lengths in metres, angles in radians. Node (i, j) of a
+:class:`~pushtrain.facility.distance_field.DistanceField` is at ``(x0 + j h, y0 + i h)``.
 """
 
 from __future__ import annotations
@@ -30,7 +49,8 @@ import numpy as np
 
 from pushtrain.facility.distance_field import DistanceField
 
-__all__ = ["Bottleneck", "widest_gap", "passable", "needed_half_width"]
+__all__ = ["Bottleneck", "widest_gap", "passable", "needed_half_width", "SweptBand",
+           "swept_band", "corner_need", "Corner", "tight_corners", "width_across"]
 
 _EIGHT = np.ones((3, 3), dtype=bool)
 _LABELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -122,7 +142,8 @@ def passable(field: DistanceField, start, goal, half_width: float) -> bool:
 
 def widest_gap(field: DistanceField, start, goal, half_width: float) -> Bottleneck | None:
     """The narrowest place of the widest way from ``start`` to ``goal`` (see the module
-    docstring): its width ``2 d*`` and the node of it nearest to both sides it separates.
+    docstring): the node of it nearest to both sides it separates, and its width (``2 d*``
+    to ``2 d* + h``: the shortest chord through that node, wall to wall, within that).
     None where no free way joins them. ``half_width`` [m] gives ``needed``."""
     from scipy import ndimage
 
@@ -159,7 +180,158 @@ def widest_gap(field: DistanceField, start, goal, half_width: float) -> Bottlene
         score += (ndimage.distance_transform_edt(~piece) if piece.any()
                   else np.full(piece.shape, 1e9))
     score[~narrow[crop]] = np.inf
-    i, j = np.unravel_index(int(np.argmin(score)), score.shape)
-    i, j = i + crop[0].start, j + crop[1].start
-    return Bottleneck(2.0 * lo, float(field.x0 + h * j), float(field.y0 + h * i),
-                      2.0 * float(half_width))
+    # of equally good nodes (a slit, a corridor of even width), the one amid them
+    ti, tj = np.nonzero(score <= score.min() + 1e-9)
+    k = int(np.argmin((ti - ti.mean()) ** 2 + (tj - tj.mean()) ** 2))
+    i, j = ti[k] + crop[0].start, tj[k] + crop[1].start
+    x, y = float(field.x0 + h * j), float(field.y0 + h * i)
+    # its width wall to wall: the nodes' 2 d* misses up to a cell where the passage's middle
+    # falls between nodes; the shortest chord through the node (never below 2 d*: each half
+    # reaches at least d*) says how much, exactly where the walls run straight across
+    chord = min(width_across(field, x, y, th) for th in np.linspace(0.0, math.pi, 72, False))
+    return Bottleneck(min(max(2.0 * lo, chord), 2.0 * lo + h), x, y, 2.0 * float(half_width))
+
+
+# --------------------------------------------------------------------------- turning
+@dataclass(frozen=True)
+class SweptBand:
+    """The ring a train sweeps on a steady arc (see the module docstring): the last trailer's
+    ``radius`` [m], the ring's inner and outer radii ``r_in``, ``r_out`` [m] (margins
+    included)."""
+
+    radius: float
+    r_in: float
+    r_out: float
+
+    @property
+    def width(self) -> float:
+        """Width [m] of the ring: what a steady turn needs in a gently bending corridor."""
+        return self.r_out - self.r_in
+
+
+def swept_band(train, radius: float, margins) -> SweptBand:
+    """The :class:`SweptBand` of ``train`` whose last trailer turns on ``radius`` [m], each
+    body keeping ``margins[i]`` [m] (robot first)."""
+    front, rear = train.geometry.front, train.geometry.rear
+    n = train.n
+    rho = np.empty(n + 1)
+    rho[n] = float(radius)
+    for i in range(n, 0, -1):  # rho_{i-1}² = rho_i² - R_{i-1}² + F_i²
+        rho[i - 1] = math.sqrt(max(rho[i] ** 2 - rear[i - 1] ** 2 + front[i - 1] ** 2, 0.0))
+    r_in, r_out = math.inf, 0.0
+    for i, body in enumerate(train.bodies):
+        m = float(margins[i])
+        along = abs(body.offset) + 0.5 * body.length
+        r_out = max(r_out, math.hypot(rho[i] + 0.5 * body.width, along) + m)
+        r_in = min(r_in, rho[i] - 0.5 * body.width - m)
+    return SweptBand(float(radius), max(r_in, 0.0), r_out)
+
+
+def corner_need(band: SweptBand, turn: float) -> float:
+    """Width [m] of corridor a steady turn by ``turn`` [rad] (0 to pi) round an inside corner
+    needs: ``r_out - r_in cos(turn / 2)`` (module docstring)."""
+    turn = min(abs(float(turn)), math.pi)
+    return band.r_out - band.r_in * math.cos(0.5 * turn)
+
+
+def width_across(field: DistanceField, x: float, y: float, heading: float,
+                 reach: float = 5.0) -> float:
+    """Free width [m] of the corridor through (x, y) across the direction ``heading`` [rad]:
+    wall to wall along the normal (the field's zero crossings, interpolated); 0 in a wall."""
+    h = 0.5 * field.resolution
+    t = np.arange(-reach, reach + h, h)
+    nx, ny = -math.sin(heading), math.cos(heading)
+    d = field.at(x + t * nx, y + t * ny)
+    d[~np.isfinite(d)] = -1.0
+    k0 = int(np.argmin(np.abs(t)))
+    if d[k0] <= 0.0:
+        return 0.0
+    ends = []
+    for step in (-1, 1):
+        k = k0
+        while 0 <= k + step < t.size and d[k + step] > 0.0:
+            k += step
+        if not 0 <= k + step < t.size:
+            ends.append(t[k])
+            continue
+        a, b = d[k], d[k + step]  # a > 0 >= b: the wall between
+        ends.append(t[k] + step * h * a / (a - b))
+    return float(ends[1] - ends[0])
+
+
+@dataclass(frozen=True)
+class Corner:
+    """A corner of a route: where (x, y) [m], its ``turn`` [rad], the corridor ``width`` [m]
+    there (the narrower leg), the width ``needed`` [m] at the planner's radius and
+    ``needed_tightest`` [m] at the tightest steady radius the joints allow
+    (``tightest_radius`` [m])."""
+
+    x: float
+    y: float
+    turn: float
+    width: float
+    needed: float
+    needed_tightest: float
+    tightest_radius: float
+    band: SweptBand
+
+    @property
+    def too_tight(self) -> bool:
+        return self.width < self.needed
+
+    def text(self) -> str:
+        band = self.band
+        text = (f"at ({self.x:.2f}, {self.y:.2f}) the route turns "
+                f"{math.degrees(self.turn):.0f} deg where the corridor is {self.width:.2f} m "
+                f"wide; on arcs of the planner's radius {band.radius:.2f} m the train sweeps a "
+                f"{band.width:.2f} m band (radii {band.r_in:.2f} to {band.r_out:.2f} m, "
+                f"clearances included), so this corner needs {self.needed:.2f} m of corridor")
+        if self.width < self.needed_tightest:
+            text += (f", and {self.needed_tightest:.2f} m even at the tightest steady radius "
+                     f"its joints allow ({self.tightest_radius:.2f} m)")
+        elif self.width < self.needed:
+            text += (f" (at the tightest steady radius its joints allow, "
+                     f"{self.tightest_radius:.2f} m, {self.needed_tightest:.2f} m: "
+                     "a turn that tight leaves no margin for the transients)")
+        return text
+
+    def to_dict(self) -> dict:
+        return {"x": self.x, "y": self.y, "width": self.width, "needed": self.needed,
+                "turn_deg": math.degrees(self.turn), "swept": self.band.width,
+                "radius": self.band.radius, "needed_tightest": self.needed_tightest,
+                "tightest_radius": self.tightest_radius}
+
+
+def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptBand,
+                  window: float = 1.0, min_turn: float = math.radians(30.0)) -> list[Corner]:
+    """The corners of ``route`` (a :class:`~pushtrain.planner.route.Route`): turns of more
+    than ``min_turn`` [rad] within ``2 window`` [m], each measured (:class:`Corner`) against
+    ``band`` (the planner's radius) and ``tightest`` (the joints' tightest steady radius);
+    the tightest corner (the smallest width minus need) first."""
+    s, heading = route.s, route.heading
+    if route.length < 2.0 * window:
+        return []
+    ahead = np.interp(s + window, s, heading)
+    behind = np.interp(s - window, s, heading)
+    turning = np.abs(ahead - behind)
+    corners = []
+    taken = np.zeros(s.size, dtype=bool)
+    for k in np.argsort(-turning, kind="stable"):
+        if turning[k] < min_turn:
+            break
+        if taken[k]:
+            continue
+        taken |= np.abs(s - s[k]) < 2.0 * window
+        sc = float(s[k])
+        turn = abs(float(np.interp(sc + 1.5 * window, s, heading)
+                         - np.interp(sc - 1.5 * window, s, heading)))
+        widths = []
+        for ds in (-1.5 * window, -window, window, 1.5 * window):
+            x, y, th = route.pose_at(sc + ds)
+            widths.append(width_across(field, x, y, th))
+        width = min(widths)
+        x, y, _ = route.pose_at(sc)
+        corners.append(Corner(x, y, min(turn, math.pi), width, corner_need(band, turn),
+                              corner_need(tightest, turn), tightest.radius, band))
+    corners.sort(key=lambda c: c.width - c.needed)
+    return corners

@@ -46,11 +46,12 @@ from pushtrain.core.reference import PULL
 from pushtrain.errors import PlanningError
 from pushtrain.facility.free_space import World
 
+from .config import turning_radius_from_joint_limit
 from .footprint import body_name, body_positions, body_samples
 from .heuristic import Heuristic
 from .kinematic_loop import TrackerConfig, Trajectory, reference_times
 from .lattice import Search
-from .passage import needed_half_width, passable, widest_gap
+from .passage import needed_half_width, passable, swept_band, tight_corners, widest_gap
 from .path import PlannedPath
 from .propagate import Cursor, Propagator
 from .route import find_route
@@ -103,7 +104,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     # labelling of the distance field)
     passage = needed_half_width(train, margins[-1])
     if not passable(field, start, goal, passage):
-        raise _unreachable(field, train, start, goal, passage)
+        raise _unreachable(field, train, start, goal, passage, impossible=True)
     # the grid's Dijkstra run (about 3.5 million nodes a second on a laptop core) is not
     # interruptible: it may take at most a quarter of the budget at a million nodes a second
     heuristic = Heuristic(field, goal, radius, passage, build_car=False,
@@ -114,7 +115,8 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     # it (a goal the start connects to straight away needs none)
     half_width = 0.5 * last.width + float(margins[-1])
     if heuristic(cursor0.pose) == math.inf:
-        raise _unreachable(field, train, start, goal, passage, grid=heuristic.resolution)
+        raise _unreachable(field, train, start, goal, passage, impossible=False,
+                           grid=heuristic.resolution)
 
     def route_of():
         route = find_route(field, start, goal, half_width)
@@ -176,14 +178,14 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
             break
     if best is None:
         raise _no_plan(search, train, goal, config, margins, phi_limit, t_begin,
-                       _widest(field, train, start, goal, margins))
+                       _widest(field, train, start, goal, config, margins, search.route))
     _, segments, checked, smooth_info = best
     smooth_info["solutions"] = found
     return _planned(start, headings, segments, radius, config, tracker, checked, search,
                     t_begin, rejected, smooth_info)
 
 
-def _unreachable(field, train: Train, start, goal, half_width: float,
+def _unreachable(field, train: Train, start, goal, half_width: float, impossible: bool,
                  grid: float | None = None) -> PlanningError:
     """The PlanningError of a mission whose goal no way of the train's width reaches: where the
     widest way between start and goal is narrowest (:func:`~pushtrain.planner.passage.widest_gap`)
@@ -194,7 +196,7 @@ def _unreachable(field, train: Train, start, goal, half_width: float,
     gap = widest_gap(field, start, goal, half_width)
     ends = (f"from the start ({start[0]:.2f}, {start[1]:.2f}) to the goal ({goal[0]:.2f}, "
             f"{goal[1]:.2f})")
-    impossible = gap is None or gap.width < 2.0 * half_width - field.resolution
+    impossible = impossible or gap is None
     if gap is None:
         text = (f"no free way at all joins the start ({start[0]:.2f}, {start[1]:.2f}) and the goal "
                 f"({goal[0]:.2f}, {goal[1]:.2f}): they lie in separate parts of the map")
@@ -389,12 +391,36 @@ def _planned(start, headings, segments, radius, config, tracker, checked, search
     return path
 
 
-def _widest(field, train: Train, start, goal, margins) -> dict:
+def _widest(field, train: Train, start, goal, config, margins, route) -> dict:
     """What the map has on the way (plain data for :func:`_no_plan`): the widest way's
-    narrowest place against what the last trailer needs."""
+    narrowest place against what the last trailer needs (``bottleneck``), and the route's
+    corner the train's swept band does not fit, if any (``corner``, see
+    :mod:`~pushtrain.planner.passage`); ``text`` says both with numbers."""
     gap = widest_gap(field, start, goal, needed_half_width(train, margins[-1]))
-    return {"bottleneck": None if gap is None else {
-        **gap.to_dict(), "what": "bottleneck"}}
+    out = {"bottleneck": None if gap is None else {**gap.to_dict(), "what": "bottleneck"},
+           "corner": None, "text": ""}
+    if gap is None:
+        return out
+    out["text"] = (f". The widest way's narrowest place, at ({gap.x:.2f}, {gap.y:.2f}), is "
+                   f"{gap.width:.2f} m wide; the last trailer needs {gap.needed:.2f} m (its width "
+                   "and clearance)")
+    if route is None:
+        route = find_route(field, start, goal, 0.5 * train.last.width + float(margins[-1]))
+    if route is None:
+        return out
+    band = swept_band(train, config.radius_for(train), margins)
+    tightest = swept_band(train, turning_radius_from_joint_limit(
+        train.phi_max - config.joint_margin, train.max_link(), 0.0), margins)
+    corners = tight_corners(route, field, band, tightest)
+    if corners and corners[0].too_tight:
+        corner = corners[0]
+        out["corner"] = corner.to_dict()
+        out["bottleneck"] = {**corner.to_dict(), "what": (
+            f"corner too tight ({math.degrees(corner.turn):.0f} deg turn, "
+            f"{corner.band.width:.2f} m swept)")}
+        out["widest"] = {**gap.to_dict(), "what": "bottleneck"}
+        out["text"] += f". The train cannot turn where {corner.text()}"
+    return out
 
 
 def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
@@ -466,15 +492,11 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
                     "pose": list(closest.cursor.pose), "remaining": closest.h,
                     **_train_at(closest.state, train)},
     }
-    details.update(way)
+    details.update({k: v for k, v in way.items() if k != "text"})
     route = ""
     if search.route is not None:
         route = f". The route through the building is {search.route.length:.1f} m"
-    b = way.get("bottleneck")
-    if b is not None:
-        route += (f". The widest way's narrowest place, at ({b['x']:.2f}, {b['y']:.2f}), is "
-                  f"{b['width']:.2f} m wide; the last trailer needs {b['needed']:.2f} m "
-                  "(its width and clearance)")
+    route += way["text"]
     return PlanningError(reason, f"{head}. Of {tried} motions tried: {blocked}. The closest "
                          f"the last trailer came was {closest.h:.2f} m of path from the goal"
                          f"{route}",
