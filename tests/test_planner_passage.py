@@ -282,9 +282,13 @@ def test_a_corner_too_tight_for_the_train_is_named_with_its_numbers():
     assert f"sweeps a {r_out - r_in:.2f} m band" in text
     for width in re.findall(r"(\d+\.\d+) m wide", text):
         assert float(width) >= 0.9 - 1e-9
-    # the page's marker: the corner, labelled
-    b = err.details["bottleneck"]
+    # the page's marker (report.html's payload and planning_failure.png): the corner, labelled
+    from pushtrain.report.html import failure_payload
+
+    b = failure_payload(3, err.details, world=world, start=case["start"],
+                        goal=case["goal"])["bottleneck"]
     assert (b["x"], b["y"]) == (corner["x"], corner["y"]) and "corner too tight" in b["what"]
+    assert b["width"] == corner["width"] and b["needed"] == corner["needed"]
 
 
 def shapely_point_distance(poly) -> float:
