@@ -33,7 +33,9 @@ Turning (:func:`swept_band`, :func:`corner_need`, :func:`tight_corners`)
     through the bodies on the ring (and, not counted here, the transients entering an arc, in
     which followers cut inside by 0.1-0.2 m: the bound is what a steady turn needs at least).
     :func:`tight_corners` finds the corners of a route (turns of more than 30 deg within
-    2 m) and measures the corridors' widths across each leg on the distance field.
+    2 m) and measures the corridors' widths across each leg on the distance field (the
+    shortest chord through the route within 1.5 m of the corner: a door in a thin wall
+    counts).
 
 Lengths in metres, angles in radians. Node (i, j) of a
 :class:`~pushtrain.facility.distance_field.DistanceField` is at ``(x0 + j h, y0 + i h)``.
@@ -50,7 +52,8 @@ import numpy as np
 from pushtrain.facility.distance_field import DistanceField
 
 __all__ = ["Bottleneck", "widest_gap", "passable", "needed_half_width", "SweptBand",
-           "swept_band", "corner_need", "Corner", "tight_corners", "width_across"]
+           "swept_band", "corner_need", "Corner", "tight_corners", "width_across",
+           "shortest_chord"]
 
 _EIGHT = np.ones((3, 3), dtype=bool)
 _LABELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -188,7 +191,7 @@ def widest_gap(field: DistanceField, start, goal, half_width: float) -> Bottlene
     # its width wall to wall: the nodes' 2 d* misses up to a cell where the passage's middle
     # falls between nodes; the shortest chord through the node (never below 2 d*: each half
     # reaches at least d*) says how much, exactly where the walls run straight across
-    chord = min(width_across(field, x, y, th) for th in np.linspace(0.0, math.pi, 72, False))
+    chord = shortest_chord(field, x, y)
     return Bottleneck(min(max(2.0 * lo, chord), 2.0 * lo + h), x, y, 2.0 * float(half_width))
 
 
@@ -259,6 +262,15 @@ def width_across(field: DistanceField, x: float, y: float, heading: float,
     return float(ends[1] - ends[0])
 
 
+def shortest_chord(field: DistanceField, x: float, y: float, reach: float = 2.5) -> float:
+    """The shortest chord [m] through (x, y), wall to wall, over 36 directions (a chord
+    across a corridor 2.5 deg off is 0.1 % long): a corridor's or a door's width wherever in
+    it the point is (at least twice the point's distance from the walls); chords longer than
+    ``2 reach`` count as ``2 reach``."""
+    return min(width_across(field, x, y, th, reach) for th in np.linspace(0.0, math.pi, 36,
+                                                                           endpoint=False))
+
+
 @dataclass(frozen=True)
 class Corner:
     """A corner of a route: where (x, y) [m], its ``turn`` [rad], the corridor ``width`` [m]
@@ -281,11 +293,12 @@ class Corner:
 
     def text(self) -> str:
         band = self.band
-        text = (f"at ({self.x:.2f}, {self.y:.2f}) the route turns "
-                f"{math.degrees(self.turn):.0f} deg where the corridor is {self.width:.2f} m "
-                f"wide; on arcs of the planner's radius {band.radius:.2f} m the train sweeps a "
-                f"{band.width:.2f} m band (radii {band.r_in:.2f} to {band.r_out:.2f} m, "
-                f"clearances included), so this corner needs {self.needed:.2f} m of corridor")
+        text = (f"at ({self.x:.2f}, {self.y:.2f}): the route turns "
+                f"{math.degrees(self.turn):.0f} deg where the way is {self.width:.2f} m wide "
+                f"(its narrowest within 1.5 m of the corner); on arcs of the planner's radius "
+                f"{band.radius:.2f} m the train sweeps a {band.width:.2f} m band (radii "
+                f"{band.r_in:.2f} to {band.r_out:.2f} m, clearances included), so this corner "
+                f"needs {self.needed:.2f} m of corridor")
         if self.width < self.needed_tightest:
             text += (f", and {self.needed_tightest:.2f} m even at the tightest steady radius "
                      f"its joints allow ({self.tightest_radius:.2f} m)")
@@ -325,11 +338,11 @@ def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptB
         sc = float(s[k])
         turn = abs(float(np.interp(sc + 1.5 * window, s, heading)
                          - np.interp(sc - 1.5 * window, s, heading)))
-        widths = []
-        for ds in (-1.5 * window, -window, window, 1.5 * window):
-            x, y, th = route.pose_at(sc + ds)
-            widths.append(width_across(field, x, y, th))
-        width = min(widths)
+        # the narrowest the legs get within 1.5 windows of the corner: the shortest chord,
+        # wall to wall, through the route's points every 5 cm (a door in a thin wall is only
+        # a few centimetres of a leg)
+        width = min(shortest_chord(field, *route.pose_at(sc + ds)[:2])
+                    for ds in np.arange(-1.5 * window, 1.5 * window + 1e-9, 0.05))
         x, y, _ = route.pose_at(sc)
         corners.append(Corner(x, y, min(turn, math.pi), width, corner_need(band, turn),
                               corner_need(tightest, turn), tightest.radius, band))

@@ -419,7 +419,7 @@ def _widest(field, train: Train, start, goal, config, margins, route) -> dict:
             f"corner too tight ({math.degrees(corner.turn):.0f} deg turn, "
             f"{corner.band.width:.2f} m swept)")}
         out["widest"] = {**gap.to_dict(), "what": "bottleneck"}
-        out["text"] += f". The train cannot turn where {corner.text()}"
+        out["text"] += f". The train cannot turn on the planner's arcs {corner.text()}"
     return out
 
 

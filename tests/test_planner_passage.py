@@ -248,26 +248,45 @@ def test_a_right_angle_corner_needs_what_the_formula_says(rho):
     assert not fits(need - 0.01)
 
 
-def test_a_corner_too_tight_for_the_train_is_named_with_its_numbers():
-    """Three trailers round a 0.9 m L (the last trailer alone needs 0.70 m: the way is wide
-    enough): the answer names the corner, the swept band and the width the corner needs
-    (the test's own steady placement and the corner rule) against the corridor's 0.90 m, and
-    no width it names is below the corridor's."""
-    import re
+def _office_door():
+    """A 1.0 m corridor along x and a room below it through a 0.9 m door in a 0.1 m wall:
+    three trailers pushed along the corridor and down through the door."""
+    from shapely.geometry import box
+    from shapely.ops import unary_union
 
+    from pushtrain.facility.free_space import World
+
+    free = unary_union([box(0.0, 5.0, 16.0, 6.0), box(8.0, 0.0, 13.0, 4.9),
+                        box(10.0, 4.85, 10.9, 5.05)])
+    world = World(free.envelope, (free.envelope.difference(free),))
+    return world, (4.5, 5.5, math.pi), (10.45, 2.0, 0.5 * math.pi), (10.0, 5.0)
+
+
+def _l_09():
     from pushtrain.facility import example_layouts
     from pushtrain.facility.free_space import World
 
     case = example_layouts.l_corridor(0.9)
-    world = World.from_dict(case["world"])
+    return World.from_dict(case["world"]), case["start"], case["goal"], (8.1, 0.9)
+
+
+@pytest.mark.parametrize("case", [_l_09, _office_door], ids=["0.9 m L", "0.9 m door"])
+def test_a_corner_too_tight_for_the_train_is_named_with_its_numbers(case):
+    """Three trailers round a 0.9 m L, or from a 1.0 m corridor through a 0.9 m door (the
+    last trailer alone needs 0.70 m: the way is wide enough): the answer names the corner,
+    the swept band and the width the corner needs (the test's own steady placement and the
+    corner rule) against the 0.90 m the map has, and no width it names is below it."""
+    import re
+
+    world, start, goal, inside_corner = case()
     train = Train.uniform(3)
     config = PlannerConfig()
     with pytest.raises(PlanningError) as info:
-        plan(world, case["start"], case["goal"], train, config)
+        plan(world, start, goal, train, config)
     err = info.value
     corner = err.details["corner"]
     assert corner is not None, str(err)
-    assert math.hypot(corner["x"] - 8.1, corner["y"] - 0.9) < 1.0  # the L's inside corner
+    assert math.dist((corner["x"], corner["y"]), inside_corner) < 1.0
     assert corner["turn_deg"] == pytest.approx(90.0, abs=10.0)
     assert corner["width"] == pytest.approx(0.9, abs=0.02)
     rho = config.radius_for(train)
@@ -285,8 +304,7 @@ def test_a_corner_too_tight_for_the_train_is_named_with_its_numbers():
     # the page's marker (report.html's payload and planning_failure.png): the corner, labelled
     from pushtrain.report.html import failure_payload
 
-    b = failure_payload(3, err.details, world=world, start=case["start"],
-                        goal=case["goal"])["bottleneck"]
+    b = failure_payload(3, err.details, world=world, start=start, goal=goal)["bottleneck"]
     assert (b["x"], b["y"]) == (corner["x"], corner["y"]) and "corner too tight" in b["what"]
     assert b["width"] == corner["width"] and b["needed"] == corner["needed"]
 
