@@ -59,6 +59,8 @@ _EIGHT = np.ones((3, 3), dtype=bool)
 _LABELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 """Per distance field: {level: labels} of the levels :func:`passable` asked (a study asks many
 missions on one map)."""
+_CACHE_NODES = 4_000_000
+"""Largest field whose labels are kept (16 MB of int32); a larger one is labelled again."""
 
 
 @dataclass(frozen=True)
@@ -117,6 +119,7 @@ def _overlap(a: tuple[slice, slice], b: tuple[slice, slice]) -> bool:
 def _labels(field: DistanceField, level: float, cache: bool = False) -> np.ndarray:
     from scipy import ndimage
 
+    cache = cache and field.values.size <= _CACHE_NODES
     store = _LABELS.setdefault(field, {}) if cache else {}
     labels = store.get(level)
     if labels is None:

@@ -313,3 +313,38 @@ def shapely_point_distance(poly) -> float:
     from shapely.geometry import Point
 
     return Point(0.0, 0.0).distance(poly)
+
+
+def test_no_failure_names_a_passage_narrower_than_the_maps(monkeypatch):
+    """A search that fails in a 2 m L (joints limited to 25 deg: the train cannot bend round
+    the corner). Its route keeps near the inside corner (the corridor is wider than the
+    centring band), where twice the route's distance from the wall is well under 2 m; every
+    width the message names is at least the widest way's, by the test's own maximin over
+    scipy's distance transform of the map rasterized at 2 cm, less one cell."""
+    import re
+
+    import shapely
+
+    import pushtrain.planner.budget as budget
+    from pushtrain.facility import example_layouts
+    from pushtrain.facility.free_space import World
+
+    monkeypatch.setattr(budget, "STEPS_PER_SECOND", 20_000)
+    case = example_layouts.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], Train.uniform(3, phi_max=math.radians(25.0)),
+             PlannerConfig(time_budget=3.0, joint_margin=math.radians(2.0)))
+    text = str(info.value)
+    h = 0.02
+    xs, ys = np.arange(-0.5, 9.5, h), np.arange(-0.5, 9.5, h)
+    free = shapely.contains_xy(world.free, xs[None, :], ys[:, None])
+    edt = ndimage.distance_transform_edt(free)
+    def cell(p):
+        return round((p[1] + 0.5) / h), round((p[0] + 0.5) / h)
+
+    m, _ = _WidestTree(edt).maximin(cell(case["start"]), cell(case["goal"]))
+    widest = (2 * m - 0.5) * h
+    named = [float(w) for w in re.findall(r"(\d+\.\d+) m wide", text)]
+    assert named, text
+    assert min(named) >= widest - h, (named, widest, text)
