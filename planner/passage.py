@@ -16,8 +16,10 @@ Impossible here (:func:`passable`)
     The last trailer's axle midpoint carries a disc of its ``reach`` (half its width, or less
     if the rectangle is shorter) plus its clearance wherever it goes, so no way narrower than
     twice that lets it through. :func:`passable` asks it with a single labelling (cached per
-    field and level), before any search; the level is lowered by half a map cell so that the
-    rasterization of the map never makes a train that fits "impossible".
+    field and level), before any search; the level is lowered by half a cell diagonal (a way
+    between the nodes is at most that much wider than the nodes beside it: the field is
+    1-Lipschitz), so that the sampling of the map never makes a train that fits
+    "impossible".
 
 Turning (:func:`swept_band`, :func:`corner_need`, :func:`tight_corners`)
     On a steady arc whose last trailer's axle midpoint runs on a circle of radius ``rho``,
@@ -139,9 +141,9 @@ def _joined(field: DistanceField, a, b, level: float, cache: bool = False) -> bo
 
 def passable(field: DistanceField, start, goal, half_width: float) -> bool:
     """Whether a way from ``start`` to ``goal`` (x, y, ...) [m] keeps ``half_width`` [m] from
-    the walls, less half a map cell (see the module docstring): False is a proof, on this map,
+    the walls, less half a cell diagonal (see the module docstring): False is a proof, on this map,
     that no body needing that much room gets from one to the other."""
-    level = float(half_width) - 0.5 * field.resolution
+    level = float(half_width) - math.sqrt(0.5) * field.resolution
     return _joined(field, _window(field, *start[:2]), _window(field, *goal[:2]), level,
                    cache=True)
 

@@ -190,8 +190,9 @@ def _unreachable(field, train: Train, start, goal, half_width: float, impossible
     """The PlanningError of a mission whose goal no way of the train's width reaches: where the
     widest way between start and goal is narrowest (:func:`~pushtrain.planner.passage.widest_gap`)
     against the width the train needs (``half_width`` [m]: the last trailer's disc and
-    clearance). "impossible here" only where the widest way is narrower by more than one map
-    cell; ``grid`` [m] names the heuristic's grid when that (and not the map) found no way."""
+    clearance). ``impossible``: :func:`~pushtrain.planner.passage.passable` said no (every
+    way narrower than that by more than half a cell diagonal: "impossible here"); else
+    ``grid`` [m] names the heuristic's grid, which (and not the map) found no way."""
     width = train.last.width
     gap = widest_gap(field, start, goal, half_width)
     ends = (f"from the start ({start[0]:.2f}, {start[1]:.2f}) to the goal ({goal[0]:.2f}, "
