@@ -498,10 +498,12 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
     if search.route is not None:
         route = f". The route through the building is {search.route.length:.1f} m"
     route += way["text"]
+    corner = way.get("corner")
     return PlanningError(reason, f"{head}. Of {tried} motions tried: {blocked}. The closest "
                          f"the last trailer came was {closest.h:.2f} m of path from the goal"
                          f"{route}",
-                         where=tuple(goal[:2]), details=details)
+                         where=(corner["x"], corner["y"]) if corner else tuple(goal[:2]),
+                         details=details)
 
 
 def _train_at(state, train: Train) -> dict:

@@ -286,6 +286,7 @@ def test_a_corner_too_tight_for_the_train_is_named_with_its_numbers(case):
     err = info.value
     corner = err.details["corner"]
     assert corner is not None, str(err)
+    assert err.where == (corner["x"], corner["y"])  # the mark on planning_failure.png
     assert math.dist((corner["x"], corner["y"]), inside_corner) < 1.0
     assert corner["turn_deg"] == pytest.approx(90.0, abs=10.0)
     assert corner["width"] == pytest.approx(0.9, abs=0.02)
