@@ -81,12 +81,15 @@ def prepared(grid, key: str, build: Callable[[], Prepared]) -> Prepared:
     damaged = None
     if path.is_file():
         try:
-            return _read(path, key, grid)
+            out = _read(path, key, grid)
+            log.info("map %s... read from the cache %s", key[:12], path)
+            return out
         except Exception as exc:  # BadZipFile, bad CRC, EOFError, KeyError, ValueError, ...
             damaged = f"{type(exc).__name__}: {exc}"
             log.warning("the map cache %s is damaged (%s): the map is prepared again and the "
                         "file rewritten", path, damaged)
     out = build()
+    log.info("map %s... prepared; cached in %s", key[:12], path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(path, lambda partial: _write(partial, key, out), keep_suffix=True)
