@@ -214,10 +214,8 @@ def failure_payload(n: int, details: dict, *, world=None, footprints=None, start
                  "theta": _rounded(closest["headings"])}
     route = details.get("route") or {}
     bottleneck = details.get("bottleneck")
-    if bottleneck:
-        bottleneck = {**bottleneck, "what": "bottleneck"}
-    elif route.get("bottleneck"):  # the route's narrowest place, wide enough: not the cause
-        bottleneck = {**route["bottleneck"], "what": "narrowest place on the route"}
+    if bottleneck:  # the widest way's narrowest place, or the place the train cannot turn
+        bottleneck = {"what": "bottleneck", **bottleneck}
     out = _base(n, world, footprints, keep_out, f"Planning failed with {n} trailer"
                 f"{'s' if n > 1 else ''}")
     out.update({
