@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from pushtrain.errors import InputError
+from pushtrain.files import WriteError
 
 from . import messages as msg
 from .run_folder import RunFolder, read_run
@@ -338,8 +339,13 @@ def export_bag(run_dir, out, *, epoch_s: float = EPOCH_S,
     stamps = _Stamps(epoch_s)
     t0 = float(run.data["t"][0]) if run.data is not None else 0.0
     ns0 = stamps(t0)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial",
+                                     dir=out.parent))
+    except OSError as exc:
+        raise InputError(f"--out {str(out)!r}: no folder can be made there ({exc.strerror}); "
+                         "allowed: a folder path in a writable place") from None
     try:
         written = work / out.name
         counts: dict[str, int] = {}
@@ -364,6 +370,8 @@ def export_bag(run_dir, out, *, epoch_s: float = EPOCH_S,
                 for topic, ns, message in _samples(run, stamps, rate_hz):
                     put(topic, ns, message)
         _install(written, out)
+    except OSError as exc:  # a full disk, a folder taken away: a run-time failure (exit 1)
+        raise WriteError(out / f"{out.name}.mcap", exc) from exc
     finally:
         shutil.rmtree(work, ignore_errors=True)
     mcap = next(out.glob("*.mcap"))
