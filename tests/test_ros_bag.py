@@ -5,6 +5,7 @@ an analytic integration of the planned segments written here."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -368,3 +369,47 @@ def test_the_foxglove_layout_shows_topics_of_the_bag(runs):
             node["second"])
 
     assert sorted(leaves(layout["layout"])) == sorted(panels)
+
+
+def _camel(name: str) -> str:
+    head, *rest = name.split("_")
+    return head + "".join(part.title() for part in rest)
+
+
+def _keys(cls) -> set[str]:
+    """The layout keys of one of Foxglove's own config classes (``foxglove.layouts``)."""
+    return {_camel(f.name) for f in dataclasses.fields(cls)}
+
+
+def test_the_layout_s_settings_are_ones_foxglove_s_schema_knows(runs):
+    """Every key of the layout's panels is a field of the class Foxglove's SDK generates from
+    its layout schema, for the panel and for the message type each topic has in the bag."""
+    fl = pytest.importorskip("foxglove.layouts")
+    _, bag, _ = runs[3]
+    panels = json.loads(LAYOUT.read_text())["configById"]
+    by_type = {"nav_msgs/msg/OccupancyGrid": fl.BaseRendererRosOccupancyGridTopicSettings,
+               "nav_msgs/msg/Path": fl.BaseRendererPosesTopicSettings,
+               "geometry_msgs/msg/PoseStamped": fl.BaseRendererPoseTopicSettings,
+               "visualization_msgs/msg/MarkerArray": fl.BaseRendererRosMarkerTopicSettings}
+    parts = {"cameraState": fl.ThreeDeeCameraState, "scene": fl.BaseRendererSceneSettings,
+             "publish": fl.ThreeDeePublishSettings}
+    checked = 0
+    for key, config in panels.items():
+        kind = key.split("!")[0]
+        if kind == "3D":
+            assert set(config) <= _keys(fl.ThreeDeeConfig)
+            for part, cls in parts.items():
+                assert set(config.get(part, {})) <= _keys(cls), part
+            assert set(config["scene"]["transforms"]) <= _keys(fl.BaseRendererTransforms)
+            for layer in config["layers"].values():
+                assert set(layer) <= _keys(fl.BaseRendererGridLayerSettings) | {"visible"}
+            for topic, settings in config["topics"].items():
+                assert set(settings) <= _keys(by_type[bag.types[topic]]), topic
+        elif kind == "Plot":
+            assert set(config) - {"title"} <= _keys(fl.PlotConfig)
+            for series in config["paths"]:
+                assert set(series) <= _keys(fl.PlotSeries)
+        else:
+            assert kind == "RawMessages" and set(config) <= _keys(fl.RawMessagesConfig)
+        checked += 1
+    assert checked == len(panels) == 5
