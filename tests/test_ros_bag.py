@@ -413,3 +413,24 @@ def test_the_layout_s_settings_are_ones_foxglove_s_schema_knows(runs):
             assert kind == "RawMessages" and set(config) <= _keys(fl.RawMessagesConfig)
         checked += 1
     assert checked == len(panels) == 5
+
+
+def test_a_grid_map_keeps_its_own_cells():
+    """``/map`` of a map_server map is its image, cell for cell: free where the pixel's
+    occupancy p = (255 - value) / 255 is below free_thresh (negate 0), else blocked; the
+    image's resolution and origin (read here with Pillow and PyYAML, not with pushtrain)."""
+    from PIL import Image
+
+    from pushtrain.facility.loading import map_world
+    from pushtrain.ros.bag import map_cells
+
+    spec_file = EXAMPLES / "maps" / "warehouse.yaml"
+    spec = yaml.safe_load(spec_file.read_text())
+    assert spec["negate"] == 0 and spec["origin"][2] == 0.0
+    pixels = np.asarray(Image.open(spec_file.parent / spec["image"]), dtype=float)
+    free = (255.0 - pixels) / 255.0 < spec["free_thresh"]
+    occupancy, resolution, origin = map_cells(map_world(grid=str(spec_file)))
+    assert resolution == spec["resolution"]
+    assert origin == pytest.approx((spec["origin"][0], spec["origin"][1], 0.0), abs=1e-12)
+    assert np.array_equal(occupancy, np.where(free[::-1], 0, 100))
+    assert 0.2 < np.mean(occupancy == 0) < 0.95
