@@ -1,9 +1,9 @@
 """A run folder as a rosbag2 folder: :func:`export_bag`.
 
-The bag is ``metadata.yaml`` and one MCAP file (zstd chunks), rosbag2 metadata version 8 (the
-layout ROS 2 Jazzy writes), standard ROS 2 messages only (:data:`TOPICS`), written by the
-``rosbags`` library (PyPI; pure Python, maintained, writes MCAP and the metadata that ``ros2 bag``
-needs; no CDR is written by hand here).
+The bag is ``metadata.yaml`` and one MCAP file (zstd chunks), rosbag2 metadata version 8 (QoS
+profiles as a YAML string, type description hashes), standard ROS 2 messages only
+(:data:`TOPICS`), written by the ``rosbags`` library (PyPI; pure Python, maintained, writes MCAP
+and the metadata that ``ros2 bag`` needs; no CDR is written by hand here).
 
 Time: a sample recorded at simulated time t [s] is stamped ``epoch + t`` (nanoseconds since the
 Unix epoch), both in the bag and in every message header; the default epoch is

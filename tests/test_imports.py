@@ -185,6 +185,7 @@ def test_the_rules_would_catch_a_forbidden_arrow(tmp_path):
     ("pushtrain.core.controller, pushtrain.core.pulling, pushtrain.core.analysis",
      "pushtrain.planner"),
     ("pushtrain.cli.main", "distributed"),
+    ("pushtrain.cli.main", "rosbags"),
     ("pushtrain.facility.loading, pushtrain.facility.free_space, pushtrain.facility.dxf",
      "pushtrain.planner"),
 ])
