@@ -148,3 +148,29 @@ def test_the_library_says_which_file_is_missing(tmp_path):
     (tmp_path / "scenario.json").write_text("{}")
     with pytest.raises(InputError, match="results.npz"):
         export_bag(tmp_path, tmp_path / "bag")
+
+
+def test_the_mcap_file_reads_record_by_record(run_dir, tmp_path):
+    """Read sequentially (not through its index) with CRCs checked, the file is a ROS 2 MCAP
+    whose statistics, channels and message count agree with metadata.yaml."""
+    from mcap.records import Channel, Header, Message, Schema, Statistics
+    from mcap.stream_reader import StreamReader
+
+    assert invoke_cli(["export-bag", run_dir, "--out", tmp_path / "bag"]).exit_code == 0
+    with open(tmp_path / "bag" / "bag.mcap", "rb") as f:
+        records = list(StreamReader(f, validate_crcs=True).records)
+    kinds = {}
+    for record in records:
+        kinds.setdefault(type(record), []).append(record)
+    (header,) = kinds[Header]
+    assert header.profile == "ros2"
+    assert {s.encoding for s in kinds[Schema]} == {"ros2msg"}
+    channels = {c.id: c.topic for c in kinds[Channel]}
+    topics = _topics(tmp_path / "bag")
+    assert set(channels.values()) == set(topics)
+    (stats,) = kinds[Statistics]
+    assert stats.message_count == len(kinds[Message]) == sum(topics.values())
+    counted = {}
+    for message in kinds[Message]:
+        counted[channels[message.channel_id]] = counted.get(channels[message.channel_id], 0) + 1
+    assert counted == topics
