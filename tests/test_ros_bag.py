@@ -322,6 +322,41 @@ def test_the_markers_draw_every_body_at_its_size_in_its_frame(runs, n):
         assert m.pose.position.x == size["offset"] and m.frame_locked
 
 
+@pytest.mark.parametrize("n", MOVING)
+def test_the_frames_and_hitch_bars_hold_the_train_together(runs, n):
+    """The train in the bag is one chain: with every body frame's +x toward the robot, the
+    rear hitch of body i-1 (R_{i-1} behind its origin) is the front hitch of trailer i (F_i
+    ahead of its origin), within 1 mm, and the hitch bars drawn on /train_markers end there."""
+    run, bag, _ = runs[n]
+    link = json.loads((run / "scenario.json").read_text())["train"]["link"]
+    markers_at = dict(zip(bag.times("/train_markers").tolist(),
+                          range(bag.count("/train_markers")), strict=True))
+    tf_at = dict(zip(bag.times("/tf").tolist(), range(bag.count("/tf")), strict=True))
+    for time in sorted(markers_at)[:: max(1, len(markers_at) // 5)]:
+        _, tf = bag.at("/tf", tf_at[time])
+        poses = {t.child_frame_id: (t.transform.translation.x, t.transform.translation.y,
+                                    _yaw(t.transform.rotation)) for t in tf.transforms}
+
+        def in_map(frame, x_along, poses=poses):
+            x, y, th = poses[frame]
+            return np.array([x + x_along * math.cos(th), y + x_along * math.sin(th)])
+
+        frames = ["base_link"] + [f"trailer_{i}" for i in range(1, n + 1)]
+        for ahead, behind in zip(frames[:-1], frames[1:], strict=True):
+            gap = in_map(ahead, -link) - in_map(behind, link)
+            assert np.hypot(*gap) < 1e-3, (time, ahead, behind, gap)
+        _, markers = bag.at("/train_markers", markers_at[time])
+        ends = {}
+        for m in markers.markers:
+            if m.type == 5:  # LINE_LIST: (origin, bar end) pairs
+                ends[m.header.frame_id] = [p.x for p in m.points[1::2]]
+        for ahead, behind in zip(frames[:-1], frames[1:], strict=True):
+            rear = [in_map(ahead, x) for x in ends[ahead] if x < 0]
+            front = [in_map(behind, x) for x in ends[behind] if x > 0]
+            assert len(rear) == len(front) == 1
+            assert np.hypot(*(rear[0] - front[0])) < 1e-3
+
+
 def test_the_map_is_the_l_corridor_at_the_planner_s_cell(runs):
     _, bag, _ = runs[3]
     grid = bag.only("/map")
