@@ -12,7 +12,7 @@ import yaml
 from conftest import invoke_cli, short_run
 
 from pushtrain.errors import InputError
-from pushtrain.ros import bag as bag_module
+from pushtrain.ros import messages
 from pushtrain.ros.bag import export_bag
 
 
@@ -127,7 +127,7 @@ def test_a_failure_while_writing_leaves_nothing_half_written(run_dir, tmp_path, 
         export_bag(run_dir, out, rate_hz=10.0)
     before = _tree(out) if earlier else None
     calls = {"n": 0}
-    serialize = bag_module.msg.serialize
+    serialize = messages.serialize
 
     def failing(message):
         calls["n"] += 1
@@ -135,7 +135,7 @@ def test_a_failure_while_writing_leaves_nothing_half_written(run_dir, tmp_path, 
             raise KeyboardInterrupt  # Ctrl-C in the middle of the messages
         return serialize(message)
 
-    monkeypatch.setattr(bag_module.msg, "serialize", failing)
+    monkeypatch.setattr(messages, "serialize", failing)
     with pytest.raises(KeyboardInterrupt):
         export_bag(run_dir, out)
     assert calls["n"] > 40
