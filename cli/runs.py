@@ -37,12 +37,35 @@ def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = Non
             path = plan_path(sc)
     except PlanningError as exc:
         if out_dir is not None:
+            _save_partial_path(sc, out_dir, exc)
             _save_diagnostic(sc, out_dir / "planning_failure.png", exc)
             _save_failure_page(sc, out_dir / "report.html", exc)
         raise
     log.info("planned %d segments, %.2f m, %d cusps in %.2f s", len(path.segments), path.length,
              path.n_cusps, time.perf_counter() - t0)
     return path
+
+
+def _save_partial_path(sc: Scenario, out_dir: Path, exc) -> None:
+    """``partial_path.json`` of a failed plan: the closest the search came (a planned-path
+    document with ``info.partial`` true), when the planner says; ``export-bag`` shows it."""
+    from pushtrain.core.reference import Segment
+    from pushtrain.planner.path import PlannedPath
+    from pushtrain.ros.run_folder import PARTIAL_PATH_JSON
+
+    closest = (getattr(exc, "details", None) or {}).get("closest") or {}
+    if not closest.get("segments"):
+        return
+    try:
+        segments = [Segment.from_dict(g) for g in closest["segments"]]
+        arcs = [abs(g.curvature) for g in segments if g.kind == "arc" and g.curvature]
+        path = PlannedPath((sc.start.x, sc.start.y, math.radians(sc.start.theta_deg)), segments,
+                           1.0 / max(arcs) if arcs else 0.0,
+                           info={"partial": True, "reason": getattr(exc, "reason", None),
+                                 "remaining_m": closest.get("remaining")})
+        write_path(path, out_dir / PARTIAL_PATH_JSON)
+    except Exception as err:  # the partial path must not hide the planning error
+        log.warning("could not save the partial path: %s", err)
 
 
 def _save_diagnostic(sc: Scenario, png: Path, exc=None) -> None:

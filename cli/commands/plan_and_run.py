@@ -19,6 +19,7 @@ from ..plotting import plotter
 from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import describe_path, plan_or_fail, run_and_report, write_path, write_scenario
+from .export_bag import bag_after_run
 
 __all__ = ["plan_and_run"]
 
@@ -33,14 +34,17 @@ __all__ = ["plan_and_run"]
 @click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
 @csv_option
 @plot_processes_option
-def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv, plot_processes):
+@click.option("--bag", is_flag=True,
+              help="Also write the run as a rosbag2 folder OUT/bag (see export-bag).")
+def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv, plot_processes, bag):
     """Plan the last trailer's path, co-simulate the FMU with the controller, plot the run.
 
     \b
     Example:
       pushtrain plan-and-run examples/l_corridor.toml --out runs/l
     Writes scenario.json, path.json, results.npz (results.csv with --csv), summary.json,
-    run.log and plots. Progress goes to stderr, one line per phase.
+    run.log and plots (with --bag also the rosbag2 folder bag/). Progress goes to stderr,
+    one line per phase.
     """
     phases = Phases()
     sc = load_scenario_with_overrides(scenario, trailers, seed)
@@ -49,7 +53,8 @@ def plan_and_run(scenario, out, trailers, seed, no_plots, no_gif, csv, plot_proc
     with plotter(sc, plots=not no_plots, gif=not no_gif,
                  processes=plot_processes) as pictures:
         check_map(sc)
-        with run_folder(out, sc.name, sc) as out_dir:
+        with bag_after_run(bag) as bag_of, run_folder(out, sc.name, sc) as out_dir:
+            bag_of.folder = out_dir
             write_scenario(sc, out_dir)
             reference = path = None
             if sc.mission.kind == "plan":
