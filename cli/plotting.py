@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import gc
 import logging
-import multiprocessing
 import os
 import signal
 import threading
@@ -35,16 +34,17 @@ import time
 import traceback
 from contextlib import contextmanager
 from dataclasses import dataclass
-from multiprocessing.connection import wait as wait_for_any
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from pushtrain.files import remove_partials
 from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES  # names only: no matplotlib here
 
+if TYPE_CHECKING:  # numpy and multiprocessing load when a run is drawn
+    import numpy as np
+
 __all__ = ["footprints_of", "keep_out_of", "PlotProblem", "PlotWorkers", "InlinePlotter", "plotter",
-           "SILENCE_LIMIT_S"]
+           "draw_page", "pictures_options", "chosen_files", "PLOTS_CHOICES", "SILENCE_LIMIT_S"]
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +88,8 @@ class _Run:
 
 
 def _run_of(sc, out_dir, result, path) -> _Run:
+    import numpy as np
+
     from pushtrain.mission.runner import geometry_of, world_of
 
     t = sc.train
@@ -203,6 +205,8 @@ def _first_process(conns, counter, with_map: bool, inherited) -> None:
         _warm_up(with_map)
         conns[0].send(("ready", os.getpid()))
         header = conns[0].recv()
+        import numpy as np
+
         data = np.empty(header["rows"], dtype=header["dtype"])
         _read_exactly(conns[0].fileno(), memoryview(data.view(np.uint8)).cast("B"))
     except (EOFError, OSError):
@@ -347,6 +351,8 @@ class PlotWorkers:
     """
 
     def __init__(self, sc, files, processes: int = MAX_PROCESSES):
+        import multiprocessing
+
         context = multiprocessing.get_context("fork")
         self.sc = sc
         self.files = tuple(name for name in _ORDER if name in files)
@@ -378,6 +384,8 @@ class PlotWorkers:
         """Send the run (into ``out_dir``, along the planned ``path``, if any) and its
         ``result`` to the first plot process, which forks the second; they start drawing.
         Returns at once (a thread sends)."""
+        import numpy as np
+
         data = np.ascontiguousarray(result.data)
         self.out_dir = Path(out_dir)
         header = {"run": _run_of(self.sc, out_dir, result, path), "files": self.files,
@@ -390,12 +398,14 @@ class PlotWorkers:
     def wait(self, names) -> list[PlotProblem]:
         """Wait until each of ``names`` is written or has failed; the problems, in the order
         of ``names``."""
+        from multiprocessing.connection import wait
+
         while any(name not in self.finished for name in names):
             live = [p for p in self.procs if p.open]
             if not live:
                 self._give_up(f"no plot process left ({self.last_word})")
                 break
-            ready = wait_for_any([p.conn for p in live], timeout=SILENCE_LIMIT_S)
+            ready = wait([p.conn for p in live], timeout=SILENCE_LIMIT_S)
             if not ready:
                 self._stop_all()
                 self._give_up(f"no word from the plot processes in {SILENCE_LIMIT_S:g} s; "
@@ -497,6 +507,8 @@ class PlotWorkers:
 def _send(conns, header: dict, data: np.ndarray) -> None:
     """Send ``header`` and the raw bytes of ``data`` through each pipe (a process that died is
     skipped: the main process learns of it from its pipe)."""
+    import numpy as np
+
     raw = memoryview(data.view(np.uint8)).cast("B")
     for conn in conns:
         try:
@@ -509,20 +521,92 @@ def _send(conns, header: dict, data: np.ndarray) -> None:
 
 
 # ---------------------------------------------------------------------------------------------
+# what a run draws: the options and the plotter
+# ---------------------------------------------------------------------------------------------
+PLOTS_CHOICES = ("page", "all", "none")
+"""``--plots``: ``page`` report.html only (the default: no matplotlib), ``all`` report.html and
+the four PNGs, ``none`` no picture at all."""
+
+
+def pictures_options(command):
+    """``--plots page|all|none``, ``--gif``, and the older ``--no-plots`` and ``--no-gif``
+    (which keep their meaning) on a click ``command``."""
+    import click
+
+    for option in reversed((
+        click.option("--plots", "plots", type=click.Choice(PLOTS_CHOICES), default=None,
+                     help="What to draw: page = report.html (default), all = report.html and "
+                          f"the PNGs ({', '.join(PNG_FILES)}), none = nothing."),
+        click.option("--gif", "gif", is_flag=True,
+                     help=f"Also write the animation {GIF_FILE}."),
+        click.option("--no-plots", "no_plots", is_flag=True,
+                     help="Draw nothing (the same as --plots none)."),
+        click.option("--no-gif", "no_gif", is_flag=True,
+                     help="No animation (the default; for older scripts)."),
+    )):
+        command = option(command)
+    return command
+
+
+def chosen_files(plots: str | None, gif: bool | None, no_plots: bool = False,
+                 no_gif: bool = False) -> tuple[str, ...]:
+    """The picture files the options ask for, in the order :data:`PNG_FILES`, the GIF,
+    report.html; raises click's BadParameter (exit 2) for options that contradict each
+    other."""
+    import click
+
+    if no_plots and plots not in (None, "none"):
+        raise click.BadParameter(f"--no-plots draws nothing, --plots {plots} draws pictures: "
+                                 "give one of them", param_hint="'--no-plots'")
+    if no_gif and gif:
+        raise click.BadParameter("--gif and --no-gif contradict each other: give one",
+                                 param_hint="'--gif'")
+    plots = "none" if no_plots else (plots or "page")
+    if plots == "none":
+        if gif:
+            raise click.BadParameter("--gif needs pictures: --plots none (or --no-plots) draws "
+                                     "nothing", param_hint="'--gif'")
+        return ()
+    return (PNG_FILES if plots == "all" else ()) + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)
+
+
+def draw_page(sc, out_dir, result, path=None) -> PlotProblem | None:
+    """Write ``report.html`` of a run of ``sc`` into ``out_dir`` in this process (data and the
+    bundled renderer, no matplotlib; a few tenths of a CPU-second); what went wrong, if
+    anything (the traceback goes to ``run.log``)."""
+    from pushtrain.report.html import plot_report  # numpy and Pillow only
+
+    wall, cpu = time.perf_counter(), time.process_time()
+    try:
+        run = _run_of(sc, out_dir, result, path)
+        plot_report(result.data, run.n, run.out_dir / HTML_FILE, world=run.world,
+                    path_xy=run.path_xy, footprints=run.footprints, status=run.status,
+                    summary=run.summary, phi_max_deg=run.phi_max_deg, keep_out=run.keep_out)
+    except Exception as exc:
+        log.debug("drawing %s failed", HTML_FILE, exc_info=True)
+        return PlotProblem(HTML_FILE, _one_line(exc))
+    log.info("%s drawn in %.2f s (CPU %.2f s) by the main process", HTML_FILE,
+             time.perf_counter() - wall, time.process_time() - cpu)
+    return None
+
+
 @contextmanager
-def plotter(sc, *, plots: bool = True, gif: bool = True, processes: int | None = None):
-    """What draws the pictures of a run of ``sc``, closed at the end of the block:
-    :class:`PlotWorkers` (``processes`` of them; default 2, or 1 on one core), or
-    :class:`InlinePlotter` when processes cannot be forked or ``processes`` is 0; None
-    without ``plots``. Start it early: the plot processes get ready while the main one works."""
-    if not plots:
+def plotter(sc, files, *, processes: int | None = None):
+    """What draws the matplotlib ``files`` (PNGs, GIF) of a run of ``sc``, closed at the end of
+    the block: :class:`PlotWorkers` (``processes`` of them; default 2, or 1 on one core), or
+    :class:`InlinePlotter` when processes cannot be forked or ``processes`` is 0; None when no
+    such file is asked for (report.html is drawn by :func:`draw_page`). Start it early: the
+    plot processes get ready while the main one works."""
+    files = tuple(name for name in files if name != HTML_FILE)
+    if not files:
         yield None
         return
-    files = PNG_FILES + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)
     if processes is None:
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
         processes = max(1, min(MAX_PROCESSES, cores))
     used = InlinePlotter(sc, files)
+    import multiprocessing
+
     if processes > 0 and "fork" not in multiprocessing.get_all_start_methods():
         log.info("no fork on this platform: the plots are drawn in this process")
     elif processes > 0:

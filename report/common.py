@@ -20,6 +20,7 @@ from matplotlib.layout_engine import ConstrainedLayoutEngine
 
 from pushtrain.errors import PlotError
 from pushtrain.files import atomic_write
+from pushtrain.report.data import col
 
 __all__ = [
     "DPI",
@@ -33,11 +34,6 @@ __all__ = [
     "C_DIST",
     "DIRECTION_BANDS",
     "SNAPSHOT_CMAP",
-    "check_n",
-    "check_data",
-    "col",
-    "bodies",
-    "pose_columns",
     "output_path",
     "atomic",
     "save",
@@ -68,58 +64,6 @@ DIRECTION_BANDS = ((1, "#d5e5f6", "push (trailer first)"), (-1, "#fbe0c3", "pull
 """(direction value, background colour, legend label) of the reference's direction bands."""
 SNAPSHOT_CMAP = LinearSegmentedColormap.from_list("snapshot_fade", ["#b9c8d8", "#17324d"])
 """Train snapshots fade from light (early) to dark (late)."""
-
-
-# ---------------------------------------------------------------------------------------------
-# validation and data access
-# ---------------------------------------------------------------------------------------------
-def check_n(n) -> int:
-    """``n`` as an int, or :class:`PlotError` unless it is an integer >= 1."""
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise PlotError(f"n = {n!r}: the number of trailers must be an integer >= 1")
-    return int(n)
-
-
-def check_data(data, n, columns: Sequence[str]) -> int:
-    """Check that ``data`` is a non-empty structured array with ``columns`` for ``n`` trailers."""
-    n = check_n(n)
-    names = getattr(getattr(data, "dtype", None), "names", None)
-    if names is None:
-        raise PlotError(
-            f"data is a {type(data).__name__}: need the structured array of Result.data "
-            "(one named column per recorded variable)"
-        )
-    missing = [c for c in columns if c not in names]
-    if missing:
-        raise PlotError(
-            f"data lacks the column(s) {missing[:6]}{' ...' if len(missing) > 6 else ''} needed "
-            f"for n = {n} trailers; it has {len(names)} columns ({', '.join(names[:6])}, ...)"
-        )
-    if f"x{n + 1}" in names:
-        raise PlotError(
-            f"n = {n} but data has a column x{n + 1}: it records more than {n} trailers"
-        )
-    if len(data) == 0:
-        raise PlotError("data has no rows: nothing to plot")
-    return n
-
-
-def col(data, name: str) -> np.ndarray:
-    """Column ``name`` of ``data`` as a float array."""
-    return np.asarray(data[name], dtype=float)
-
-
-def bodies(data, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions and headings of bodies 0..n, each of shape (rows, n+1) [m, m, rad]."""
-    x = np.stack([col(data, f"x{i}") for i in range(n + 1)], axis=1)
-    y = np.stack([col(data, f"y{i}") for i in range(n + 1)], axis=1)
-    th = np.stack([col(data, f"theta{i}") for i in range(n + 1)], axis=1)
-    return x, y, th
-
-
-def pose_columns(n: int) -> list[str]:
-    """The columns of time and of the poses of bodies 0..n."""
-    return ["t"] + [f"{b}{i}" for b in ("x", "y", "theta") for i in range(n + 1)]
 
 
 # ---------------------------------------------------------------------------------------------

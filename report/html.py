@@ -11,18 +11,18 @@ the page must hold a run in at most 5 MB with no network; Plotly's offline bundl
 about 3.5 MB, and drawing a few rectangles and polylines per frame needs nothing it offers.
 The renderer is about 500 lines of plain JavaScript with no dependencies.
 
-The map is embedded as a PNG picture of the free space (drawn by the map's own
-:meth:`~pushtrain.facility.free_space.World.plot`, so occupancy grids and polygons look as in
-``map.png``) with its extent in metres; everything else is vector data. The time series are
-decimated for the view to at most ``max_rows`` rows spread evenly over the results, first and
-last included (:func:`~pushtrain.report.geometry.frame_indices`, as the GIF's frames; each drawn
-pose is a row of ``results.npz`` exactly); ``results.npz`` itself is never decimated.
+The map is embedded as a PNG picture of the free space drawn with Pillow from the map's data
+(:mod:`~pushtrain.report.map_picture`: polygons and occupancy grids look as in ``map.png``),
+with its extent in metres; everything else is vector data. Nothing here imports matplotlib.
+The time series are decimated for the view to at most ``max_rows`` rows spread evenly over
+the results, first and last included (:func:`~pushtrain.report.geometry.frame_indices`, as the
+GIF's frames; each drawn pose is a row of ``results.npz`` exactly); ``results.npz`` itself is
+never decimated.
 """
 
 from __future__ import annotations
 
 import base64
-import io
 import json
 import math
 from collections.abc import Sequence
@@ -32,8 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from pushtrain.files import atomic_write_text
-from pushtrain.report.common import check_n
+from pushtrain.report.data import check_n
 from pushtrain.report.geometry import DEFAULT_FOOTPRINTS, frame_indices
+from pushtrain.report.map_picture import map_picture
 
 __all__ = ["HTML_FILE", "MAX_ROWS", "run_payload", "failure_payload", "write_html",
            "plot_report", "plot_failure_report", "write_table_page"]
@@ -51,31 +52,6 @@ def _rounded(a, digits: int = 4) -> list:
     """``a`` as a JSON-ready list, rounded, with non-finite values as None."""
     a = np.round(np.asarray(a, dtype=float), digits)
     return [None if not math.isfinite(v) else v for v in a.tolist()]
-
-
-def _map_picture(world, pixels: int = MAP_PIXELS) -> dict:
-    """The map drawn by its own ``plot`` into a PNG (base64) with its extent [m]."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    grid = world.occupancy is not None and hasattr(world.occupancy, "plot")
-    xmin, ymin, xmax, ymax = world.bounds if grid else world.outline.bounds
-    pad = 0.05 * max(xmax - xmin, ymax - ymin, 1e-9)
-    extent = [xmin - pad, xmax + pad, ymin - pad, ymax + pad]
-    w_m, h_m = extent[1] - extent[0], extent[3] - extent[2]
-    scale = pixels / max(w_m, h_m)
-    width, height = max(1, round(w_m * scale)), max(1, round(h_m * scale))
-    fig = Figure(figsize=(width / 100.0, height / 100.0), dpi=100)
-    FigureCanvasAgg(fig)
-    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
-    world.plot(ax)
-    ax.set_xlim(extent[0], extent[1])
-    ax.set_ylim(extent[2], extent[3])
-    ax.set_aspect("auto")
-    ax.set_axis_off()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    return {"png": base64.b64encode(buf.getvalue()).decode("ascii"), "extent": extent}
 
 
 def _keep_out(world, margin: float | None) -> dict | None:
@@ -101,7 +77,7 @@ def _base(n: int, world, footprints, keep_out, title: str) -> dict:
     fp.update(footprints or {})
     return {"format": "pushtrain-report", "version": 1, "title": title, "n": n,
             "footprints": {k: [float(v[0]), float(v[1])] for k, v in fp.items()},
-            "map": None if world is None else _map_picture(world),
+            "map": None if world is None else map_picture(world, MAP_PIXELS),
             "keep_out": _keep_out(world, keep_out)}
 
 

@@ -31,7 +31,7 @@ import numpy as np
 from pushtrain.errors import PlotError
 from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
 from pushtrain.report.animation import animate
-from pushtrain.report.common import check_n
+from pushtrain.report.data import check_n
 from pushtrain.report.mapview import plot_map
 from pushtrain.report.timeseries import (
     plot_inputs_and_joints,

@@ -20,8 +20,6 @@ from pushtrain.report.common import (
     C_ROBOT,
     C_SLIP,
     DIRECTION_BANDS,
-    check_data,
-    col,
     disturbance_mask,
     index_colorbar,
     intervals,
@@ -31,6 +29,7 @@ from pushtrain.report.common import (
     series_colors,
     shade,
 )
+from pushtrain.report.data import check_data, col
 
 __all__ = [
     "inputs_and_joints_figure",
