@@ -574,10 +574,14 @@ def draw_page(sc, out_dir, result, path=None) -> PlotProblem | None:
     """Write ``report.html`` of a run of ``sc`` into ``out_dir`` in this process (data and the
     bundled renderer, no matplotlib; a few tenths of a CPU-second); what went wrong, if
     anything (the traceback goes to ``run.log``)."""
+    from pushtrain.report.data import finite_note
     from pushtrain.report.html import plot_report  # numpy and Pillow only
 
     wall, cpu = time.perf_counter(), time.process_time()
     try:
+        note = finite_note(result.data)
+        if note:  # a diverged run: the page draws what is finite and says so too
+            log.warning("the results hold values that are %s", note)
         run = _run_of(sc, out_dir, result, path)
         plot_report(result.data, run.n, run.out_dir / HTML_FILE, world=run.world,
                     path_xy=run.path_xy, footprints=run.footprints, status=run.status,

@@ -38,6 +38,8 @@ __all__ = [
     "atomic",
     "save",
     "new_figure",
+    "add_note",
+    "nothing_to_draw",
     "series_colors",
     "index_colorbar",
     "intervals",
@@ -106,6 +108,34 @@ def save(fig: Figure, out_path, dpi: float = DPI) -> Path:
         fig.set_layout_engine(None)
     atomic(path, lambda partial: fig.savefig(partial, format=fmt, dpi=dpi))
     return path
+
+
+def add_note(fig: Figure, note: str) -> None:
+    """``note`` in red under ``fig``'s axes (wrapped to the figure's width), with room made
+    for it by the layout (a figure-level x label)."""
+    import textwrap
+
+    width = max(40, int(fig.get_figwidth() * 15))
+    fig.supxlabel("\n".join(textwrap.wrap(note, width)[:6]), fontsize=8, color="tab:red")
+
+
+def nothing_to_draw(out_path, what: str, note: str | None = None) -> Path:
+    """A small picture at ``out_path`` (PNG, or a one-frame GIF) saying ``what`` could not be
+    drawn and why (and ``note``): the file a run names exists and says what happened."""
+    import textwrap
+
+    fig = Figure(figsize=(6.0, 2.0), dpi=DPI)  # no layout: there are no axes
+    FigureCanvasAgg(fig)
+    text = "\n".join(textwrap.wrap(what, 70) + (textwrap.wrap(note, 80)[:6] if note else []))
+    fig.text(0.5, 0.5, text, ha="center", va="center", fontsize=9, color="tab:red")
+    path = Path(out_path)
+    if path.suffix.lower() != ".gif":
+        return save(fig, path)
+    from PIL import Image
+
+    fig.canvas.draw()
+    image = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3])
+    return atomic(path, lambda partial: image.save(partial, format="GIF"))
 
 
 def new_figure(width: float, height: float, dpi: float = DPI, *,

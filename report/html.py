@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from pushtrain.files import atomic_write_text
-from pushtrain.report.data import check_n
+from pushtrain.report.data import check_n, finite_note
 from pushtrain.report.geometry import DEFAULT_FOOTPRINTS, frame_indices
 from pushtrain.report.map_picture import map_picture
 
@@ -42,6 +42,10 @@ __all__ = ["HTML_FILE", "MAX_ROWS", "run_payload", "failure_payload", "write_htm
 HTML_FILE = "report.html"
 MAX_ROWS = 4000
 """Most rows of the results the page carries (the view's decimation)."""
+MAX_VALUES = 500_000
+"""Most numbers the page carries over time (rows x columns): a long train gets fewer rows
+(50 trailers: about 1,900), so that its page stays within a few MB and is written in tenths
+of a second."""
 MAP_PIXELS = 2400
 """Longest side of the map's picture [px] (cells of real maps stay visible up to 1/20 m)."""
 MAX_OUTLINE_POINTS = 60_000
@@ -84,17 +88,26 @@ def _base(n: int, world, footprints, keep_out, title: str) -> dict:
 def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, status=None,
                 summary: dict | None = None, phi_max_deg: float | None = None,
                 keep_out: float | None = None, max_rows: int = MAX_ROWS,
-                title: str | None = None) -> dict:
+                title: str | None = None, max_values: int = MAX_VALUES) -> dict:
     """What the page of a co-simulation run shows, as plain data.
 
     ``data`` is ``Result.data`` (columns as in ``master._columns(n)``); ``world`` the map or
     None; ``path_xy`` (N, 2) the planned path of the last trailer [m]; ``footprints`` as in
     :func:`~pushtrain.report.mapview.plot_map`; ``phi_max_deg`` the joint limit drawn on the
     joint plot; ``keep_out`` the clearance [m] whose band is drawn.
+
+    At most ``max_rows`` rows, and at most ``max_values`` numbers over time in all, spread
+    evenly over the rows whose time is finite. Values that are not finite (a diverged run) are
+    left out of the drawing (JSON null) and ``notes`` says which.
     """
     n = check_n(n)
     names = set(data.dtype.names)
-    rows = frame_indices(len(data), max_rows)
+    per_row = 5 * n + 12  # poses, reference, speeds, joints, errors, forces
+    timed = np.flatnonzero(np.isfinite(np.asarray(data["t"], dtype=float)))
+    rows = timed[frame_indices(len(timed), min(max_rows, max(2, max_values // per_row)))]
+    notes = [note for note in (finite_note(data),) if note]
+    if len(rows) == 0:
+        notes.append("the results have no row with a finite time: nothing to show over time")
 
     def col(name):
         return _rounded(np.asarray(data[name], dtype=float)[rows])
@@ -158,7 +171,7 @@ def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, stat
                       else None),
         "path": None if path_xy is None else [_rounded(np.asarray(path_xy)[:, 0]),
                                               _rounded(np.asarray(path_xy)[:, 1])],
-        "series": series, "summary": summary or {},
+        "series": series if len(rows) else [], "summary": summary or {}, "notes": notes,
     })
     return out
 

@@ -226,10 +226,16 @@ def lateral_forces_figure(data, n: int) -> Figure:
     return fig
 
 
+def _peak(a: np.ndarray) -> float:
+    """The largest finite value of ``a`` (0 where none is finite: a diverged run)."""
+    finite = a[np.isfinite(a)]
+    return float(finite.max()) if finite.size else 0.0
+
+
 def _peak_ratio(force: np.ndarray, limit: np.ndarray) -> float:
     """Peak force over the peak friction limit (nan without a positive limit)."""
-    lim = np.max(limit)
-    return float(np.max(force) / lim) if lim > 0 else float("nan")
+    lim = _peak(limit)
+    return float(_peak(force) / lim) if lim > 0 else float("nan")
 
 
 def _force_panels(t, force: list, limit: list, slips: list) -> Figure:
@@ -244,10 +250,10 @@ def _force_panels(t, force: list, limit: list, slips: list) -> Figure:
         ax.plot(t, force[i], "-", color="tab:blue", lw=1.3, label=f"|F_lat,{i + 1}|",
                 gid=f"F_lat{i + 1}")
         ax.plot(t, limit[i], "--", color="tab:red", lw=1.3,
-                label=f"friction limit {np.max(limit[i]):.1f} N", gid=f"F_lat_max{i + 1}")
-        ax.set_ylim(0.0, 1.15 * max(np.max(force[i]), np.max(limit[i]), 1e-9))
+                label=f"friction limit {_peak(limit[i]):.1f} N", gid=f"F_lat_max{i + 1}")
+        ax.set_ylim(0.0, 1.15 * max(_peak(force[i]), _peak(limit[i]), 1e-9))
         ax.set_ylabel(f"|F_lat,{i + 1}| [N]")
-        ax.set_title(f"trailer {i + 1}: peak {np.max(force[i]):.1f} N = "
+        ax.set_title(f"trailer {i + 1}: peak {_peak(force[i]):.1f} N = "
                      f"{100 * _peak_ratio(force[i], limit[i]):.0f} % of the limit, "
                      f"{len(slips[i])} slip interval{'s' if len(slips[i]) != 1 else ''}",
                      fontsize=9)
@@ -266,17 +272,20 @@ def _force_overview(t, force: list, limit: list, slips: list) -> Figure:
     colors = series_colors(n, categorical=False)
     for i in range(n):
         ax.plot(t, force[i], "-", color=colors[i], lw=1.0, gid=f"F_lat{i + 1}")
-        ax.plot(t, limit[i], "--", color=colors[i] if np.ptp([np.max(v) for v in limit]) > 0
+        ax.plot(t, limit[i], "--", color=colors[i] if np.ptp([_peak(v) for v in limit]) > 0
                 else "tab:red", lw=1.2, gid=f"F_lat_max{i + 1}")
         for a, b in slips[i]:
             ax_slip.broken_barh([(a, max(b - a, 1e-9))], (i + 0.6, 0.8), color=C_SLIP,
                                 gid=f"slip{i + 1}")
     ratios = [_peak_ratio(force[i], limit[i]) for i in range(n)]
-    worst = int(np.nanargmax(ratios))
     ax.set_ylabel("|F_lat,i| [N]")
+    if np.isfinite(ratios).any():
+        worst = int(np.nanargmax(ratios))
+        peak = f"trailer {worst + 1}, {100 * ratios[worst]:.0f} % of its limit"
+    else:
+        peak = "none finite"
     ax.set_title(f"Lateral wheel force of each trailer (dashed: friction limit); highest "
-                 f"peak: trailer {worst + 1}, {100 * ratios[worst]:.0f} % of its limit",
-                 fontsize=9)
+                 f"peak: {peak}", fontsize=9)
     ax.grid(True, lw=0.4, alpha=0.5)
     index_colorbar(fig, ax, colors, "trailer index i")
     ax_slip.set_ylim(0.5, n + 0.5)
