@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import test_report_html as page_tests
 from click.testing import CliRunner
 from PIL import Image
 
@@ -18,6 +19,7 @@ from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 N = 3
+browser = page_tests.browser  # the headless chromium fixture of the page's tests
 
 
 @pytest.fixture(scope="module")
@@ -158,3 +160,26 @@ def test_a_diverged_run_through_the_cli_says_so(run, tmp_path, monkeypatch):
     for name in PNG_FILES + (GIF_FILE, HTML_FILE):
         assert (out / name).is_file(), name
     assert _payload(out / HTML_FILE)["notes"]
+
+
+@pytest.mark.browser
+@pytest.mark.parametrize("kind", ["diverged", "some_inf", "no_rows", "one_row"])
+def test_the_page_of_odd_data_opens_and_draws_what_is_finite(run, tmp_path, browser, kind):
+    """In headless chromium: no script error, the notes shown, the slider works, and at a row
+    whose poses are NaN no body is drawn while at a finite row all are."""
+    _, data, sc = run
+    odd = _variant(data, kind)
+    page = _draw(HTML_FILE, odd, sc, tmp_path)
+    payload = _payload(page)
+    page_tests._open(browser, page)
+    assert page_tests._errors(browser) == []
+    notes = [e.text for e in browser.find_elements("css selector", ".note")]
+    assert notes == payload["notes"]
+    if kind == "no_rows":
+        assert browser.execute_script("return window.pushtrainReport.state().bodies.length") == 0
+        return
+    first = page_tests._slide_to(browser, 0)
+    assert len(first["bodies"]) == N + 1  # the first row is finite in every variant
+    end = page_tests._slide_to(browser, len(payload["rows"]) - 1)
+    assert len(end["bodies"]) == (0 if kind == "diverged" else N + 1)
+    assert page_tests._errors(browser) == []
