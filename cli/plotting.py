@@ -1,15 +1,21 @@
-"""The pictures of a run (four PNG plots and the GIF), drawn in helper processes while the main
-process plans, co-simulates and saves.
+"""The pictures of a run: what the options ask for (:func:`pictures_options`,
+:func:`chosen_files`), the page written in this process (:func:`draw_page`), and the PNG plots
+and the GIF drawn in helper processes while the main process plans, co-simulates and saves.
 
-:func:`plotter` forks a plot process as soon as the scenario is read. While the main process
-checks the map, plans and co-simulates, that process imports matplotlib (and the map's module,
-``pushtrain.facility.free_space``, to unpickle the map) and draws a small figure to ready the fonts.
-:meth:`PlotWorkers.submit` sends it the run's setting (map, geometry, planned path, status,
-output folder) and the results table (its raw bytes through the pipe, from a thread, so the
-main process saves the results meanwhile); it then forks the second plot process, which so
-shares matplotlib and the results, and each takes the next file nobody has taken yet (the GIF
-first, the largest job) until none is left. :meth:`PlotWorkers.wait` waits for the named files
-and returns what went wrong with them.
+By default a run writes ``report.html`` only: the main process writes it from the data with
+the bundled renderer (about 0.1 CPU-s, no matplotlib), and no plot process is started. With
+``--plots all`` (the four PNGs) or ``--gif``, :func:`plotter` forks a plot process as soon as the
+scenario is read. While the main process checks the map, plans and co-simulates, that process
+imports matplotlib (and the map's module, ``pushtrain.facility.free_space``, to unpickle the
+map) and draws a small figure to ready the fonts. :meth:`PlotWorkers.submit` sends it the run's
+setting (map, geometry, planned path, status, output folder) and the results table (its raw
+bytes through the pipe, from a thread, so the main process saves the results meanwhile); it
+then forks the second plot process, which so shares matplotlib and the results, and each takes
+the next file nobody has taken yet (the GIF first, the largest job) until none is left.
+:meth:`PlotWorkers.wait` waits for the named files and returns what went wrong with them.
+Measured (``benchmarks/bench_plan_and_run.py``): the plot processes cost no more CPU than
+drawing in the main process (matplotlib is imported once, before the fork) and on idle cores
+they draw while the main process plans; so they stay for the matplotlib files.
 
 What can go wrong becomes a :class:`PlotProblem` naming the file: the drawing raised (its
 message; the traceback goes to ``run.log``), the process died (its pipe closed), or no word came
@@ -38,13 +44,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pushtrain.files import remove_partials
-from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES  # names only: no matplotlib here
+from pushtrain.report import GIF_FILE, HTML_FILE  # names only: no matplotlib here
 
 if TYPE_CHECKING:  # numpy and multiprocessing load when a run is drawn
     import numpy as np
 
 __all__ = ["footprints_of", "keep_out_of", "PlotProblem", "PlotWorkers", "InlinePlotter", "plotter",
-           "draw_page", "pictures_options", "chosen_files", "PLOTS_CHOICES", "SILENCE_LIMIT_S"]
+           "run_of", "one_line", "SILENCE_LIMIT_S"]
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +93,8 @@ class _Run:
     keep_out: float | None = None  # the clearance whose band report.html draws [m]
 
 
-def _run_of(sc, out_dir, result, path) -> _Run:
+def run_of(sc, out_dir, result, path) -> _Run:
+    """What the files of a run of ``sc`` into ``out_dir`` need besides its table."""
     import numpy as np
 
     from pushtrain.mission.runner import geometry_of, world_of
@@ -122,7 +129,8 @@ def _draw(name: str, data, run: _Run) -> Path:
                      summary=run.summary, phi_max_deg=run.phi_max_deg, keep_out=run.keep_out)
 
 
-def _one_line(exc: BaseException) -> str:
+def one_line(exc: BaseException) -> str:
+    """``exc`` as one line: its type and its message with the whitespace folded."""
     text = " ".join(str(exc).split())
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
@@ -149,18 +157,21 @@ class InlinePlotter:
         self.data = self.run = None
 
     def submit(self, out_dir, result, path=None) -> None:
-        self.data, self.run = result.data, _run_of(self.sc, out_dir, result, path)
+        self.data, self.run = result.data, run_of(self.sc, out_dir, result, path)
 
     def wait(self, names) -> list[PlotProblem]:
         problems = []
         for name in names:
             if name not in self.finished:
+                wall, cpu = time.perf_counter(), time.process_time()
                 try:
                     _draw(name, self.data, self.run)
                     self.finished[name] = None
+                    log.info("%s drawn in %.3f s (CPU %.3f s) by the main process", name,
+                             time.perf_counter() - wall, time.process_time() - cpu)
                 except Exception as exc:  # the traceback goes to run.log only
                     log.debug("drawing %s failed", name, exc_info=True)
-                    self.finished[name] = PlotProblem(name, _one_line(exc))
+                    self.finished[name] = PlotProblem(name, one_line(exc))
                 gc.collect()
             if self.finished[name] is not None:
                 problems.append(self.finished[name])
@@ -213,7 +224,7 @@ def _first_process(conns, counter, with_map: bool, inherited) -> None:
         return  # the main process stopped us or went away: nothing to report to
     except Exception as exc:  # e.g. matplotlib missing: say so (not as a traceback) and end
         for conn in conns:
-            _last_word(conn, ("fatal", f"cannot draw: {_one_line(exc)}", traceback.format_exc()))
+            _last_word(conn, ("fatal", f"cannot draw: {one_line(exc)}", traceback.format_exc()))
         return
     second = 0
     if len(conns) > 1:
@@ -299,7 +310,7 @@ def _draw_files(conn, counter, header: dict, data: np.ndarray, *, hello: bool = 
             try:
                 _draw(name, data, run)
             except Exception as exc:
-                conn.send(("failed", name, _one_line(exc), traceback.format_exc()))
+                conn.send(("failed", name, one_line(exc), traceback.format_exc()))
             else:
                 conn.send(("done", name, time.perf_counter() - wall, time.process_time() - cpu))
             gc.collect()
@@ -307,7 +318,7 @@ def _draw_files(conn, counter, header: dict, data: np.ndarray, *, hello: bool = 
     except (EOFError, OSError):
         return  # the main process stopped us or went away: nothing to report to
     except Exception as exc:  # a bug here: say so (not as a traceback on stderr)
-        _last_word(conn, ("fatal", f"plot process failed: {_one_line(exc)}",
+        _last_word(conn, ("fatal", f"plot process failed: {one_line(exc)}",
                           traceback.format_exc()))
     finally:
         conn.close()
@@ -388,7 +399,7 @@ class PlotWorkers:
 
         data = np.ascontiguousarray(result.data)
         self.out_dir = Path(out_dir)
-        header = {"run": _run_of(self.sc, out_dir, result, path), "files": self.files,
+        header = {"run": run_of(self.sc, out_dir, result, path), "files": self.files,
                   "rows": len(data), "dtype": data.dtype}
         self.sender = threading.Thread(target=_send, args=([self.procs[0].conn], header, data),
                                        name="pushtrain-plot-sender", daemon=True)
@@ -429,7 +440,7 @@ class PlotWorkers:
             p.current = message[1]
         elif kind == "done":
             name, wall, cpu = message[1:]
-            log.info("%s drawn in %.2f s (CPU %.2f s) by plot process %s", name, wall, cpu,
+            log.info("%s drawn in %.3f s (CPU %.3f s) by plot process %s", name, wall, cpu,
                      p.pid)
             self.finished[name], p.current = None, None
         elif kind == "failed":
@@ -521,79 +532,6 @@ def _send(conns, header: dict, data: np.ndarray) -> None:
 
 
 # ---------------------------------------------------------------------------------------------
-# what a run draws: the options and the plotter
-# ---------------------------------------------------------------------------------------------
-PLOTS_CHOICES = ("page", "all", "none")
-"""``--plots``: ``page`` report.html only (the default: no matplotlib), ``all`` report.html and
-the four PNGs, ``none`` no picture at all."""
-
-
-def pictures_options(command):
-    """``--plots page|all|none``, ``--gif``, and the older ``--no-plots`` and ``--no-gif``
-    (which keep their meaning) on a click ``command``."""
-    import click
-
-    for option in reversed((
-        click.option("--plots", "plots", type=click.Choice(PLOTS_CHOICES), default=None,
-                     help="What to draw: page = report.html (default), all = report.html and "
-                          f"the PNGs ({', '.join(PNG_FILES)}), none = nothing."),
-        click.option("--gif", "gif", is_flag=True,
-                     help=f"Also write the animation {GIF_FILE}."),
-        click.option("--no-plots", "no_plots", is_flag=True,
-                     help="Draw nothing (the same as --plots none)."),
-        click.option("--no-gif", "no_gif", is_flag=True,
-                     help="No animation (the default; for older scripts)."),
-    )):
-        command = option(command)
-    return command
-
-
-def chosen_files(plots: str | None, gif: bool | None, no_plots: bool = False,
-                 no_gif: bool = False) -> tuple[str, ...]:
-    """The picture files the options ask for, in the order :data:`PNG_FILES`, the GIF,
-    report.html; raises click's BadParameter (exit 2) for options that contradict each
-    other."""
-    import click
-
-    if no_plots and plots not in (None, "none"):
-        raise click.BadParameter(f"--no-plots draws nothing, --plots {plots} draws pictures: "
-                                 "give one of them", param_hint="'--no-plots'")
-    if no_gif and gif:
-        raise click.BadParameter("--gif and --no-gif contradict each other: give one",
-                                 param_hint="'--gif'")
-    plots = "none" if no_plots else (plots or "page")
-    if plots == "none":
-        if gif:
-            raise click.BadParameter("--gif needs pictures: --plots none (or --no-plots) draws "
-                                     "nothing", param_hint="'--gif'")
-        return ()
-    return (PNG_FILES if plots == "all" else ()) + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)
-
-
-def draw_page(sc, out_dir, result, path=None) -> PlotProblem | None:
-    """Write ``report.html`` of a run of ``sc`` into ``out_dir`` in this process (data and the
-    bundled renderer, no matplotlib; a few tenths of a CPU-second); what went wrong, if
-    anything (the traceback goes to ``run.log``)."""
-    from pushtrain.report.data import finite_note
-    from pushtrain.report.html import plot_report  # numpy and Pillow only
-
-    wall, cpu = time.perf_counter(), time.process_time()
-    try:
-        note = finite_note(result.data)
-        if note:  # a diverged run: the page draws what is finite and says so too
-            log.warning("the results hold values that are %s", note)
-        run = _run_of(sc, out_dir, result, path)
-        plot_report(result.data, run.n, run.out_dir / HTML_FILE, world=run.world,
-                    path_xy=run.path_xy, footprints=run.footprints, status=run.status,
-                    summary=run.summary, phi_max_deg=run.phi_max_deg, keep_out=run.keep_out)
-    except Exception as exc:
-        log.debug("drawing %s failed", HTML_FILE, exc_info=True)
-        return PlotProblem(HTML_FILE, _one_line(exc))
-    log.info("%s drawn in %.2f s (CPU %.2f s) by the main process", HTML_FILE,
-             time.perf_counter() - wall, time.process_time() - cpu)
-    return None
-
-
 @contextmanager
 def plotter(sc, files, *, processes: int | None = None):
     """What draws the matplotlib ``files`` (PNGs, GIF) of a run of ``sc``, closed at the end of

@@ -196,7 +196,7 @@ def run_and_report(sc: Scenario, out_dir: Path, reference, path, files=(), *,
     from pushtrain.mission.runner import run_scenario
     from pushtrain.report import HTML_FILE
 
-    from .plotting import draw_page
+    from .pictures import draw_page
     from .plotting import plotter as start_plotter
 
     files = tuple(files)

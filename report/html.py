@@ -52,10 +52,18 @@ MAX_OUTLINE_POINTS = 60_000
 """Most points of the keep-out band drawn (a band of more points is left out, and said so)."""
 
 
+class _Finite(list):
+    """A list already free of non-finite floats (from :func:`_rounded`): :func:`_finite`
+    passes it as it is instead of walking its thousands of values again."""
+
+
 def _rounded(a, digits: int = 4) -> list:
     """``a`` as a JSON-ready list, rounded, with non-finite values as None."""
     a = np.round(np.asarray(a, dtype=float), digits)
-    return [None if not math.isfinite(v) else v for v in a.tolist()]
+    finite = np.isfinite(a)
+    if finite.all():
+        return _Finite(a.tolist())
+    return _Finite(v if ok else None for v, ok in zip(a.tolist(), finite.tolist(), strict=True))
 
 
 def _keep_out(world, margin: float | None) -> dict | None:
@@ -256,6 +264,8 @@ def write_html(path, payload: dict) -> Path:
 
 def _finite(obj):
     """``obj`` with every non-finite float (NaN, inf) as None: JSON has no such numbers."""
+    if isinstance(obj, _Finite):
+        return obj
     if isinstance(obj, float):
         return obj if math.isfinite(obj) else None
     if isinstance(obj, dict):

@@ -37,7 +37,7 @@ def _png(grey: np.ndarray) -> str:
 
     buf = io.BytesIO()
     Image.fromarray(np.ascontiguousarray(grey, dtype=np.uint8), mode="L").save(
-        buf, format="PNG", compress_level=6)
+        buf, format="PNG", compress_level=1)  # maps are flat: level 1 is small too
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 

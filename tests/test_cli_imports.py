@@ -7,8 +7,8 @@ import sys
 
 import pytest
 
-HEAVY = ("matplotlib", "dask", "distributed", "scipy.sparse", "shapely", "pydantic", "numpy",
-         "PIL", "fmpy", "ompl")
+HEAVY = ("matplotlib", "dask", "distributed", "scipy", "scipy.sparse", "shapely", "pydantic",
+         "numpy", "PIL", "fmpy", "ompl")
 """What the CLI must not import before a command uses it."""
 
 COMMANDS = ("plan-and-run", "plan", "run", "analyze", "validate", "view", "atlas", "build-fmu",

@@ -15,7 +15,8 @@ from ..common import (
     scenario_argument,
     trailers_option,
 )
-from ..plotting import chosen_files, pictures_options, plotter
+from ..pictures import chosen_files, pictures_options
+from ..plotting import plotter
 from ..progress import Phases
 from ..rundir import run_folder
 from ..runs import describe_path, plan_or_fail, run_and_report, write_path, write_scenario
