@@ -7,6 +7,8 @@ the global pyplot state is untouched.
 
 from __future__ import annotations
 
+import logging
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -21,6 +23,8 @@ from matplotlib.layout_engine import ConstrainedLayoutEngine
 from pushtrain.errors import PlotError
 from pushtrain.files import atomic_write
 from pushtrain.report.data import col
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "DPI",
@@ -39,6 +43,7 @@ __all__ = [
     "save",
     "new_figure",
     "add_note",
+    "legend_place",
     "nothing_to_draw",
     "series_colors",
     "index_colorbar",
@@ -102,11 +107,15 @@ def save(fig: Figure, out_path, dpi: float = DPI) -> Path:
     """
     path = output_path(out_path)
     fmt = path.suffix.lower().lstrip(".")
-    engine = fig.get_layout_engine()
-    if engine is not None and dpi == fig.dpi:
-        engine.execute(fig)
-        fig.set_layout_engine(None)
-    atomic(path, lambda partial: fig.savefig(partial, format=fmt, dpi=dpi))
+    with warnings.catch_warnings(record=True) as caught:  # to the log, not the user's terminal
+        warnings.simplefilter("always")
+        engine = fig.get_layout_engine()
+        if engine is not None and dpi == fig.dpi:
+            engine.execute(fig)
+            fig.set_layout_engine(None)
+        atomic(path, lambda partial: fig.savefig(partial, format=fmt, dpi=dpi))
+    for w in caught:  # e.g. a layout that cannot fit a long legend: the picture is still made
+        log.info("%s: %s: %s", path.name, w.category.__name__, w.message)
     return path
 
 
@@ -136,6 +145,41 @@ def nothing_to_draw(out_path, what: str, note: str | None = None) -> Path:
     fig.canvas.draw()
     image = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3])
     return atomic(path, lambda partial: image.save(partial, format="GIF"))
+
+
+_LEGEND_PLACES = ((1.0, 1.0, "upper right"), (0.0, 1.0, "upper left"), (0.0, 0.0, "lower left"),
+                  (1.0, 0.0, "lower right"), (1.0, 0.5, "center right"),
+                  (0.0, 0.5, "center left"), (0.5, 0.0, "lower center"),
+                  (0.5, 1.0, "upper center"))
+
+
+def legend_place(ax, size: tuple[float, float] = (0.4, 0.3), most: int = 2000) -> str:
+    """Where a legend of about ``size`` (fractions of the axes' width and height) hides the
+    fewest points of ``ax``'s lines: matplotlib's ``loc="best"`` rule (the first of its places
+    with the fewest points under the box), counted on at most ``most`` points a line. With
+    25,000-row lines matplotlib's own count took 0.1-0.2 s a figure; this takes milliseconds.
+    """
+    ax.get_xlim(), ax.get_ylim()  # the limits, autoscaled to the data now
+    to_axes = ax.transAxes.inverted()
+    us, vs = [], []
+    for line in ax.get_lines():  # in axes fractions (an axhline's x is one already)
+        xy = np.asarray(line.get_xydata(), dtype=float)
+        xy = to_axes.transform(line.get_transform().transform(xy[::max(1, len(xy) // most)]))
+        if len(xy) == 2 and line.get_transform() != ax.transData:  # a line across the axes
+            xy = np.column_stack([np.linspace(xy[0, 0], xy[1, 0], 50),
+                                  np.linspace(xy[0, 1], xy[1, 1], 50)])
+        us.append(xy[:, 0])
+        vs.append(xy[:, 1])
+    if not us:
+        return "upper right"
+    u, v = np.concatenate(us), np.concatenate(vs)
+    w, h = size
+    counts = []
+    for fx, fy, _name in _LEGEND_PLACES:
+        left, bottom = fx * (1.0 - w), fy * (1.0 - h)
+        counts.append(int(np.count_nonzero((u >= left) & (u <= left + w)
+                                           & (v >= bottom) & (v <= bottom + h))))
+    return _LEGEND_PLACES[int(np.argmin(counts))][2]
 
 
 def new_figure(width: float, height: float, dpi: float = DPI, *,

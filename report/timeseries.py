@@ -23,6 +23,7 @@ from pushtrain.report.common import (
     disturbance_mask,
     index_colorbar,
     intervals,
+    legend_place,
     new_figure,
     output_path,
     save,
@@ -81,7 +82,7 @@ def _robot_inputs(ax_v, ax_w, data, t: np.ndarray) -> None:
               gid="v_cmd", zorder=3)
     ax_v.set_ylabel("v0 [m/s]")
     ax_v.set_title("Robot longitudinal speed (negative: pushing)", fontsize=10)
-    ax_v.legend(loc="best", fontsize=8)
+    ax_v.legend(loc=legend_place(ax_v, (0.3, 0.35)), fontsize=8)
 
     ax_w.plot(t, np.degrees(col(data, "w0")), "-", color=C_ROBOT, lw=3.0, alpha=0.45,
               label="actual w0", gid="w0", zorder=2)
@@ -89,7 +90,7 @@ def _robot_inputs(ax_v, ax_w, data, t: np.ndarray) -> None:
               label="command w_cmd", gid="w_cmd", zorder=3)
     ax_w.set_ylabel("w0 [deg/s]")
     ax_w.set_title("Robot yaw rate", fontsize=10)
-    ax_w.legend(loc="best", fontsize=8)
+    ax_w.legend(loc=legend_place(ax_w, (0.3, 0.35)), fontsize=8)
 
 
 def _joint_angles(fig, ax, data, t: np.ndarray, n: int, phi_max_deg: float | None) -> None:
@@ -120,7 +121,10 @@ def _joint_angles(fig, ax, data, t: np.ndarray, n: int, phi_max_deg: float | Non
         handles += [Line2D([], [], color="0.3", ls="-"), Line2D([], [], color="0.3", ls=":")]
         labels += ["true", "measured"]
     if n <= 12:
-        ax.legend(handles, labels, loc="best", fontsize=8, ncol=max(1, min(4, (n + 3) // 4)))
+        ncol = max(1, min(4, (n + 3) // 4))
+        rows = -(-len(labels) // ncol)
+        ax.legend(handles, labels, loc=legend_place(ax, (0.15 * ncol, 0.07 * rows + 0.05)),
+                  fontsize=8, ncol=ncol)
     else:
         index_colorbar(fig, ax, colors, "joint index i")
 
@@ -176,7 +180,7 @@ def tracking_error_figure(data, n: int) -> Figure:
         ax.set_ylabel(ylabel)
         ax.set_title(what, fontsize=9)
         ax.grid(True, lw=0.4, alpha=0.5)
-        ax.legend(handles=[ax.get_lines()[0]], loc="best", fontsize=8)
+        ax.legend(handles=[ax.get_lines()[0]], loc=legend_place(ax, (0.45, 0.25)), fontsize=8)
     axes[-1].set_xlabel("time t [s]")
     _time_limits(axes[0], t)
     # only the bands that are drawn: a direction held for no time (the last sample's rest)

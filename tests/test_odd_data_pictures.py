@@ -183,3 +183,26 @@ def test_the_page_of_odd_data_opens_and_draws_what_is_finite(run, tmp_path, brow
     end = page_tests._slide_to(browser, len(payload["rows"]) - 1)
     assert len(end["bodies"]) == (0 if kind == "diverged" else N + 1)
     assert page_tests._errors(browser) == []
+
+
+def test_a_matplotlib_warning_while_saving_goes_to_the_log_not_the_user(tmp_path, caplog):
+    """A warning matplotlib raises while laying out or saving a figure (as long legends of
+    50 trailers did) is logged (run.log), never shown to the user; the picture is written."""
+    import logging
+
+    from pushtrain.report.common import new_figure, save
+
+    fig = new_figure(3.0, 2.0)
+    fig.add_subplot().plot([0, 1], [0, 1])
+    real = fig.savefig
+
+    def savefig(*args, **kwargs):
+        warnings.warn("constrained_layout not applied", UserWarning, stacklevel=1)
+        return real(*args, **kwargs)
+
+    fig.savefig = savefig
+    with caplog.at_level(logging.INFO, logger="pushtrain.report"), warnings.catch_warnings():
+        warnings.simplefilter("error")
+        path = save(fig, tmp_path / "x.png")
+    assert path.is_file()
+    assert "x.png: UserWarning: constrained_layout not applied" in caplog.text
