@@ -9,15 +9,18 @@ import logging
 import math
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from pushtrain.files import atomic_write_text
-from pushtrain.mission.scenario import Scenario
 
 from .exits import EXIT_NOT_REACHED, EXIT_OK, interruption
 from .progress import Phases
 from .rundir import STATUS_INTERRUPTED
+
+if TYPE_CHECKING:
+    from pushtrain.mission.scenario import Scenario
 
 __all__ = ["plan_or_fail", "write_path", "write_scenario", "describe_path", "summary_text",
            "run_and_report", "PlotFailure"]
@@ -200,40 +203,47 @@ class PlotFailure(click.ClickException):
     exit_code = EXIT_NOT_REACHED
 
 
-def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gif: bool, *,
+def run_and_report(sc: Scenario, out_dir: Path, reference, path, files=(), *,
                    csv: bool = False, phases: Phases | None = None, plotter=None) -> int:
     """Co-simulate ``sc``, save the results into ``out_dir`` (``results.csv`` too with
-    ``csv``), draw the plots (and with ``gif`` the animation), print the summary; the exit
-    code (0 if the goal was reached or the fixed-horizon run completed, else 1). Each step is
-    a phase of ``phases``, if given.
+    ``csv``), draw the picture ``files`` (from :func:`pushtrain.cli.plotting.chosen_files`),
+    print the summary; the exit code (0 if the goal was reached or the fixed-horizon run
+    completed, else 1). Each step is a phase of ``phases``, if given.
 
-    ``plotter`` (from :func:`pushtrain.cli.plotting.plotter`, started before planning) draws
-    the pictures while the results are saved; without one they are drawn here, after saving.
-    A picture that cannot be drawn raises :class:`PlotFailure` (exit 1) once the summary is
-    printed; the results and the other pictures stay written.
+    ``report.html`` is written here, from the data (no matplotlib). ``plotter`` (from
+    :func:`pushtrain.cli.plotting.plotter`, started before planning) draws the matplotlib
+    files (PNGs, GIF) while the results are saved and the page written; without one they are
+    drawn here, after saving. A picture that cannot be drawn raises :class:`PlotFailure`
+    (exit 1) once the summary is printed; the results and the other pictures stay written.
     """
     from pushtrain.mission.runner import run_scenario
-    from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
+    from pushtrain.report import HTML_FILE
 
+    from .pictures import draw_page
     from .plotting import plotter as start_plotter
 
+    files = tuple(files)
+    drawn = tuple(name for name in files if name != HTML_FILE)  # by matplotlib
     with contextlib.ExitStack() as stack:
-        if plots and plotter is None:
-            plotter = stack.enter_context(start_plotter(sc, gif=gif, processes=0))
+        if drawn and plotter is None:
+            plotter = stack.enter_context(start_plotter(sc, drawn, processes=0))
         _build_fmu_once(sc, phases)
         with _phase(phases, "co-simulate", "co-simulating"):
             result = run_scenario(sc, None, reference=reference)
         stack.push(_summary_on_interrupt(result, out_dir))
-        if plots:
+        if drawn:
             plotter.submit(out_dir, result, path)
         with _phase(phases, "save", "saving the results"):
             result.save(out_dir, csv=csv)
         problems = []
-        if plots:  # one phase: the plot processes draw the GIF beside the plots
-            files = PNG_FILES + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)
-            what = f"plotting {', '.join(files[:-1])} and {files[-1]}"
+        if HTML_FILE in files:
+            with _phase(phases, "page", f"writing {HTML_FILE}"):
+                problem = draw_page(sc, out_dir, result, path)
+            problems += [problem] if problem is not None else []
+        if drawn:  # one phase: the plot processes draw the GIF beside the plots
+            what = f"plotting {', '.join(drawn)}"
             with _phase(phases, "plots", what):
-                problems += plotter.wait(files)
+                problems += plotter.wait(drawn)
             plotter.close()  # the plot processes end (and log their peak memory in run.log)
     if phases is not None:
         phases.done()
