@@ -205,7 +205,7 @@ class NativeController:
         is neither a :class:`~pushtrain.core.reference.Reference` nor a
         :class:`~pushtrain.core.native_reference.NativeReference`.
 
-        Returns a function ``(t, measurement) -> (v0, w0, info, ref)`` as
+        Returns a :class:`Tracker` whose ``command(t, measurement) -> (v0, w0, info, ref)`` is
         :meth:`TrackingLoop.command <pushtrain.core.tracking.TrackingLoop.command>` with this
         controller, ``reference`` and ``guide`` (the
         :class:`~pushtrain.core.pulling.PullGuide` of ``reference``, or None): the reference is
@@ -218,7 +218,7 @@ class NativeController:
         elif not isinstance(reference, NativeReference):
             return None
         leader = None if guide is None else NativeLeader.from_guide(guide)
-        return Tracker(self, reference, leader, info).command
+        return Tracker(self, reference, leader, info)
 
     def command_from(self, reference, t: float, measurement):
         """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t`` [s],
@@ -231,7 +231,7 @@ class NativeController:
 
 class Tracker:
     """One control instant of :class:`NativeController` in C: reference sample, pull leader and
-    command (``pt_track``); :meth:`command` is what :meth:`NativeController.tracker` returns.
+    command (``pt_track``), what :meth:`NativeController.tracker` returns.
 
     ``instant`` is the ``PtTrack`` struct the C reads and writes (a compiled loop may run it
     itself); ``has_last`` says whether it holds a measured last pose now."""

@@ -270,7 +270,7 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
         fmu, reference, controller, sensors_of(sc), events_of(sc), plant=plant, initial=initial,
         step=sc.sim.step, horizon=horizon, settle_time=sc.sim.settle_time,
         goal_tolerance=goal_tolerance_of(sc),
-        progress=progress, step_loop=sc.sim.step_loop,
+        progress=progress,
     )
     result.summary["scenario"] = sc.name
     result.summary["mission"] = sc.mission.kind

@@ -218,11 +218,6 @@ class SimSection(_Section):
     settle_time: NonNegFloat = defaults.SETTLE_TIME
     goal_tolerance: PositiveFloat = defaults.GOAL_TOLERANCE[0]
     goal_heading_tolerance_deg: PositiveFloat = defaults.GOAL_HEADING_TOLERANCE_DEG
-    # which loop steps the co-simulation: "auto" the compiled step loop when the run allows it
-    # (FMI 2.0, no governor, no open-loop profile; cosim/step_loop.py unsupported() says why
-    # not), else the Python loop; "c" the compiled loop or an error; "python" the Python loop
-    # (both give the same results; for debugging)
-    step_loop: Literal["auto", "c", "python"] = "auto"
 
 
 class MissionSection(_Section):

@@ -2,11 +2,11 @@
  * The closed-loop work of one communication step of the co-simulation, in one call: the plant's
  * true state -> sensors (sensors.c) -> the control law with its reference and pull leader
  * (pt_track, control.c) -> the push force on the last trailer and the last trailer's tracking
- * errors. The co-simulation master (cosim/csrc/master_loop.c, and cosim/master.py's Python
- * loop when the law is the compiled one) keeps only the FMU calls and the recording around it.
- * (A run whose law is Python, the slip governor or an open-loop profile, computes the push
- * force and errors in Python, cosim/master.py: an open loop's reference sample is NaN, and the
- * sign of a NaN result depends on how a compiler orders the operands.)
+ * errors. The co-simulation master's step loop (cosim/csrc/master_loop.c) keeps only the FMU
+ * calls and the recording around it. (A run whose law is written in Python, the slip governor
+ * or an open-loop profile, computes the push force and errors in Python, cosim/step_loop.py
+ * PythonLaw: an open loop's reference sample is NaN, and the sign of a NaN result depends on how
+ * a compiler orders the operands.)
  *
  * C99, reentrant, no allocation; every array is the caller's.
  */
