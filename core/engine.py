@@ -46,13 +46,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pushtrain.defaults import PULL_GUIDE_STEP
 from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
 from .controller import ControllerConfig
 from .kinematics import ChainGeometry, body_positions_along
 from .native_controller import controller_struct
-from .native_reference import NativeLeader, NativeReference
+from .native_reference import NativeReference
+from .pulling import PullGuide
 from .reference import Reference
 
 __all__ = [
@@ -288,14 +290,16 @@ class ClosedLoopEngine:
     checks : Checks or None
         Checks at every visited state (None: only non-finite states stop a run).
     guide_step : float
-        RK4 step [s] of the pull guide's backward runs (PullGuide's default 0.02 s).
+        RK4 step [s] of the pull guide's backward runs (PullGuide's default,
+        :data:`pushtrain.defaults.PULL_GUIDE_STEP`).
 
     The C loop releases the GIL; give each thread its own ClosedLoopEngine (it caches the last
     reference's pull guide).
     """
 
     def __init__(self, plant: ChainGeometry, controller: ControllerConfig, step: float = 0.025,
-                 t_start: float = 0.0, checks: Checks | None = None, guide_step: float = 0.02):
+                 t_start: float = 0.0, checks: Checks | None = None,
+                 guide_step: float = PULL_GUIDE_STEP):
         if not isinstance(plant, ChainGeometry):
             raise ControllerError(f"plant = {plant!r}: must be a ChainGeometry")
         if not isinstance(controller, ControllerConfig):
@@ -325,7 +329,7 @@ class ClosedLoopEngine:
         self._work_size = self._lib.pt_rollout_work(self.n)
         self._native_refs: dict[int, tuple] = {}
         self._leader_key: tuple | None = None  # (reference, its phases, its end) of _leader
-        self._leader: NativeLeader | None = None
+        self._leader: PullGuide | None = None
 
     # ------------------------------------------------------------------ time
     def time(self, k: int) -> float:
@@ -385,14 +389,13 @@ class ClosedLoopEngine:
         raise ReferencePathError(f"reference = {reference!r}: must be a Reference or a "
                                  "NativeReference")
 
-    def leader_for(self, reference) -> NativeLeader | None:
+    def leader_for(self, reference) -> PullGuide | None:
         """The pull guide of ``reference`` (None without pulling runs), computed in C with the
         controller's chain model; kept while the reference is unchanged."""
         ref = self._native(reference)
         key = self._leader_key
         if key is None or key[0] is not ref or key[1:] != (ref.struct.n_phases, ref.t_end):
-            self._leader = (NativeLeader.for_reference(ref, self.controller.geometry,
-                                                       self.guide_step)
+            self._leader = (PullGuide(ref, self.controller.geometry, self.guide_step)
                             if ref.pull_intervals() else None)
             self._leader_key = (ref, ref.struct.n_phases, ref.t_end)
         return self._leader

@@ -69,7 +69,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 SOURCES = ("control.c", "sensors.c", "step.c", "rollout.c", "master_loop.c")
-HEADERS = ("control.h", "sensors.h", "step.h", "rollout.h", "master_loop.h")
+HEADERS = ("control.h", "ode.h", "sensors.h", "step.h", "rollout.h", "master_loop.h")
 _COSIM_SOURCES = ("master_loop.c", "master_loop.h")  # in cosim/csrc, the rest in core/csrc
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-ffp-contract=off")
 LDFLAGS = ("-shared",)
@@ -215,7 +215,12 @@ _PROTOTYPES = {
     "pt_pull_run_work": (c_int, [c_int]),
     "pt_pull_run": (c_int, [P(PtChain), P(PtReference), c_double, c_double, c_double, D_PTR,
                             D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR]),
+    "pt_pull_run_sampled": (c_int, [P(PtChain), ctypes.c_void_p, ctypes.c_void_p, c_double,
+                                    c_double, c_double, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR,
+                                    D_PTR, D_PTR]),
     "pt_leader_sample": (c_int, [P(PtLeader), c_double, P(PtSample)]),
+    "pt_instant": (c_int, [P(PtController), P(PtControlState), P(PtReference), P(PtLeader),
+                           c_double, P(PtMeasurement), P(PtSample), D_PTR, P(PtControlInfo)]),
     "pt_track": (c_int, [P(PtTrack)]),
     "pt_sensors_sizeof": (c_size_t, []),
     "pt_sensors_noise_count": (c_int, [P(PtSensors)]),

@@ -26,7 +26,7 @@ from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
 from .controller import MODE_PULL, MODE_PUSH, MODE_REST, ControlInfo, ControllerConfig, Gains
-from .native_reference import NativeLeader, NativeReference
+from .native_reference import NativeReference
 from .reference import Reference, ReferenceSample
 from .tracking import TrackingLoop
 
@@ -209,16 +209,14 @@ class NativeController:
         :meth:`TrackingLoop.command <pushtrain.core.tracking.TrackingLoop.command>` with this
         controller, ``reference`` and ``guide`` (the
         :class:`~pushtrain.core.pulling.PullGuide` of ``reference``, or None): the reference is
-        copied into the C phase table and the guide's runs into the C leader table, so the C
-        sampling interpolates the same numbers. With ``info`` False the function returns None
-        in place of the ``ControlInfo``.
+        copied into the C phase table; the guide is the C leader table already. With ``info``
+        False ``command`` returns None in place of the ``ControlInfo``.
         """
         if isinstance(reference, Reference):
             reference = NativeReference.from_reference(reference)
         elif not isinstance(reference, NativeReference):
             return None
-        leader = None if guide is None else NativeLeader.from_guide(guide)
-        return Tracker(self, reference, leader, info)
+        return Tracker(self, reference, guide, info)
 
     def command_from(self, reference, t: float, measurement):
         """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t`` [s],
@@ -237,7 +235,7 @@ class Tracker:
     itself); ``has_last`` says whether it holds a measured last pose now."""
 
     def __init__(self, controller: NativeController, reference: NativeReference,
-                 leader: NativeLeader | None, info: bool = True):
+                 leader, info: bool = True):
         self.controller, self.reference, self.leader = controller, reference, leader
         self.info = info
         n = controller.n

@@ -1,20 +1,18 @@
-"""The last trailer's line/arc reference and the robot's pulling reference in C.
+"""The last trailer's line/arc reference in C.
 
 :class:`NativeReference` is :class:`~pushtrain.core.reference.Reference` held in the C phase
 table of ``core/csrc/control.c`` (the same numbers, tested equal), extendable segment by
 segment: a planner appends an edge's segments to the reference so far, or starts a
-:meth:`~NativeReference.continuation` at the end of it. :class:`NativeLeader` is the table of a
-:class:`~pushtrain.core.pulling.PullGuide` (the robot's reference over every pulling run),
-computed in C by :meth:`NativeLeader.for_reference` or copied from a Python guide.
+:meth:`~NativeReference.continuation` at the end of it. (The robot's reference while pulling
+is :class:`~pushtrain.core.pulling.PullGuide`, computed and sampled in C.)
 
-Both keep their C structs and the numpy arrays behind them alive; the fast closed loop
-(:mod:`pushtrain.core.engine`) passes the structs to C as they are.
+It keeps its C struct and the numpy array behind it alive; the fast closed loop
+(:mod:`pushtrain.core.engine`) passes the struct to C as it is.
 """
 
 from __future__ import annotations
 
 import ctypes
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -22,11 +20,9 @@ import numpy as np
 from pushtrain.errors import ReferencePathError
 
 from . import native
-from .kinematics import ChainGeometry
-from .pulling import PullRun
-from .reference import PULL, Reference, ReferenceSample, Segment
+from .reference import Reference, ReferenceSample, Segment
 
-__all__ = ["NativeLeader", "NativeReference", "segment_struct"]
+__all__ = ["NativeReference", "segment_struct"]
 
 _KINDS = {"line": 0, "arc": 1}
 
@@ -191,75 +187,3 @@ class NativeReference:
         count = self._lib.pt_reference_pull_intervals(ctypes.byref(self.struct),
                                                       native.dptr(t_a), native.dptr(t_b), cap)
         return [(float(a), float(b)) for a, b in zip(t_a[:count], t_b[:count], strict=True)]
-
-
-class NativeLeader:
-    """The robot's references over the pulling runs, as the C leader table.
-
-    Parameters
-    ----------
-    runs : sequence of PullRun
-        One per pulling run, in time order (at least 2 rows each).
-    """
-
-    def __init__(self, runs: Sequence[PullRun]):
-        self._lib = native.load()
-        self.runs = list(runs)
-        for run in self.runs:
-            if len(run.t) < 2:
-                raise ReferencePathError("a pulling run needs at least 2 rows")
-        offsets = np.cumsum([0] + [len(run.t) for run in self.runs]).astype(np.intc)
-        self._offset = np.ascontiguousarray(offsets)
-        self._cols = {name: np.ascontiguousarray(
-            np.concatenate([getattr(run, name) for run in self.runs]) if self.runs
-            else np.zeros(0), dtype=float) for name in ("t", "x", "y", "theta", "v", "w")}
-        self.struct = native.PtLeader(
-            len(self.runs), self._offset.ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
-            *(native.dptr(self._cols[name]) for name in ("t", "x", "y", "theta", "v", "w")))
-        self._sample = native.PtSample()
-
-    @classmethod
-    def from_guide(cls, guide) -> NativeLeader:
-        """The table of a Python :class:`~pushtrain.core.pulling.PullGuide`."""
-        return cls(guide.runs)
-
-    @classmethod
-    def for_reference(cls, reference: NativeReference, geometry: ChainGeometry,
-                      step: float = 0.02) -> NativeLeader:
-        """The guide of ``reference`` computed in C (:class:`PullGuide`'s backward runs with the
-        chain model ``geometry`` and RK4 step ``step`` [s])."""
-        if not isinstance(geometry, ChainGeometry):
-            raise ReferencePathError(f"geometry = {geometry!r}: must be a ChainGeometry")
-        if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0):
-            raise ReferencePathError(f"step = {step!r} s: must be finite and > 0")
-        lib = native.load()
-        front = np.ascontiguousarray(geometry.front, dtype=float)
-        rear = np.ascontiguousarray(geometry.rear, dtype=float)
-        chain = native.PtChain(geometry.n, native.dptr(front), native.dptr(rear))
-        work = np.zeros(lib.pt_pull_run_work(geometry.n))
-        runs = []
-        for t_a, t_b in reference.pull_intervals():
-            rows = lib.pt_pull_run_rows(t_a, t_b, float(step))
-            if rows < 2:
-                raise ReferencePathError(f"pulling run [{t_a!r}, {t_b!r}] s with step {step!r} s:"
-                                         " cannot be sampled")
-            cols = [np.zeros(rows) for _ in range(6)]
-            headings = np.zeros((rows, geometry.n + 1))
-            status = lib.pt_pull_run(ctypes.byref(chain), ctypes.byref(reference.struct), t_a, t_b,
-                                     float(step), native.dptr(work),
-                                     *(native.dptr(c) for c in cols), native.dptr(headings))
-            if status:
-                raise ReferencePathError(f"pull guide over [{t_a!r}, {t_b!r}] s: "
-                                         f"{native.STATUS.get(status, status)}")
-            runs.append(PullRun(*cols, headings))
-        return cls(runs)
-
-    def sample_at(self, t: float) -> ReferenceSample:
-        """The robot's reference at ``t`` [s] (:meth:`PullGuide.sample_at`)."""
-        status = self._lib.pt_leader_sample(ctypes.byref(self.struct), float(t),
-                                            ctypes.byref(self._sample))
-        if status:
-            raise ReferencePathError(f"t = {t!r} s is not in a pulling run of the reference")
-        s = self._sample
-        return ReferenceSample(s.x, s.y, s.theta, s.v, s.w, PULL)
-

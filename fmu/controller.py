@@ -52,7 +52,7 @@ log = logging.getLogger(__name__)
 
 BUILD_FORMAT = "1"  # bump when the rendering or packaging of the controller changes
 TABLE_FORMAT = 1
-LAW_FILES = ("control.c", "control.h", "sensors.c", "sensors.h", "step.c", "step.h")
+LAW_FILES = ("control.c", "control.h", "ode.h", "sensors.c", "sensors.h", "step.c", "step.h")
 """From core/csrc: the law, the sensors and the step's tracking errors (``pt_tracking_errors``)."""
 GLUE_FILES = ("instance.c", "fmi2.c", "fmu_model.h", "instance.h")  # the FMI glue, from fmu/src
 EXPORTS_MAP = "ctrl_exports.map"

@@ -45,7 +45,7 @@ __all__ = [
 CONTROLLER_IDENTIFIER = "BackwardController"
 CONTROLLER_SOURCES = ("control.c", "sensors.c", "step.c", "ctrl_table.c", "ctrl_model.c",
                       "ctrl_instance.c", "instance.c", "fmi2.c")
-CONTROLLER_HEADERS = ("control.h", "sensors.h", "step.h", "ctrl_model.h", "ctrl_table.h",
+CONTROLLER_HEADERS = ("control.h", "ode.h", "sensors.h", "step.h", "ctrl_model.h", "ctrl_table.h",
                       "ctrl_instance.h", "fmu_model.h", "instance.h")
 TABLE_FILE = "reference.txt"
 """The mission table in the FMU's ``resources/`` (see :mod:`pushtrain.fmu.controller`)."""

@@ -57,3 +57,8 @@ ROBOT_LENGTH = 0.6
 
 ROBOT_WIDTH = 0.5
 """The robot's footprint across its heading [m]."""
+
+PULL_GUIDE_STEP = 0.02
+"""RK4 step of the pull guide's backward runs [s]: 1.6 mm of travel at 0.08 m/s."""
+
+__all__ += ["PULL_GUIDE_STEP"]

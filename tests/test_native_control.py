@@ -20,15 +20,24 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 import reference.controller as controller_module
+import reference.pulling as readable_pulling
 from reference.controller import BackwardController
 
 from pushtrain.core import native
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, wrap_scalar
 from pushtrain.core.native_controller import NativeController
-from pushtrain.core.native_reference import NativeLeader, NativeReference
+from pushtrain.core.native_reference import NativeReference
 from pushtrain.core.pulling import PullGuide, rates_driven_by_last
-from pushtrain.core.reference import PULL, PUSH, REST, Reference, ReferenceSample, Segment
+from pushtrain.core.reference import (
+    PULL,
+    PUSH,
+    REST,
+    Reference,
+    ReferenceSample,
+    SampledReference,
+    Segment,
+)
 from pushtrain.errors import ControllerError, NativeBuildError, ReferencePathError
 
 CSRC = Path(native.__file__).with_name("csrc")
@@ -336,6 +345,8 @@ def test_reference_refuses_what_python_refuses():
 
 
 def test_pull_guide_in_c_equals_python():
+    """The engine's guide (C backward runs) against the readable Python one, bit for bit, on a
+    line/arc reference (sampled in C) and on its sampled form (sampled through a callback)."""
     rng = np.random.default_rng(4)
     checked = 0
     for n in (1, 3, 10):
@@ -345,14 +356,23 @@ def test_pull_guide_in_c_equals_python():
                 continue
             geom = random_geometry(rng, n)
             step = float(rng.choice([0.02, 0.05, 0.013]))
-            guide = PullGuide(ref, geom, step)
-            nat = NativeLeader.for_reference(NativeReference.from_reference(ref), geom, step)
-            assert len(nat.runs) == len(guide.runs)
-            for a, b in zip(guide.runs, nat.runs, strict=True):
-                for name in ("t", "x", "y", "theta", "v", "w", "headings"):
-                    assert np.allclose(getattr(b, name), getattr(a, name), rtol=0, atol=1e-9)
+            want = readable_pulling.PullGuide(ref, geom, step)
+            for given in (ref, NativeReference.from_reference(ref)):
+                got = PullGuide(given, geom, step)
+                assert len(got.runs) == len(want.runs)
+                for a, b in zip(want.runs, got.runs, strict=True):
+                    for name in ("t", "x", "y", "theta", "v", "w", "headings"):
+                        assert getattr(b, name).tobytes() == getattr(a, name).tobytes(), name
             checked += 1
     assert checked > 15
+    ref = random_reference(np.random.default_rng(9))
+    while not ref.pull_intervals():
+        ref = random_reference(rng)
+    sampled = SampledReference.from_reference(ref, 0.01)
+    want = readable_pulling.PullGuide(sampled, GEOM3 := ChainGeometry.uniform(3, 0.52), 0.05)
+    got = PullGuide(sampled, GEOM3, 0.05)
+    for a, b in zip(want.runs, got.runs, strict=True):
+        assert b.headings.tobytes() == a.headings.tobytes() and b.x.tobytes() == a.x.tobytes()
 
 
 def test_leader_sampling_equals_python():
@@ -362,8 +382,9 @@ def test_leader_sampling_equals_python():
         ref = random_reference(rng)
         if not ref.pull_intervals():
             continue
-        guide = PullGuide(ref, random_geometry(rng, 3), step=0.05)
-        nat = NativeLeader.from_guide(guide)
+        geom = random_geometry(rng, 3)
+        guide = readable_pulling.PullGuide(ref, geom, step=0.05)
+        nat = PullGuide(ref, geom, step=0.05)
         edges = np.array([[r.t[0], r.t[-1]] for r in guide.runs]).ravel()
         rows = np.concatenate([r.t for r in guide.runs])
         times = np.concatenate([edges, edges + 5e-7, edges - 5e-7, edges + 2e-6, edges - 2e-6,
@@ -377,7 +398,7 @@ def test_leader_sampling_equals_python():
                     nat.sample_at(t)
                 continue
             got = nat.sample_at(t)
-            assert got.direction == PULL and close(got[:5], want[:5]), (t, got, want)
+            assert got.direction == PULL and tuple(got) == tuple(want), (t, got, want)
             checked += 1
     assert checked > 1500
 
