@@ -51,8 +51,7 @@ import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from pushtrain.core.controller import ControllerConfig
-from pushtrain.core.native_controller import NativeController
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.reference import Reference, Segment
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.master import simulate
@@ -234,7 +233,7 @@ def control_law(n: int, result, implementation: str = "c") -> tuple[float, bool]
     states (perfect sensors), with the joint angles handed over as the master hands them."""
     ref, cfg = mission(n)
     data = result.data
-    ctrl = {"c": NativeController, "python": BackwardController}[implementation](cfg)
+    ctrl = {"c": Controller, "python": BackwardController}[implementation](cfg)
     step = float(data["t"][1] - data["t"][0])
     ctrl.reset(0.0, 0.0, float(data["t"][0]) - step)
     loop = TrackingLoop(ctrl, ref, info=False)  # as the master: no ControlInfo

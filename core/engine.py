@@ -18,8 +18,8 @@ Resumable
 
 Edges of a planner
     A planner's edge appends segments after the reference so far and continues the train's
-    state. Either extend a copy of the reference (:meth:`NativeReference.copy`, ``extend``) or
-    start a :meth:`NativeReference.continuation` at its end: at or after the end time of the
+    state. Either extend a copy of the reference (:meth:`Reference.copy`, ``extend``) or
+    start a :meth:`Reference.continuation` at its end: at or after the end time of the
     reference so far both sample exactly as the whole reference. Run an edge up to
     ``loop.instant_at(edge.t_end)``, the first instant at or after the edge's end; the last
     edge adds the settle time. One caveat is the pull guide's: the robot's reference over a
@@ -50,10 +50,8 @@ from pushtrain.defaults import PULL_GUIDE_STEP
 from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
-from .controller import ControllerConfig
+from .controller import ControllerConfig, controller_struct
 from .kinematics import ChainGeometry, body_positions_along
-from .native_controller import controller_struct
-from .native_reference import NativeReference
 from .pulling import PullGuide
 from .reference import Reference
 
@@ -376,18 +374,10 @@ class ClosedLoopEngine:
         return out
 
     # ------------------------------------------------------------------ running
-    def _native(self, reference) -> NativeReference:
-        if isinstance(reference, NativeReference):
-            return reference
+    def _native(self, reference) -> Reference:
         if isinstance(reference, Reference):
-            cached = self._native_refs.get(id(reference))
-            if cached is None or cached[0] is not reference:
-                self._native_refs = {id(reference): (reference,
-                                                     NativeReference.from_reference(reference))}
-                cached = self._native_refs[id(reference)]
-            return cached[1]
-        raise ReferencePathError(f"reference = {reference!r}: must be a Reference or a "
-                                 "NativeReference")
+            return reference
+        raise ReferencePathError(f"reference = {reference!r}: must be a Reference")
 
     def leader_for(self, reference) -> PullGuide | None:
         """The pull guide of ``reference`` (None without pulling runs), computed in C with the
@@ -405,7 +395,7 @@ class ClosedLoopEngine:
 
         Parameters
         ----------
-        reference : Reference or NativeReference
+        reference : Reference
             The last trailer's reference (its pull guide is computed here).
         state : LoopState
             Where to start (:meth:`start`, or a previous run's ``end``).

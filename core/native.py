@@ -210,6 +210,8 @@ _PROTOTYPES = {
                                   c_double, c_int]),
     "pt_reference_append": (c_int, [P(PtReference), P(PtSegment)]),
     "pt_reference_sample": (c_int, [P(PtReference), c_double, P(PtSample)]),
+    "pt_reference_samples": (c_int, [P(PtReference), D_PTR, c_int, D_PTR, D_PTR, D_PTR, D_PTR,
+                                     D_PTR, P(c_int)]),
     "pt_reference_pull_intervals": (c_int, [P(PtReference), D_PTR, D_PTR, c_int]),
     "pt_pull_run_rows": (c_int, [c_double, c_double, c_double]),
     "pt_pull_run_work": (c_int, [c_int]),

@@ -37,7 +37,6 @@ from pushtrain.errors import ReferencePathError
 
 from . import native
 from .kinematics import ChainGeometry, body_positions_along, velocities_from_last
-from .native_reference import NativeReference
 from .reference import PULL, Reference, ReferenceSample
 
 __all__ = ["PullGuide", "PullRun", "rates_driven_by_last", "straight_chain_mismatch"]
@@ -133,7 +132,7 @@ class PullGuide:
 
     Parameters
     ----------
-    reference : Reference, NativeReference or SampledReference
+    reference : Reference or SampledReference
         The last trailer's reference: a line/arc one is sampled in C; any other with
         ``pull_intervals()`` and ``sample_at(t)`` is sampled through a callback.
     geometry : ChainGeometry
@@ -185,8 +184,6 @@ class PullGuide:
         stay alive through the call."""
         reference = self.reference
         if isinstance(reference, Reference):
-            reference = NativeReference.from_reference(reference)
-        if isinstance(reference, NativeReference):
             address = ctypes.cast(self._lib.pt_reference_sample, ctypes.c_void_p).value
             return address, ctypes.addressof(reference.struct), reference
 

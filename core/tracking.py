@@ -5,7 +5,7 @@ during cusp dwells, before the start and after the goal), while pulling also the
 reference from the :class:`~pushtrain.core.pulling.PullGuide` built with the controller's chain
 model (``controller.guide_geometry``), and ask the controller for the robot command. The
 co-simulation master uses it for the slip governor and open-loop profiles; with the compiled law
-(:class:`~pushtrain.core.native_controller.NativeController`) the whole instant is one C call
+(:class:`~pushtrain.core.controller.Controller`) the whole instant is one C call
 (``pt_track``), which the engine (``core/csrc``) also runs inside its loops. The tests' reference
 closed loop (``tests/reference/closed_loop.py``) steps it with the readable reference law
 (``tests/reference/controller.py``).
@@ -34,7 +34,7 @@ class TrackingLoop:
     Parameters
     ----------
     controller
-        A :class:`~pushtrain.core.native_controller.NativeController`, or anything with its
+        A :class:`~pushtrain.core.controller.Controller`, or anything with its
         ``command(t, measurement, ref, leader)`` (the slip governor, open-loop profiles). Its
         ``guide_geometry`` (None for open-loop profiles, which ignore the reference) is the chain
         model of the pull guide.
@@ -58,7 +58,7 @@ class TrackingLoop:
         """``reference_at(t)``: the last trailer's :class:`ReferenceSample` at ``t`` [s]."""
         make_tracker = getattr(controller, "tracker", None)
         self.tracker = None
-        """The compiled instant (a :class:`~pushtrain.core.native_controller.Tracker`) when the
+        """The compiled instant (a :class:`~pushtrain.core.controller.Tracker`) when the
         controller is the compiled law and the reference one it can copy, else None."""
         if make_tracker is not None and reference is not None:
             self.tracker = make_tracker(reference, self.guide, info)
@@ -69,7 +69,7 @@ class TrackingLoop:
         """The controller's command at ``t`` [s] for ``measurement``.
 
         With a controller that has a ``tracker(reference, guide, info)`` method
-        (:class:`~pushtrain.core.native_controller.NativeController`) this method is the
+        (:class:`~pushtrain.core.controller.Controller`) this method is the
         :attr:`tracker`'s ``command``, which does the same in one call.
 
         Returns ``(v0, w0, info, ref)``: the robot command [m/s, rad/s], the controller's

@@ -44,9 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import wrap_scalar
-from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.defaults import GOAL_TOLERANCE, SETTLE_TIME
@@ -210,7 +209,7 @@ def _horizon_end(recorder: Recorder, goal: _Goal, horizon: float, n: int) -> tup
 def simulate(
     fmu,
     reference: Reference,
-    controller: ControllerConfig | NativeController,
+    controller: ControllerConfig | Controller,
     sensors: SensorConfig | Sensors | None = None,
     events: Sequence = (),
     *,
@@ -235,9 +234,9 @@ def simulate(
         The last trailer's reference.
     controller : ControllerConfig or a built controller
         Gains, limits and the controller's own chain model, computed by the compiled control
-        law (:class:`~pushtrain.core.native_controller.NativeController`: reference sample, pull
+        law (:class:`~pushtrain.core.controller.Controller`: reference sample, pull
         leader and command in one C call per step); or a controller built already (a
-        NativeController, possibly wrapped by the slip governor: GovernedController; or an
+        Controller, possibly wrapped by the slip governor: GovernedController; or an
         open-loop profile), used as it is.
     sensors : SensorConfig or Sensors, optional
         Measurement errors; default perfect sensors.
@@ -354,13 +353,13 @@ def _parts(controller, sensors, plant):
     """The controller, the sensors and the plant configuration of a run, checked against each
     other's number of trailers."""
     if isinstance(controller, ControllerConfig):
-        ctrl = NativeController(controller)
+        ctrl = Controller(controller)
     elif hasattr(controller, "command") and hasattr(controller, "n"):
         ctrl = controller  # a built controller, the slip governor or an open-loop profile
     else:
         raise CosimInputError(
             f"controller = {controller!r}: need a ControllerConfig or a built controller "
-            "(NativeController, GovernedController, an open-loop profile)"
+            "(Controller, GovernedController, an open-loop profile)"
         )
     n = ctrl.n
     sens = sensors if isinstance(sensors, Sensors) else Sensors(sensors or SensorConfig(n_joints=n))

@@ -34,8 +34,8 @@ from ctypes import POINTER, c_double, c_int, c_long, c_uint, c_void_p
 import numpy as np
 
 from pushtrain.core import native
+from pushtrain.core.controller import Tracker
 from pushtrain.core.kinematics import wrap_scalar
-from pushtrain.core.native_controller import Tracker
 from pushtrain.core.reference import ReferenceSample
 from pushtrain.errors import CosimError, NativeBuildError
 

@@ -99,8 +99,8 @@ def controller_of(sc: Scenario) -> ControllerConfig:
 
 def governed(sc: Scenario, config: ControllerConfig):
     """The compiled control law behind a slip-aware governor built from the scenario's train."""
+    from pushtrain.core.controller import Controller
     from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
-    from pushtrain.core.native_controller import NativeController
 
     n, plant = sc.train.n, plant_of(sc)
     gov = SlipGovernor(GovernorConfig(
@@ -108,7 +108,7 @@ def governed(sc: Scenario, config: ControllerConfig):
         _per_trailer(plant.inertia, n), _per_trailer(plant.mu, n),
         fraction=sc.controller.governor_fraction,
         tau=plant.robot_tau, acc_max=plant.robot_acc_max, alpha_max=plant.robot_alpha_max))
-    return GovernedController(NativeController(config), gov, dt=sc.sim.step)
+    return GovernedController(Controller(config), gov, dt=sc.sim.step)
 
 
 def goal_tolerance_of(sc: Scenario) -> tuple[float, float]:

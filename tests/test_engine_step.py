@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 
 from pushtrain.core import native
-from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import PULL, Reference, Segment
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import EventSchedule, Push
@@ -62,7 +61,7 @@ class _OneCall:
 def _engine(compiled: bool):
     config = ControllerConfig(geometry=ChainGeometry.uniform(N, 0.52), v_max=0.1, w_max=0.1,
                               acc_max=0.2, alpha_max=math.radians(10.0))
-    controller = NativeController(config)
+    controller = Controller(config)
     controller.reset(0.0, 0.0, -0.05)
     loop = TrackingLoop(controller, REFERENCE, info=False)
     assert loop.tracker is not None

@@ -19,10 +19,9 @@ import pytest
 from reference import master_loop
 from reference.controller import BackwardController
 
-from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.native_controller import NativeController
 from pushtrain.core.openloop import RotationProfile
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, SampledReference, Segment
 from pushtrain.cosim import step_loop
@@ -194,7 +193,7 @@ def _governed():
     gov = SlipGovernor(GovernorConfig(_config().geometry, np.full(3, 42.1), np.full(3, 3.5),
                                       np.full(3, 0.09), fraction=0.8, tau=0.05, acc_max=1.0,
                                       alpha_max=2.0))
-    return GovernedController(NativeController(_config()), gov, dt=0.005)
+    return GovernedController(Controller(_config()), gov, dt=0.005)
 
 
 def test_laws_written_in_python_are_called_back_from_the_loop(fmu3):

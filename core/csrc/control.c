@@ -414,6 +414,29 @@ int pt_reference_sample(const PtReference *r, double t, PtSample *out) {
     return PT_OK;
 }
 
+int pt_reference_samples(const PtReference *r, const double *t, int count, double *x,
+                         double *y, double *theta, double *v, double *w, int *direction) {
+    int i;
+    if (t == NULL || count < 0 || (count > 0 && (x == NULL || y == NULL || theta == NULL ||
+                                                 v == NULL || w == NULL || direction == NULL))) {
+        return PT_ERR_ARGUMENT;
+    }
+    for (i = 0; i < count; i++) {
+        PtSample s;
+        const int status = pt_reference_sample(r, t[i], &s);
+        if (status != PT_OK) {
+            return status;
+        }
+        x[i] = s.x;
+        y[i] = s.y;
+        theta[i] = s.theta;
+        v[i] = s.v;
+        w[i] = s.w;
+        direction[i] = s.direction;
+    }
+    return PT_OK;
+}
+
 int pt_reference_pull_intervals(const PtReference *r, double *t_a, double *t_b, int capacity) {
     int k = 0, count = 0;
     if (r == NULL || capacity < 0 || (capacity > 0 && (t_a == NULL || t_b == NULL))) {

@@ -221,6 +221,11 @@ PT_API int pt_reference_sample(const PtReference *r, double t, PtSample *out);
 PT_API int pt_reference_pull_intervals(const PtReference *r, double *t_a, double *t_b,
                                        int capacity);
 
+/* pt_reference_sample at each of the count times t into x, y, theta, v, w and direction (the
+ * arrays of Reference.sample and direction_at). Returns PT_OK or the first failure's status. */
+PT_API int pt_reference_samples(const PtReference *r, const double *t, int count, double *x,
+                                double *y, double *theta, double *v, double *w, int *direction);
+
 /* ---- the pull guide (core/pulling.py) ---- */
 
 /* Rows of the backward run over [t_a, t_b] with RK4 step `step` (PullGuide: the run's K), or

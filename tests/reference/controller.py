@@ -1,5 +1,5 @@
 """The backward-motion control law in plain Python: the reference the compiled law
-(``core/csrc/control.c``, :class:`~pushtrain.core.native_controller.NativeController`) is held
+(``core/csrc/control.c``, :class:`~pushtrain.core.controller.Controller`) is held
 equal to, bit for bit.
 
 :func:`kanayama` is the paper's Eq. 3-4, :class:`BackwardController` the whole law (last

@@ -16,9 +16,8 @@ import math
 
 import numpy as np
 
-from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import wrap_scalar
-from pushtrain.core.native_controller import NativeController
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import EventSchedule
 from pushtrain.cosim.fmu_slave import TrailerTrainSlave
@@ -47,7 +46,7 @@ def run(fmu, reference, controller, sensors=None, events=(), *, plant=None, init
         goal_tolerance=GOAL_TOLERANCE, check_goal=True):
     """``(status, message, data)`` of a run as :func:`pushtrain.cosim.master.simulate` makes it
     (the same arguments; ``data`` a structured array of :func:`columns`)."""
-    ctrl = NativeController(controller) if isinstance(controller, ControllerConfig) else controller
+    ctrl = Controller(controller) if isinstance(controller, ControllerConfig) else controller
     n = ctrl.n
     sens = sensors if isinstance(sensors, Sensors) else Sensors(sensors or SensorConfig(n))
     plant = plant or PlantConfig(n_trailers=n)
