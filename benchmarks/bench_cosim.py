@@ -53,10 +53,10 @@ from fmpy.fmi2 import FMU2Slave
 
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.sensors import Measurement
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState, PlantConfig
-from pushtrain.cosim.sensors import Measurement
 from pushtrain.fmu.build import build_fmu
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

@@ -47,6 +47,7 @@ import numpy as np
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import wrap_scalar
 from pushtrain.core.reference import Reference
+from pushtrain.core.sensors import SensorConfig, Sensors
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.defaults import GOAL_TOLERANCE, SETTLE_TIME
 from pushtrain.errors import ControllerError, CosimError, CosimInputError
@@ -66,7 +67,6 @@ from .result import (
     Result,
     summarize,
 )
-from .sensors import SensorConfig, Sensors
 from .step_loop import StepLoop
 
 __all__ = ["simulate"]

@@ -30,6 +30,7 @@ from __future__ import annotations
 import ctypes
 import math
 from ctypes import POINTER, c_double, c_int, c_long, c_uint, c_void_p
+from importlib import resources
 
 import numpy as np
 
@@ -37,14 +38,16 @@ from pushtrain.core import native
 from pushtrain.core.controller import Tracker
 from pushtrain.core.kinematics import wrap_scalar
 from pushtrain.core.reference import ReferenceSample
+from pushtrain.core.sensors import Measurement, Sensors
 from pushtrain.errors import CosimError, NativeBuildError
 
-from .sensors import Measurement, Sensors
-
-__all__ = ["CHUNK", "PythonLaw", "NoiseBuffer", "StepLoop"]
+__all__ = ["CHUNK", "LOOP_FILES", "PythonLaw", "NoiseBuffer", "StepLoop"]
 
 CHUNK = 1024
 """Most steps one call of the loop runs (then the progress bar moves)."""
+
+LOOP_FILES = ("master_loop.c", "master_loop.h")
+"""The co-simulation's own C, in ``cosim/csrc`` (compiled with the engine's files)."""
 
 # reasons pt_master_run returns (master_loop.h PT_LOOP_*)
 _PAUSE, _HORIZON, _JACKKNIFE, _GOAL_CANDIDATE, _FMI_ERROR, _CONTROL_ERROR, _ARGUMENT = range(7)
@@ -88,8 +91,12 @@ class PtMasterLoop(ctypes.Structure):
 
 
 def _library() -> ctypes.CDLL:
-    """The native library with the loop's prototypes declared (layout checked)."""
-    lib = native.load()
+    """The co-simulation's own library: ``cosim/csrc/master_loop.c`` on the engine's files
+    (:func:`pushtrain.core.native.engine_files`), built and cached like the engine's, the
+    loop's prototypes declared (layout checked)."""
+    folder = resources.files("pushtrain.cosim") / "csrc"
+    files = {**native.engine_files(), **{name: folder / name for name in LOOP_FILES}}
+    lib = native.load_library("pushtrain_cosim", files)
     if getattr(lib, "_pt_master_loop_ready", False):
         return lib
     lib.pt_master_loop_sizeof.restype, lib.pt_master_loop_sizeof.argtypes = ctypes.c_size_t, []

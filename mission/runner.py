@@ -16,11 +16,11 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.openloop import RotationProfile
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.sensors import SensorConfig
 from pushtrain.cosim.events import Push, SetBias, Slide
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState, PlantConfig
 from pushtrain.cosim.result import Result
-from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import ScenarioError
 from pushtrain.fmu.build import build_fmu
 from pushtrain.settings import config_values

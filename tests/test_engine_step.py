@@ -15,9 +15,9 @@ from pushtrain.core import native
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import PULL, Reference, Segment
+from pushtrain.core.sensors import Measurement, SensorConfig, Sensors
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import EventSchedule, Push
-from pushtrain.cosim.sensors import Measurement, SensorConfig, Sensors
 from pushtrain.cosim.step_loop import PythonLaw
 from pushtrain.errors import ControllerError
 

@@ -155,11 +155,11 @@ def _plant_files(fmi_version):
 
 def _controller_files():
     """The controller's C files under fmu/ (its control law is core's, not counted here)."""
-    from pushtrain.fmu.controller import GLUE_FILES, LAW_FILES
+    from pushtrain.fmu.controller import GLUE_FILES
     from pushtrain.fmu.controller_variables import CONTROLLER_HEADERS, CONTROLLER_SOURCES
 
     return [FMU_ROOT / ("src" if name in GLUE_FILES else "controller_src") / name
-            for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS if name not in LAW_FILES]
+            for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS]
 
 
 @pytest.mark.parametrize("build", ["plant FMI 2.0", "plant FMI 3.0", "controller"])

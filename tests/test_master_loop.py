@@ -24,11 +24,11 @@ from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGove
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.openloop import RotationProfile
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, SampledReference, Segment
+from pushtrain.core.sensors import SensorConfig, Sensors
 from pushtrain.cosim import step_loop
 from pushtrain.cosim.events import Push, SetBias, Slide
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState, PlantConfig
-from pushtrain.cosim.sensors import SensorConfig, Sensors
 from pushtrain.fmu.build import build_fmu
 from pushtrain.mission.runner import plan_path, run_scenario
 from pushtrain.mission.scenario import load_scenario

@@ -19,10 +19,10 @@ from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment
+from pushtrain.core.sensors import Measurement, SensorConfig
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import SetBias
 from pushtrain.cosim.master import simulate
-from pushtrain.cosim.sensors import Measurement, SensorConfig
 from pushtrain.errors import ControllerError
 
 

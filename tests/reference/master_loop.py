@@ -18,11 +18,11 @@ import numpy as np
 
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import wrap_scalar
+from pushtrain.core.sensors import SensorConfig, Sensors
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import EventSchedule
 from pushtrain.cosim.fmu_slave import TrailerTrainSlave
 from pushtrain.cosim.plant import InitialState, PlantConfig
-from pushtrain.cosim.sensors import SensorConfig, Sensors
 from pushtrain.defaults import GOAL_TOLERANCE, SETTLE_TIME
 from pushtrain.errors import ControllerError, CosimError
 from pushtrain.table1 import SAMPLING_TIME

@@ -203,7 +203,7 @@ class Sensors:
             native.dptr(self._play), 0)
         if self._lib.pt_sensors_noise_count(ctypes.byref(self.model)) != self.noise_scales.size:
             raise SensorError("the compiled sensor model counts its noise values differently "
-                              "from cosim/sensors.py: the binding does not match sensors.h")
+                              "from core/sensors.py: the binding does not match sensors.h")
         self._truth = np.zeros(n + 6)
         self._measurement = native.PtMeasurement()
         self.reset()
