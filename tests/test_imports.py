@@ -472,3 +472,47 @@ def test_c_includes_form_no_circle_and_follow_the_arrows():
 
     for name in graph:
         visit(name)
+
+
+FUNCTION_DEFINITION_RE = __import__("re").compile(
+    r"^(?:PT_INTERNAL\s+|PT_API\s+)?(?:static\s+)?(?:inline\s+)?[A-Za-z_][\w \*]*?\b(\w+)\s*"
+    r"\([^;{]*\)\s*\{", __import__("re").M)
+
+
+@pytest.mark.parametrize("files", [
+    "core/csrc/*.c", "cosim/csrc/*.c", "fmu/controller_src/*.c",
+    "fmu/src/model.c fmu/src/start.c fmu/src/variables.c fmu/src/chain.c fmu/src/forces.c "
+    "fmu/src/slip.c fmu/src/slip_solver.c fmu/src/instance.c fmu/src/fmi2.c",
+])
+def test_c_files_call_one_another_without_a_circle(files):
+    """Within one build's own C, file A calling a function defined in file B and B calling one
+    of A's (directly or through others) is a circle: the plant's model.c <-> slip.c <->
+    slip_solver.c and model.c <-> variables.c were."""
+    import re
+
+    paths = [p for pattern in files.split() for p in sorted(ROOT.glob(pattern))]
+    home = {}
+    for path in paths:
+        for name in FUNCTION_DEFINITION_RE.findall(path.read_text()):
+            home.setdefault(name, path.name)
+    graph = {path.name: set() for path in paths}
+    for path in paths:
+        text = path.read_text()
+        for name, where in home.items():
+            if where != path.name and re.search(rf"\b{name}\s*\(", text):
+                graph[path.name].add(where)
+    done, visiting = set(), []
+
+    def visit(name):
+        if name in visiting:
+            raise AssertionError(f"call circle: {visiting[visiting.index(name):] + [name]}")
+        if name not in done:
+            visiting.append(name)
+            for other in sorted(graph[name]):
+                visit(other)
+            visiting.pop()
+            done.add(name)
+
+    for name in graph:
+        visit(name)
+    assert len(paths) >= 1
