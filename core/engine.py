@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pushtrain.defaults import PULL_GUIDE_STEP
+from pushtrain.defaults import PULL_GUIDE_STEP, ROLLOUT_SETTLE_TIME
 from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
@@ -458,7 +458,8 @@ class ClosedLoopEngine:
 
 
 def simulate(plant: ChainGeometry, reference: Reference, start_headings: Sequence[float],
-             controller: ControllerConfig, step: float = 0.025, settle_time: float = 2.0,
+             controller: ControllerConfig, step: float = 0.025,
+             settle_time: float = ROLLOUT_SETTLE_TIME,
              checks: Checks | None = None) -> EngineRun:
     """``simulate_tracking`` on the C integrator: the run from t = 0 to the first instant at or
     after ``reference.t_end + settle_time``, the last trailer starting at ``reference.start``

@@ -25,6 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pushtrain import defaults
+from pushtrain.table1 import SAMPLING_TIME
+
 from .kinematics import ChainGeometry
 
 __all__ = ["GovernorConfig", "SlipGovernor", "GovernedController", "lateral_forces"]
@@ -90,11 +93,11 @@ class GovernorConfig:
     mass: np.ndarray
     inertia: np.ndarray
     mu: np.ndarray
-    g: float = 9.81
-    fraction: float = 0.8
-    tau: float = 0.05
-    acc_max: float = 1.0
-    alpha_max: float = 2.0
+    g: float = defaults.GRAVITY
+    fraction: float = defaults.GOVERNOR_FRACTION
+    tau: float = defaults.ROBOT_TAU
+    acc_max: float = defaults.ROBOT_ACC_MAX
+    alpha_max: float = defaults.ROBOT_ALPHA_MAX
 
     def __post_init__(self):
         n = self.geometry.n
@@ -185,7 +188,7 @@ class GovernedController:
     ``command``).
     """
 
-    def __init__(self, controller, governor: SlipGovernor, dt: float = 0.005):
+    def __init__(self, controller, governor: SlipGovernor, dt: float = SAMPLING_TIME):
         self.controller = controller
         self.governor = governor
         self.dt = dt

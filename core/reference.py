@@ -26,6 +26,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
+from pushtrain.defaults import CUSP_DWELL, REFERENCE_SPEED
 from pushtrain.errors import ReferencePathError
 
 from . import native
@@ -181,7 +182,8 @@ class Reference:
     segments : sequence of Segment
         Appended at once (more can follow with :meth:`append`).
     speed : float
-        Default |v| [m/s] of segments without their own, > 0.
+        Default |v| [m/s] of segments without their own, > 0 (default the scenario's,
+        :data:`pushtrain.defaults.REFERENCE_SPEED`, 0.08 m/s).
     cusp_dwell : float
         Rest [s] at every direction change, >= 0.
     t0 : float
@@ -192,7 +194,7 @@ class Reference:
     """
 
     def __init__(self, start: Sequence[float], segments: Sequence[Segment] = (),
-                 speed: float = 0.1, cusp_dwell: float = 1.0, t0: float = 0.0,
+                 speed: float = REFERENCE_SPEED, cusp_dwell: float = CUSP_DWELL, t0: float = 0.0,
                  previous_direction: int = 0):
         if len(start) != 3 or not np.all(np.isfinite(np.asarray(start, dtype=float))):
             raise ReferencePathError(
@@ -226,8 +228,8 @@ class Reference:
         cls,
         start: Sequence[float],
         segments: Sequence[Segment],
-        speed: float = 0.1,
-        cusp_dwell: float = 1.0,
+        speed: float = REFERENCE_SPEED,
+        cusp_dwell: float = CUSP_DWELL,
         t0: float = 0.0,
     ) -> Reference:
         """Reference starting at ``start = (x, y, theta)`` [m, m, rad] through ``segments``
