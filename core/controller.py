@@ -68,7 +68,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import struct
 from dataclasses import dataclass
 from functools import partial
 from math import isfinite
@@ -200,12 +199,6 @@ class ControlInfo(NamedTuple):
 
 
 _MODES = {0: MODE_REST, 1: MODE_PUSH, 2: MODE_PULL}
-_POSE = struct.Struct("@3d")  # PtMeasurement's x_n, y_n, theta_n
-_TIME_POSE = struct.Struct("@4d")  # PtTrack's t, m.x0, m.y0, m.theta0
-_SAMPLE_CMD = struct.Struct("@5di4x2d")  # PtTrack's sample and cmd
-_INFO = struct.Struct("@i4x11d")  # PtControlInfo
-_HAS_LAST = struct.Struct("@i")
-_new_tuple = tuple.__new__
 
 
 def controller_struct(config: ControllerConfig, lib=None):
@@ -409,10 +402,6 @@ class Tracker:
             ctypes.pointer(ctrl), ctypes.pointer(state), ctypes.pointer(reference.struct),
             None if leader is None else ctypes.pointer(leader.struct))
         k.m.phi = ctypes.cast(self._phi, native.D_PTR)
-        self._offsets = (native.PtTrack.t.offset, native.PtTrack.sample.offset,
-                         native.PtTrack.m.offset + native.PtMeasurement.has_last.offset,
-                         native.PtTrack.m.offset + native.PtMeasurement.x_n.offset,
-                         native.PtTrack.info.offset)
         self._call = partial(controller._lib.pt_track, ctypes.byref(k))
         self.has_last = False
 
@@ -424,24 +413,25 @@ class Tracker:
             self.controller._set_phi(measurement.phi)  # the controller's message on a bad length
             raise
         k = self.instant
-        at_t, at_sample, at_has_last, at_last, at_info = self._offsets
-        _TIME_POSE.pack_into(k, at_t, t, measurement.x0, measurement.y0, measurement.theta0)
+        k.t = t
+        m = k.m
+        m.x0, m.y0, m.theta0 = measurement.x0, measurement.y0, measurement.theta0
         last = getattr(measurement, "last_pose", None)
+        m.has_last = last is not None
         if last is not None:
-            _HAS_LAST.pack_into(k, at_has_last, 1)
-            _POSE.pack_into(k, at_last, *last)
-        elif self.has_last:
-            _HAS_LAST.pack_into(k, at_has_last, 0)
+            m.x_n, m.y_n, m.theta_n = last
         self.has_last = last is not None
         status = self._call()
-        out = _SAMPLE_CMD.unpack_from(k, at_sample)
-        ref = _new_tuple(ReferenceSample, out[:6])
+        s = k.sample
+        ref = ReferenceSample(s.x, s.y, s.theta, s.v, s.w, s.direction)
         if status:
             raise self.error(status, t, measurement, ref)
+        v0, w0 = k.cmd
         if not self.info:
-            return out[6], out[7], None, ref
-        mode, *rest = _INFO.unpack_from(k, at_info)
-        return out[6], out[7], ControlInfo(_MODES[mode], *rest), ref
+            return v0, w0, None, ref
+        i = k.info
+        return v0, w0, ControlInfo(_MODES[i.mode], i.x_e, i.y_e, i.theta_e, i.x_n, i.y_n,
+                                   i.theta_n, i.v_ref, i.w_ref, i.v_raw, i.w_raw, i.scale), ref
 
     def error(self, status: int, t, measurement, ref) -> Exception:
         """The exception of a control instant the C refused with ``status`` at ``t`` [s] for
