@@ -4,7 +4,7 @@ Chain kinematics (:mod:`.kinematics`), line/arc reference paths (:mod:`.referenc
 controller (Kanayama tracking in the travel frame + inverse chain, :mod:`.controller`), the pull
 guide (:mod:`.pulling`), one control instant (:mod:`.tracking`), the slip-aware governor
 (:mod:`.governor`), open-loop command profiles (:mod:`.openloop`), the closed-form analysis of
-the law (:mod:`.analysis`, Eq. 9, 12, 13) and a fixed-step RK4 (:mod:`.ode`).
+the law (:mod:`.analysis`, Eq. 9, 12, 13).
 
 The control law, the reference, the pull guide and the sensor model are computed in C
 (``csrc/``, compiled on first use and loaded with ctypes by :mod:`.native`), each with one

@@ -1,7 +1,7 @@
 /*
  * The classic fixed-step RK4, written once for the engine: the planner's rollout (rollout.c, the
  * train under a held command) and the pull guide's backward runs (control.c). The readable
- * Python form is core/ode.py's rk4_step; the arithmetic is the same, in the same order.
+ * Python form is tests/reference/ode.py's rk4_step; the arithmetic is the same, in the same order.
  *
  * C99; static inline, so each caller's rates function is inlined into its step.
  */

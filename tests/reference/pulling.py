@@ -3,7 +3,7 @@
 to, bit for bit (``tests/test_native_control.py``).
 
 For every pulling run [t_a, t_b] of the reference the chain starts drawn out straight at t_b and
-is driven backward in time (RK4, :func:`pushtrain.core.ode.rk4_step`) by the last trailer's
+is driven backward in time (RK4, ``reference.ode.rk4_step``) by the last trailer's
 reference down to t_a; the robot's pose and velocity along the way are its reference.
 """
 
@@ -19,10 +19,10 @@ from pushtrain.core.kinematics import (
     body_positions_along,
     robot_velocity_from_last,
 )
-from pushtrain.core.ode import rk4_step
 from pushtrain.core.pulling import PullRun, rates_driven_by_last
 from pushtrain.core.reference import PULL, ReferenceSample
 from pushtrain.errors import ReferencePathError
+from reference.ode import rk4_step
 
 
 class PullGuide:
