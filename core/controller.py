@@ -404,6 +404,11 @@ class Tracker:
         k.m.phi = ctypes.cast(self._phi, native.D_PTR)
         self._call = partial(controller._lib.pt_track, ctypes.byref(k))
         self.has_last = False
+        self.governor = None
+        """A :class:`~pushtrain.core.governor.SlipGovernor` applied to each command, or None
+        (set by :meth:`GovernedController.tracker
+        <pushtrain.core.governor.GovernedController.tracker>`, with its period ``dt``)."""
+        self.dt = 0.0
 
     def command(self, t: float, measurement):
         """``(v0 [m/s], w0 [rad/s], ControlInfo or None, ReferenceSample)`` at ``t`` [s]."""
@@ -427,6 +432,11 @@ class Tracker:
         if status:
             raise self.error(status, t, measurement, ref)
         v0, w0 = k.cmd
+        if self.governor is not None:
+            v, w = self.governor.limit(measurement.phi, v0, w0, self.dt)
+            if (v, w) != (v0, w0):
+                self.controller.sent(v, w)  # its rate limits continue from what was sent
+            v0, w0 = v, w
         if not self.info:
             return v0, w0, None, ref
         i = k.info

@@ -50,6 +50,7 @@ __all__ = [
     "PtControlState",
     "PtController",
     "PtLeader",
+    "PtGovernor",
     "PtMeasurement",
     "PtPhase",
     "PtRecord",
@@ -75,7 +76,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ENGINE_FILES = {
-    "instant": ("control.c", "control.h", "ode.h", "sensors.c", "sensors.h", "step.c", "step.h"),
+    "instant": ("control.c", "control.h", "governor.c", "governor.h", "ode.h", "sensors.c",
+                "sensors.h", "step.c", "step.h"),
     "rollout": ("rollout.c", "rollout.h"),
 }
 """The engine's C files in ``core/csrc``: one control instant with its sensors and step
@@ -167,10 +169,18 @@ class PtSensors(ctypes.Structure):
                 ("play", D_PTR), ("has_play", c_int)]
 
 
+class PtGovernor(ctypes.Structure):
+    _fields_ = [("model", PtChain), ("mass", D_PTR), ("inertia", D_PTR), ("limits", D_PTR),
+                ("tau", c_double), ("acc_max", c_double), ("alpha_max", c_double),
+                ("dt", c_double), ("v_est", c_double), ("w_est", c_double), ("v_prev", c_double),
+                ("w_prev", c_double), ("saturated", ctypes.c_long), ("limited", ctypes.c_long)]
+
+
 class PtStep(ctypes.Structure):
     _fields_ = [("track", POINTER(PtTrack)), ("sensors", POINTER(PtSensors)),
                 ("n_pushes", c_int), ("pushes", D_PTR), ("push", c_double * 2),
-                ("errors", c_double * 3)]
+                ("errors", c_double * 3), ("governor", POINTER(PtGovernor)),
+                ("governor_work", D_PTR)]
 
 
 class PtChecks(ctypes.Structure):
@@ -238,6 +248,9 @@ _PROTOTYPES = {
     "pt_measure_joints": (None, [P(PtSensors), D_PTR, D_PTR, D_PTR]),
     "pt_measure": (c_int, [P(PtSensors), D_PTR, D_PTR, D_PTR, P(PtMeasurement)]),
     "pt_step_sizeof": (c_size_t, []),
+    "pt_governor_sizeof": (c_size_t, []),
+    "pt_governor_work": (c_int, [c_int]),
+    "pt_governor_limit": (None, [P(PtGovernor), D_PTR, D_PTR, D_PTR, D_PTR]),
     "pt_step": (c_int, [P(PtStep), c_double, D_PTR, D_PTR, D_PTR]),
     "pt_rollout_sizeof": (c_size_t, [c_int]),
     "pt_rollout_work": (c_int, [c_int]),
@@ -432,6 +445,7 @@ def load(rebuild: bool = False) -> ctypes.CDLL:
             sizes += [(lib.pt_rollout_sizeof, w, st) for w, st in enumerate(_ROLLOUT_STRUCTS)]
             sizes.append((lambda _: lib.pt_sensors_sizeof(), 0, PtSensors))
             sizes.append((lambda _: lib.pt_step_sizeof(), 0, PtStep))
+            sizes.append((lambda _: lib.pt_governor_sizeof(), 0, PtGovernor))
             for sizeof, which, struct in sizes:
                 size = sizeof(which)
                 if size != ctypes.sizeof(struct):

@@ -22,7 +22,7 @@ Per step that is four FMI calls and one doStep, in one loop: the step loop in C
 (:mod:`~pushtrain.cosim.step_loop`, ``cosim/csrc/master_loop.c``: up to
 :data:`~pushtrain.cosim.step_loop.CHUNK` steps per C call, FMI 2.0 and 3.0, back in Python only
 for events, the progress bar, the goal, a jackknife or a failure). A controller the engine does
-not run (the slip governor, open-loop profiles, a law written in Python) is called back from it
+not run (open-loop profiles, a law written in Python) is called back from it
 each step. ``tests/reference/master_loop.py`` writes the same loop step by step in Python; the
 tests hold the two equal bit for bit, and ``benchmarks/bench_cosim.py`` times the loop against a
 raw-ctypes loop doing the same calls.

@@ -14,8 +14,9 @@ the doStep) and returns to Python only where Python must act:
 
 The step's closed-loop work is the engine's ``pt_step`` (``core/csrc/step.c``: sensors,
 reference sample, pull leader, command, push force, tracking errors) when the controller is the
-compiled law tracking a line/arc reference; any other controller (the slip governor, an
-open-loop profile, a law written in Python, a sampled reference) is called back from the loop
+compiled law tracking a line/arc reference (with the slip governor after it, in C, when the law
+is governed); any other controller (an open-loop profile, a law written in Python, a sampled
+reference) is called back from the loop
 each step through a hook (:class:`PythonLaw`: the compiled sensors, the Python command, the push
 force and errors in Python).
 
@@ -132,8 +133,8 @@ class NoiseBuffer:
 
 
 class PythonLaw:
-    """The step's closed-loop work for a controller the engine does not run (the slip governor,
-    an open-loop profile, a law written in Python, a sampled reference), called back from the
+    """The step's closed-loop work for a controller the engine does not run (an open-loop
+    profile, a law written in Python, a sampled reference), called back from the
     C loop: the compiled sensors measure ``truth`` into ``phi``, the controller commands through
     ``command(t, measurement) -> (v0, w0, info, ref)``, and the push force and tracking errors
     are computed here (an open loop's reference sample is NaN: the sign of a NaN result depends
@@ -216,6 +217,11 @@ class StepLoop:
             self.tracker.has_last = bool(sensors.config.measure_last_pose)
             self.engine = native.PtStep(ctypes.pointer(self.tracker.instant),
                                         ctypes.pointer(sensors.model))
+            governor = self.tracker.governor  # the slip governor, in C after the law
+            if governor is not None:
+                governor.struct.dt = self.tracker.dt
+                self.engine.governor = ctypes.pointer(governor.struct)
+                self.engine.governor_work = self._pointer(governor.work)
             m.engine = ctypes.pointer(self.engine)
             m.noise_per_step = sensors.noise_scales.size
             self.noise = NoiseBuffer(sensors) if m.noise_per_step else None

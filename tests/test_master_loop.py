@@ -196,6 +196,25 @@ def _governed():
     return GovernedController(Controller(_config()), gov, dt=0.005)
 
 
+def test_the_governor_runs_in_c_and_equals_the_readable_one(fmu3):
+    """The slip governor on the compiled law runs inside the C loop (pt_step); the reference loop
+    with the readable Python governor (tests/reference/governor.py) gives the same run."""
+    from reference import governor as readable
+
+    def governed(governor_class):
+        cfg = GovernorConfig(_config().geometry, np.full(3, 42.1), np.full(3, 3.5),
+                             np.full(3, 0.09), fraction=0.05)
+        return GovernedController(Controller(_config()), governor_class(cfg), dt=0.005)
+
+    law = governed(SlipGovernor)
+    run = simulate(fmu3, _push_pull(), law, events=[Push(2.0, 1.0, lateral=30.0)],
+                   progress=False)
+    want = master_loop.run(fmu3, _push_pull(), governed(readable.SlipGovernor),
+                           events=[Push(2.0, 1.0, lateral=30.0)])
+    _same(run, want)
+    assert law.governor.limited > 1000
+
+
 def test_laws_written_in_python_are_called_back_from_the_loop(fmu3):
     """The slip governor, an open-loop profile (no reference: NaN samples and errors, their bits
     those of Python), the tests' Python law and a sampled reference run in the one loop."""
