@@ -239,7 +239,10 @@ def simulate(
         Controller, possibly wrapped by the slip governor: GovernedController; or an
         open-loop profile), used as it is.
     sensors : SensorConfig or Sensors, optional
-        Measurement errors; default perfect sensors.
+        Measurement errors; default perfect sensors. The noise is drawn in blocks of steps: a
+        :class:`Sensors` given here ends the run with its generator up to
+        :data:`~pushtrain.cosim.step_loop.CHUNK` - 1 steps of draws past what the run used
+        (give each run its own, or ``reset()`` it, to repeat a run).
     events : sequence of Push, Slide, SetBias
     plant : PlantConfig, optional
         FMU parameters; default: the FMU's (Table 1) with the FMU's n.
