@@ -5,11 +5,10 @@ For n = 3 and n = 50, in one process, on the same FMI 2.0 FMU:
 (a) master
     :func:`pushtrain.cosim.master.simulate` tracking an arc backward (check_goal off, so every
     run takes the same number of steps): events, sensors, reference, controller, recorder, FMU.
-    Judged: the default, the compiled step loop (``step_loop="auto"`` picks it: many steps per
-    C call, ``cosim/csrc/master_loop.c``) with the compiled control law. Side by side: the
-    Python step loop with the same compiled law (``step_loop="python"``) and the Python loop
-    with the tests' readable Python law (``tests/reference/controller.py``, passed in built); all
-    three must give the same run bit for bit.
+    Judged: the master's one step loop (many steps per C call, ``cosim/csrc/master_loop.c``)
+    with the compiled control law. Side by side: the same loop calling back the tests' readable
+    Python law each step (``tests/reference/controller.py``, passed in built: the path of the
+    slip governor and open-loop profiles); both must give the same run bit for bit.
 (b) raw
     a loop of bare ctypes calls on the FMU's own functions with preallocated value-reference and
     value arrays, doing per step the FMI calls the master does: ``fmi2GetReal`` of the states
@@ -24,7 +23,7 @@ shared: wall time would count other processes' turns); the medians of microsecon
 and their ratio master / raw (the number judged; target <= 1.5) are printed. The master's time
 is the whole :func:`simulate` call (set-up, loop, result table) over its steps; a warm-up run
 first reads and extracts the FMU in this process (as for a sweep's later runs). Also printed:
-the control law's share of the Python-loop masters, C and Python (the tracking loop replayed
+the control law's share of the masters, C and Python (the tracking loop replayed
 alone on the master's measurements; it must give the master's commands bit for bit), what those
 masters cost without it, and the raw loop's getter share (the raw loop without its three
 gets). ``--profile`` adds a cProfile of one master run per n (top functions by own time).
@@ -52,13 +51,12 @@ import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from pushtrain.core.controller import ControllerConfig
-from pushtrain.core.native_controller import NativeController
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.sensors import Measurement
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState, PlantConfig
-from pushtrain.cosim.sensors import Measurement
 from pushtrain.fmu.build import build_fmu
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -74,28 +72,23 @@ def mission(n: int):
     return ref, ControllerConfig.uniform(n)
 
 
-MASTERS = {  # label -> (controller class or None for the ControllerConfig, simulate's keywords)
-    "C loop": (None, {}),
-    "Py loop": (None, {"step_loop": "python"}),
-    "Py law": (BackwardController, {}),
+MASTERS = {  # label -> controller class, or None for the ControllerConfig
+    "C law": None,
+    "Py law": BackwardController,
 }
-"""The masters timed: the default (judged), the Python step loop, the Python control law."""
+"""The masters timed: the compiled law (judged), the Python law called back from the loop."""
 
 
-def run_master(fmu, n: int, horizon: float, label: str = "C loop"):
+def run_master(fmu, n: int, horizon: float, label: str = "C law"):
     """(microseconds per step, Result) of one :func:`simulate` run of master ``label``."""
     ref, cfg = mission(n)
-    law, keywords = MASTERS[label]
+    law = MASTERS[label]
     start = time.process_time()
     result = simulate(fmu, ref, cfg if law is None else law(cfg), horizon=horizon,
-                      check_goal=False, progress=False, **keywords)
+                      check_goal=False, progress=False)
     wall = time.process_time() - start
     if not result.ok:
         raise SystemExit(f"master run n = {n} ended early: {result.status}: {result.message}")
-    want = "c" if label == "C loop" else "python"
-    if result.summary["step_loop"] != want:
-        raise SystemExit(f"master {label!r} ran the {result.summary['step_loop']} step loop: "
-                         f"{result.summary.get('step_loop_fallback')}")
     return wall / (len(result.data) - 1) * 1e6, result
 
 
@@ -240,7 +233,7 @@ def control_law(n: int, result, implementation: str = "c") -> tuple[float, bool]
     states (perfect sensors), with the joint angles handed over as the master hands them."""
     ref, cfg = mission(n)
     data = result.data
-    ctrl = {"c": NativeController, "python": BackwardController}[implementation](cfg)
+    ctrl = {"c": Controller, "python": BackwardController}[implementation](cfg)
     step = float(data["t"][1] - data["t"][0])
     ctrl.reset(0.0, 0.0, float(data["t"][0]) - step)
     loop = TrackingLoop(ctrl, ref, info=False)  # as the master: no ControlInfo
@@ -288,14 +281,14 @@ def main() -> None:
             for label in MASTERS:
                 us, results[label] = run_master(fmu, n, horizon, label)
                 masters[label].append(us)
-            result = results["C loop"]
+            result = results["C law"]
             same_runs = same_runs and all(
                 np.array_equal(result.data[k], other.data[k], equal_nan=True)
                 for other in results.values() for k in result.data.dtype.names)
             us_raw, equal = run_raw(fmu, n, result)
             raws.append(us_raw)
             same = same and equal
-            for impl, label in (("c", "Py loop"), ("python", "Py law")):
+            for impl, label in (("c", "C law"), ("python", "Py law")):
                 us_law, equal_law = control_law(n, results[label], impl)
                 laws[impl].append(us_law)
                 same_law = same_law and equal_law
@@ -305,17 +298,17 @@ def main() -> None:
               "(CPU time of this process):")
         for label in MASTERS:
             m = statistics.median(masters[label])
-            judged = "judged; " if label == "C loop" else ""
+            judged = "judged; " if label == "C law" else ""
             print(f"  master ({label:7s}) {m:7.2f} us/step, raw ctypes {r:6.2f} us/step: "
                   f"RATIO master/raw = {m / r:.2f}x ({judged}target <= 1.5x; of the fastest "
                   f"runs {min(masters[label]):.2f} / {min(raws):.2f} = "
                   f"{min(masters[label]) / min(raws):.2f}x)")
-        for impl, label in (("c", "Py loop"), ("python", "Py law")):
+        for impl, label in (("c", "C law"), ("python", "Py law")):
             m, c = statistics.median(masters[label]), statistics.median(laws[impl])
             print(f"    control law ({impl}: reference + controller, replayed alone) {c:.2f} "
                   f"us/step = {100 * c / m:.0f} % of the {label} master; the rest "
                   f"{m - c:.2f} us/step = {(m - c) / r:.2f}x raw")
-        print(f"  the three masters' runs bit-identical: {same_runs}\n"
+        print(f"  the masters' runs bit-identical: {same_runs}\n"
               f"  raw loop reproduces the master's outputs bit for bit: {same}; "
               f"replayed control laws their masters' commands: {same_law}")
         bare = statistics.median(run_raw(fmu, n, result, without_gets=True)
@@ -325,9 +318,8 @@ def main() -> None:
         if args.profile:
             profile(fmu, n, horizon)
     print("RATIO master/raw, " + "; ".join(
-        f"n = {n}: {ratios[n]['C loop']:.2f}x (Python loop {ratios[n]['Py loop']:.2f}x, "
-        f"Python law {ratios[n]['Py law']:.2f}x)" for n in ratios)
-        + " -- judged: the C loop, target <= 1.5x")
+        f"n = {n}: {ratios[n]['C law']:.2f}x (Python law {ratios[n]['Py law']:.2f}x)"
+        for n in ratios) + " -- judged: the compiled law, target <= 1.5x")
 
 
 if __name__ == "__main__":

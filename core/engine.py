@@ -18,8 +18,8 @@ Resumable
 
 Edges of a planner
     A planner's edge appends segments after the reference so far and continues the train's
-    state. Either extend a copy of the reference (:meth:`NativeReference.copy`, ``extend``) or
-    start a :meth:`NativeReference.continuation` at its end: at or after the end time of the
+    state. Either extend a copy of the reference (:meth:`Reference.copy`, ``extend``) or
+    start a :meth:`Reference.continuation` at its end: at or after the end time of the
     reference so far both sample exactly as the whole reference. Run an edge up to
     ``loop.instant_at(edge.t_end)``, the first instant at or after the edge's end; the last
     edge adds the settle time. One caveat is the pull guide's: the robot's reference over a
@@ -46,13 +46,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pushtrain.defaults import PULL_GUIDE_STEP, ROLLOUT_SETTLE_TIME
 from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
-from .controller import ControllerConfig
+from .controller import ControllerConfig, controller_struct
 from .kinematics import ChainGeometry, body_positions_along
-from .native_controller import controller_struct
-from .native_reference import NativeLeader, NativeReference
+from .pulling import PullGuide
 from .reference import Reference
 
 __all__ = [
@@ -288,14 +288,16 @@ class ClosedLoopEngine:
     checks : Checks or None
         Checks at every visited state (None: only non-finite states stop a run).
     guide_step : float
-        RK4 step [s] of the pull guide's backward runs (PullGuide's default 0.02 s).
+        RK4 step [s] of the pull guide's backward runs (PullGuide's default,
+        :data:`pushtrain.defaults.PULL_GUIDE_STEP`).
 
     The C loop releases the GIL; give each thread its own ClosedLoopEngine (it caches the last
     reference's pull guide).
     """
 
     def __init__(self, plant: ChainGeometry, controller: ControllerConfig, step: float = 0.025,
-                 t_start: float = 0.0, checks: Checks | None = None, guide_step: float = 0.02):
+                 t_start: float = 0.0, checks: Checks | None = None,
+                 guide_step: float = PULL_GUIDE_STEP):
         if not isinstance(plant, ChainGeometry):
             raise ControllerError(f"plant = {plant!r}: must be a ChainGeometry")
         if not isinstance(controller, ControllerConfig):
@@ -325,7 +327,7 @@ class ClosedLoopEngine:
         self._work_size = self._lib.pt_rollout_work(self.n)
         self._native_refs: dict[int, tuple] = {}
         self._leader_key: tuple | None = None  # (reference, its phases, its end) of _leader
-        self._leader: NativeLeader | None = None
+        self._leader: PullGuide | None = None
 
     # ------------------------------------------------------------------ time
     def time(self, k: int) -> float:
@@ -372,27 +374,18 @@ class ClosedLoopEngine:
         return out
 
     # ------------------------------------------------------------------ running
-    def _native(self, reference) -> NativeReference:
-        if isinstance(reference, NativeReference):
-            return reference
+    def _native(self, reference) -> Reference:
         if isinstance(reference, Reference):
-            cached = self._native_refs.get(id(reference))
-            if cached is None or cached[0] is not reference:
-                self._native_refs = {id(reference): (reference,
-                                                     NativeReference.from_reference(reference))}
-                cached = self._native_refs[id(reference)]
-            return cached[1]
-        raise ReferencePathError(f"reference = {reference!r}: must be a Reference or a "
-                                 "NativeReference")
+            return reference
+        raise ReferencePathError(f"reference = {reference!r}: must be a Reference")
 
-    def leader_for(self, reference) -> NativeLeader | None:
+    def leader_for(self, reference) -> PullGuide | None:
         """The pull guide of ``reference`` (None without pulling runs), computed in C with the
         controller's chain model; kept while the reference is unchanged."""
         ref = self._native(reference)
         key = self._leader_key
         if key is None or key[0] is not ref or key[1:] != (ref.struct.n_phases, ref.t_end):
-            self._leader = (NativeLeader.for_reference(ref, self.controller.geometry,
-                                                       self.guide_step)
+            self._leader = (PullGuide(ref, self.controller.geometry, self.guide_step)
                             if ref.pull_intervals() else None)
             self._leader_key = (ref, ref.struct.n_phases, ref.t_end)
         return self._leader
@@ -402,7 +395,7 @@ class ClosedLoopEngine:
 
         Parameters
         ----------
-        reference : Reference or NativeReference
+        reference : Reference
             The last trailer's reference (its pull guide is computed here).
         state : LoopState
             Where to start (:meth:`start`, or a previous run's ``end``).
@@ -465,7 +458,8 @@ class ClosedLoopEngine:
 
 
 def simulate(plant: ChainGeometry, reference: Reference, start_headings: Sequence[float],
-             controller: ControllerConfig, step: float = 0.025, settle_time: float = 2.0,
+             controller: ControllerConfig, step: float = 0.025,
+             settle_time: float = ROLLOUT_SETTLE_TIME,
              checks: Checks | None = None) -> EngineRun:
     """``simulate_tracking`` on the C integrator: the run from t = 0 to the first instant at or
     after ``reference.t_end + settle_time``, the last trailer starting at ``reference.start``

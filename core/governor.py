@@ -20,11 +20,16 @@ holds the previous command and counts the event (``saturated``).
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from pushtrain import defaults
+from pushtrain.table1 import SAMPLING_TIME
+
+from . import native
 from .kinematics import ChainGeometry
 
 __all__ = ["GovernorConfig", "SlipGovernor", "GovernedController", "lateral_forces"]
@@ -90,11 +95,11 @@ class GovernorConfig:
     mass: np.ndarray
     inertia: np.ndarray
     mu: np.ndarray
-    g: float = 9.81
-    fraction: float = 0.8
-    tau: float = 0.05
-    acc_max: float = 1.0
-    alpha_max: float = 2.0
+    g: float = defaults.GRAVITY
+    fraction: float = defaults.GOVERNOR_FRACTION
+    tau: float = defaults.ROBOT_TAU
+    acc_max: float = defaults.ROBOT_ACC_MAX
+    alpha_max: float = defaults.ROBOT_ALPHA_MAX
 
     def __post_init__(self):
         n = self.geometry.n
@@ -118,64 +123,61 @@ class GovernorConfig:
 
 
 class SlipGovernor:
-    """Limits command changes so that the predicted lateral forces stay within friction."""
+    """Limits command changes so that the predicted lateral forces stay within friction.
+
+    The engine's governor (``core/csrc/governor.c``, ``pt_governor_limit``) with its memory in
+    :attr:`struct`: the co-simulation's step loop runs it in C after the compiled law; this is
+    its Python face. The readable Python form is the tests' (``tests/reference/governor.py``),
+    held equal bit for bit."""
 
     def __init__(self, config: GovernorConfig):
         self.config = config
-        self._limits = config.limits
+        self._lib = native.load()
+        geometry = config.geometry
+        self._arrays = [np.ascontiguousarray(a, dtype=float) for a in (
+            geometry.front, geometry.rear, config.mass, config.inertia, config.limits)]
+        front, rear, mass, inertia, limits = (native.dptr(a) for a in self._arrays)
+        self.struct = native.PtGovernor(
+            native.PtChain(geometry.n, front, rear), mass, inertia, limits, float(config.tau),
+            float(config.acc_max), float(config.alpha_max), 0.0)
+        self.work = np.zeros(self._lib.pt_governor_work(geometry.n))
+        self._v, self._w = ctypes.c_double(), ctypes.c_double()
         self.reset()
 
     def reset(self, v0: float = 0.0, w0: float = 0.0) -> None:
-        self.v_est, self.w_est = float(v0), float(w0)
-        self.v_prev, self.w_prev = float(v0), float(w0)
-        self.saturated = 0
-        self.limited = 0
+        """Forget the history: the robot moves and was commanded with (v0, w0) [m/s, rad/s]."""
+        g = self.struct
+        g.v_est, g.w_est = float(v0), float(w0)
+        g.v_prev, g.w_prev = float(v0), float(w0)
+        g.saturated = g.limited = 0
 
-    def _robot_acc(self, v_cmd, w_cmd):
-        cfg = self.config
-        dv = min(max((v_cmd - self.v_est) / cfg.tau, -cfg.acc_max), cfg.acc_max)
-        dw = min(max((w_cmd - self.w_est) / cfg.tau, -cfg.alpha_max), cfg.alpha_max)
-        return dv, dw
+    @property
+    def saturated(self) -> int:
+        """Commands held because even no change exceeded the limit."""
+        return int(self.struct.saturated)
 
-    def _forces(self, phi, v_cmd, w_cmd):
-        dv, dw = self._robot_acc(v_cmd, w_cmd)
-        cfg = self.config
-        return lateral_forces(phi, self.v_est, self.w_est, dv, dw, cfg.geometry, cfg.mass,
-                              cfg.inertia)
+    @property
+    def limited(self) -> int:
+        """Commands changed less than the law asked."""
+        return int(self.struct.limited)
+
+    @property
+    def estimate(self) -> tuple[float, float]:
+        """The governor's estimate of the robot's (v0 [m/s], w0 [rad/s])."""
+        return float(self.struct.v_est), float(self.struct.w_est)
 
     def limit(self, phi, v_cmd: float, w_cmd: float, dt: float):
         """The command to send instead of (v_cmd, w_cmd) given measured joint angles ``phi``.
 
         ``dt`` [s] is the control period over which the robot-velocity estimate advances.
         """
-        def within(scale: float) -> bool:
-            v = self.v_prev + scale * (v_cmd - self.v_prev)
-            w = self.w_prev + scale * (w_cmd - self.w_prev)
-            return bool(np.all(np.abs(self._forces(phi, v, w)) <= self._limits))
-
-        s = 1.0
-        if not within(1.0):
-            self.limited += 1
-            if not within(0.0):
-                s = 0.0  # velocity-dependent forces alone exceed the limit: hold the command
-                self.saturated += 1
-            else:  # the forces are monotone enough along the segment: bisect for the largest s
-                lo, hi = 0.0, 1.0
-                for _ in range(30):
-                    mid = 0.5 * (lo + hi)
-                    lo, hi = (mid, hi) if within(mid) else (lo, mid)
-                s = lo
-        v_out = self.v_prev + s * (v_cmd - self.v_prev)
-        w_out = self.w_prev + s * (w_cmd - self.w_prev)
-        # advance the robot-velocity estimate with the governor's own model: the exact step of
-        # the first-order lag, then the rate limits
-        cfg = self.config
-        decay = 1.0 - math.exp(-dt / cfg.tau)
-        self.v_est += min(max((v_out - self.v_est) * decay, -cfg.acc_max * dt), cfg.acc_max * dt)
-        self.w_est += min(max((w_out - self.w_est) * decay, -cfg.alpha_max * dt),
-                          cfg.alpha_max * dt)
-        self.v_prev, self.w_prev = v_out, w_out
-        return v_out, w_out
+        self.struct.dt = float(dt)
+        angles = np.ascontiguousarray(phi, dtype=float)
+        self._v.value, self._w.value = v_cmd, w_cmd
+        self._lib.pt_governor_limit(ctypes.byref(self.struct), native.dptr(angles),
+                                    ctypes.byref(self._v), ctypes.byref(self._w),
+                                    native.dptr(self.work))
+        return self._v.value, self._w.value
 
 
 class GovernedController:
@@ -185,7 +187,7 @@ class GovernedController:
     ``command``).
     """
 
-    def __init__(self, controller, governor: SlipGovernor, dt: float = 0.005):
+    def __init__(self, controller, governor: SlipGovernor, dt: float = SAMPLING_TIME):
         self.controller = controller
         self.governor = governor
         self.dt = dt
@@ -195,6 +197,15 @@ class GovernedController:
     def reset(self, v0: float = 0.0, w0: float = 0.0, t=None) -> None:
         self.controller.reset(v0, w0, t)
         self.governor.reset(v0, w0)
+
+    def tracker(self, reference, guide=None, info: bool = True):
+        """The compiled law's one-call instant with this governor after it (the co-simulation's
+        step loop runs both in C), or None if the law is not the compiled one."""
+        make = getattr(self.controller, "tracker", None)
+        tracker = None if make is None else make(reference, guide, info)
+        if tracker is not None:
+            tracker.governor, tracker.dt = self.governor, self.dt
+        return tracker
 
     def command(self, t, measurement, ref, leader=None):
         v, w, info = self.controller.command(t, measurement, ref, leader)

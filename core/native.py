@@ -1,12 +1,15 @@
 """Build and load the closed-loop engine (``core/csrc``) with ctypes.
 
-The C sources (``control.c``, the law, ``sensors.c``, the sensor model, ``step.c``, a
-co-simulation step's closed-loop work, ``rollout.c``, the planner's closed loop, and the
-co-simulation master's step loop ``cosim/csrc/master_loop.c``) are compiled once per machine
-with the system C compiler into a shared library, ``-std=c99 -O2 -fPIC -shared
--ffp-contract=off -lm`` (no fused multiply-add, so the C arithmetic rounds like Python's), and
-cached under ``$PUSHTRAIN_CACHE/native`` (default ``~/.cache/pushtrain/native``) by a hash of the
-sources, the compiler command, its version and the flags. The library is written under a
+The engine's C files (:data:`ENGINE_FILES`: ``control.c``, the law, reference and pull guide,
+``ode.h``, the RK4, ``sensors.c``, the sensor model, ``step.c``, a co-simulation step's
+closed-loop work, ``rollout.c``, the planner's closed loop) are compiled once per machine with
+the system C compiler into a shared library, ``-std=c99 -O2 -fPIC -shared -ffp-contract=off
+-lm`` (no fused multiply-add, so the C arithmetic rounds like Python's), and cached under
+``$PUSHTRAIN_CACHE/native`` (default ``~/.cache/pushtrain/native``) by a hash of the sources,
+the compiler command, its version and the flags. Another room builds its own library on the
+engine's files the same way (:func:`load_library`: the co-simulation's step loop), and the
+controller FMU compiles :data:`ENGINE_FILES` ``["instant"]`` (:func:`engine_files`): the
+engine's C has this one declared list of files. The library is written under a
 temporary name and renamed into place, so concurrent processes may build at the same time: each
 gets a complete library.
 
@@ -47,6 +50,7 @@ __all__ = [
     "PtControlState",
     "PtController",
     "PtLeader",
+    "PtGovernor",
     "PtMeasurement",
     "PtPhase",
     "PtRecord",
@@ -61,16 +65,23 @@ __all__ = [
     "STATUS",
     "cache_dir",
     "compiler_command",
+    "ENGINE_FILES",
     "dptr",
+    "engine_files",
     "library_path",
     "load",
+    "load_library",
 ]
 
 log = logging.getLogger(__name__)
 
-SOURCES = ("control.c", "sensors.c", "step.c", "rollout.c", "master_loop.c")
-HEADERS = ("control.h", "sensors.h", "step.h", "rollout.h", "master_loop.h")
-_COSIM_SOURCES = ("master_loop.c", "master_loop.h")  # in cosim/csrc, the rest in core/csrc
+ENGINE_FILES = {
+    "instant": ("control.c", "control.h", "governor.c", "governor.h", "ode.h", "sensors.c",
+                "sensors.h", "step.c", "step.h"),
+    "rollout": ("rollout.c", "rollout.h"),
+}
+"""The engine's C files in ``core/csrc``: one control instant with its sensors and step
+(``"instant"``, what the controller FMU compiles) and the planner's rollout (``"rollout"``)."""
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-ffp-contract=off")
 LDFLAGS = ("-shared",)
 LIBS = ("-lm",)
@@ -158,10 +169,18 @@ class PtSensors(ctypes.Structure):
                 ("play", D_PTR), ("has_play", c_int)]
 
 
+class PtGovernor(ctypes.Structure):
+    _fields_ = [("model", PtChain), ("mass", D_PTR), ("inertia", D_PTR), ("limits", D_PTR),
+                ("tau", c_double), ("acc_max", c_double), ("alpha_max", c_double),
+                ("dt", c_double), ("v_est", c_double), ("w_est", c_double), ("v_prev", c_double),
+                ("w_prev", c_double), ("saturated", ctypes.c_long), ("limited", ctypes.c_long)]
+
+
 class PtStep(ctypes.Structure):
     _fields_ = [("track", POINTER(PtTrack)), ("sensors", POINTER(PtSensors)),
                 ("n_pushes", c_int), ("pushes", D_PTR), ("push", c_double * 2),
-                ("errors", c_double * 3)]
+                ("errors", c_double * 3), ("governor", POINTER(PtGovernor)),
+                ("governor_work", D_PTR)]
 
 
 class PtChecks(ctypes.Structure):
@@ -210,18 +229,28 @@ _PROTOTYPES = {
                                   c_double, c_int]),
     "pt_reference_append": (c_int, [P(PtReference), P(PtSegment)]),
     "pt_reference_sample": (c_int, [P(PtReference), c_double, P(PtSample)]),
+    "pt_reference_samples": (c_int, [P(PtReference), D_PTR, c_int, D_PTR, D_PTR, D_PTR, D_PTR,
+                                     D_PTR, P(c_int)]),
     "pt_reference_pull_intervals": (c_int, [P(PtReference), D_PTR, D_PTR, c_int]),
     "pt_pull_run_rows": (c_int, [c_double, c_double, c_double]),
     "pt_pull_run_work": (c_int, [c_int]),
     "pt_pull_run": (c_int, [P(PtChain), P(PtReference), c_double, c_double, c_double, D_PTR,
                             D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR]),
+    "pt_pull_run_sampled": (c_int, [P(PtChain), ctypes.c_void_p, ctypes.c_void_p, c_double,
+                                    c_double, c_double, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR, D_PTR,
+                                    D_PTR, D_PTR]),
     "pt_leader_sample": (c_int, [P(PtLeader), c_double, P(PtSample)]),
+    "pt_instant": (c_int, [P(PtController), P(PtControlState), P(PtReference), P(PtLeader),
+                           c_double, P(PtMeasurement), P(PtSample), D_PTR, P(PtControlInfo)]),
     "pt_track": (c_int, [P(PtTrack)]),
     "pt_sensors_sizeof": (c_size_t, []),
     "pt_sensors_noise_count": (c_int, [P(PtSensors)]),
     "pt_measure_joints": (None, [P(PtSensors), D_PTR, D_PTR, D_PTR]),
     "pt_measure": (c_int, [P(PtSensors), D_PTR, D_PTR, D_PTR, P(PtMeasurement)]),
     "pt_step_sizeof": (c_size_t, []),
+    "pt_governor_sizeof": (c_size_t, []),
+    "pt_governor_work": (c_int, [c_int]),
+    "pt_governor_limit": (None, [P(PtGovernor), D_PTR, D_PTR, D_PTR, D_PTR]),
     "pt_step": (c_int, [P(PtStep), c_double, D_PTR, D_PTR, D_PTR]),
     "pt_rollout_sizeof": (c_size_t, [c_int]),
     "pt_rollout_work": (c_int, [c_int]),
@@ -272,10 +301,12 @@ def compiler_command() -> list[str]:
     return argv
 
 
-def _source(name: str):
-    """The source file ``name`` (``core/csrc``, or ``cosim/csrc`` for the master's loop)."""
-    package = "pushtrain.cosim" if name in _COSIM_SOURCES else "pushtrain.core"
-    return resources.files(package) / "csrc" / name
+def engine_files(*parts: str) -> dict:
+    """``{file name: resource}`` of the engine's C files of ``parts`` of :data:`ENGINE_FILES`
+    (default: all)."""
+    folder = resources.files("pushtrain.core") / "csrc"
+    return {name: folder / name for part in (parts or tuple(ENGINE_FILES))
+            for name in ENGINE_FILES[part]}
 
 
 @functools.lru_cache(maxsize=8)
@@ -288,14 +319,14 @@ def _compiler_version(argv: tuple[str, ...]) -> str:
     return lines[0] if lines else ""
 
 
-def _fingerprint(argv: list[str]) -> str:
+def _fingerprint(argv: list[str], files: dict) -> str:
     digest = hashlib.sha256()
     digest.update(f"format={BUILD_FORMAT};platform={sys.platform};".encode())
     recipe = [*argv, _compiler_version(tuple(argv)), *CFLAGS, *LDFLAGS, *LIBS]
     digest.update("\0".join(recipe).encode())
-    for name in SOURCES + HEADERS:
+    for name in sorted(files):
         digest.update(name.encode() + b"\0")
-        digest.update(_source(name).read_bytes())
+        digest.update(files[name].read_bytes())
     return digest.hexdigest()
 
 
@@ -303,14 +334,16 @@ def _suffix() -> str:
     return ".dll" if sys.platform == "win32" else ".dylib" if sys.platform == "darwin" else ".so"
 
 
-def _compile(argv: list[str], target: Path) -> None:
-    """Compile the sources into ``target`` through a temporary file renamed into place."""
+def _compile(argv: list[str], target: Path, files: dict) -> None:
+    """Compile ``files`` (``{name: resource}``: its ``.c`` files with its headers beside them)
+    into ``target`` through a temporary file renamed into place."""
     partial = target.with_name(f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.part")
     with tempfile.TemporaryDirectory(prefix="pushtrain-native-") as tmp:
-        for name in SOURCES + HEADERS:
-            (Path(tmp) / name).write_bytes(_source(name).read_bytes())
+        for name, resource in files.items():
+            (Path(tmp) / name).write_bytes(resource.read_bytes())
+        sources = sorted(name for name in files if name.endswith(".c"))
         command = [*argv, *CFLAGS, *LDFLAGS, "-o", str(partial),
-                   *(str(Path(tmp) / name) for name in SOURCES), *LIBS]
+                   *(str(Path(tmp) / name) for name in sources), *LIBS]
         try:
             done = subprocess.run(command, capture_output=True, text=True, timeout=600)
         except (OSError, subprocess.SubprocessError) as exc:
@@ -320,7 +353,8 @@ def _compile(argv: list[str], target: Path) -> None:
             partial.unlink(missing_ok=True)
             tail = "\n".join((done.stdout + done.stderr).strip().splitlines()[-30:])
             raise NativeBuildError(
-                f"compiling core/csrc failed (exit {done.returncode}): {shlex.join(command)}\n"
+                f"compiling {', '.join(sources)} failed (exit {done.returncode}): "
+                f"{shlex.join(command)}\n"
                 f"{tail}")
         for line in done.stderr.splitlines():
             if "warning:" in line:
@@ -331,16 +365,19 @@ def _compile(argv: list[str], target: Path) -> None:
         partial.unlink(missing_ok=True)
 
 
-def library_path(rebuild: bool = False) -> Path:
-    """The compiled library for the current sources and compiler, built if not cached.
+def library_path(rebuild: bool = False, stem: str = "pushtrain_control",
+                 files: dict | None = None) -> Path:
+    """The compiled library ``stem`` of ``files`` (default: the engine's) for the current
+    sources and compiler, built if not cached.
 
     Raises
     ------
     NativeBuildError
         No compiler, a failing compiler, or a cache folder that cannot be written.
     """
+    files = engine_files() if files is None else files
     argv = compiler_command()
-    target = cache_dir() / f"libpushtrain_control-{_fingerprint(argv)[:16]}{_suffix()}"
+    target = cache_dir() / f"lib{stem}-{_fingerprint(argv, files)[:16]}{_suffix()}"
     if rebuild or not target.is_file():
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -348,9 +385,35 @@ def library_path(rebuild: bool = False) -> Path:
             raise NativeBuildError(f"cache folder {str(target.parent)!r} cannot be created: "
                                    f"{exc.strerror or exc}; set PUSHTRAIN_CACHE to a writable "
                                    "folder") from exc
-        log.info("compiling the control law (core/csrc) into %s", target)
-        _compile(argv, target)
+        log.info("compiling %s into %s", stem, target)
+        _compile(argv, target, files)
     return target
+
+
+def load_library(stem: str, files: dict, rebuild: bool = False) -> ctypes.CDLL:
+    """The library ``stem`` compiled from ``files`` (``{name: resource}``; a room's own C with
+    the engine's, :func:`engine_files`), built and cached like the engine's, loaded once per
+    process and setting of ``CC`` and ``PUSHTRAIN_CACHE``; the caller declares its prototypes.
+
+    Raises
+    ------
+    NativeBuildError
+        As :func:`library_path`, or if the library cannot be loaded.
+    """
+    key = (stem, os.environ.get("CC"), os.environ.get("PUSHTRAIN_CACHE"))
+    if not rebuild and key in _by_setting:
+        return _by_setting[key]
+    with _lock:
+        path = library_path(rebuild, stem, files)
+        lib = _loaded.get(path)
+        if lib is None:
+            try:
+                lib = ctypes.CDLL(str(path))
+            except OSError as exc:
+                raise NativeBuildError(f"cannot load {str(path)!r}: {exc}") from exc
+            _loaded[path] = lib
+        _by_setting[key] = lib
+        return lib
 
 
 def load(rebuild: bool = False) -> ctypes.CDLL:
@@ -382,6 +445,7 @@ def load(rebuild: bool = False) -> ctypes.CDLL:
             sizes += [(lib.pt_rollout_sizeof, w, st) for w, st in enumerate(_ROLLOUT_STRUCTS)]
             sizes.append((lambda _: lib.pt_sensors_sizeof(), 0, PtSensors))
             sizes.append((lambda _: lib.pt_step_sizeof(), 0, PtStep))
+            sizes.append((lambda _: lib.pt_governor_sizeof(), 0, PtGovernor))
             for sizeof, which, struct in sizes:
                 size = sizeof(which)
                 if size != ctypes.sizeof(struct):

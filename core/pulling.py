@@ -26,24 +26,24 @@ Units: SI, angles in radians, chain conventions of :mod:`pushtrain.core.kinemati
 
 from __future__ import annotations
 
+import ctypes
 import math
-from bisect import bisect_right
 from dataclasses import dataclass
 
 import numpy as np
 
+from pushtrain.defaults import PULL_GUIDE_STEP
 from pushtrain.errors import ReferencePathError
 
-from .kinematics import (
-    ChainGeometry,
-    body_positions_along,
-    robot_velocity_from_last,
-    velocities_from_last,
-)
-from .ode import rk4_step
-from .reference import PULL, ReferenceSample
+from . import native
+from .kinematics import ChainGeometry, body_positions_along, velocities_from_last
+from .reference import PULL, Reference, ReferenceSample
 
 __all__ = ["PullGuide", "PullRun", "rates_driven_by_last", "straight_chain_mismatch"]
+
+_COLUMNS = ("t", "x", "y", "theta", "v", "w")  # of a PullRun and the C leader table
+_SAMPLER = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double,
+                            ctypes.POINTER(native.PtSample))  # control.h PtSampler
 
 
 def rates_driven_by_last(geometry: ChainGeometry):
@@ -124,19 +124,30 @@ class PullRun:
 
 
 class PullGuide:
-    """The robot's reference for every pulling run of a last-trailer reference.
+    """The robot's reference for every pulling run of a last-trailer reference, computed and
+    sampled by the engine (``pt_pull_run``, ``pt_leader_sample`` in ``core/csrc/control.c``):
+    the one pull guide of the co-simulation, the planner's rollouts and the controller FMU's
+    table. The readable Python form is the tests' reference (``tests/reference/pulling.py``),
+    held equal bit for bit.
 
     Parameters
     ----------
     reference : Reference or SampledReference
-        Anything with ``pull_intervals()`` (start and end times of the pulling runs) and
-        ``sample_at(t)``.
+        The last trailer's reference: a line/arc one is sampled in C; any other with
+        ``pull_intervals()`` and ``sample_at(t)`` is sampled through a callback.
     geometry : ChainGeometry
         The chain model (the controller's).
     step : float
         Integration step [s] of the backward run (RK4), > 0 (shorter runs take one step). The
-        default 0.02 s is 1.6 mm of
-        travel at 0.08 m/s; the guide's error is far below the tracking errors.
+        default (:data:`pushtrain.defaults.PULL_GUIDE_STEP`, 0.02 s) is 1.6 mm of travel at
+        0.08 m/s; the guide's error is far below the tracking errors.
+
+    Attributes
+    ----------
+    runs : list of PullRun
+        One per pulling run, in time order.
+    struct : pushtrain.core.native.PtLeader
+        The C table of the runs (the arrays behind it stay alive with this object).
 
     Raises
     ------
@@ -146,7 +157,7 @@ class PullGuide:
         the chain allows, and the closed loop shows the consequences.
     """
 
-    def __init__(self, reference, geometry: ChainGeometry, step: float = 0.02):
+    def __init__(self, reference, geometry: ChainGeometry, step: float = PULL_GUIDE_STEP):
         if not isinstance(geometry, ChainGeometry):
             raise ReferencePathError(f"geometry = {geometry!r}: must be a ChainGeometry")
         if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0):
@@ -154,54 +165,61 @@ class PullGuide:
         self.reference = reference
         self.geometry = geometry
         self.step = float(step)
-        self._front = [float(a) for a in geometry.front]
-        self._rear = [float(a) for a in geometry.rear]
-        self._driven = rates_driven_by_last(geometry)
+        self._lib = native.load()
         self.runs: list[PullRun] = [self._backward_run(a, b)
                                     for a, b in reference.pull_intervals()]
-        self._starts = [run.t[0] for run in self.runs]
+        offsets = np.cumsum([0] + [len(run.t) for run in self.runs]).astype(np.intc)
+        self._offset = np.ascontiguousarray(offsets)
+        self._cols = {name: np.ascontiguousarray(
+            np.concatenate([getattr(run, name) for run in self.runs]) if self.runs
+            else np.zeros(0), dtype=float) for name in _COLUMNS}
+        self.struct = native.PtLeader(
+            len(self.runs), self._offset.ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
+            *(native.dptr(self._cols[name]) for name in _COLUMNS))
+        self._sample = native.PtSample()
 
     # -------------------------------------------------------------------- the backward run
+    def _sampler(self):
+        """``(function, source)`` of ``pt_pull_run_sampled`` for the reference, and what must
+        stay alive through the call."""
+        reference = self.reference
+        if isinstance(reference, Reference):
+            address = ctypes.cast(self._lib.pt_reference_sample, ctypes.c_void_p).value
+            return address, ctypes.addressof(reference.struct), reference
+
+        def sample(_source, t: float, out) -> int:
+            try:
+                s = self.reference.sample_at(t)
+            except Exception:  # noqa: BLE001 (the backward run reads a status)
+                return 5
+            o = out.contents
+            o.x, o.y, o.theta, o.v, o.w, o.direction = (s.x, s.y, s.theta, s.v, s.w,
+                                                        int(s.direction))
+            return 0
+
+        callback = _SAMPLER(sample)
+        return ctypes.cast(callback, ctypes.c_void_p).value, None, callback
+
     def _backward_run(self, t_a: float, t_b: float) -> PullRun:
-        ref = self.reference
-        eps = 1e-9 * max(1.0, abs(t_b))
-
-        def vw(t: float) -> tuple[float, float]:
-            s = ref.sample_at(min(max(t, t_a), t_b - eps))
-            return s.v, s.w
-
-        k_steps = max(1, int(math.ceil((t_b - t_a) / self.step)))
-        times = np.linspace(t_b, t_a, k_steps + 1)  # descending
-        n = self.geometry.n
-        end = ref.sample_at(t_b - eps)
-        theta = [float(end.theta)] * (n + 1)  # drawn out straight at the run's end
-        rows = [theta]
-
-        last = [math.nan, None]  # RK4 asks twice for the midpoint: sample it once
-
-        def rates(t: float, theta: list) -> list:
-            if t != last[0]:
-                last[0], last[1] = t, vw(t)
-            return self._driven(theta, *last[1])
-
-        for k in range(k_steps):
-            t, h = times[k], times[k + 1] - times[k]  # h < 0
-            theta = rk4_step(rates, t, theta, h)
-            theta[-1] = float(ref.sample_at(min(max(times[k + 1], t_a), t_b - eps)).theta)
-            rows.append(theta)
-        rows.reverse()
-        times = times[::-1].copy()
-        headings = np.array(rows)
-        last = [ref.sample_at(min(max(t, t_a), t_b - eps)) for t in times]
-        x, y = body_positions_along(np.array([(s.x, s.y, s.theta) for s in last]), headings,
-                                    self.geometry)
-        velocities = np.array([
-            robot_velocity_from_last([th[i - 1] - th[i] for i in range(1, n + 1)], s.v, s.w,
-                                     self._front, self._rear)
-            for th, s in zip(rows, last, strict=True)
-        ])
-        return PullRun(times, x[:, 0].copy(), y[:, 0].copy(), headings[:, 0].copy(),
-                       velocities[:, 0].copy(), velocities[:, 1].copy(), headings)
+        geometry, step = self.geometry, self.step
+        rows = self._lib.pt_pull_run_rows(t_a, t_b, step)
+        if rows < 2:
+            raise ReferencePathError(f"pulling run [{t_a!r}, {t_b!r}] s with step {step!r} s: "
+                                     "cannot be sampled")
+        front = np.ascontiguousarray(geometry.front, dtype=float)
+        rear = np.ascontiguousarray(geometry.rear, dtype=float)
+        chain = native.PtChain(geometry.n, native.dptr(front), native.dptr(rear))
+        work = np.zeros(self._lib.pt_pull_run_work(geometry.n))
+        cols = [np.zeros(rows) for _ in _COLUMNS]
+        headings = np.zeros((rows, geometry.n + 1))
+        function, source, _alive = self._sampler()
+        status = self._lib.pt_pull_run_sampled(
+            ctypes.byref(chain), function, source, t_a, t_b, step, native.dptr(work),
+            *(native.dptr(c) for c in cols), native.dptr(headings))
+        if status:
+            raise ReferencePathError(f"pull guide over [{t_a!r}, {t_b!r}] s: "
+                                     f"{native.STATUS.get(status, status)}")
+        return PullRun(*cols, headings)
 
     # -------------------------------------------------------------------- sampling
     def sample_at(self, t: float) -> ReferenceSample:
@@ -210,19 +228,9 @@ class PullGuide:
         ``t`` must lie in a pulling run (times a hair outside are clamped to the nearest run);
         linear interpolation between the backward run's samples.
         """
-        t = float(t)
-        run = None
-        if self.runs:
-            j = max(bisect_right(self._starts, t) - 1, 0)
-            if j + 1 < len(self.runs) and t - self.runs[j].t[-1] > self.runs[j + 1].t[0] - t:
-                j += 1
-            if self.runs[j].t[0] - 1e-6 <= t <= self.runs[j].t[-1] + 1e-6:
-                run = self.runs[j]
-        if run is None:
+        status = self._lib.pt_leader_sample(ctypes.byref(self.struct), float(t),
+                                            ctypes.byref(self._sample))
+        if status:
             raise ReferencePathError(f"t = {t!r} s is not in a pulling run of the reference")
-        ts = run.t
-        tc = min(max(t, ts[0]), ts[-1])
-        k = min(max(int(np.searchsorted(ts, tc, side="right")) - 1, 0), ts.size - 2)
-        a = (tc - ts[k]) / (ts[k + 1] - ts[k]) if ts[k + 1] > ts[k] else 0.0
-        vals = [(1.0 - a) * c[k] + a * c[k + 1] for c in (run.x, run.y, run.theta, run.v, run.w)]
-        return ReferenceSample(*[float(v) for v in vals], PULL)
+        s = self._sample
+        return ReferenceSample(s.x, s.y, s.theta, s.v, s.w, PULL)

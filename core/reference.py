@@ -17,20 +17,23 @@ A :class:`Segment` is a line or an arc travelled at constant speed in one direct
 
 from __future__ import annotations
 
+import ctypes
 import math
 from bisect import bisect_right
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
 import numpy as np
 
+from pushtrain.defaults import CUSP_DWELL, REFERENCE_SPEED
 from pushtrain.errors import ReferencePathError
 
+from . import native
 from .kinematics import wrap_angle
 
 __all__ = ["PULL", "PUSH", "REST", "Reference", "ReferenceSample", "SampledReference", "Segment",
-           "path_points"]
+           "path_points", "segment_struct"]
 
 PUSH = +1
 """Direction of a segment travelled trailer first (the robot pushes): v < 0."""
@@ -148,105 +151,217 @@ def _advance(x, y, theta, sigma, kappa, s, sin=math.sin, cos=math.cos):
     )
 
 
-@dataclass
+_KINDS = {"line": 0, "arc": 1}
+
+
+def segment_struct(segment: Segment):
+    """The C ``PtSegment`` of a :class:`Segment` (speed 0: the reference's default)."""
+    if not isinstance(segment, Segment):
+        raise ReferencePathError(f"segments must be Segment objects, got "
+                                 f"{type(segment).__name__}")
+    return native.PtSegment(float(segment.length), float(segment.curvature),
+                            0.0 if segment.speed is None else float(segment.speed),
+                            int(segment.direction), _KINDS[segment.kind])
+
+
 class Reference:
     """Piecewise line/arc reference of the last trailer, evaluated analytically at any time.
 
-    Build it with :meth:`from_segments`. Times are seconds from ``t0``.
+    The one reference of the product: its phase table (one row per phase, a segment or a dwell
+    at a cusp) and its sampling are the engine's (``pt_reference_init``, ``_append``,
+    ``_sample`` in ``core/csrc/control.c``), which the co-simulation master, the planner's
+    rollouts and the controller FMU read as they are; this class is their Python face. It can
+    grow segment by segment (:meth:`append`, :meth:`copy`, :meth:`continuation`: a planner
+    extends the reference so far). Build a whole one with :meth:`from_segments`. Times are
+    seconds from ``t0``.
+
+    Parameters
+    ----------
+    start : (x, y, theta)
+        Start pose [m, m, rad] at ``t0``.
+    segments : sequence of Segment
+        Appended at once (more can follow with :meth:`append`).
+    speed : float
+        Default |v| [m/s] of segments without their own, > 0 (default the scenario's,
+        :data:`pushtrain.defaults.REFERENCE_SPEED`, 0.08 m/s).
+    cusp_dwell : float
+        Rest [s] at every direction change, >= 0.
+    t0 : float
+        Start time [s].
+    previous_direction : int
+        Direction of the motion before ``t0`` (0: none). A first segment of the other
+        direction starts with a dwell, as inside one longer reference.
     """
 
-    start: tuple[float, float, float]
-    segments: tuple[Segment, ...]
-    speed: float = 0.1
-    cusp_dwell: float = 1.0
-    t0: float = 0.0
-    # Derived tables (one row per phase: a segment or a dwell at a cusp).
-    _t_start: np.ndarray = field(init=False, repr=False)
-    _pose0: np.ndarray = field(init=False, repr=False)
-    _sigma: np.ndarray = field(init=False, repr=False)  # sign of v: -direction, 0 at rest
-    _kappa: np.ndarray = field(init=False, repr=False)
-    _speed: np.ndarray = field(init=False, repr=False)
-    _t_end: float = field(init=False, repr=False)
-    _rows: tuple = field(init=False, repr=False)  # plain-float copy of the tables for sample_at
+    def __init__(self, start: Sequence[float], segments: Sequence[Segment] = (),
+                 speed: float = REFERENCE_SPEED, cusp_dwell: float = CUSP_DWELL, t0: float = 0.0,
+                 previous_direction: int = 0):
+        if len(start) != 3 or not np.all(np.isfinite(np.asarray(start, dtype=float))):
+            raise ReferencePathError(
+                f"start = {start!r}: need three finite numbers (x, y, theta)"
+            )
+        if not (np.isfinite(speed) and speed > 0.0):
+            raise ReferencePathError(f"speed = {speed!r} m/s: must be finite and > 0")
+        if not (np.isfinite(cusp_dwell) and cusp_dwell >= 0.0):
+            raise ReferencePathError(f"cusp_dwell = {cusp_dwell!r} s: must be finite and >= 0")
+        self._lib = native.load()
+        self._table = np.zeros((max(8, 2 * len(segments) + 2), 7))
+        self.struct = native.PtReference()
+        """The C ``PtReference`` (the phase table behind it stays alive with this object)."""
+        start_arr = np.array([float(a) for a in start], dtype=float)
+        status = self._lib.pt_reference_init(
+            ctypes.byref(self.struct), self._phases_ptr(), self._table.shape[0],
+            native.dptr(start_arr), float(speed), float(cusp_dwell), float(t0),
+            int(previous_direction))
+        if status:
+            raise ReferencePathError(
+                f"reference t0 = {t0!r} s, previous_direction = {previous_direction!r}: need a "
+                "finite t0 and a direction of +1, -1 or 0")
+        self.start = tuple(float(a) for a in start_arr)
+        self._previous = int(previous_direction)
+        self._segments: list[Segment] = []
+        self._sample = native.PtSample()
+        self.extend(segments)
 
     @classmethod
     def from_segments(
         cls,
         start: Sequence[float],
         segments: Sequence[Segment],
-        speed: float = 0.1,
-        cusp_dwell: float = 1.0,
+        speed: float = REFERENCE_SPEED,
+        cusp_dwell: float = CUSP_DWELL,
         t0: float = 0.0,
     ) -> Reference:
-        """Reference starting at ``start = (x, y, theta)`` [m, m, rad] through ``segments``.
+        """Reference starting at ``start = (x, y, theta)`` [m, m, rad] through ``segments``
+        (at least one).
 
         ``speed`` [m/s] applies to segments without their own; ``cusp_dwell`` [s] is the rest at
         every direction change.
         """
+        if not segments:
+            raise ReferencePathError("a reference needs at least one segment")
         return cls(tuple(float(a) for a in start), tuple(segments), speed, cusp_dwell, t0)
 
-    def __post_init__(self):
-        if len(self.start) != 3 or not np.all(np.isfinite(self.start)):
-            raise ReferencePathError(
-                f"start = {self.start!r}: need three finite numbers (x, y, theta)"
-            )
-        if not self.segments:
-            raise ReferencePathError("a reference needs at least one segment")
-        if not (np.isfinite(self.speed) and self.speed > 0.0):
-            raise ReferencePathError(f"speed = {self.speed!r} m/s: must be finite and > 0")
-        if not (np.isfinite(self.cusp_dwell) and self.cusp_dwell >= 0.0):
-            raise ReferencePathError(f"cusp_dwell = {self.cusp_dwell!r} s: must be finite and >= 0")
-        t, pose = self.t0, np.array(self.start, dtype=float)
-        rows_t, rows_pose, rows_sigma, rows_kappa, rows_speed = [], [], [], [], []
-        previous_direction = None
-        for seg in self.segments:
-            if not isinstance(seg, Segment):
-                raise ReferencePathError(
-                    f"segments must be Segment objects, got {type(seg).__name__}"
-                )
-            if previous_direction is not None and seg.direction != previous_direction:
-                if self.cusp_dwell > 0.0:
-                    rows_t.append(t), rows_pose.append(pose.copy())
-                    rows_sigma.append(0.0), rows_kappa.append(0.0), rows_speed.append(0.0)
-                    t += self.cusp_dwell
-            speed = self.speed if seg.speed is None else seg.speed
-            rows_t.append(t), rows_pose.append(pose.copy())
-            rows_sigma.append(-float(seg.direction)), rows_kappa.append(float(seg.curvature))
-            rows_speed.append(speed)
-            pose = np.array(_advance(*(float(a) for a in pose), -float(seg.direction),
-                                     float(seg.curvature), float(seg.length)))
-            t += seg.length / speed
-            previous_direction = seg.direction
-        self._t_start = np.array(rows_t)
-        self._pose0 = np.array(rows_pose)
-        self._sigma = np.array(rows_sigma)
-        self._kappa = np.array(rows_kappa)
-        self._speed = np.array(rows_speed)
-        self._t_end = t
-        self._rows = (
-            [float(a) for a in self._t_start],
-            tuple(
-                (float(p[0]), float(p[1]), float(p[2]), float(sg), float(kp), float(sp))
-                for p, sg, kp, sp in zip(self._pose0, self._sigma, self._kappa, self._speed,
-                                         strict=True)
-            ),
-        )
+    def __reduce__(self):
+        return (_rebuild, (self.start, tuple(self._segments), self.speed, self.cusp_dwell,
+                           self.t0, self._previous))
+
+    def __repr__(self) -> str:
+        return (f"Reference(start={self.start!r}, segments={self.segments!r}, "
+                f"speed={self.speed!r}, cusp_dwell={self.cusp_dwell!r}, t0={self.t0!r})")
+
+    def _phases_ptr(self):
+        return self._table.ctypes.data_as(ctypes.POINTER(native.PtPhase))
+
+    # ------------------------------------------------------------------ growing
+    def append(self, segment: Segment) -> None:
+        """Append one segment (its dwell first if it changes direction)."""
+        seg = segment_struct(segment)
+        if self.struct.n_phases + 2 > self.struct.capacity:
+            table = np.zeros((2 * self._table.shape[0], 7))
+            table[: self.struct.n_phases] = self._table[: self.struct.n_phases]
+            self._table = table
+            self.struct.phases = self._phases_ptr()
+            self.struct.capacity = table.shape[0]
+        status = self._lib.pt_reference_append(ctypes.byref(self.struct), ctypes.byref(seg))
+        if status:
+            raise ReferencePathError(f"segment {segment!r} refused by the reference: "
+                                     f"{native.STATUS.get(status, status)}")
+        self._segments.append(segment)
+
+    def extend(self, segments: Sequence[Segment]) -> None:
+        """Append segments in order."""
+        for segment in segments:
+            self.append(segment)
+
+    def copy(self) -> Reference:
+        """An independent copy (for branching: extend the copy, keep this one)."""
+        other = Reference.__new__(Reference)
+        other._lib = self._lib
+        other._table = self._table.copy()
+        other.struct = native.PtReference()
+        ctypes.memmove(ctypes.byref(other.struct), ctypes.byref(self.struct),
+                       ctypes.sizeof(native.PtReference))
+        other.struct.phases = other._phases_ptr()
+        other.start, other._previous = self.start, self._previous
+        other._segments = list(self._segments)
+        other._sample = native.PtSample()
+        return other
+
+    def continuation(self, segments: Sequence[Segment] = ()) -> Reference:
+        """A new reference that starts where this one ends (pose, time :attr:`t_end`, last
+        direction) with ``segments``: sampled at or after :attr:`t_end` it equals this
+        reference extended by the same segments, bit for bit."""
+        s = self.struct
+        return Reference((s.x_end, s.y_end, s.theta_end), segments, s.speed, s.cusp_dwell,
+                         s.t_end, s.last_direction)
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def segments(self) -> tuple[Segment, ...]:
+        """The segments in order."""
+        return tuple(self._segments)
+
+    @property
+    def t0(self) -> float:
+        """Start time [s]."""
+        return float(self.struct.t0)
+
+    @property
+    def speed(self) -> float:
+        """Default |v| [m/s]."""
+        return float(self.struct.speed)
+
+    @property
+    def cusp_dwell(self) -> float:
+        """Rest at direction changes [s]."""
+        return float(self.struct.cusp_dwell)
 
     @property
     def t_end(self) -> float:
         """Time [s] at which the reference reaches its goal and stops."""
-        return self._t_end
+        return float(self.struct.t_end)
+
+    @property
+    def end_pose(self) -> tuple[float, float, float]:
+        """Pose (x, y, theta) [m, m, rad] at :attr:`t_end` as the table advances it, theta
+        continuous (the start of a :meth:`continuation`)."""
+        s = self.struct
+        return float(s.x_end), float(s.y_end), float(s.theta_end)
+
+    @property
+    def last_direction(self) -> int:
+        """Direction of the last segment (the ``previous_direction`` if none was appended)."""
+        return int(self.struct.last_direction)
+
+    @property
+    def phases(self) -> np.ndarray:
+        """The phase table (rows: t, x, y, theta, sigma, kappa, speed), a copy."""
+        return self._table[: self.struct.n_phases].copy()
 
     @property
     def goal(self) -> np.ndarray:
-        """Final pose (x, y, theta) [m, m, rad], theta wrapped to (-pi, pi]."""
-        x, y, th, _, _ = self.sample(np.array([self._t_end]))
-        return np.array([x[0], y[0], wrap_angle(th[0])])
+        """Final pose (x, y, theta) [m, m, rad], the sample at :attr:`t_end`, theta wrapped to
+        (-pi, pi]."""
+        s = self.sample_at(self.t_end)
+        return np.array([s.x, s.y, wrap_angle(s.theta)])
 
     @property
     def length(self) -> float:
         """Total travelled distance [m]."""
-        return float(sum(seg.length for seg in self.segments))
+        return float(sum(seg.length for seg in self._segments))
+
+    def _samples(self, t) -> tuple:
+        t = np.ascontiguousarray(np.atleast_1d(np.asarray(t, dtype=float)))
+        out = [np.empty(t.shape) for _ in range(5)]
+        direction = np.empty(t.shape, dtype=np.intc)
+        status = self._lib.pt_reference_samples(
+            ctypes.byref(self.struct), native.dptr(t), t.size, *(native.dptr(a) for a in out),
+            direction.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
+        if status:
+            raise ReferencePathError(f"sampling the reference: "
+                                     f"{native.STATUS.get(status, status)}")
+        return (*out, direction)
 
     def sample(self, t):
         """Reference at times ``t`` [s] (array): ``(x, y, theta, v, w)``.
@@ -254,34 +369,23 @@ class Reference:
         ``theta`` is continuous (not wrapped). Before ``t0`` the reference rests at the start,
         after :attr:`t_end` at the goal with v = w = 0.
         """
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        tc = np.clip(t, self.t0, self._t_end)
-        k = np.clip(np.searchsorted(self._t_start, tc, side="right") - 1, 0, len(self._t_start) - 1)
-        x, y, th = (np.empty_like(tc) for _ in range(3))
-        for row in np.unique(k):
-            at = k == row
-            x0, y0, th0, sigma, kappa, speed = self._rows[1][row]
-            s = speed * (tc[at] - self._t_start[row])
-            x[at], y[at], th[at] = _advance(x0, y0, th0, sigma, kappa, s, np.sin, np.cos)
-        moving = (t >= self.t0) & (t < self._t_end)
-        v = np.where(moving, self._sigma[k] * self._speed[k], 0.0)
-        w = np.where(moving, self._kappa[k] * self._speed[k], 0.0)
-        return x, y, th, v, w
+        return self._samples(t)[:5]
 
     def direction_at(self, t) -> np.ndarray:
         """Direction at times ``t``: +1 push, -1 pull, 0 at rest (dwell, before start, after goal).
         """
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        k = np.clip(np.searchsorted(self._t_start, t, side="right") - 1, 0, len(self._t_start) - 1)
-        moving = (t >= self.t0) & (t < self._t_end)
-        return np.where(moving, -self._sigma[k], 0.0).astype(int)
+        return self._samples(t)[5].astype(int)
 
     def pull_intervals(self) -> list[tuple[float, float]]:
         """Start and end times [s] of every maximal pulling run (consecutive pulling segments)."""
-        return _pull_intervals(np.append(self._t_start, self._t_end), -self._sigma)
+        cap = self.struct.n_phases + 1
+        t_a, t_b = np.zeros(cap), np.zeros(cap)
+        count = self._lib.pt_reference_pull_intervals(ctypes.byref(self.struct),
+                                                      native.dptr(t_a), native.dptr(t_b), cap)
+        return [(float(a), float(b)) for a, b in zip(t_a[:count], t_b[:count], strict=True)]
 
     def sample_at(self, t: float) -> ReferenceSample:
-        """Reference at one time ``t`` [s] as plain floats (fast scalar form of :meth:`sample`).
+        """Reference at one time ``t`` [s] as plain floats (the scalar form of :meth:`sample`).
 
         Returns
         -------
@@ -289,15 +393,18 @@ class Reference:
             Pose, velocities and direction (:data:`REST` during a cusp dwell, before ``t0`` and
             from :attr:`t_end` on, where v = w = 0).
         """
-        t = float(t)
-        t_start, rows = self._rows
-        tc = min(max(t, self.t0), self._t_end)
-        k = min(max(bisect_right(t_start, tc) - 1, 0), len(rows) - 1)
-        x0, y0, th0, sigma, kappa, speed = rows[k]
-        x, y, th = _advance(x0, y0, th0, sigma, kappa, speed * (tc - t_start[k]))
-        if self.t0 <= t < self._t_end and sigma != 0.0:
-            return ReferenceSample(x, y, th, sigma * speed, kappa * speed, int(-sigma))
-        return ReferenceSample(x, y, th, 0.0, 0.0, REST)
+        status = self._lib.pt_reference_sample(ctypes.byref(self.struct), float(t),
+                                               ctypes.byref(self._sample))
+        if status:
+            raise ReferencePathError(f"sampling the reference at t = {t!r} s: "
+                                     f"{native.STATUS.get(status, status)}")
+        s = self._sample
+        return ReferenceSample(s.x, s.y, s.theta, s.v, s.w, int(s.direction))
+
+
+def _rebuild(start, segments, speed, cusp_dwell, t0, previous_direction) -> Reference:
+    """A pickled :class:`Reference` rebuilt (its C table is made again)."""
+    return Reference(start, segments, speed, cusp_dwell, t0, previous_direction)
 
 
 def _pull_intervals(bounds, directions) -> list[tuple[float, float]]:

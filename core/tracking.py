@@ -5,7 +5,7 @@ during cusp dwells, before the start and after the goal), while pulling also the
 reference from the :class:`~pushtrain.core.pulling.PullGuide` built with the controller's chain
 model (``controller.guide_geometry``), and ask the controller for the robot command. The
 co-simulation master uses it for the slip governor and open-loop profiles; with the compiled law
-(:class:`~pushtrain.core.native_controller.NativeController`) the whole instant is one C call
+(:class:`~pushtrain.core.controller.Controller`) the whole instant is one C call
 (``pt_track``), which the engine (``core/csrc``) also runs inside its loops. The tests' reference
 closed loop (``tests/reference/closed_loop.py``) steps it with the readable reference law
 (``tests/reference/controller.py``).
@@ -34,7 +34,7 @@ class TrackingLoop:
     Parameters
     ----------
     controller
-        A :class:`~pushtrain.core.native_controller.NativeController`, or anything with its
+        A :class:`~pushtrain.core.controller.Controller`, or anything with its
         ``command(t, measurement, ref, leader)`` (the slip governor, open-loop profiles). Its
         ``guide_geometry`` (None for open-loop profiles, which ignore the reference) is the chain
         model of the pull guide.
@@ -56,19 +56,21 @@ class TrackingLoop:
             self.guide = PullGuide(reference, geometry)
         self.reference_at = _no_reference if reference is None else reference.sample_at
         """``reference_at(t)``: the last trailer's :class:`ReferenceSample` at ``t`` [s]."""
-        tracker = getattr(controller, "tracker", None)
-        fast = None
-        if tracker is not None and reference is not None:
-            fast = tracker(reference, self.guide, info)
-        if fast is not None:
-            self.command = fast  # the whole instant in compiled code (NativeController)
+        make_tracker = getattr(controller, "tracker", None)
+        self.tracker = None
+        """The compiled instant (a :class:`~pushtrain.core.controller.Tracker`) when the
+        controller is the compiled law and the reference one it can copy, else None."""
+        if make_tracker is not None and reference is not None:
+            self.tracker = make_tracker(reference, self.guide, info)
+        if self.tracker is not None:
+            self.command = self.tracker.command  # the whole instant in compiled code
 
     def command(self, t: float, measurement):
         """The controller's command at ``t`` [s] for ``measurement``.
 
-        A controller with a ``tracker(reference, guide, info)`` method
-        (:class:`~pushtrain.core.native_controller.NativeController`) replaces this method by
-        the function it returns, which does the same in one call.
+        With a controller that has a ``tracker(reference, guide, info)`` method
+        (:class:`~pushtrain.core.controller.Controller`) this method is the
+        :attr:`tracker`'s ``command``, which does the same in one call.
 
         Returns ``(v0, w0, info, ref)``: the robot command [m/s, rad/s], the controller's
         diagnostics and the reference sample it tracked.

@@ -465,23 +465,25 @@ class TrailerTrainSlave:
         return CosimError(f"fmi{self.fmi_version}DoStep failed at t = {t:.6f} s (h = {h} s): "
                           f"{self._why(status)}")
 
-    def fmi2_functions(self) -> dict[str, int]:
-        """Addresses of this instance's FMI 2.0 functions ``fmi2GetReal``, ``fmi2SetReal``,
-        ``fmi2GetBoolean``, ``fmi2DoStep`` (for compiled code that calls them) and of its
-        component (``"component"``); after :meth:`start`."""
-        if self.fmi_version != 2 or not self._instantiated:
-            raise CosimError("fmi2_functions: needs a started FMI 2.0 instance")
-        out = {name: ctypes.cast(getattr(self.slave.dll, name), ctypes.c_void_p).value
-               for name in ("fmi2GetReal", "fmi2SetReal", "fmi2GetBoolean", "fmi2DoStep")}
+    def fmi_functions(self) -> dict[str, int]:
+        """Addresses of this instance's per-step FMI functions (for compiled code that calls
+        them): ``"get_real"``, ``"set_real"``, ``"get_boolean"``, ``"do_step"`` (fmi2GetReal ..
+        fmi2DoStep, or fmi3GetFloat64 .. fmi3DoStep) and ``"component"`` (the instance); after
+        :meth:`start`."""
+        if not self._instantiated:
+            raise CosimError("fmi_functions: needs a started instance")
+        fmu = self._fmu
+        out = {role: ctypes.cast(getattr(self.slave.dll, name), ctypes.c_void_p).value
+               for role, name in (("get_real", fmu.get_real), ("set_real", fmu.set_real),
+                                  ("get_boolean", fmu.get_bool), ("do_step", fmu.do_step))}
         out["component"] = self.slave.component
         return out
 
-    def value_references(self, names) -> list[int]:
-        """The value reference of each of ``names`` (FMI 2.0: one scalar per name)."""
+    def read_plan(self, names) -> tuple[list[int], int, list[int] | None]:
+        """How one call reads ``names``: the value references, the number of values they hold,
+        and where each name's value is among them (None: in order, one value per reference)."""
         plan = _Plan(self, names)
-        if not plan.identity:
-            raise CosimError(f"value_references: {names[0]} .. {names[-1]} are array elements")
-        return plan.refs
+        return plan.refs, plan.count, None if plan.identity else plan.index
 
     # -------------------------------------------------------------- life cycle
     def close(self) -> None:

@@ -6,9 +6,9 @@ the reference sample, ...), so no caller computes offsets into a flat row. Two w
 * :meth:`~Recorder.append` a row by block name (blocks not given stay NaN);
 * fill the blocks of the preallocated :attr:`~Recorder.row` through :meth:`~Recorder.view` (an
   FMU reader can write into its view directly) and :meth:`~Recorder.commit` it: one copy of one
-  row per step, the master's Python step loop. Values not rewritten are kept from the row before;
+  row per step. Values not rewritten are kept from the row before;
 * write whole rows straight into the storage (:meth:`~Recorder.free_rows`, at the offsets of
-  :meth:`~Recorder.block_start`) and :meth:`~Recorder.advance`: the compiled step loop.
+  :meth:`~Recorder.block_start`) and :meth:`~Recorder.advance`: the master's step loop.
 
 Storage is one float array (one row per point, the blocks side by side) that grows by doubling
 and is trimmed at the end, so a horizon much longer than the run costs nothing
@@ -79,7 +79,7 @@ class Recorder:
 
     def free_rows(self) -> np.ndarray:
         """The storage's rows after the recorded ones (at least one: full storage grows), for
-        a writer that fills several rows at once (the compiled step loop) and then
+        a writer that fills several rows at once (the master's step loop) and then
         :meth:`advance` them; a view, valid until the next :meth:`commit` or :meth:`advance`."""
         if self.rows == self._capacity:
             self._grow()

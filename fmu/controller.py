@@ -1,9 +1,10 @@
 """Build the BackwardController FMU: pushtrain's control law as an FMI 2.0 Co-Simulation FMU.
 
-The FMU compiles the project's one control law, ``core/csrc/control.c`` (the C twin of
-the tests' readable ``tests/reference/controller.py``, held equal to it) and its one
-sensor model, ``core/csrc/sensors.c`` (the co-simulation master's), and the co-simulation step's
-tracking errors, ``core/csrc/step.c`` (``pt_tracking_errors``), with the plant's FMI glue
+The FMU compiles the engine's control instant, the files ``core/csrc`` declares for it
+(:func:`pushtrain.core.native.engine_files` ``("instant")``: the one control law, reference and
+pull guide of ``control.c``, held equal to the tests' readable ``tests/reference/``, the
+sensor model ``sensors.c`` and the step's tracking errors ``step.c``; this module's one
+dependency on core, with :class:`~pushtrain.core.reference.Segment`), with the plant's FMI glue
 (``fmu/src``: ``instance.c`` under ``fmi2.c``, see ``fmu_model.h``), the controller's model in
 ``fmu/controller_src`` (its variables, the mission table) and the files rendered from
 :mod:`.controller_variables`. The mission is data: the last
@@ -11,7 +12,7 @@ trailer's line/arc segments and the robot's pull-guide rows, written as a small 
 the FMU's ``resources/`` (:func:`render_table`), so one compiled binary (cached by a hash of its
 sources, like the plant) serves every mission with the same n.
 
-This module takes plain numbers; :mod:`pushtrain.mission.ssp` turns a planned or scripted
+:mod:`pushtrain.mission.ssp` turns a planned or scripted
 :class:`~pushtrain.core.reference.Reference` and its :class:`~pushtrain.core.pulling.PullGuide`
 into a :class:`ControllerTable`.
 """
@@ -24,13 +25,14 @@ import math
 import shutil
 import uuid
 import zipfile
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
+from pushtrain.core.native import engine_files
+from pushtrain.core.reference import Segment
 from pushtrain.errors import FmuInputError
 from pushtrain.files import atomic_write
 
@@ -46,34 +48,17 @@ from .controller_variables import (
 )
 from .render import check_n
 
-__all__ = ["ControllerTable", "TableSegment", "build_controller_fmu", "render_table"]
+__all__ = ["GLUE_FILES", "ControllerTable", "build_controller_fmu", "render_table"]
 
 log = logging.getLogger(__name__)
 
 BUILD_FORMAT = "1"  # bump when the rendering or packaging of the controller changes
 TABLE_FORMAT = 1
-LAW_FILES = ("control.c", "control.h", "sensors.c", "sensors.h", "step.c", "step.h")
-"""From core/csrc: the law, the sensors and the step's tracking errors (``pt_tracking_errors``)."""
 GLUE_FILES = ("instance.c", "fmi2.c", "fmu_model.h", "instance.h")  # the FMI glue, from fmu/src
 EXPORTS_MAP = "ctrl_exports.map"
 EXPORTS = "{\n  global: fmi2*;\n  local: *;\n};\n"
 """Linker version script: the FMU exports its fmi2 functions only (control.h marks the law's
 pt_* functions visible, for core/native.py's shared library)."""
-
-
-@dataclass(frozen=True)
-class TableSegment:
-    """One line or arc of the last trailer's path (as :class:`pushtrain.core.reference.Segment`).
-
-    ``length`` [m] > 0, ``curvature`` [1/m] per metre travelled (0 for a line), ``direction``
-    +1 push or -1 pull, ``speed`` [m/s] or None for the table's default speed.
-    """
-
-    kind: str
-    length: float
-    curvature: float
-    direction: int
-    speed: float | None = None
 
 
 @dataclass(frozen=True)
@@ -87,7 +72,7 @@ class ControllerTable:
     """
 
     start: tuple[float, float, float]
-    segments: tuple[TableSegment, ...]
+    segments: tuple[Segment, ...]
     speed: float
     cusp_dwell: float
     t0: float = 0.0
@@ -151,22 +136,18 @@ def _glue_dir():
     return resources.files("pushtrain.fmu") / "src"
 
 
-def _law_dir():
-    # The control law is core's C source: read as a file for the build (no Python import of
-    # core; fmu stays below core in the import rules).
-    return resources.files("pushtrain.core") / "csrc"
-
-
 def _files(n: int, guid: str, generated: str | None = None) -> dict[str, bytes]:
     """The archive files of a controller build for ``n`` trailers (no resources yet)."""
-    folders = {**{name: _law_dir() for name in LAW_FILES},
-               **{name: _glue_dir() for name in GLUE_FILES}}
-    files = {f"sources/{name}": (folders.get(name) or _model_dir()).joinpath(name).read_bytes()
-             for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS}
+    engine = engine_files("instant")
+    files = {f"sources/{name}": resource.read_bytes() for name, resource in engine.items()}
+    files.update({f"sources/{name}": (_glue_dir() if name in GLUE_FILES else _model_dir())
+                  .joinpath(name).read_bytes()
+                  for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS})
     files["sources/ctrl_variables.h"] = render_controller_header(n, guid).encode()
     files["sources/build_config.h"] = render_controller_build_config(guid).encode()
     files[f"sources/{EXPORTS_MAP}"] = EXPORTS.encode()
-    files["modelDescription.xml"] = render_controller_description(n, guid, generated)
+    sources = tuple(name for name in engine if name.endswith(".c")) + CONTROLLER_SOURCES
+    files["modelDescription.xml"] = render_controller_description(n, guid, generated, sources)
     return files
 
 
@@ -216,10 +197,3 @@ def build_controller_fmu(n_trailers: int, table: ControllerTable, output_path, *
 
     out.parent.mkdir(parents=True, exist_ok=True)
     return atomic_write(out, write)
-
-
-def table_segments(segments: Sequence) -> tuple[TableSegment, ...]:
-    """:class:`TableSegment` rows from objects with ``kind, length, curvature, direction,
-    speed`` (e.g. :class:`pushtrain.core.reference.Segment`)."""
-    return tuple(TableSegment(s.kind, float(s.length), float(s.curvature), int(s.direction),
-                              None if s.speed is None else float(s.speed)) for s in segments)

@@ -43,10 +43,11 @@ __all__ = [
 ]
 
 CONTROLLER_IDENTIFIER = "BackwardController"
-CONTROLLER_SOURCES = ("control.c", "sensors.c", "step.c", "ctrl_table.c", "ctrl_model.c",
-                      "ctrl_instance.c", "instance.c", "fmi2.c")
-CONTROLLER_HEADERS = ("control.h", "sensors.h", "step.h", "ctrl_model.h", "ctrl_table.h",
-                      "ctrl_instance.h", "fmu_model.h", "instance.h")
+CONTROLLER_SOURCES = ("ctrl_table.c", "ctrl_model.c", "ctrl_instance.c", "instance.c", "fmi2.c")
+"""The controller FMU's own C sources (``fmu/controller_src`` and the FMI glue of ``fmu/src``);
+the engine's come from ``core/csrc`` (:mod:`pushtrain.fmu.controller`)."""
+CONTROLLER_HEADERS = ("ctrl_model.h", "ctrl_table.h", "ctrl_instance.h", "fmu_model.h",
+                      "instance.h")
 TABLE_FILE = "reference.txt"
 """The mission table in the FMU's ``resources/`` (see :mod:`pushtrain.fmu.controller`)."""
 DEFAULT_STEP = SAMPLING_TIME  # one communication step [s]
@@ -233,9 +234,10 @@ def _inputs_of(var: Scalar, variables: list[Scalar]) -> list[Scalar]:
     return []
 
 
-def render_controller_description(n_trailers: int, guid: str,
-                                  generated: str | None = None) -> bytes:
-    """The FMI 2.0 ``modelDescription.xml`` of the BackwardController FMU for ``n_trailers``."""
+def render_controller_description(n_trailers: int, guid: str, generated: str | None = None,
+                                  sources: tuple[str, ...] = CONTROLLER_SOURCES) -> bytes:
+    """The FMI 2.0 ``modelDescription.xml`` of the BackwardController FMU for ``n_trailers``
+    whose C ``sources`` are those named (the engine's and :data:`CONTROLLER_SOURCES`)."""
     n = check_n(n_trailers)
     variables = controller_variables(n)
     root = ET.Element("fmiModelDescription", {
@@ -262,7 +264,7 @@ def render_controller_description(n_trailers: int, guid: str,
         "providesDirectionalDerivative": "false",
     })
     files = ET.SubElement(cs, "SourceFiles")
-    for name in CONTROLLER_SOURCES:
+    for name in sources:
         ET.SubElement(files, "File", {"name": name})
     units = ET.SubElement(root, "UnitDefinitions")
     for name in _UNITS:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from pushtrain import defaults
 from pushtrain.limits import BOUNDS
 from pushtrain.table1 import LINK, MU, TRAILER_INERTIA, TRAILER_MASS
 
@@ -144,13 +145,14 @@ SCALARS: tuple[Variable, ...] = tuple(map(_bounded, (
              "External force on the last trailer's axle midpoint, world x", 0.0, "N"),
     Variable("push_y", 4, "Real", "input", "continuous",
              "External force on the last trailer's axle midpoint, world y", 0.0, "N"),
-    Variable("g", 5, "Real", "parameter", "fixed", "Gravitational acceleration", 9.81, "m/s2"),
+    Variable("g", 5, "Real", "parameter", "fixed", "Gravitational acceleration",
+             defaults.GRAVITY, "m/s2"),
     Variable("robot_tau", 6, "Real", "parameter", "fixed",
-             "Robot velocity loop first-order time constant", 0.05, "s"),
+             "Robot velocity loop first-order time constant", defaults.ROBOT_TAU, "s"),
     Variable("robot_acc_max", 7, "Real", "parameter", "fixed",
-             "Robot longitudinal acceleration limit", 1.0, "m/s2"),
+             "Robot longitudinal acceleration limit", defaults.ROBOT_ACC_MAX, "m/s2"),
     Variable("robot_alpha_max", 8, "Real", "parameter", "fixed",
-             "Robot yaw acceleration limit", 2.0, "rad/s2"),
+             "Robot yaw acceleration limit", defaults.ROBOT_ALPHA_MAX, "rad/s2"),
     Variable("slip_mode", 9, "Integer", "parameter", "fixed",
              "0: rolling wheels, forces estimated; 1: wheels slide past friction", 0,
              min=0, max=1),

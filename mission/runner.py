@@ -16,11 +16,11 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.openloop import RotationProfile
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.sensors import SensorConfig
 from pushtrain.cosim.events import Push, SetBias, Slide
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState, PlantConfig
 from pushtrain.cosim.result import Result
-from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import ScenarioError
 from pushtrain.fmu.build import build_fmu
 from pushtrain.settings import config_values
@@ -99,8 +99,8 @@ def controller_of(sc: Scenario) -> ControllerConfig:
 
 def governed(sc: Scenario, config: ControllerConfig):
     """The compiled control law behind a slip-aware governor built from the scenario's train."""
+    from pushtrain.core.controller import Controller
     from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
-    from pushtrain.core.native_controller import NativeController
 
     n, plant = sc.train.n, plant_of(sc)
     gov = SlipGovernor(GovernorConfig(
@@ -108,7 +108,7 @@ def governed(sc: Scenario, config: ControllerConfig):
         _per_trailer(plant.inertia, n), _per_trailer(plant.mu, n),
         fraction=sc.controller.governor_fraction,
         tau=plant.robot_tau, acc_max=plant.robot_acc_max, alpha_max=plant.robot_alpha_max))
-    return GovernedController(NativeController(config), gov, dt=sc.sim.step)
+    return GovernedController(Controller(config), gov, dt=sc.sim.step)
 
 
 def goal_tolerance_of(sc: Scenario) -> tuple[float, float]:
@@ -270,7 +270,7 @@ def run_scenario(sc: Scenario, out_dir: Path | None = None, *, reference: Refere
         fmu, reference, controller, sensors_of(sc), events_of(sc), plant=plant, initial=initial,
         step=sc.sim.step, horizon=horizon, settle_time=sc.sim.settle_time,
         goal_tolerance=goal_tolerance_of(sc),
-        progress=progress, step_loop=sc.sim.step_loop,
+        progress=progress,
     )
     result.summary["scenario"] = sc.name
     result.summary["mission"] = sc.mission.kind

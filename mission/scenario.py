@@ -28,8 +28,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from pushtrain import defaults, table1
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.governor import GovernorConfig
+from pushtrain.core.sensors import SensorConfig
 from pushtrain.cosim.plant import PlantConfig
-from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import FieldErrors, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
 from pushtrain.limits import BOUNDS, SCENARIO_BOUNDS, min_turning_radius
@@ -169,7 +169,7 @@ avoid lateral slip, Sec. 4.4), the controller's own link and the governor."""
 
 
 SensorSection = file_section(SensorConfig, "SensorSection", _Section)
-"""``[sensors]``: the file settings of :class:`~pushtrain.cosim.sensors.SensorConfig`, with its
+"""``[sensors]``: the file settings of :class:`~pushtrain.core.sensors.SensorConfig`, with its
 defaults (``localize``: "robot" computes the last trailer from the joint angles, as the paper's
 prototype; "last_trailer" localizes it directly, the setting of Eq. 6-9)."""
 
@@ -218,11 +218,6 @@ class SimSection(_Section):
     settle_time: NonNegFloat = defaults.SETTLE_TIME
     goal_tolerance: PositiveFloat = defaults.GOAL_TOLERANCE[0]
     goal_heading_tolerance_deg: PositiveFloat = defaults.GOAL_HEADING_TOLERANCE_DEG
-    # which loop steps the co-simulation: "auto" the compiled step loop when the run allows it
-    # (FMI 2.0, no governor, no open-loop profile; cosim/step_loop.py unsupported() says why
-    # not), else the Python loop; "c" the compiled loop or an error; "python" the Python loop
-    # (both give the same results; for debugging)
-    step_loop: Literal["auto", "c", "python"] = "auto"
 
 
 class MissionSection(_Section):

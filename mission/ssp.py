@@ -51,7 +51,7 @@ from pushtrain.cosim.plant import InitialState
 from pushtrain.errors import InputError, ScenarioError
 from pushtrain.files import atomic_write
 from pushtrain.fmu.build import build_fmu
-from pushtrain.fmu.controller import ControllerTable, build_controller_fmu, table_segments
+from pushtrain.fmu.controller import ControllerTable, build_controller_fmu
 from pushtrain.fmu.controller_variables import CONTROLLER_IDENTIFIER
 from pushtrain.fmu.render import MODEL_IDENTIFIER
 
@@ -104,7 +104,7 @@ def controller_table(reference: Reference, config: ControllerConfig) -> Controll
     if reference.pull_intervals():
         guide = PullGuide(reference, config.geometry)
         runs = tuple(np.column_stack([r.t, r.x, r.y, r.theta, r.v, r.w]) for r in guide.runs)
-    return ControllerTable(tuple(reference.start), table_segments(reference.segments),
+    return ControllerTable(tuple(reference.start), reference.segments,
                            reference.speed, reference.cusp_dwell, reference.t0, runs)
 
 

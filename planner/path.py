@@ -15,6 +15,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.defaults import CUSP_DWELL, REFERENCE_SPEED
 from pushtrain.errors import PlanningInputError
 
 __all__ = ["PlannedPath", "dense_samples", "FORMAT_VERSION"]
@@ -155,12 +156,12 @@ class PlannedPath:
 
     # ------------------------------------------------------------------ conversion
     def to_reference(
-        self, speed: float = 0.1, cusp_dwell: float = 1.0, t0: float = 0.0
+        self, speed: float = REFERENCE_SPEED, cusp_dwell: float = CUSP_DWELL, t0: float = 0.0
     ) -> Reference:
         """The time-parameterized reference for the co-simulation master.
 
-        Constant ``speed`` [m/s] on every segment (w_d = v_d * curvature), a rest of
-        ``cusp_dwell`` [s] at every direction change.
+        Constant ``speed`` [m/s] on every segment (w_d = v_d * curvature; default the
+        scenario's 0.08 m/s), a rest of ``cusp_dwell`` [s] at every direction change.
         """
         return Reference.from_segments(self.start, self.segments, speed, cusp_dwell, t0)
 

@@ -57,3 +57,29 @@ ROBOT_LENGTH = 0.6
 
 ROBOT_WIDTH = 0.5
 """The robot's footprint across its heading [m]."""
+
+PULL_GUIDE_STEP = 0.02
+"""RK4 step of the pull guide's backward runs [s]: 1.6 mm of travel at 0.08 m/s."""
+
+ROLLOUT_SETTLE_TIME = 2.0
+"""Time the engine's closed loop runs on after the reference's end in a planner's rollout or
+check [s] (the co-simulation's is :data:`SETTLE_TIME`)."""
+
+GRAVITY = 9.81
+"""Gravitational acceleration [m/s^2] (the FMU's ``g`` and the governor's)."""
+
+ROBOT_TAU = 0.05
+"""Time constant of the robot's velocity loop (first-order lag) [s]: the FMU's ``robot_tau`` and
+the slip governor's model of it."""
+
+ROBOT_ACC_MAX = 1.0
+"""The robot's velocity loop's acceleration limit [m/s^2] (the FMU's ``robot_acc_max``)."""
+
+ROBOT_ALPHA_MAX = 2.0
+"""The robot's velocity loop's yaw-acceleration limit [rad/s^2] (``robot_alpha_max``)."""
+
+GOVERNOR_FRACTION = 0.8
+"""Share of the friction limit the slip governor lets the predicted lateral forces use [-]."""
+
+__all__ += ["GOVERNOR_FRACTION", "GRAVITY", "PULL_GUIDE_STEP", "ROBOT_ACC_MAX", "ROBOT_ALPHA_MAX",
+            "ROBOT_TAU", "ROLLOUT_SETTLE_TIME"]

@@ -24,7 +24,7 @@ from pushtrain.core.kinematics import (
     forward_velocities,
 )
 from pushtrain.core.reference import PUSH, ReferenceSample
-from pushtrain.cosim.sensors import Measurement
+from pushtrain.core.sensors import Measurement
 from pushtrain.errors import AnalysisError
 
 gains = st.floats(0.1, 20.0)

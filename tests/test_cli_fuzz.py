@@ -210,7 +210,7 @@ TIME_CAP = 120.0
 at most about 25 s under load: the planner's own safety cap is 10 x 0.5 + 10 s)."""
 _WARM = ("pushtrain.mission.runner", "pushtrain.planner.whole_train", "pushtrain.facility.loading",
          "pushtrain.cosim.master", "pushtrain.cosim.step_loop", "pushtrain.core.engine",
-         "pushtrain.core.native_controller", "scipy.ndimage")
+         "pushtrain.core.controller", "scipy.ndimage")
 
 
 @dataclass

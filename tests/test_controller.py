@@ -32,7 +32,7 @@ from pushtrain.core.kinematics import (
     wrap_angle,
 )
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, ReferenceSample, Segment
-from pushtrain.cosim.sensors import Measurement, SensorConfig, Sensors
+from pushtrain.core.sensors import Measurement, SensorConfig, Sensors
 from pushtrain.errors import ControllerError
 
 H = 0.005

@@ -1,7 +1,7 @@
 """The BackwardController FMU: pushtrain's control law (core/csrc/control.c) behind FMI 2.0.
 
 Held against the Python controller (core/controller.py via core/tracking.py and the sensor model
-of cosim/sensors.py) on random references, chains, parameters and states, through the FMU's own
+of core/sensors.py) on random references, chains, parameters and states, through the FMU's own
 interface; and checked as an FMU: fmpy's validation, the mode and input guards, the resource
 URI forms importers pass, and the mission table's errors.
 """
@@ -22,16 +22,10 @@ from reference.controller import BackwardController
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.sensors import SensorConfig, Sensors
 from pushtrain.core.tracking import TrackingLoop
-from pushtrain.cosim.sensors import SensorConfig, Sensors
 from pushtrain.errors import FmuInputError
-from pushtrain.fmu.controller import (
-    ControllerTable,
-    TableSegment,
-    build_controller_fmu,
-    render_table,
-    table_segments,
-)
+from pushtrain.fmu.controller import ControllerTable, build_controller_fmu, render_table
 from pushtrain.fmu.controller_variables import controller_variables
 
 fmpy = pytest.importorskip("fmpy")
@@ -39,7 +33,7 @@ from fmpy import extract, read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
 
 MODES = {"rest": 0, "push": 1, "pull": 2}
-STRAIGHT = ControllerTable((0.0, 0.0, math.pi), (TableSegment("line", 2.0, 0.0, PUSH),), 0.08,
+STRAIGHT = ControllerTable((0.0, 0.0, math.pi), (Segment("line", 2.0, 0.0, PUSH),), 0.08,
                            1.0)
 
 
@@ -385,7 +379,7 @@ def test_table_round_trips_every_double():
     rng = np.random.default_rng(5)
     values = rng.normal(size=6) * 10.0 ** rng.integers(-12, 6, 6)
     table = ControllerTable((values[0], values[1], values[2]),
-                            (TableSegment("arc", 1.5, values[3], PULL, None),), 0.08, 0.0,
+                            (Segment("arc", 1.5, values[3], PULL, None),), 0.08, 0.0,
                             leader_runs=(np.column_stack([np.arange(3.0)] + [values[:3]] * 5),))
     text = render_table(table)
     numbers = [float(tok) for line in text.splitlines() if not line.startswith("#")
@@ -398,7 +392,5 @@ def test_malformed_tables_are_refused_in_python():
     with pytest.raises(FmuInputError, match="at least one segment"):
         ControllerTable((0.0, 0.0, 0.0), (), 0.08, 1.0)
     with pytest.raises(FmuInputError, match="leader run 0"):
-        ControllerTable((0.0, 0.0, 0.0), (TableSegment("line", 1.0, 0.0, 1),), 0.08, 1.0,
+        ControllerTable((0.0, 0.0, 0.0), (Segment("line", 1.0, 0.0, 1),), 0.08, 1.0,
                         leader_runs=(np.zeros((1, 6)),))
-    segs = table_segments([Segment("arc", 1.0, 0.5, PULL, 0.05)])
-    assert segs == (TableSegment("arc", 1.0, 0.5, PULL, 0.05),)

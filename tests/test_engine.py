@@ -23,7 +23,6 @@ from pushtrain.core import native
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import Checks, ClosedLoopEngine, LoopState, rectangle_points, simulate
 from pushtrain.core.kinematics import ChainGeometry, body_positions, joint_angles, wrap_angle
-from pushtrain.core.native_reference import NativeReference
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.errors import ControllerError
 from pushtrain.planner import kinematic_loop
@@ -183,19 +182,18 @@ def test_planner_edges_continue_the_reference_and_the_state_bit_for_bit():
                 Segment("line", 1.5, 0.0, PULL), Segment("arc", 0.7, -0.5, PUSH)]
     geom = ChainGeometry(np.array([0.5, 0.6, 0.45]), np.array([0.3, 0.52, 0.7]))
     loop = ClosedLoopEngine(geom, default_controller(geom), 0.025)
-    whole_ref = NativeReference(start, 0.08, 1.0, segments=segments)
+    whole_ref = Reference(start, segments, 0.08, 1.0)
     state0 = loop.start(start, np.full(4, math.pi))
     k_end = loop.instant_at(whole_ref.t_end + 2.0)
     whole = loop.run(whole_ref, state0, k_end)
 
-    edge, state, grown = NativeReference(start, 0.08, 1.0), state0, NativeReference(start, 0.08,
-                                                                                    1.0)
+    edge, state, grown = (Reference(start, (), 0.08, 1.0), state0,
+                          Reference(start, (), 0.08, 1.0))
     states = [state0.z[None, :]]
     grown_states = [state0.z[None, :]]
     grown_state = state0
     for i, seg in enumerate(segments):
-        edge = edge.continuation([seg]) if i else NativeReference(start, 0.08, 1.0,
-                                                                   segments=[seg])
+        edge = edge.continuation([seg]) if i else Reference(start, [seg], 0.08, 1.0)
         last = i == len(segments) - 1
         k1 = k_end if last else loop.instant_at(edge.t_end)
         run = loop.run(edge, state, k1)
@@ -450,7 +448,7 @@ def test_non_finite_states_and_refused_commands_stop_a_run():
     bad = LoopState(good.k, np.array([0.0, math.nan, 0.0, 0.0, 0.0]), 0.0, 0.0, -0.025)
     run = loop.run(ref, bad, 10)
     assert run.violation.reason == "non_finite" and run.end.k == 0 and run.commands.shape == (0, 2)
-    empty = NativeReference((0.0, 0.0, 0.0))  # no segment: the reference refuses to be sampled
+    empty = Reference((0.0, 0.0, 0.0))  # no segment: the reference refuses to be sampled
     run = loop.run(empty, good, 10)
     assert run.violation.reason == "control" and run.violation.value == 9 and run.end.k == 0
     with pytest.raises(ControllerError, match="k_end"):

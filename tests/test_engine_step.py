@@ -1,22 +1,24 @@
 """The co-simulation step's closed-loop work in one C call (core/csrc/step.c, pt_step) against
 the same work done call by call: the sensors, the compiled law's Tracker.command, and the push
-force and tracking errors in Python (cosim/step_loop.py EngineStep, the path of a Python law).
+force and tracking errors in Python (cosim/step_loop.py PythonLaw, the hook the master's loop
+calls for a law written in Python).
 Bit for bit, over a push-pull mission with noisy, quantized, biased sensors with play, a measured
 last pose and pushes turning with the trailer."""
 
+import ctypes
 import math
 
 import numpy as np
 import pytest
 
-from pushtrain.core.controller import ControllerConfig
+from pushtrain.core import native
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.native_controller import NativeController, Tracker
 from pushtrain.core.reference import PULL, Reference, Segment
+from pushtrain.core.sensors import Measurement, SensorConfig, Sensors
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import EventSchedule, Push
-from pushtrain.cosim.sensors import SensorConfig, Sensors
-from pushtrain.cosim.step_loop import EngineStep
+from pushtrain.cosim.step_loop import PythonLaw
 from pushtrain.errors import ControllerError
 
 N = 3
@@ -29,18 +31,47 @@ SENSORS = SensorConfig(N, joint_bias=[0.01, -0.02, 0.005], joint_noise=0.002,
 EVENTS = [Push(1.0, 3.0, lateral=25.0), Push(2.0, 5.0, fx=5.0, fy=-3.0, lateral=-10.0)]
 
 
+class _OneCall:
+    """The engine's step, ``pt_step``, on the tracker's instant and the sensors' model."""
+
+    def __init__(self, tracker, sensors, events, truth, phi_meas):
+        self.tracker, self.events, self.truth, self.phi = tracker, events, truth, phi_meas
+        self.sensors = sensors
+        self.struct = native.PtStep(ctypes.pointer(tracker.instant),
+                                    ctypes.pointer(sensors.model))
+        tracker.has_last = bool(sensors.config.measure_last_pose)
+
+    def step(self, t):
+        active = self.events.active_pushes(t)
+        pushes = np.array([(p.fx, p.fy, p.lateral) for p in active] or [(0.0,) * 3])
+        self.struct.n_pushes, self.struct.pushes = len(active), native.dptr(pushes)
+        noise = self.sensors.draw_noise(1)
+        status = native.load().pt_step(ctypes.byref(self.struct), t, native.dptr(self.truth),
+                                       native.dptr(noise), native.dptr(self.phi))
+        if status:
+            m = self.tracker.instant.m
+            raise self.tracker.error(status, t, Measurement(m.x0, m.y0, m.theta0,
+                                                            self.phi.tolist(), None), None)
+        k, s = self.tracker.instant, self.struct
+        sample = k.sample
+        return (k.cmd[0], k.cmd[1], s.push[0], s.push[1], sample.x, sample.y, sample.theta,
+                sample.v, sample.w, sample.direction, *s.errors)
+
+
 def _engine(compiled: bool):
     config = ControllerConfig(geometry=ChainGeometry.uniform(N, 0.52), v_max=0.1, w_max=0.1,
                               acc_max=0.2, alpha_max=math.radians(10.0))
-    controller = NativeController(config)
+    controller = Controller(config)
     controller.reset(0.0, 0.0, -0.05)
     loop = TrackingLoop(controller, REFERENCE, info=False)
-    tracker = loop.command.__self__
-    assert isinstance(tracker, Tracker)
-    truth, phi_meas = np.zeros(N + 6), np.zeros(N)
-    engine = EngineStep(truth, phi_meas, Sensors(SENSORS), EventSchedule(EVENTS, N, 100.0),
-                        loop.command, tracker if compiled else None)
-    return engine, truth, phi_meas
+    assert loop.tracker is not None
+    truth = np.zeros(N + 6)
+    sensors, events = Sensors(SENSORS), EventSchedule(EVENTS, N, 100.0)
+    if compiled:
+        phi_meas = np.zeros(N)
+        return _OneCall(loop.tracker, sensors, events, truth, phi_meas), truth, phi_meas
+    law = PythonLaw(truth, sensors, events, loop.command)
+    return law, truth, law.phi
 
 
 def test_one_call_equals_the_work_done_call_by_call():
@@ -54,11 +85,10 @@ def test_one_call_equals_the_work_done_call_by_call():
                                  -0.01 * k, 0.02, math.pi - 0.05], rng.normal(0.0, 0.1, N)))
         truth_a[:], truth_b[:] = state, state
         got, want = one.step(t), parts.step(t)
-        assert got[:3] == want[:3], k  # command and reference sample
-        assert got[3] == want[3], k  # push force and tracking errors
-        assert phi_a.tobytes() == phi_b.tobytes(), k
-        pulled += got[2].direction == PULL
-        pushed += got[3][0] != 0.0 and got[3][1] != 0.0
+        assert np.array(got).tobytes() == np.array(want).tobytes(), k  # command, push force,
+        assert phi_a.tobytes() == phi_b.tobytes(), k  # reference sample and tracking errors
+        pulled += got[9] == PULL
+        pushed += got[2] != 0.0 and got[3] != 0.0
     assert pulled and pushed > 50
 
 

@@ -110,7 +110,8 @@ def test_strict_build_with_werror_packages_sources_and_binary(tmp_path, monkeypa
         names = set(zf.namelist())
     assert "modelDescription.xml" in names
     assert "binaries/linux64/TrailerTrain.so" in names
-    for src in ("sources/model.c", "sources/variables.c", "sources/chain.c", "sources/forces.c",
+    for src in ("sources/model.c", "sources/start.c", "sources/variables.c", "sources/chain.c",
+                "sources/forces.c",
                 "sources/slip.c", "sources/slip_solver.c", "sources/fmi2.c", "sources/model.h",
                 "sources/build_config.h",
                 "sources/variables.h"):
@@ -155,11 +156,11 @@ def _plant_files(fmi_version):
 
 def _controller_files():
     """The controller's C files under fmu/ (its control law is core's, not counted here)."""
-    from pushtrain.fmu.controller import GLUE_FILES, LAW_FILES
+    from pushtrain.fmu.controller import GLUE_FILES
     from pushtrain.fmu.controller_variables import CONTROLLER_HEADERS, CONTROLLER_SOURCES
 
     return [FMU_ROOT / ("src" if name in GLUE_FILES else "controller_src") / name
-            for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS if name not in LAW_FILES]
+            for name in CONTROLLER_SOURCES + CONTROLLER_HEADERS]
 
 
 @pytest.mark.parametrize("build", ["plant FMI 2.0", "plant FMI 3.0", "controller"])
@@ -205,8 +206,8 @@ def test_the_c_start_values_are_rendered_from_the_variable_table_and_table_1():
             assert float(starts[row.name]) == row.start, row.name
     literals = [repr(v) for v in (table1.TRAILER_MASS, table1.TRAILER_INERTIA, table1.MU,
                                   table1.LINK)]
-    model_c = (FMU_ROOT / "src" / "model.c").read_text()
-    assert "START_mass" in model_c  # model.c reads the header
+    start_c = (FMU_ROOT / "src" / "start.c").read_text()
+    assert "START_mass" in start_c  # start.c reads the header
     for path in sorted(FMU_ROOT.glob("*/*.[ch]")):
         text = path.read_text()
         assert not [v for v in literals if re.search(rf"(?<![\w.]){re.escape(v)}(?![\w.])",

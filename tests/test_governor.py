@@ -1,4 +1,6 @@
-"""The slip-aware governor: its force model against the FMU, and a manoeuvre it keeps from sliding.
+"""The slip-aware governor: its force model against the FMU, the engine's governor against the
+readable Python one (tests/reference/governor.py) bit for bit, and a manoeuvre it keeps from
+sliding.
 """
 
 import json
@@ -7,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from reference import governor as readable
 
 from pushtrain.cli.main import cli
 from pushtrain.core.governor import GovernorConfig, SlipGovernor, lateral_forces
@@ -51,7 +54,7 @@ def test_governed_commands_keep_the_predicted_forces_within_the_fraction():
     assert gov.limited > 0
     gov.reset()
     for _ in range(50):
-        before = (gov.v_est, gov.w_est)
+        before = gov.estimate
         v, w = gov.limit(phi, 0.15, 0.5, 0.005)
         acc = (min(max((v - before[0]) / cfg.tau, -cfg.acc_max), cfg.acc_max),
                min(max((w - before[1]) / cfg.tau, -cfg.alpha_max), cfg.alpha_max))
@@ -78,3 +81,25 @@ def test_the_manoeuvre_slides_without_the_governor_and_not_with_it(tmp_path):
     # what it costs: the goal is reached no later than 1 s after the ungoverned run
     assert with_gov["status"] == "goal_reached"
     assert with_gov["t_final"] <= without["t_final"] + 1.0
+
+
+def test_the_engines_governor_equals_the_readable_one_bit_for_bit():
+    """pt_governor_limit against the Python limit: every command, the estimates and the counts,
+    over random chains, joints and command jumps (limited, bisected and held)."""
+    rng = np.random.default_rng(12)
+    counts = np.zeros(2)
+    for n in (1, 3, 7):
+        geom = ChainGeometry(rng.uniform(0.3, 0.7, n), rng.uniform(0.3, 0.7, n))
+        cfg = GovernorConfig(geom, rng.uniform(30, 100, n), rng.uniform(1, 5, n),
+                             rng.uniform(0.05, 0.2, n), fraction=float(rng.uniform(0.3, 1.0)))
+        c_gov, py_gov = SlipGovernor(cfg), readable.SlipGovernor(cfg)
+        c_gov.reset(0.05, -0.1)
+        py_gov.reset(0.05, -0.1)
+        for _ in range(300):
+            phi = list(rng.uniform(-0.8, 0.8, n))
+            v, w = rng.uniform(-0.3, 0.3), rng.uniform(-1.0, 1.0)
+            assert c_gov.limit(phi, v, w, 0.005) == py_gov.limit(phi, v, w, 0.005)
+            assert c_gov.estimate == (py_gov.v_est, py_gov.w_est)
+        assert (c_gov.limited, c_gov.saturated) == (py_gov.limited, py_gov.saturated)
+        counts += (c_gov.limited, c_gov.saturated)
+    assert counts[0] > 100 and counts[1] > 0

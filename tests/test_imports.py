@@ -7,8 +7,13 @@ The rooms (folders mapped into ``pushtrain.*``) and what each may import::
     studies -> {mission, report, planner, facility, cosim, fmu, core}
     mission -> {planner, facility, cosim, fmu, core}
     planner -> {facility, core}     report -> {facility, core}     cosim -> {core, fmu}
-    facility -> core
-    core, fmu -> (nothing of pushtrain but the infrastructure in pushtrain/)
+    facility -> core     fmu -> core (its controller FMU only: the engine's C files and Segment)
+    core -> (nothing of pushtrain but the infrastructure in pushtrain/)
+
+The C follows the same arrows: each room compiles its own C (``core/csrc`` the engine,
+``cosim/csrc`` the co-simulation's step loop, ``fmu/src`` and ``fmu/controller_src`` the FMUs),
+another room's C only through the engine's declared files (``core.native.engine_files``), the
+Python face of a C function lives in the room of its C, and no C includes close a circle.
 
 Every room may import ``pushtrain`` itself (errors, files, validation, limits).
 
@@ -30,7 +35,7 @@ ROOMS = ("pushtrain", "core", "fmu", "facility", "planner", "cosim", "report", "
 ALLOWED = {
     "pushtrain": set(),
     "core": set(),
-    "fmu": set(),
+    "fmu": {"core"},
     "facility": {"core"},
     "planner": {"core", "facility"},
     "cosim": {"core", "fmu"},
@@ -374,3 +379,144 @@ def test_the_privacy_rule_would_catch_a_crossing():
     assert [f.split(": ")[1] for f in found] == ["pushtrain.cli.common._scenario"] * 2, found
 
 
+
+
+# ---------------------------------------------------------------------------- the C rooms
+C_FOLDERS = {"core": ["core/csrc"], "cosim": ["cosim/csrc"],
+             "fmu": ["fmu/src", "fmu/controller_src"]}
+C_DEFINITION_RE = __import__("re").compile(
+    r"^(?:PT_API\s+)?[A-Za-z_][\w \*]*?\b(pt_\w+)\s*\([^;]*?\)\s*\{", __import__("re").M)
+
+
+def _c_files():
+    for room, folders in C_FOLDERS.items():
+        for folder in folders:
+            for path in sorted((ROOT / folder).glob("*.[ch]")):
+                yield room, path
+
+
+def test_fmu_imports_core_only_for_the_controller_fmu():
+    """fmu -> core is one declared arrow: the controller FMU's builder takes the engine's C
+    files (core.native.engine_files) and the reference's Segment; nothing else of fmu imports
+    core."""
+    wrong = [f"{path.relative_to(ROOT)} imports {target}"
+             for room, path, target in _internal_edges()
+             if room == "fmu" and _room_of(target) == "core"
+             and (path != ROOT / "fmu" / "controller.py"
+                  or target not in ("pushtrain.core.native", "pushtrain.core.reference"))]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_each_room_reads_only_its_own_c_files():
+    """No module opens another room's C folder (``resources.files("pushtrain.<room>")``): the
+    co-simulation's library and the controller FMU take the engine's files from
+    core.native.engine_files, and the engine's library holds the engine's files only."""
+    import re
+
+    from pushtrain.core.native import ENGINE_FILES
+    from pushtrain.cosim.step_loop import LOOP_FILES
+
+    wrong = []
+    for room, path in _sources():
+        for package in re.findall(r'resources\.files\("pushtrain\.(\w+)"\)', path.read_text()):
+            if package != room:
+                wrong.append(f"{path.relative_to(ROOT)} reads pushtrain.{package}'s files")
+    assert not wrong, "\n".join(wrong)
+    engine = {name for names in ENGINE_FILES.values() for name in names}
+    assert engine == {p.name for p in (ROOT / "core" / "csrc").glob("*.[ch]")}
+    assert set(LOOP_FILES) == {p.name for p in (ROOT / "cosim" / "csrc").glob("*.[ch]")}
+
+
+def test_the_python_face_of_each_c_function_is_in_its_room():
+    """A product module calls a library's pt_* function only if that function is defined in its
+    own room's C (the sensor model's C and Python are both core's; the step loop's both
+    cosim's)."""
+    import re
+
+    home = {}
+    for room, path in _c_files():
+        for name in C_DEFINITION_RE.findall(path.read_text()):
+            home.setdefault(name, room)
+    wrong = []
+    for room, path in _sources():
+        for name in set(re.findall(r"lib\.(pt_\w+)", path.read_text())):
+            if name in home and home[name] != room:
+                wrong.append(f"{path.relative_to(ROOT)} calls {name} of {home[name]}'s C")
+    assert len(home) > 30
+    assert not wrong, "\n".join(wrong)
+
+
+def test_c_includes_form_no_circle_and_follow_the_arrows():
+    """#include "..." between the product's C files: no cycle; a room includes another room's
+    headers only along an allowed arrow (cosim and the controller FMU include the engine's)."""
+    import re
+
+    where = {path.name: room for room, path in _c_files()}
+    graph = {}
+    wrong = []
+    for room, path in _c_files():
+        names = re.findall(r'^#include "([^"]+)"', path.read_text(), re.M)
+        graph[path.name] = {n for n in names if n in where}
+        for name in graph[path.name]:
+            if where[name] != room and where[name] not in ALLOWED[room]:
+                wrong.append(f"{path.relative_to(ROOT)} includes {name} of {where[name]}")
+    assert not wrong, "\n".join(wrong)
+    done, visiting = set(), []
+
+    def visit(name):
+        if name in visiting:
+            raise AssertionError(f"include circle: {visiting[visiting.index(name):] + [name]}")
+        if name in done:
+            return
+        visiting.append(name)
+        for other in graph.get(name, ()):
+            visit(other)
+        visiting.pop()
+        done.add(name)
+
+    for name in graph:
+        visit(name)
+
+
+FUNCTION_DEFINITION_RE = __import__("re").compile(
+    r"^(?:PT_INTERNAL\s+|PT_API\s+)?(?:static\s+)?(?:inline\s+)?[A-Za-z_][\w \*]*?\b(\w+)\s*"
+    r"\([^;{]*\)\s*\{", __import__("re").M)
+
+
+@pytest.mark.parametrize("files", [
+    "core/csrc/*.c", "cosim/csrc/*.c", "fmu/controller_src/*.c",
+    "fmu/src/model.c fmu/src/start.c fmu/src/variables.c fmu/src/chain.c fmu/src/forces.c "
+    "fmu/src/slip.c fmu/src/slip_solver.c fmu/src/instance.c fmu/src/fmi2.c",
+])
+def test_c_files_call_one_another_without_a_circle(files):
+    """Within one build's own C, file A calling a function defined in file B and B calling one
+    of A's (directly or through others) is a circle: the plant's model.c <-> slip.c <->
+    slip_solver.c and model.c <-> variables.c were."""
+    import re
+
+    paths = [p for pattern in files.split() for p in sorted(ROOT.glob(pattern))]
+    home = {}
+    for path in paths:
+        for name in FUNCTION_DEFINITION_RE.findall(path.read_text()):
+            home.setdefault(name, path.name)
+    graph = {path.name: set() for path in paths}
+    for path in paths:
+        text = path.read_text()
+        for name, where in home.items():
+            if where != path.name and re.search(rf"\b{name}\s*\(", text):
+                graph[path.name].add(where)
+    done, visiting = set(), []
+
+    def visit(name):
+        if name in visiting:
+            raise AssertionError(f"call circle: {visiting[visiting.index(name):] + [name]}")
+        if name not in done:
+            visiting.append(name)
+            for other in sorted(graph[name]):
+                visit(other)
+            visiting.pop()
+            done.add(name)
+
+    for name in graph:
+        visit(name)
+    assert len(paths) >= 1

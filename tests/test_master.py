@@ -10,10 +10,10 @@ import pytest
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand
 from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.sensors import SensorConfig
 from pushtrain.cosim.events import Push, SetBias, Slide
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState, PlantConfig
-from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import ControllerError, CosimError, ReferencePathError
 
 D = 0.52

@@ -15,15 +15,14 @@ from click.testing import CliRunner
 from reference.controller import BackwardController
 
 from pushtrain.cli.main import cli
-from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.native_controller import NativeController
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment
+from pushtrain.core.sensors import Measurement, SensorConfig
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import SetBias
 from pushtrain.cosim.master import simulate
-from pushtrain.cosim.sensors import Measurement, SensorConfig
 from pushtrain.errors import ControllerError
 
 
@@ -80,8 +79,8 @@ def test_c_and_python_agree_with_noisy_sensors_a_pose_fix_and_the_governor(fmu3)
         return GovernedController(cls(_config()), gov, dt=0.005)
 
     runs = {cls: simulate(fmu3, ref, governed(cls), horizon=30.0, check_goal=False)
-            for cls in (NativeController, BackwardController)}
-    _same_runs(runs[NativeController], runs[BackwardController])
+            for cls in (Controller, BackwardController)}
+    _same_runs(runs[Controller], runs[BackwardController])
 
 
 def test_the_c_path_takes_one_call_per_instant_and_equals_the_python_loop():
@@ -89,9 +88,9 @@ def test_the_c_path_takes_one_call_per_instant_and_equals_the_python_loop():
     controller, on measured states around the reference, pushing, resting and pulling."""
     geom = ChainGeometry(np.array([0.5, 0.6, 0.45]), np.array([0.3, 0.52, 0.7]))
     ref = _push_pull()
-    c_loop = TrackingLoop(NativeController(_config(geom)), ref)
+    c_loop = TrackingLoop(Controller(_config(geom)), ref)
     py_loop = TrackingLoop(BackwardController(_config(geom)), ref)
-    assert type(c_loop.command.__self__).__name__ == "Tracker"  # the one-call path is used
+    assert c_loop.tracker is not None and py_loop.tracker is None  # the one-call path is used
     for loop in (c_loop, py_loop):
         loop.controller.reset(0.0, 0.0, -0.05)
     rng = np.random.default_rng(3)
@@ -129,7 +128,7 @@ def test_the_law_has_no_implementation_to_choose(fmu3, tmp_path):
 
 def test_the_c_path_refuses_what_the_python_path_refuses():
     ref = _push_pull()
-    loop = TrackingLoop(NativeController(_config()), ref)
+    loop = TrackingLoop(Controller(_config()), ref)
     with pytest.raises(ControllerError, match="3"):
         loop.command(1.0, Measurement(2.0, 0.0, math.pi, [0.0, 0.0]))
     with pytest.raises(ControllerError, match="non-finite measurement"):
@@ -137,8 +136,8 @@ def test_the_c_path_refuses_what_the_python_path_refuses():
     # a pulling instant without a pull guide (a controller without guide_geometry)
     t_pull = next(t for t in np.arange(0.0, ref.t_end, 0.05)
                   if ref.sample_at(t).direction == PULL)
-    bare = NativeController(_config())
-    command = bare.tracker(ref, None)
+    bare = Controller(_config())
+    command = bare.tracker(ref, None).command
     with pytest.raises(ControllerError, match="leader"):
         command(t_pull, Measurement(2.0, 0.0, math.pi, [0.0, 0.0, 0.0]))
     v, w, info, sample = command(0.5, Measurement(2.0, 0.0, math.pi, [0.0, 0.0, 0.0]))

@@ -20,15 +20,23 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 import reference.controller as controller_module
+import reference.pulling as readable_pulling
+import reference.reference as readable_reference
 from reference.controller import BackwardController
 
 from pushtrain.core import native
-from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, wrap_scalar
-from pushtrain.core.native_controller import NativeController
-from pushtrain.core.native_reference import NativeLeader, NativeReference
 from pushtrain.core.pulling import PullGuide, rates_driven_by_last
-from pushtrain.core.reference import PULL, PUSH, REST, Reference, ReferenceSample, Segment
+from pushtrain.core.reference import (
+    PULL,
+    PUSH,
+    REST,
+    Reference,
+    ReferenceSample,
+    SampledReference,
+    Segment,
+)
 from pushtrain.errors import ControllerError, NativeBuildError, ReferencePathError
 
 CSRC = Path(native.__file__).with_name("csrc")
@@ -99,7 +107,7 @@ def test_chain_kinematics_equal_python(n):
     for _ in range(200):
         geom = random_geometry(rng, n)
         py = BackwardController(ControllerConfig(geometry=geom))
-        c = NativeController(ControllerConfig(geometry=geom))
+        c = Controller(ControllerConfig(geometry=geom))
         x0, y0, th0 = rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-7, 7)
         phi = list(rng.uniform(-1.4, 1.4, n))
         assert close(c.last_trailer_pose(x0, y0, th0, phi), py.last_trailer_pose(x0, y0, th0, phi))
@@ -121,7 +129,7 @@ def _command_sequence(rng, n: int, rate_limits: bool, steps: int = 60):
     """Random command sequences through both controllers; returns what each branch saw."""
     geom = random_geometry(rng, n)
     config = random_config(rng, geom, rate_limits)
-    py, c = BackwardController(config), NativeController(config)
+    py, c = BackwardController(config), Controller(config)
     start = [None, (0.0, 0.0, -0.025), (float(rng.uniform(-0.1, 0.1)), 0.01, 0.3)][
         int(rng.integers(3))]
     if start is None:
@@ -198,7 +206,7 @@ def test_speed_limit_keeps_the_curvature_and_rate_limits_bound_the_change():
     """Independent of the Python class: the C limits do what the docstring says."""
     geom = ChainGeometry.uniform(3, 0.52)
     config = ControllerConfig(geometry=geom, v_max=0.1, w_max=0.1, acc_max=0.2, alpha_max=0.3)
-    c = NativeController(config)
+    c = Controller(config)
     c.reset(0.0, 0.0, 0.0)
     m = Meas(0.0, 0.0, 0.0, [0.2, -0.1, 0.3])
     ref = ReferenceSample(-2.0, 0.5, 0.1, -0.5, 0.3, PUSH)
@@ -217,7 +225,7 @@ def test_speed_limit_keeps_the_curvature_and_rate_limits_bound_the_change():
 def test_errors_are_refused_like_python():
     geom = ChainGeometry.uniform(2, 0.5)
     config = ControllerConfig(geometry=geom)
-    py, c = BackwardController(config), NativeController(config)
+    py, c = BackwardController(config), Controller(config)
     push = ReferenceSample(0.0, 0.0, 0.0, -0.1, 0.0, PUSH)
     pull = ReferenceSample(0.0, 0.0, 0.0, 0.1, 0.0, PULL)
     cases = [
@@ -277,29 +285,49 @@ def random_reference(rng, pulls: bool = True) -> Reference:
 
 
 def _sample_times(rng, ref: Reference) -> np.ndarray:
-    knots = np.append(ref._t_start, ref.t_end)
+    knots = np.append(ref.phases[:, 0], ref.t_end)
     return np.concatenate([knots, np.nextafter(knots, -np.inf), np.nextafter(knots, np.inf),
                            rng.uniform(ref.t0 - 2.0, ref.t_end + 2.0, 300)])
 
 
 def test_reference_sampling_equals_python_on_random_references():
+    """The engine's phase table and sampling against the readable Python reference, bit for
+    bit: times, pull runs, single samples, the array form and the goal."""
     rng = np.random.default_rng(2)
     for _ in range(150):
         ref = random_reference(rng)
-        nat = NativeReference.from_reference(ref)
-        assert nat.t_end == ref.t_end and nat.pull_intervals() == ref.pull_intervals()
-        assert np.array_equal(nat.phases[:, 0], ref._t_start)
-        for t in _sample_times(rng, ref):
-            got, want = nat.sample_at(t), ref.sample_at(t)
-            assert got.direction == want.direction and close(got[:5], want[:5]), (t, got, want)
+        py = readable_reference.Reference.from_segments(ref.start, ref.segments, ref.speed,
+                                                        ref.cusp_dwell, ref.t0)
+        assert ref.t_end == py.t_end and ref.pull_intervals() == py.pull_intervals()
+        assert np.array_equal(ref.phases[:, 0], py._t_start)
+        times = _sample_times(rng, ref)
+        for t in times:
+            got, want = ref.sample_at(t), py.sample_at(t)
+            assert tuple(got) == tuple(want), (t, got, want)
+        for got, want in zip(ref.sample(times), py.sample(times), strict=True):
+            assert got.tobytes() == want.tobytes()
+        assert np.array_equal(ref.direction_at(times), py.direction_at(times))
+        assert ref.goal.tobytes() == py.goal.tobytes()
+
+
+def test_a_reference_pickles_with_its_table():
+    """A Reference crosses a process boundary (a sweep's tasks): rebuilt, it samples alike."""
+    import pickle
+
+    rng = np.random.default_rng(8)
+    ref = random_reference(rng).continuation([Segment("line", 0.5, 0.0, PULL)])
+    back = pickle.loads(pickle.dumps(ref))
+    assert back.t0 == ref.t0 and back.segments == ref.segments
+    for t in _sample_times(rng, ref):
+        assert back.sample_at(t) == ref.sample_at(t)
 
 
 def test_extending_or_continuing_a_reference_equals_building_it_at_once():
     rng = np.random.default_rng(3)
     for _ in range(60):
         ref = random_reference(rng)
-        grown = NativeReference(ref.start, ref.speed, ref.cusp_dwell, ref.t0)
-        pieces = [NativeReference(ref.start, ref.speed, ref.cusp_dwell, ref.t0)]
+        grown = Reference(ref.start, (), ref.speed, ref.cusp_dwell, ref.t0)
+        pieces = [Reference(ref.start, (), ref.speed, ref.cusp_dwell, ref.t0)]
         for seg in ref.segments:
             grown.append(seg)
             pieces[-1].append(seg)
@@ -316,13 +344,13 @@ def test_extending_or_continuing_a_reference_equals_building_it_at_once():
 
 
 def test_reference_refuses_what_python_refuses():
-    nat = NativeReference((0.0, 0.0, 0.0))
+    nat = Reference((0.0, 0.0, 0.0))
     with pytest.raises(ReferencePathError):
         nat.sample_at(0.0)  # no segment yet
     with pytest.raises(ReferencePathError):
-        NativeReference((0.0, math.nan, 0.0))
+        Reference((0.0, math.nan, 0.0))
     with pytest.raises(ReferencePathError):
-        NativeReference((0.0, 0.0, 0.0), speed=0.0)
+        Reference((0.0, 0.0, 0.0), speed=0.0)
     with pytest.raises(ReferencePathError):
         nat.append("line")
     lib = native.load()
@@ -336,6 +364,8 @@ def test_reference_refuses_what_python_refuses():
 
 
 def test_pull_guide_in_c_equals_python():
+    """The engine's guide (C backward runs) against the readable Python one, bit for bit, on a
+    line/arc reference (sampled in C) and on its sampled form (sampled through a callback)."""
     rng = np.random.default_rng(4)
     checked = 0
     for n in (1, 3, 10):
@@ -345,14 +375,23 @@ def test_pull_guide_in_c_equals_python():
                 continue
             geom = random_geometry(rng, n)
             step = float(rng.choice([0.02, 0.05, 0.013]))
-            guide = PullGuide(ref, geom, step)
-            nat = NativeLeader.for_reference(NativeReference.from_reference(ref), geom, step)
-            assert len(nat.runs) == len(guide.runs)
-            for a, b in zip(guide.runs, nat.runs, strict=True):
-                for name in ("t", "x", "y", "theta", "v", "w", "headings"):
-                    assert np.allclose(getattr(b, name), getattr(a, name), rtol=0, atol=1e-9)
+            want = readable_pulling.PullGuide(ref, geom, step)
+            for given in (ref, (ref)):
+                got = PullGuide(given, geom, step)
+                assert len(got.runs) == len(want.runs)
+                for a, b in zip(want.runs, got.runs, strict=True):
+                    for name in ("t", "x", "y", "theta", "v", "w", "headings"):
+                        assert getattr(b, name).tobytes() == getattr(a, name).tobytes(), name
             checked += 1
     assert checked > 15
+    ref = random_reference(np.random.default_rng(9))
+    while not ref.pull_intervals():
+        ref = random_reference(rng)
+    sampled = SampledReference.from_reference(ref, 0.01)
+    want = readable_pulling.PullGuide(sampled, GEOM3 := ChainGeometry.uniform(3, 0.52), 0.05)
+    got = PullGuide(sampled, GEOM3, 0.05)
+    for a, b in zip(want.runs, got.runs, strict=True):
+        assert b.headings.tobytes() == a.headings.tobytes() and b.x.tobytes() == a.x.tobytes()
 
 
 def test_leader_sampling_equals_python():
@@ -362,8 +401,9 @@ def test_leader_sampling_equals_python():
         ref = random_reference(rng)
         if not ref.pull_intervals():
             continue
-        guide = PullGuide(ref, random_geometry(rng, 3), step=0.05)
-        nat = NativeLeader.from_guide(guide)
+        geom = random_geometry(rng, 3)
+        guide = readable_pulling.PullGuide(ref, geom, step=0.05)
+        nat = PullGuide(ref, geom, step=0.05)
         edges = np.array([[r.t[0], r.t[-1]] for r in guide.runs]).ravel()
         rows = np.concatenate([r.t for r in guide.runs])
         times = np.concatenate([edges, edges + 5e-7, edges - 5e-7, edges + 2e-6, edges - 2e-6,
@@ -377,7 +417,7 @@ def test_leader_sampling_equals_python():
                     nat.sample_at(t)
                 continue
             got = nat.sample_at(t)
-            assert got.direction == PULL and close(got[:5], want[:5]), (t, got, want)
+            assert got.direction == PULL and tuple(got) == tuple(want), (t, got, want)
             checked += 1
     assert checked > 1500
 
@@ -396,7 +436,7 @@ def test_native_controller_drops_into_the_closed_loop(monkeypatch):
     config = default_controller(geom)
     heads = np.full(4, math.pi) + np.array([0.1, 0.05, 0.0, 0.0])
     want = tc.simulate_tracking(geom, ref, heads, config, 0.05, 1.0)
-    monkeypatch.setattr(tc, "BackwardController", NativeController)
+    monkeypatch.setattr(tc, "BackwardController", Controller)
     got = tc.simulate_tracking(geom, ref, heads, config, 0.05, 1.0)
     assert (got.direction == PULL).any() and (got.direction == PUSH).any()
     assert np.allclose(got.state, want.state, rtol=0, atol=1e-12)
@@ -431,7 +471,7 @@ def test_missing_compiler_is_a_clear_error(monkeypatch, tmp_path):
 def test_failing_compiler_is_a_clear_error(monkeypatch, tmp_path):
     monkeypatch.setenv("PUSHTRAIN_CACHE", str(tmp_path))
     monkeypatch.setenv("CC", "false")
-    with pytest.raises(NativeBuildError, match="compiling core/csrc failed"):
+    with pytest.raises(NativeBuildError, match=r"compiling control\.c, .*step\.c failed"):
         native.library_path()
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]  # no partial library left
 

@@ -1,10 +1,9 @@
-"""Tests of the fixed-step RK4 helper (pushtrain.core.ode)."""
+"""Tests of the fixed-step RK4 helper (tests/reference/ode.py, the form of core/csrc/ode.h)."""
 
 import math
 
 import pytest
-
-from pushtrain.core.ode import rk4_step
+from reference.ode import rk4_step
 
 
 @pytest.mark.parametrize("h", [0.1, -0.05, 0.5])

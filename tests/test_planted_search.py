@@ -86,15 +86,14 @@ class _TurnedGoal(Reference):
         return np.array([x, y, theta + self.turn])
 
 
-def test_the_python_masters_goal_test_needs_the_heading(fmu3):
-    """The Python step loop (where the master's own test decides; the compiled loop tests the
-    heading in C first): the last trailer ends on the goal's point with the line's heading, 20
-    deg from the goal's: never reached."""
+def test_the_masters_goal_test_needs_the_heading(fmu3):
+    """The master's goal test (a candidate in C, then Python's exact test): the last trailer
+    ends on the goal's point with the line's heading, 20 deg from the goal's: never reached."""
     from pushtrain.core.controller import ControllerConfig
     from pushtrain.cosim.master import simulate
 
     ref = _TurnedGoal.from_segments(START, LINE, speed=0.08, cusp_dwell=1.0)
-    kwargs = dict(settle_time=5.0, goal_tolerance=TOLERANCE, step_loop="python")
+    kwargs = dict(settle_time=5.0, goal_tolerance=TOLERANCE)
     result = simulate(fmu3, ref, ControllerConfig.uniform(3), **kwargs)
     assert result.status != "goal_reached", result.message
     d = result.data

@@ -30,9 +30,9 @@ def run3(built_fmu):
     """A real co-simulation: robot + 3 trailers pushing along a line then an arc."""
     from pushtrain.core.controller import ControllerConfig
     from pushtrain.core.reference import Reference, Segment
+    from pushtrain.core.sensors import SensorConfig
     from pushtrain.cosim.events import Slide
     from pushtrain.cosim.master import simulate
-    from pushtrain.cosim.sensors import SensorConfig
 
     reference = Reference.from_segments((0, 0, 0), [Segment("line", 1.0), Segment("arc", 1.0, 0.4)])
     sensors = SensorConfig(3, joint_bias=[0.0, 0.0, math.radians(3.0)])

@@ -23,7 +23,7 @@ def mixed_reference(cusp_dwell=1.5):
 
 
 def phase_boundaries(ref):
-    return np.asarray(ref._t_start)
+    return ref.phases[:, 0]
 
 
 def test_eq1_holds_within_segments():

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from pushtrain.cosim.sensors import Sensors
+from pushtrain.core.sensors import Sensors
 from pushtrain.fmu.variables import variables_for
 from pushtrain.mission.runner import (
     controller_of,

@@ -1,10 +1,10 @@
-"""Tests of the sensor models (pushtrain.cosim.sensors)."""
+"""Tests of the sensor models (pushtrain.core.sensors)."""
 
 import numpy as np
 import pytest
 from reference.sensors import ReferenceSensors
 
-from pushtrain.cosim.sensors import Measurement, SensorConfig, Sensors
+from pushtrain.core.sensors import Measurement, SensorConfig, Sensors
 from pushtrain.errors import SensorError
 
 NOISY = dict(joint_noise=0.01, position_noise=0.02, heading_noise=0.005)

@@ -7,8 +7,8 @@ import pytest
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.core.sensors import SensorConfig
 from pushtrain.cosim.plant import PlantConfig
-from pushtrain.cosim.sensors import SensorConfig
 from pushtrain.errors import ScenarioError
 from pushtrain.mission.scenario import (
     ControllerSection,
@@ -92,7 +92,7 @@ def test_every_file_field_reaches_the_config():
 def test_every_sensor_field_reaches_the_sensor_model():
     """The walk of joint_bias_deg and its neighbours: file (degrees) -> SensorConfig (radians)
     -> the model the C reads (its bias array)."""
-    from pushtrain.cosim.sensors import Sensors
+    from pushtrain.core.sensors import Sensors
     from pushtrain.mission.runner import sensors_of
 
     data = {"mission": {"kind": "scripted"}, "start": {"x": 0.0, "y": 0.0},

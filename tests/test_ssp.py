@@ -21,8 +21,8 @@ from click.testing import CliRunner
 from reference.controller import BackwardController
 
 from pushtrain.cli.main import cli
+from pushtrain.core.sensors import Sensors
 from pushtrain.core.tracking import TrackingLoop
-from pushtrain.cosim.sensors import Sensors
 from pushtrain.mission.runner import (
     controller_of,
     initial_of,

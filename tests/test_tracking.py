@@ -9,8 +9,8 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand
 from pushtrain.core.pulling import PullGuide
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment
+from pushtrain.core.sensors import Measurement
 from pushtrain.core.tracking import TrackingLoop
-from pushtrain.cosim.sensors import Measurement
 
 
 def _reference():

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "control.h"
+#include "ode.h"
 
 #define PT_PI 3.141592653589793115997963468544185161590576171875
 
@@ -413,6 +414,29 @@ int pt_reference_sample(const PtReference *r, double t, PtSample *out) {
     return PT_OK;
 }
 
+int pt_reference_samples(const PtReference *r, const double *t, int count, double *x,
+                         double *y, double *theta, double *v, double *w, int *direction) {
+    int i;
+    if (t == NULL || count < 0 || (count > 0 && (x == NULL || y == NULL || theta == NULL ||
+                                                 v == NULL || w == NULL || direction == NULL))) {
+        return PT_ERR_ARGUMENT;
+    }
+    for (i = 0; i < count; i++) {
+        PtSample s;
+        const int status = pt_reference_sample(r, t[i], &s);
+        if (status != PT_OK) {
+            return status;
+        }
+        x[i] = s.x;
+        y[i] = s.y;
+        theta[i] = s.theta;
+        v[i] = s.v;
+        w[i] = s.w;
+        direction[i] = s.direction;
+    }
+    return PT_OK;
+}
+
 int pt_reference_pull_intervals(const PtReference *r, double *t_a, double *t_b, int capacity) {
     int k = 0, count = 0;
     if (r == NULL || capacity < 0 || (capacity > 0 && (t_a == NULL || t_b == NULL))) {
@@ -460,10 +484,16 @@ int pt_pull_run_rows(double t_a, double t_b, double step) {
 
 int pt_pull_run_work(int n) { return 6 * (n + 1); }
 
+/* A reference and its sampling function. */
+typedef struct {
+    PtSampler sample;
+    const void *source;
+} Sampled;
+
 /* The reference at t clamped to [t_a, t_b - eps] (the backward run's vw and last). */
-static void clamped_sample(const PtReference *ref, double t, double t_a, double t_end_eps,
+static void clamped_sample(const Sampled *ref, double t, double t_a, double t_end_eps,
                            PtSample *s) {
-    pt_reference_sample(ref, py_min(py_max(t, t_a), t_end_eps), s);
+    ref->sample(ref->source, py_min(py_max(t, t_a), t_end_eps), s);
 }
 
 /* Times of the backward run: numpy.linspace(t_b, t_a, k_steps + 1)[j]. */
@@ -481,7 +511,7 @@ static double run_time(double t_b, double t_a, int k_steps, int j) {
 
 /* One output row of the run at time tau with headings theta (PullGuide._backward_run's
  * positions through body_positions_along and velocities through robot_velocity_from_last). */
-static void pull_row(const PtChain *model, const PtReference *ref, double tau, double t_a,
+static void pull_row(const PtChain *model, const Sampled *ref, double tau, double t_a,
                      double t_end_eps, const double *theta, double *phi, int row, double *T,
                      double *X, double *Y, double *TH, double *V, double *W, double *headings) {
     const int n = model->n;
@@ -516,72 +546,79 @@ static void pull_row(const PtChain *model, const PtReference *ref, double tau, d
     }
 }
 
-/* d(theta)/dt driven by the last trailer's reference at time t (PullGuide's rates). */
-static void driven(const PtChain *model, const PtReference *ref, double t, double t_a,
-                   double t_end_eps, const double *theta, double *rates) {
+/* The backward run's ODE: d(theta)/dt driven by the last trailer's reference at time t. */
+typedef struct {
+    const PtChain *model;
+    const Sampled *ref;
+    double t_a, t_end_eps;
+} Driven;
+
+static inline void driven(const void *context, double t, const double *theta, double *rates) {
+    const Driven *d = (const Driven *)context;
     PtSample s;
-    clamped_sample(ref, t, t_a, t_end_eps, &s);
-    pt_rates_from_last(model, theta, s.v, s.w, rates);
+    clamped_sample(d->ref, t, d->t_a, d->t_end_eps, &s);
+    pt_rates_from_last(d->model, theta, s.v, s.w, rates);
+}
+
+static int reference_sampler(const void *source, double t, PtSample *out) {
+    return pt_reference_sample((const PtReference *)source, t, out);
 }
 
 int pt_pull_run(const PtChain *model, const PtReference *ref, double t_a, double t_b, double step,
                 double *work, double *T, double *X, double *Y, double *TH, double *V, double *W,
                 double *headings) {
-    int rows, k_steps, k, i, nb;
-    double eps, t_end_eps;
-    double *theta, *k1, *k2, *k3, *k4, *tmp;
-    PtSample end;
-    if (model == NULL || ref == NULL || work == NULL || T == NULL || X == NULL || Y == NULL ||
-        TH == NULL || V == NULL || W == NULL || model->n < 1) {
+    if (ref == NULL) {
         return PT_ERR_ARGUMENT;
     }
     if (ref->n_phases < 1) {
         return PT_ERR_EMPTY_REFERENCE;
     }
+    return pt_pull_run_sampled(model, reference_sampler, ref, t_a, t_b, step, work, T, X, Y, TH,
+                               V, W, headings);
+}
+
+int pt_pull_run_sampled(const PtChain *model, PtSampler sample, const void *source, double t_a,
+                        double t_b, double step, double *work, double *T, double *X, double *Y,
+                        double *TH, double *V, double *W, double *headings) {
+    int rows, k_steps, k, i, nb;
+    double eps, t_end_eps;
+    double *theta, *tmp;
+    PtSample end;
+    Sampled ref;
+    Driven rates;
+    if (model == NULL || sample == NULL || work == NULL || T == NULL || X == NULL || Y == NULL ||
+        TH == NULL || V == NULL || W == NULL || model->n < 1) {
+        return PT_ERR_ARGUMENT;
+    }
     rows = pt_pull_run_rows(t_a, t_b, step);
     if (rows < 0) {
         return PT_ERR_ARGUMENT;
     }
+    ref.sample = sample;
+    ref.source = source;
     k_steps = rows - 1;
     nb = model->n + 1;
     theta = work;
-    k1 = work + nb;
-    k2 = work + 2 * nb;
-    k3 = work + 3 * nb;
-    k4 = work + 4 * nb;
-    tmp = work + 5 * nb; /* also holds phi (n values) in pull_row */
+    tmp = work + 5 * nb; /* holds phi (n values) in pull_row; work + nb.. is the RK4's */
     eps = 1e-9 * py_max(1.0, fabs(t_b));
     t_end_eps = t_b - eps;
-    pt_reference_sample(ref, t_end_eps, &end);
+    rates.model = model;
+    rates.ref = &ref;
+    rates.t_a = t_a;
+    rates.t_end_eps = t_end_eps;
+    sample(source, t_end_eps, &end);
     for (i = 0; i < nb; i++) {
         theta[i] = end.theta; /* drawn out straight at the run's end */
     }
-    pull_row(model, ref, t_b, t_a, t_end_eps, theta, tmp, rows - 1, T, X, Y, TH, V, W, headings);
+    pull_row(model, &ref, t_b, t_a, t_end_eps, theta, tmp, rows - 1, T, X, Y, TH, V, W, headings);
     for (k = 0; k < k_steps; k++) {
         const double t = run_time(t_b, t_a, k_steps, k);
         const double t_next = run_time(t_b, t_a, k_steps, k + 1);
-        const double h = t_next - t; /* < 0: backward in time */
         PtSample s;
-        /* ode.rk4_step */
-        driven(model, ref, t, t_a, t_end_eps, theta, k1);
-        for (i = 0; i < nb; i++) {
-            tmp[i] = theta[i] + 0.5 * h * k1[i];
-        }
-        driven(model, ref, t + 0.5 * h, t_a, t_end_eps, tmp, k2);
-        for (i = 0; i < nb; i++) {
-            tmp[i] = theta[i] + 0.5 * h * k2[i];
-        }
-        driven(model, ref, t + 0.5 * h, t_a, t_end_eps, tmp, k3);
-        for (i = 0; i < nb; i++) {
-            tmp[i] = theta[i] + h * k3[i];
-        }
-        driven(model, ref, t + h, t_a, t_end_eps, tmp, k4);
-        for (i = 0; i < nb; i++) {
-            theta[i] = theta[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-        }
-        clamped_sample(ref, t_next, t_a, t_end_eps, &s);
+        pt_rk4_step(driven, &rates, t, theta, nb, t_next - t, work + nb); /* h < 0: backward */
+        clamped_sample(&ref, t_next, t_a, t_end_eps, &s);
         theta[nb - 1] = s.theta;
-        pull_row(model, ref, t_next, t_a, t_end_eps, theta, tmp, rows - 2 - k, T, X, Y, TH, V, W,
+        pull_row(model, &ref, t_next, t_a, t_end_eps, theta, tmp, rows - 2 - k, T, X, Y, TH, V, W,
                  headings);
     }
     return PT_OK;
@@ -650,23 +687,28 @@ int pt_leader_sample(const PtLeader *g, double t, PtSample *out) {
 
 /* ------------------------------------------------------------------ one control instant */
 
-int pt_track(PtTrack *k) {
+int pt_instant(const PtController *c, PtControlState *state, const PtReference *reference,
+               const PtLeader *leader, double t, const PtMeasurement *m, PtSample *sample,
+               double cmd[2], PtControlInfo *info) {
     PtSample robot;
-    int status;
-    if (k == NULL) {
-        return PT_ERR_ARGUMENT;
-    }
-    status = pt_reference_sample(k->reference, k->t, &k->sample);
+    int status = pt_reference_sample(reference, t, sample);
     if (status != PT_OK) {
         return status;
     }
-    if (k->sample.direction == PT_PULL && k->leader != NULL) {
-        status = pt_leader_sample(k->leader, k->t, &robot);
+    if (sample->direction == PT_PULL && leader != NULL) {
+        status = pt_leader_sample(leader, t, &robot);
         if (status != PT_OK) {
             return status;
         }
-        return pt_command(k->controller, k->state, k->t, &k->m, &k->sample, &robot, k->cmd,
-                          &k->info);
+        return pt_command(c, state, t, m, sample, &robot, cmd, info);
     }
-    return pt_command(k->controller, k->state, k->t, &k->m, &k->sample, NULL, k->cmd, &k->info);
+    return pt_command(c, state, t, m, sample, NULL, cmd, info);
+}
+
+int pt_track(PtTrack *k) {
+    if (k == NULL) {
+        return PT_ERR_ARGUMENT;
+    }
+    return pt_instant(k->controller, k->state, k->reference, k->leader, k->t, &k->m, &k->sample,
+                      k->cmd, &k->info);
 }

@@ -221,6 +221,11 @@ PT_API int pt_reference_sample(const PtReference *r, double t, PtSample *out);
 PT_API int pt_reference_pull_intervals(const PtReference *r, double *t_a, double *t_b,
                                        int capacity);
 
+/* pt_reference_sample at each of the count times t into x, y, theta, v, w and direction (the
+ * arrays of Reference.sample and direction_at). Returns PT_OK or the first failure's status. */
+PT_API int pt_reference_samples(const PtReference *r, const double *t, int count, double *x,
+                                double *y, double *theta, double *v, double *w, int *direction);
+
 /* ---- the pull guide (core/pulling.py) ---- */
 
 /* Rows of the backward run over [t_a, t_b] with RK4 step `step` (PullGuide: the run's K), or
@@ -230,18 +235,38 @@ PT_API int pt_pull_run_rows(double t_a, double t_b, double step);
 /* Doubles of work storage pt_pull_run needs for a chain of n trailers. */
 PT_API int pt_pull_run_work(int n);
 
-/* The robot's reference over the pulling run [t_a, t_b] of ref (PullGuide._backward_run): the
- * chain drawn out straight at t_b, driven backward in time by the last trailer's reference with
- * RK4 of step `step`. Writes pt_pull_run_rows(...) rows, times ascending, into t, x, y, theta, v,
- * w and, if not NULL, the headings (rows x (n+1), row-major). work: pt_pull_run_work(n) doubles. */
+/* The robot's reference over the pulling run [t_a, t_b] of ref (core/pulling.py PullGuide;
+ * readable in tests/reference/pulling.py): the chain drawn out straight at t_b, driven backward
+ * in time by the last trailer's reference with RK4 of step `step`. Writes
+ * pt_pull_run_rows(...) rows, times ascending, into t, x, y, theta, v, w and, if not NULL, the
+ * headings (rows x (n+1), row-major). work: pt_pull_run_work(n) doubles. */
 PT_API int pt_pull_run(const PtChain *model, const PtReference *ref, double t_a, double t_b,
                        double step, double *work, double *t, double *x, double *y, double *theta,
                        double *v, double *w, double *headings);
+
+/* A reference given by its sampling function: the sample at t [s] of `source` into out. */
+typedef int (*PtSampler)(const void *source, double t, PtSample *out);
+
+/* pt_pull_run of a reference given by its sampling function (a sampled reference). */
+PT_API int pt_pull_run_sampled(const PtChain *model, PtSampler sample, const void *source,
+                               double t_a, double t_b, double step, double *work, double *t,
+                               double *x, double *y, double *theta, double *v, double *w,
+                               double *headings);
 
 /* The robot's reference at t from a leader table (PullGuide.sample_at); direction PT_PULL. */
 PT_API int pt_leader_sample(const PtLeader *leader, double t, PtSample *out);
 
 /* ---- one control instant (core/tracking.py TrackingLoop.command) ---- */
+
+/* The step sequence of one control instant, written once for the co-simulation (pt_track), the
+ * planner's rollout (rollout.c) and the controller FMU (ctrl_model.c): sample the last
+ * trailer's reference at t into *sample, while pulling the robot's own from the leader table
+ * (NULL: none; pt_command then refuses a pulling instant), and command (v0, w0) into cmd for
+ * the measurement m (info may be NULL). Returns pt_reference_sample's or pt_leader_sample's
+ * status if one fails, else pt_command's. */
+PT_API int pt_instant(const PtController *c, PtControlState *state, const PtReference *reference,
+                      const PtLeader *leader, double t, const PtMeasurement *m,
+                      PtSample *sample, double cmd[2], PtControlInfo *info);
 
 /* Everything one control instant reads and writes, so that a binding makes one call with one
  * argument per instant: set t and m (t, m.x0, m.y0, m.theta0 are four consecutive doubles),

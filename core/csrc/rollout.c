@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "rollout.h"
+#include "ode.h"
 
 /* Work layout for n trailers (nz = 3 + n state components). */
 #define RK_STAGES 5 /* k1, k2, k3, k4, tmp */
@@ -26,37 +27,30 @@ int pt_rollout_work(int n) {
     return RK_STAGES * nz + n + 9 * (n + 1);
 }
 
-/* dz/dt of the robot moving along its heading with (v0, w0) and the towed chain (the f of
- * train_check._rk4_step). */
-static void plant_rates(const PtChain *plant, const double *z, double v0, double w0, double *dz) {
-    dz[0] = v0 * cos(z[2]);
-    dz[1] = v0 * sin(z[2]);
-    pt_towed_rates(plant, z + 2, v0, w0, dz + 2);
+/* The train under a held command (v0 [m/s], w0 [rad/s]). */
+typedef struct {
+    const PtChain *plant;
+    double v0, w0;
+} Held;
+
+/* dz/dt of the robot moving along its heading with the held command and the towed chain (the
+ * f of train_check._rk4_step). */
+static inline void plant_rates(const void *context, double t, const double *z, double *dz) {
+    const Held *held = (const Held *)context;
+    (void)t;
+    dz[0] = held->v0 * cos(z[2]);
+    dz[1] = held->v0 * sin(z[2]);
+    pt_towed_rates(held->plant, z + 2, held->v0, held->w0, dz + 2);
 }
 
 /* One RK4 step of h under the held command (ode.rk4_step). */
 static void plant_rk4(const PtChain *plant, double *z, double v0, double w0, double h,
                       double *work) {
-    const int nz = 3 + plant->n;
-    double *k1 = work, *k2 = work + nz, *k3 = work + 2 * nz, *k4 = work + 3 * nz;
-    double *tmp = work + 4 * nz;
-    int i;
-    plant_rates(plant, z, v0, w0, k1);
-    for (i = 0; i < nz; i++) {
-        tmp[i] = z[i] + 0.5 * h * k1[i];
-    }
-    plant_rates(plant, tmp, v0, w0, k2);
-    for (i = 0; i < nz; i++) {
-        tmp[i] = z[i] + 0.5 * h * k2[i];
-    }
-    plant_rates(plant, tmp, v0, w0, k3);
-    for (i = 0; i < nz; i++) {
-        tmp[i] = z[i] + h * k3[i];
-    }
-    plant_rates(plant, tmp, v0, w0, k4);
-    for (i = 0; i < nz; i++) {
-        z[i] = z[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-    }
+    Held held;
+    held.plant = plant;
+    held.v0 = v0;
+    held.w0 = w0;
+    pt_rk4_step(plant_rates, &held, 0.0, z, 3 + plant->n, h, work);
 }
 
 int pt_hold(const PtChain *plant, double *z, double v0, double w0, double h, int count,
@@ -353,23 +347,17 @@ int pt_rollout(const PtRollout *r, long *k, double *z, PtControlState *control, 
     }
     for (row = 0; *k < k_end; row++) {
         const double t = r->t_start + (double)(*k) * r->step;
-        PtSample ref, lead;
-        const PtSample *leader = NULL;
+        PtSample ref;
         double cmd[2];
-        int status = pt_reference_sample(r->reference, t, &ref);
-        if (status == PT_OK && ref.direction == PT_PULL && r->leader != NULL) {
-            status = pt_leader_sample(r->leader, t, &lead);
-            leader = &lead;
+        int status;
+        m.x0 = z[0];
+        m.y0 = z[1];
+        m.theta0 = z[2];
+        for (i = 1; i <= n; i++) {
+            phi[i - 1] = z[2 + i - 1] - z[2 + i];
         }
-        if (status == PT_OK) {
-            m.x0 = z[0];
-            m.y0 = z[1];
-            m.theta0 = z[2];
-            for (i = 1; i <= n; i++) {
-                phi[i - 1] = z[2 + i - 1] - z[2 + i];
-            }
-            status = pt_command(r->controller, control, t, &m, &ref, leader, cmd, NULL);
-        }
+        status = pt_instant(r->controller, control, r->reference, r->leader, t, &m, &ref, cmd,
+                            NULL);
         if (status != PT_OK) {
             set_violation(violation, *k, 0, -1, PT_STOP_CONTROL, z[0], z[1], (double)status);
             return PT_OK;

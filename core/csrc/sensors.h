@@ -1,6 +1,6 @@
 /*
  * The sensor model of pushtrain in C99, written once: what the controller sees of the chain.
- * The co-simulation master (cosim/sensors.py through ctypes, cosim/csrc/master_loop.c) and the
+ * The co-simulation master (core/sensors.py through ctypes, cosim/csrc/master_loop.c) and the
  * controller FMU (fmu/controller_src/ctrl_model.c) all measure through these functions.
  *
  * Joint i (potentiometer), in this order (Section 3.1 of the paper, plus play and resolution):

@@ -36,7 +36,8 @@ int pt_step(PtStep *s, double t, const double *truth, const double *noise, doubl
     const double *saved_phi;
     int status;
     if (s == NULL || s->track == NULL || s->sensors == NULL || truth == NULL ||
-        phi_meas == NULL || (s->n_pushes > 0 && s->pushes == NULL)) {
+        phi_meas == NULL || (s->n_pushes > 0 && s->pushes == NULL) ||
+        (s->governor != NULL && s->governor_work == NULL)) {
         return PT_ERR_ARGUMENT;
     }
     track = s->track;
@@ -48,6 +49,15 @@ int pt_step(PtStep *s, double t, const double *truth, const double *noise, doubl
     track->m.phi = saved_phi;
     if (status != PT_OK) {
         return status;
+    }
+    if (s->governor != NULL) { /* governor.GovernedController.command */
+        double v = track->cmd[0], w = track->cmd[1];
+        pt_governor_limit(s->governor, phi_meas, &v, &w, s->governor_work);
+        if (v != track->cmd[0] || w != track->cmd[1]) {
+            pt_control_sent(track->state, v, w); /* the rate limits go on from what is sent */
+            track->cmd[0] = v;
+            track->cmd[1] = w;
+        }
     }
     outputs(s, truth, &track->sample);
     return PT_OK;

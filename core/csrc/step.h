@@ -2,11 +2,11 @@
  * The closed-loop work of one communication step of the co-simulation, in one call: the plant's
  * true state -> sensors (sensors.c) -> the control law with its reference and pull leader
  * (pt_track, control.c) -> the push force on the last trailer and the last trailer's tracking
- * errors. The co-simulation master (cosim/csrc/master_loop.c, and cosim/master.py's Python
- * loop when the law is the compiled one) keeps only the FMU calls and the recording around it.
- * (A run whose law is Python, the slip governor or an open-loop profile, computes the push
- * force and errors in Python, cosim/master.py: an open loop's reference sample is NaN, and the
- * sign of a NaN result depends on how a compiler orders the operands.)
+ * errors. The co-simulation master's step loop (cosim/csrc/master_loop.c) keeps only the FMU
+ * calls and the recording around it; a slip governor (governor.c) limits the law's command.
+ * (A run whose law is written in Python, an open-loop profile, computes the push force and
+ * errors in Python, cosim/step_loop.py PythonLaw: an open loop's reference sample is NaN, and
+ * the sign of a NaN result depends on how a compiler orders the operands.)
  *
  * C99, reentrant, no allocation; every array is the caller's.
  */
@@ -14,6 +14,7 @@
 #define PUSHTRAIN_STEP_H
 
 #include "control.h"
+#include "governor.h"
 #include "sensors.h"
 
 #ifdef __cplusplus
@@ -28,6 +29,8 @@ typedef struct {
     double push[2];         /* out: the total force (push_x, push_y) on the last trailer [N] */
     double errors[3];       /* out: the last trailer's true pose against the reference sample,
                              * in its frame: e_lon, e_lat [m], e_theta [rad] (wrapped) */
+    PtGovernor *governor;   /* the slip governor on the law's command, or NULL */
+    double *governor_work;  /* pt_governor_work(n) doubles (with a governor) */
 } PtStep;
 
 /* The pose (x, y [m], theta [rad]) against the reference sample, in the sample's frame:

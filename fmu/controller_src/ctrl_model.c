@@ -172,7 +172,7 @@ static int at_goal(const CtrlModel *m, double t, const PtControlInfo *info) {
 int ctrl_model_evaluate(CtrlModel *m, char *msg, size_t len) {
     PtController c;
     PtMeasurement meas;
-    PtSample ref, leader;
+    PtSample ref;
     PtControlInfo info;
     CtrlMemory next = m->memory;
     double phi_meas[CTRL_N], cmd[2];
@@ -201,14 +201,7 @@ int ctrl_model_evaluate(CtrlModel *m, char *msg, size_t len) {
     meas.x_n = m->r[R_x_last];
     meas.y_n = m->r[R_y_last];
     meas.theta_n = m->r[R_theta_last];
-    status = pt_reference_sample(&m->reference, t, &ref);
-    if (status == PT_OK && ref.direction == PT_PULL) {
-        status = pt_leader_sample(&m->leader, t, &leader);
-    }
-    if (status == PT_OK) {
-        status = pt_command(&c, &next.state, t, &meas, &ref,
-                            ref.direction == PT_PULL ? &leader : NULL, cmd, &info);
-    }
+    status = pt_instant(&c, &next.state, &m->reference, &m->leader, t, &meas, &ref, cmd, &info);
     if (status != PT_OK) {
         snprintf(msg, len, "no command at t = %.9g s: %s (robot pose %g, %g, %g)", t,
                  law_error(status), meas.x0, meas.y0, meas.theta0);

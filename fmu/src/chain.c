@@ -12,6 +12,7 @@
  * which for u = 0 is the no-slip map (the inverse of the paper's Eq. 5).
  */
 #include <math.h>
+#include <string.h>
 
 #include "model.h"
 
@@ -69,5 +70,55 @@ void chain_accelerations(const ModelData *m, const double *c, const double *s, c
                 + s[i] * r * dw[i - 1];
         dw[i] = (c[i] * phidot * v[i - 1] + s[i] * dv[i - 1] + s[i] * phidot * lateral_prev
                  - c[i] * r * dw[i - 1]) / m->front[i];
+    }
+}
+
+/* One classical RK4 step of the rolling (kinematic) model. */
+void model_rk4_step(const ModelData *m, double *q, double dt) {
+    double k1[MAX_STATE], k2[MAX_STATE], k3[MAX_STATE], k4[MAX_STATE];
+    double tmp[MAX_STATE] = {0.0}; /* beyond n_state never read (gcc cannot see it inlined) */
+    const int n_state = N_STATE(m);
+    int k;
+    chain_derivatives(m, q, k1);
+    for (k = 0; k < n_state; k++) tmp[k] = q[k] + 0.5 * dt * k1[k];
+    chain_derivatives(m, tmp, k2);
+    for (k = 0; k < n_state; k++) tmp[k] = q[k] + 0.5 * dt * k2[k];
+    chain_derivatives(m, tmp, k3);
+    for (k = 0; k < n_state; k++) tmp[k] = q[k] + dt * k3[k];
+    chain_derivatives(m, tmp, k4);
+    for (k = 0; k < n_state; k++) {
+        q[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
+    }
+}
+
+void robot_hitch(const ModelData *m, const double *q, double *vh, double *ah) {
+    const double th = q[IX_THETA], v0 = q[IX_V0], w0 = q[IX_W0], r = m->rear[0];
+    const double ex = cos(th), ey = sin(th), nx = -ey, ny = ex;
+    double dv0, dw0;
+    robot_accelerations(m, q, &dv0, &dw0);
+    vh[0] = v0 * ex - r * w0 * nx;
+    vh[1] = v0 * ey - r * w0 * ny;
+    /* a0 = dv0 e0 + v0 w0 n0;  a_h = a0 - R0 (dw0 n0 - w0^2 e0) */
+    ah[0] = dv0 * ex + v0 * w0 * nx - r * (dw0 * nx - w0 * w0 * ex);
+    ah[1] = dv0 * ey + v0 * w0 * ny - r * (dw0 * ny - w0 * w0 * ey);
+}
+
+void robot_rk4(const ModelData *m, double *q, double dt) {
+    double k[4][5], tmp[MAX_STATE];
+    const int idx[5] = {IX_X0, IX_Y0, IX_THETA, IX_V0, IX_W0};
+    const double weight[4] = {0.0, 0.5, 0.5, 1.0};
+    int stage, j;
+    memcpy(tmp, q, sizeof(tmp));
+    for (stage = 0; stage < 4; stage++) {
+        for (j = 0; j < 5 && stage > 0; j++) {
+            tmp[idx[j]] = q[idx[j]] + weight[stage] * dt * k[stage - 1][j];
+        }
+        k[stage][0] = tmp[IX_V0] * cos(tmp[IX_THETA]);
+        k[stage][1] = tmp[IX_V0] * sin(tmp[IX_THETA]);
+        k[stage][2] = tmp[IX_W0];
+        robot_accelerations(m, tmp, &k[stage][3], &k[stage][4]);
+    }
+    for (j = 0; j < 5; j++) {
+        q[idx[j]] += dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
     }
 }

@@ -46,3 +46,20 @@ void lateral_forces(const ModelData *m, const double *q, const double *v, const 
         next_fy = hitch_fy[i];
     }
 }
+
+bool slip_wheels_roll(const ModelData *m, const double *q) {
+    double c[MAX_BODIES], s[MAX_BODIES], v[MAX_BODIES], w[MAX_BODIES], dv[MAX_BODIES];
+    double dw[MAX_BODIES], f[MAX_BODIES], hx[MAX_BODIES], hy[MAX_BODIES];
+    double dv0, dw0;
+    int i;
+    chain_velocities(m, q, c, s, v, w);
+    robot_accelerations(m, q, &dv0, &dw0);
+    chain_accelerations(m, c, s, v, w, dv0, dw0, dv, dw);
+    lateral_forces(m, q, v, w, dv, dw, f, hx, hy);
+    for (i = 1; i <= m->n; i++) {
+        if (fabs(f[i]) > m->F_lat_max[i]) {
+            return false;
+        }
+    }
+    return true;
+}

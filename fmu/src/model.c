@@ -1,83 +1,15 @@
 /*
- * Start values, combination checks, outputs and fixed-step RK4 integration of TrailerTrain, and
- * its side of the glue's model interface (fmu_model.h): initialization, outputs, the step.
- * Start values come from start_values.h, which the builder renders from fmu/variables.py (the
- * modelDescription.xml states the same; a test checks them through the FMU).
+ * Combination checks, outputs and fixed-step integration of TrailerTrain, and its side of the
+ * glue's model interface (fmu_model.h): initialization, outputs, the step. The start values are
+ * start.c's, the physics chain.c's, forces.c's, slip.c's and slip_solver.c's.
  */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "model.h"
-#include "start_values.h" /* START_<name>, generated from fmu/variables.py (Table 1 included) */
 
 #define PT_PI 3.14159265358979323846
-
-/* The per-body parameters and inputs at their start values for m->n trailers. */
-static void set_array_defaults(ModelData *m) {
-    const int n = m->n;
-    int i;
-    for (i = 0; i < MAX_BODIES; i++) {
-        const bool trailer = i >= 1 && i <= n;
-        m->front[i] = trailer ? START_front : 0.0;
-        m->rear[i] = (i < n) ? START_rear : 0.0;
-        m->mass[i] = trailer ? START_mass : 0.0;
-        m->inertia[i] = trailer ? START_inertia : 0.0;
-        m->payload[i] = trailer ? START_payload : 0.0;
-        m->mu[i] = trailer ? START_mu : 0.0;
-        m->theta_start[i] = (i <= n) ? START_theta_start : 0.0;
-        m->slide[i] = trailer ? START_slide : 0.0;
-    }
-}
-
-void model_set_defaults(ModelData *m) {
-    memset(m, 0, sizeof(*m));
-    m->n = DEFAULT_TRAILERS;
-    set_array_defaults(m);
-    m->g = START_g;
-    m->robot_tau = START_robot_tau;
-    m->robot_acc_max = START_robot_acc_max;
-    m->robot_alpha_max = START_robot_alpha_max;
-    m->slip_mode = START_slip_mode;
-    m->phi_max = START_phi_max;
-    m->x0_start = START_x0_start;
-    m->y0_start = START_y0_start;
-    m->v_start = START_v_start;
-    m->w_start = START_w_start;
-    m->max_substep = START_max_substep;
-    m->slip_substep = START_slip_substep;
-    m->v_cmd = START_v_cmd;
-    m->w_cmd = START_w_cmd;
-    m->push_x = START_push_x;
-    m->push_y = START_push_y;
-    m->time = 0.0;
-    model_state_from_start(m);
-}
-
-void model_set_trailers(ModelData *m, int n) {
-    m->n = n;
-    set_array_defaults(m);
-    model_state_from_start(m);
-}
-
-void model_state_from_start(ModelData *m) {
-    int i;
-    m->q[IX_X0] = m->x0_start;
-    m->q[IX_Y0] = m->y0_start;
-    for (i = 0; i <= m->n; i++) {
-        m->q[IX_THETA + i] = m->theta_start[i];
-    }
-    m->q[IX_V0] = m->v_start;
-    m->q[IX_W0] = m->w_start;
-    m->dynamic = false;
-    for (i = 0; i <= m->n; i++) {
-        m->wt[i] = 0.0;
-        m->alpha_dyn[i] = 0.0;
-        m->f_dyn[i] = 0.0;
-        m->F_lat_max[i] = (i >= 1) ? m->mu[i] * (m->mass[i] + m->payload[i]) * m->g : 0.0;
-    }
-    m->outputs_valid = false;
-}
 
 bool model_check_combinations(const ModelData *m, char *msg, size_t len) {
     int i;
@@ -175,21 +107,6 @@ bool model_outputs_are_finite(const ModelData *m) {
     return true;
 }
 
-void model_rk4_step(const ModelData *m, double *q, double dt) {
-    double k1[MAX_STATE], k2[MAX_STATE], k3[MAX_STATE], k4[MAX_STATE], tmp[MAX_STATE];
-    const int n_state = N_STATE(m);
-    int k;
-    chain_derivatives(m, q, k1);
-    for (k = 0; k < n_state; k++) tmp[k] = q[k] + 0.5 * dt * k1[k];
-    chain_derivatives(m, tmp, k2);
-    for (k = 0; k < n_state; k++) tmp[k] = q[k] + 0.5 * dt * k2[k];
-    chain_derivatives(m, tmp, k3);
-    for (k = 0; k < n_state; k++) tmp[k] = q[k] + dt * k3[k];
-    chain_derivatives(m, tmp, k4);
-    for (k = 0; k < n_state; k++) {
-        q[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
-    }
-}
 
 void model_integrate(ModelData *m, double h, double t_end) {
     if (m->slip_mode == 1) {

@@ -5,10 +5,14 @@
  * pointing toward the robot. The number of trailers n is data of the instance (ModelData.n):
  * fixed by the build for FMI 2.0 (MAX_TRAILERS = n), a structural parameter up to MAX_TRAILERS
  * for FMI 3.0. The physics (chain kinematics, accelerations, lateral wheel forces, integration)
- * lives in chain.c, forces.c, slip.c, slip_solver.c and model.c, access to the variables by value
- * reference in variables.c; none of them knows the FMI version. The glue is fmi2.c or fmi3.c over
- * instance.c, through the model interface of fmu_model.h (model.c and variables.c implement it).
- * The derivations are in the comments of chain.c, forces.c, slip.c and slip_solver.c.
+ * lives in chain.c, forces.c, slip.c, slip_solver.c and model.c, the start values in start.c,
+ * access to the variables by value reference in variables.c; none of them knows the FMI version.
+ * The glue is fmi2.c or fmi3.c over instance.c, through the model interface of fmu_model.h
+ * (model.c, start.c and variables.c implement it). The derivations are in the comments of chain.c,
+ * forces.c, slip.c and slip_solver.c. The files call one another one way, never in a circle:
+ *   model.c -> {variables.c, slip.c, slip_solver.c, forces.c, chain.c}
+ *   variables.c -> start.c      slip.c -> {slip_solver.c, forces.c, chain.c}
+ *   slip_solver.c -> {forces.c, chain.c}      forces.c -> chain.c
  */
 #ifndef TRAILERTRAIN_MODEL_H
 #define TRAILERTRAIN_MODEL_H
@@ -79,12 +83,13 @@ struct ModelData {
     bool jackknifed;
 };
 
-/* model.c (besides its part of fmu_model.h: model_set_defaults puts every variable at its start
+/* start.c (besides its part of fmu_model.h: model_set_defaults puts every variable at its start
    value, with n = DEFAULT_TRAILERS) */
 /* n trailers (1..MAX_TRAILERS, checked by the caller): the per-body parameters and inputs return
    to their start values, sized for the new n (FMI 3.0: a dimension change invalidates them). */
 PT_INTERNAL void model_set_trailers(ModelData *m, int n);
 PT_INTERNAL void model_state_from_start(ModelData *m);
+/* model.c */
 /* variables.c: checks every parameter against its range (the bounds of pushtrain/limits.py,
    generated into variables.h) and for finiteness; on failure writes "name = value: allowed lo to
    hi unit (reason)" into msg and returns false. */
@@ -95,8 +100,6 @@ PT_INTERNAL bool model_check_combinations(const ModelData *m, char *msg, size_t 
 PT_INTERNAL void model_compute_outputs(ModelData *m);
 PT_INTERNAL bool model_state_is_finite(const ModelData *m);
 PT_INTERNAL bool model_outputs_are_finite(const ModelData *m);
-/* One classical RK4 step of the rolling (kinematic) model. */
-PT_INTERNAL void model_rk4_step(const ModelData *m, double *q, double dt);
 /* Integrates from m->time to m->time + h with fixed RK4 substeps; sets m->time = t_end. */
 PT_INTERNAL void model_integrate(ModelData *m, double h, double t_end);
 
@@ -121,6 +124,12 @@ PT_INTERNAL void robot_accelerations(const ModelData *m, const double *q, double
 PT_INTERNAL void chain_accelerations(const ModelData *m, const double *c, const double *s,
                                      const double *v, const double *w, double dv0, double dw0,
                                      double *dv, double *dw);
+/* One classical RK4 step of the rolling (kinematic) model. */
+PT_INTERNAL void model_rk4_step(const ModelData *m, double *q, double dt);
+/* Robot rear hitch: velocity vh and acceleration ah (world) at state q. */
+PT_INTERNAL void robot_hitch(const ModelData *m, const double *q, double *vh, double *ah);
+/* RK4 of the robot alone over dt [s] (its motion does not depend on the trailers). */
+PT_INTERNAL void robot_rk4(const ModelData *m, double *q, double dt);
 
 /* forces.c */
 /* Newton-Euler from trailer n down to 1 for rolling wheels at headings q: lateral wheel forces
@@ -128,6 +137,9 @@ PT_INTERNAL void chain_accelerations(const ModelData *m, const double *c, const 
 PT_INTERNAL void lateral_forces(const ModelData *m, const double *q, const double *v,
                                 const double *w, const double *dv, const double *dw,
                                 double *F_lat, double *hitch_fx, double *hitch_fy);
+/* Can every wheel roll at state q with the current inputs? (the force rolling needs is within
+   friction) */
+PT_INTERNAL bool slip_wheels_roll(const ModelData *m, const double *q);
 
 /* slip.c (slip_mode 1) */
 /* One substep within the t_left [s] still to go: kinematic RK4 (at most max_substep) while every
@@ -135,13 +147,6 @@ PT_INTERNAL void lateral_forces(const ModelData *m, const double *q, const doubl
    impulses (at most slip_substep). *rolls: every wheel is known to roll at the current state with
    the current inputs (updated). Returns the substep taken. */
 PT_INTERNAL double slip_advance(ModelData *m, double t_left, bool *rolls);
-/* Can every wheel roll at state q with the current inputs? (the force rolling needs is within
-   friction) */
-PT_INTERNAL bool slip_wheels_roll(const ModelData *m, const double *q);
-/* Robot rear hitch: velocity vh and acceleration ah (world) at state q. */
-PT_INTERNAL void robot_hitch(const ModelData *m, const double *q, double *vh, double *ah);
-/* RK4 of the robot alone over dt [s] (its motion does not depend on the trailers). */
-PT_INTERNAL void robot_rk4(const ModelData *m, double *q, double dt);
 
 /* slip_solver.c (slip_mode 1): the friction solver of the dynamic regime, in linear time (the
    tests build their dense reference, tests/csrc/slip_dense.c, in its place) */

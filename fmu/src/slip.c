@@ -54,56 +54,6 @@
 
 #include "model.h"
 
-
-void robot_hitch(const ModelData *m, const double *q, double *vh, double *ah) {
-    const double th = q[IX_THETA], v0 = q[IX_V0], w0 = q[IX_W0], r = m->rear[0];
-    const double ex = cos(th), ey = sin(th), nx = -ey, ny = ex;
-    double dv0, dw0;
-    robot_accelerations(m, q, &dv0, &dw0);
-    vh[0] = v0 * ex - r * w0 * nx;
-    vh[1] = v0 * ey - r * w0 * ny;
-    /* a0 = dv0 e0 + v0 w0 n0;  a_h = a0 - R0 (dw0 n0 - w0^2 e0) */
-    ah[0] = dv0 * ex + v0 * w0 * nx - r * (dw0 * nx - w0 * w0 * ex);
-    ah[1] = dv0 * ey + v0 * w0 * ny - r * (dw0 * ny - w0 * w0 * ey);
-}
-
-void robot_rk4(const ModelData *m, double *q, double dt) {
-    double k[4][5], tmp[MAX_STATE];
-    const int idx[5] = {IX_X0, IX_Y0, IX_THETA, IX_V0, IX_W0};
-    const double weight[4] = {0.0, 0.5, 0.5, 1.0};
-    int stage, j;
-    memcpy(tmp, q, sizeof(tmp));
-    for (stage = 0; stage < 4; stage++) {
-        for (j = 0; j < 5 && stage > 0; j++) {
-            tmp[idx[j]] = q[idx[j]] + weight[stage] * dt * k[stage - 1][j];
-        }
-        k[stage][0] = tmp[IX_V0] * cos(tmp[IX_THETA]);
-        k[stage][1] = tmp[IX_V0] * sin(tmp[IX_THETA]);
-        k[stage][2] = tmp[IX_W0];
-        robot_accelerations(m, tmp, &k[stage][3], &k[stage][4]);
-    }
-    for (j = 0; j < 5; j++) {
-        q[idx[j]] += dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
-    }
-}
-
-bool slip_wheels_roll(const ModelData *m, const double *q) {
-    double c[MAX_BODIES], s[MAX_BODIES], v[MAX_BODIES], w[MAX_BODIES], dv[MAX_BODIES];
-    double dw[MAX_BODIES], f[MAX_BODIES], hx[MAX_BODIES], hy[MAX_BODIES];
-    double dv0, dw0;
-    int i;
-    chain_velocities(m, q, c, s, v, w);
-    robot_accelerations(m, q, &dv0, &dw0);
-    chain_accelerations(m, c, s, v, w, dv0, dw0, dv, dw);
-    lateral_forces(m, q, v, w, dv, dw, f, hx, hy);
-    for (i = 1; i <= m->n; i++) {
-        if (fabs(f[i]) > m->F_lat_max[i]) {
-            return false;
-        }
-    }
-    return true;
-}
-
 static void enter_dynamic(ModelData *m) {
     double c[MAX_BODIES], s[MAX_BODIES], v[MAX_BODIES], w[MAX_BODIES];
     int i;

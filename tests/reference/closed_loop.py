@@ -5,7 +5,7 @@ engine (``core/csrc/rollout.c``, :mod:`pushtrain.core.engine`) is held equal to,
 through :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, Python pull guide,
 command) at the control instants ``t_k = k * step`` with a perfect measurement, holds each
 command over the step and integrates the robot (along its heading) and the towed trailers with
-RK4 (:func:`pushtrain.core.ode.rk4_step`) on ``z = (x0, y0, theta_0..theta_n)``: the loop
+RK4 (``reference.ode.rk4_step``) on ``z = (x0, y0, theta_0..theta_n)``: the loop
 :func:`pushtrain.planner.kinematic_loop.simulate_tracking` runs in C. SI units, radians.
 """
 
@@ -18,11 +18,11 @@ import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, body_positions_along
-from pushtrain.core.ode import rk4_step
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.planner.kinematic_loop import Trajectory
 from reference.controller import BackwardController
+from reference.ode import rk4_step
 
 
 def towed_rates(geometry: ChainGeometry):

@@ -1,5 +1,5 @@
 """The backward-motion control law in plain Python: the reference the compiled law
-(``core/csrc/control.c``, :class:`~pushtrain.core.native_controller.NativeController`) is held
+(``core/csrc/control.c``, :class:`~pushtrain.core.controller.Controller`) is held
 equal to, bit for bit.
 
 :func:`kanayama` is the paper's Eq. 3-4, :class:`BackwardController` the whole law (last
@@ -131,7 +131,7 @@ class BackwardController:
         measurement
             Object with ``x0, y0, theta0`` (measured robot pose [m, m, rad]) and ``phi``
             (measured joint angles, sequence of n floats [rad]), e.g.
-            :class:`pushtrain.cosim.sensors.Measurement`. If it has a ``last_pose``
+            :class:`pushtrain.core.sensors.Measurement`. If it has a ``last_pose``
             ``(x_n, y_n, theta_n)`` that is not ``None``, that direct measurement of the last
             trailer replaces the estimate from the joint angles (Step 2); Step 3 always uses
             ``phi``.

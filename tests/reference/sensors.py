@@ -1,4 +1,4 @@
-"""The sensor model of ``pushtrain.cosim.sensors`` in numpy: the reference ``core/csrc/sensors.c``
+"""The sensor model of ``pushtrain.core.sensors`` in numpy: the reference ``core/csrc/sensors.c``
 is held equal to, bit for bit (``tests/test_sensors.py``).
 
 Joint i: ``play_i <- clip(play_i, phi_i - b/2, phi_i + b/2)``, ``reading = play_i + bias_i +
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pushtrain.cosim.sensors import Measurement, SensorConfig
+from pushtrain.core.sensors import Measurement, SensorConfig
 
 
 class ReferenceSensors:

@@ -1,9 +1,7 @@
-"""Fixed-step integration of small ODE systems held as lists of floats (for per-step loops).
-
-Used by the pull guide (the chain driven backward in time by the last trailer) and by the tests'
-reference closed loop (the chain towed by a held robot command; the engine in ``core/csrc``
-integrates the same RK4 in C). Plain floats: a numpy call per
-stage would cost more than the arithmetic of a few-trailer chain.
+"""The classic fixed-step RK4 on lists of floats: the readable form of the engine's one RK4
+(``core/csrc/ode.h`` ``pt_rk4_step``, the same arithmetic in the same order), used by the tests'
+reference closed loop (the chain towed by a held robot command) and reference pull guide (the
+chain driven backward in time by the last trailer).
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ Joint-angle pipeline, in this order, for joint i::
 All noise comes from one ``numpy.random.Generator`` seeded by ``SensorConfig.seed``; a
 disabled source (std 0) draws nothing. The model itself is written once, in C
 (``core/csrc/sensors.c``, through :mod:`pushtrain.core.native`): the co-simulation master's
-compiled step loop and the controller FMU measure with the same code. This module validates the
+step loop and the controller FMU measure with the same code. This module validates the
 configuration, draws the noise (:meth:`Sensors.draw_noise`, in the model's order) and holds the
 model's memory (biases, play) where the C reads and writes it. The readable numpy version of the
 model is the tests' reference (``tests/reference/sensors.py``), held equal bit for bit.
@@ -180,7 +180,7 @@ class Sensors:
         std 0 has no entry) [rad or m].
     model : pushtrain.core.native.PtSensors
         The C model (``sensors.h``): it points at this object's bias and play arrays, so a
-        compiled loop given it measures with this object's memory.
+        step loop given it measures with this object's memory.
     """
 
     def __init__(self, config: SensorConfig):
@@ -203,7 +203,7 @@ class Sensors:
             native.dptr(self._play), 0)
         if self._lib.pt_sensors_noise_count(ctypes.byref(self.model)) != self.noise_scales.size:
             raise SensorError("the compiled sensor model counts its noise values differently "
-                              "from cosim/sensors.py: the binding does not match sensors.h")
+                              "from core/sensors.py: the binding does not match sensors.h")
         self._truth = np.zeros(n + 6)
         self._measurement = native.PtMeasurement()
         self.reset()
