@@ -101,8 +101,12 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     reach = min(0.5 * last.width, 0.5 * last.length - abs(last.offset))
     # the grid's Dijkstra run (about 3.5 million nodes a second on a laptop core) is not
     # interruptible: it may take at most a quarter of the budget at a million nodes a second
+    # the car heuristic pulls only after a straight push that straightens the chain (about
+    # 0.6 of the train's length: the three-point turns' last push before their cusp)
     heuristic = Heuristic(field, goal, radius, reach + margins[-1], build_car=False,
-                          max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.time_budget))
+                          car={"straighten": max(1.0, 0.6 * train.hitch_length)},
+                          max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25
+                                        * config.budget_seconds()))
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
     # the route of the last trailer (the body that goes everywhere the train goes: it leads
     # into docks and bays), kept to the middle of corridors; made when the search first needs
@@ -122,7 +126,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     approach = 1.5 if config.goal_max_phi is None else max(1.5, train.hitch_length + 0.5)
     settings = SearchSettings(
         radius=radius, step_length=config.step_length, weight=config.search_weight,
-        pull_phi=config.pull_max_phi, budget_steps=config.budget_steps(), deadline=deadline,
+        pull_phi=config.pull_max_phi, budget_steps=config.budget_steps(train.n), deadline=deadline,
         approach=approach)
     search = Search(train, prop, heuristic, state0, cursor0, goal, settings, route=route_of)
     rejected, best, found = 0, None, 0
@@ -344,7 +348,7 @@ def _planned(start, headings, segments, radius, config, tracker, checked, search
     stats = search.stats
     info = {
         "planner": "lattice", "seed": config.seed, "time": time.perf_counter() - t_begin,
-        "steps": search.prop.steps, "budget_steps": config.budget_steps(),
+        "steps": search.prop.steps, "budget_steps": config.budget_steps(search.train.n),
         "time_capped": stats.cut == "deadline", "expansions": stats.expansions,
         "rollouts": stats.rollouts, "rejected_by_verification": rejected,
         "failures": dict(stats.failures), "radius": radius,
@@ -415,14 +419,14 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
     elapsed = time.perf_counter() - t_begin
     if stats.cut == "budget":
         reason, head = "budget_exhausted", (
-            f"no plan within the budget of {config.budget_steps()} simulated control steps "
-            f"(time_budget {config.time_budget:g} s; {stats.expansions} expansions; a larger "
+            f"no plan within the budget of {config.budget_steps(train.n)} simulated control "
+            f"steps ({_budget_text(config)}; {stats.expansions} expansions; a larger "
             "planner.time_budget searches further)")
     elif stats.cut == "deadline":
         reason, head = "budget_exhausted", (
             f"no plan before the wall-clock safety cap of {config.wall_cap():g} s stopped the "
-            f"search ({search.prop.steps} of {config.budget_steps()} steps of time_budget "
-            f"{config.time_budget:g} s done, {stats.expansions} expansions; this result depends "
+            f"search ({search.prop.steps} of {config.budget_steps(train.n)} steps of "
+            f"{_budget_text(config)} done, {stats.expansions} expansions; this result depends "
             "on the machine's speed: a faster or less loaded machine, or a larger "
             "planner.time_budget, does more)")
     else:
@@ -450,6 +454,12 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
                          f"the last trailer came was {closest.h:.2f} m of path from the goal"
                          f"{route}",
                          where=tuple(goal[:2]), details=details)
+
+
+def _budget_text(config) -> str:
+    if config.time_budget is None:
+        return f"the default budget, about {config.budget_seconds():g} s"
+    return f"time_budget {config.time_budget:g} s"
 
 
 def _train_at(state, train: Train) -> dict:
