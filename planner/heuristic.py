@@ -163,7 +163,9 @@ class Heuristic:
             return math.inf
         best = max(g, self.rs(pose))
         if self.car is not None:
-            best = max(best, self.car(pose, direction, straight))
+            car = self.car(pose, direction, straight)
+            if car < math.inf:  # the car's grid is coarse: it never rules a pose out
+                best = max(best, car)
         return best
 
 
@@ -182,15 +184,19 @@ class CarGrid:
     The grid's rounding makes it approximate (a few tenths of a metre).
 
     The pull rule of the train is in it too: the car may change from pushing to pulling only
-    after a straight push of ``straighten`` metres (the chain straightens on it), so a
-    turnaround costs the straight run into a branch that the train needs. There are three
-    gears: pushing (0), pulling (1) and pushed straight (2: after such a run, or a straight
-    push after a pull); pulls start from gears 1 and 2 only.
+    after a straight push of ``straighten`` metres (the chain straightens on it), and only
+    where the straight train (``train_length`` metres from the car toward the robot) fits, so a
+    turnaround costs the straight run into a branch that the train needs, and is not made where
+    the branch is shorter than the train. There are three gears: pushing (0), pulling (1) and
+    pushed straight (2: after such a run, or a straight push after a pull); pulls start from
+    gears 1 and 2 only (from any gear when ``straighten`` is 0), and states of gears 1 and 2
+    are only where the straight train fits. A turnaround in a room whose branches are shorter
+    than the train then costs the way round an island, as it does the train.
     """
 
     def __init__(self, free: np.ndarray, x0: float, y0: float, h: float, goal, radius: float,
                  headings: int = 24, turn_weight: float = 0.3, cusp_cost: float = 2.0,
-                 pull_factor: float = 1.2, straighten: float = 0.0):
+                 pull_factor: float = 1.2, straighten: float = 0.0, train_length: float = 0.0):
         ny, nx = free.shape
         self.free, self.x0, self.y0, self.h, self.k = free, x0, y0, h, int(headings)
         k_n = self.k
@@ -211,10 +217,19 @@ class CarGrid:
         for turn in (-1, 0, 1):
             after = {0: 0, 1: 0, 2: 0} if turn else {0: 0, 1: 2, 2: 2}
             moves.append((0, -1.0, turn, length, 1.0, after))
-            moves.append((1, 1.0, turn, length, pull_factor, {1: 1, 2: 1}))
+            moves.append((1, 1.0, turn, length, pull_factor,
+                          {1: 1, 2: 1} if straighten > 0.0 else {0: 1, 1: 1, 2: 1}))
         if straighten > 0.0:
             long = length * max(1, math.ceil(straighten / length))
             moves.append((0, -1.0, 0, long, 1.0, {0: 2}))
+        # where the straight train fits behind the car (toward the robot, along theta): the
+        # only places a pull may start or go (a driver pulls a straight train)
+        fits = np.ones((m, k_n), dtype=bool)
+        for reach in np.arange(h, train_length + 1e-9, h):
+            i2 = ii[:, None] + np.rint(reach * np.sin(th0) / h).astype(int)[None, :]
+            j2 = jj[:, None] + np.rint(reach * np.cos(th0) / h).astype(int)[None, :]
+            inside = (i2 >= 0) & (i2 < ny) & (j2 >= 0) & (j2 < nx)
+            fits &= inside & free[np.clip(i2, 0, ny - 1), np.clip(j2, 0, nx - 1)]
         for gear, sigma, turn, run, factor, after in moves:
             s_pts = np.linspace(0.0, run, max(5, int(math.ceil(run / h)) + 1))[1:]
             # offsets (K, samples) of the move from each heading (chain convention:
@@ -238,11 +253,13 @@ class CarGrid:
             dst_cell = index[i2c[ok, -1], j2c[ok, -1]]
             k_end = (kk[ok] + turn * step) % k_n
             cost = run * factor + turn_weight * abs(turn) * dth * step
+            straight = fits[dst_cell, k_end]
             for g_prev, g_next in after.items():
-                rows.append(src * GEARS + g_prev)
-                cols.append(self._state(dst_cell, k_end, g_next))
+                keep = straight if g_next in (1, 2) else slice(None)
+                rows.append((src * GEARS + g_prev)[keep])
+                cols.append(self._state(dst_cell, k_end, g_next)[keep])
                 cusp = (g_prev == 1) != (gear == 1)
-                weights.append(np.full(src.size, cost + (cusp_cost if cusp else 0.0)))
+                weights.append(np.full(rows[-1].size, cost + (cusp_cost if cusp else 0.0)))
         n_states = m * k_n * GEARS
         r = np.concatenate(rows)
         c = np.concatenate(cols)

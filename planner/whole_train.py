@@ -62,6 +62,11 @@ __all__ = ["plan_lattice"]
 
 log = logging.getLogger(__name__)
 
+FINE_SPACINGS = (0.01, 0.004)
+"""Sample spacings [m] of the bodies' outlines tried, in turn, when the start passes the exact
+clearance test but not the sampled one (conservative by half the spacing): a start 0.06 m off a
+wall with a 0.05 m clearance moves with 1 cm samples."""
+
 HEURISTIC_NODES_PER_SECOND = 1.0e6
 """Nodes a second assumed of the heuristic's grid Dijkstra when sizing it to the time budget
 (conservative: 3.5 million on a laptop core)."""
@@ -96,15 +101,30 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
                 else np.asarray(start_headings, dtype=float))
     state0 = prop.initial_state(start, headings)
     _check_ends(world, train, start, goal, state0, prop, margins)
+    for spacing in FINE_SPACINGS:
+        failure, _ = prop.check(np.array([state0.z]))
+        if failure is None or failure["kind"] != "collision" or spacing >= config.sample_spacing:
+            break
+        # the exact test passed the start (_check_ends): what refuses it is the sampled test's
+        # slack (half the sample spacing), and no motion could leave it. Finer samples let a
+        # train that starts a few centimetres off a wall move off it.
+        log.info("the start keeps its clearance but not the sampled test's slack: samples "
+                 "every %.3f m", spacing)
+        samples = body_samples(train, margins, spacing=spacing)
+        prop = Propagator(train, controller, tracker, field, samples, phi_limit,
+                          goal_phi=config.goal_max_phi)
+        state0 = prop.initial_state(start, headings)
     radius = config.radius_for(train)
     last = train.last
     reach = min(0.5 * last.width, 0.5 * last.length - abs(last.offset))
     # the grid's Dijkstra run (about 3.5 million nodes a second on a laptop core) is not
     # interruptible: it may take at most a quarter of the budget at a million nodes a second
     # the car heuristic pulls only after a straight push that straightens the chain (about
-    # 0.6 of the train's length: the three-point turns' last push before their cusp)
+    # 0.6 of the train's length: the three-point turns' last push before their cusp), and only
+    # where the straight train fits
     heuristic = Heuristic(field, goal, radius, reach + margins[-1], build_car=False,
-                          car={"straighten": max(1.0, 0.6 * train.hitch_length)},
+                          car={"straighten": max(1.0, 0.6 * train.hitch_length),
+                               "train_length": train.hitch_length},
                           max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25
                                         * config.budget_seconds()))
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
