@@ -151,6 +151,8 @@ def run_one(mission: dict, planner: str, budget: float | None, cosim: bool,
     world = runner.world_of(sc)  # cached: the plan reads the same
     field = world.distance_field()
     out.update(prep_s=time.perf_counter() - t0, prep_cpu=_cpu() - c0)
+    import pushtrain.planner.planner  # noqa: F401 - its imports (scipy, OMPL) are not the search
+    import pushtrain.planner.whole_train  # noqa: F401
     t1, c1 = time.perf_counter(), _cpu()
     try:
         path = runner.plan_path(sc)
