@@ -59,8 +59,9 @@ DEFAULT_SEARCH_SECONDS = 20.0
 seconds of search on a current laptop core, whatever the number of trailers, counted in
 simulated control steps (:func:`default_steps`). The search stops at its first plan, so the
 budget only bounds a search that finds none: a mission that plans costs what it needs (median
-well under a second on the facility benchmark), and one that does not is given up after about
-20 s, far inside the minute a user waits (``benchmarks/bench_facility.py``)."""
+about a second on the facility benchmark), and one that does not is given up after about 20 s
+(measured 14-30 s of CPU: a step costs 5.5-11 us, more where many bodies are near walls),
+inside the minute a user waits (``benchmarks/bench_facility.py``)."""
 
 OMPL_DEFAULT_SECONDS = 1.0
 """The OMPL planners' budget [s] when no ``time_budget`` is given."""
