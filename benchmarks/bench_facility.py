@@ -1,29 +1,37 @@
-"""Facility benchmark: missions of 15-80 m on public maps of real buildings.
+"""Facility benchmark: missions on public maps of real buildings, and turnarounds, at defaults.
 
-Usage: python benchmarks/bench_facility.py [--budget 10] [--planners lattice,rrtconnect]
-                                           [--only office] [--no-cosim] [--big-map]
-                                           [--check 60] [--jobs 1]
+Usage: python benchmarks/bench_facility.py [--budget SECONDS] [--planners lattice]
+                                           [--only KEY] [--no-cosim] [--big-map]
+                                           [--witness SECONDS] [--list]
 
 The maps (``examples/maps/public``: a warehouse, a bookstore, an office floor; their sources and
-licences in its README) and the missions (``benchmarks/facility/missions.toml``: stations where
-the straight train fits, and for each mission the numbers of trailers to try) were drawn by
-nobody here. Each mission runs in a process of its own (its peak memory is that process's, read
-from ``os.wait4``), as ``plan-and-run`` would: plan, then co-simulate the FMU along the path,
-then check every body against the map.
+licences in its README) and the missions (``benchmarks/facility/missions.toml``) were drawn by
+nobody here, except the turnarounds, which are the bundled examples of a driver's reversals
+(``island_loop``, ``hall_reversal_5``, ``t_junction_kturn``) tried with n = 1 to 5. Each mission
+runs in a process of its own (its peak memory is that process's, read from ``os.wait4``), as
+``plan-and-run`` would: prepare the map, plan, then co-simulate the FMU along the path and
+check every body against the map. By default the planner runs with the scenario's defaults
+(no ``time_budget``): that is what is measured. ``--budget`` overrides it.
 
-A mission counts as **feasible** when some planner has planned it and the co-simulation reached
-the goal without a collision (a route verified by the FMU and the map check): in this run, or
-in the larger-budget check (``--check SECONDS`` plans the missions that failed with that much
-budget and records what it found in ``benchmarks/facility/feasibility.json``). A mission that
-no planner has solved is reported as "not shown feasible", with the planner's reason; "impossible
-here" reasons (no way of the train's width) are counted apart.
+**Feasible** means shown feasible independently of this run: the mission has a stored
+**witness** in ``benchmarks/facility/witnesses/`` (a path.json of the last trailer, found by
+any means: a long search, by hand), which ``pushtrain run SCENARIO --path WITNESS``
+co-simulates to the goal (``tests/test_facility_witnesses.py``, marked slow, checks every one).
+``--scenario KEY`` prints the scenario file to run it with. ``--witness SECONDS`` searches,
+with that budget, a witness for every chosen mission that has none and keeps it if the
+co-simulation reaches the goal. **Impossible** means a reason is recorded in
+``benchmarks/facility/impossible.toml`` (a proof: no way of the train's width, by the maximin
+bottleneck of the map, issue 34 item 3). A mission with neither is *unresolved*: it counts
+neither for nor against the planner. A mission the planner calls "impossible here" that has a
+witness is a false "impossible" and is counted.
 
-It prints one row per mission and planner, then for each planner: success on the feasible
-missions (planned and co-simulated to the goal), median and p95 plan time, peak memory, and the
-path's length over the route's length (:mod:`pushtrain.planner.route`). Targets (issue 28):
->= 95 % success, median <= 2 s, p95 <= 10 s, peak <= 1 GiB; no crash and nothing cut by the
-clock. ``--big-map`` also plans on a 100 m x 100 m map at 5 cm and prints that process's peak
-memory.
+It prints one row per mission and planner (map preparation, search wall and CPU time, peak
+memory, result), then for each planner: success on the feasible missions (planned at the
+defaults and co-simulated to the goal), search time median and p95 (wall and CPU), peak memory,
+the path's length over the route's length, crashes and runs cut by the clock, with the load
+beside it. Targets (issue 34): every feasible mission planned and co-simulated, search median
+<= 0.5 s and p95 <= 5 s, peak <= 1 GiB, none cut by the clock. ``--big-map`` also plans on a
+100 m x 100 m map at 5 cm and prints that process's peak memory.
 """
 
 from __future__ import annotations
@@ -32,6 +40,8 @@ import argparse
 import json
 import math
 import os
+import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -43,16 +53,24 @@ from bench_planner import percentile  # the benchmarks' one nearest-rank quantil
 
 HERE = Path(__file__).resolve().parent
 MISSIONS = HERE / "facility" / "missions.toml"
-FEASIBILITY = HERE / "facility" / "feasibility.json"
+WITNESSES = HERE / "facility" / "witnesses"
+IMPOSSIBLE = HERE / "facility" / "impossible.toml"
+EXAMPLES = HERE.parent / "examples"
 
 
 def load_missions(path: Path = MISSIONS) -> list[dict]:
-    """Every (mission, n) of the missions file as plain dicts with absolute map paths."""
+    """Every (mission, n) of the missions file as plain dicts: ``key``, ``n``, ``route`` and
+    either a map mission (``grid``: absolute map path, ``start``, ``goal``) or an example's
+    (``example``: its scenario file, whose train's n is replaced)."""
     data = tomllib.loads(path.read_text())
     out = []
     for m in data["missions"]:
-        stations = data["stations"][m["map"]]
         for n in m["trailers"]:
+            if "example" in m:
+                out.append({"key": f"example:{m['example']}:n{n}", "n": n, "route": m["route"],
+                            "example": str(EXAMPLES / f"{m['example']}.toml")})
+                continue
+            stations = data["stations"][m["map"]]
             out.append({"key": f"{m['map']}:{m['from']}->{m['to']}:n{n}", "map": m["map"],
                         "grid": str((path.parent / data["maps"][m["map"]]).resolve()),
                         "start": stations[m["from"]], "goal": stations[m["to"]], "n": n,
@@ -60,57 +78,117 @@ def load_missions(path: Path = MISSIONS) -> list[dict]:
     return out
 
 
-def scenario_of(mission: dict, planner: str, budget: float):
-    """The plan-and-run scenario of one mission."""
+def file_name(key: str) -> str:
+    """A file name for a mission key (``office:a->b:n3`` -> ``office_a-b_n3``)."""
+    return key.replace(":", "_").replace("->", "-")
+
+
+def scenario_toml(mission: dict, budget: float | None = None) -> str:
+    """The mission's scenario file (TOML text) with the planner's defaults, or ``budget``
+    [s] as ``time_budget``; its map's path is absolute."""
+    if "example" in mission:
+        text = Path(mission["example"]).read_text()
+        text, count = re.subn(r"(\[train\]\s*\n\s*n\s*=\s*)\d+", rf"\g<1>{mission['n']}", text)
+        if count != 1:
+            raise ValueError(f"{mission['example']}: no [train] n = ... line to replace")
+        text = re.sub(r'(?m)^name\s*=\s*"[^"]*"',
+                      f'name = "{file_name(mission["key"])}"', text)
+        if budget is not None and "[planner]" in text:
+            text = text.replace("[planner]", f"[planner]\ntime_budget = {budget!r}", 1)
+        elif budget is not None:
+            text += f"\n[planner]\ntime_budget = {budget!r}\n"
+        return text
+    (x0, y0, t0), (x1, y1, t1) = mission["start"], mission["goal"]
+    lines = [f'name = "{file_name(mission["key"])}"',
+             f'description = "{mission["route"]}"',
+             "", "[mission]", 'kind = "plan"', "", "[train]", f"n = {mission['n']}",
+             "", "[map]", f"grid = {json.dumps(mission['grid'])}",
+             "", "[start]", f"x = {x0!r}", f"y = {y0!r}", f"theta_deg = {t0!r}",
+             "", "[goal]", f"x = {x1!r}", f"y = {y1!r}", f"theta_deg = {t1!r}", ""]
+    if budget is not None:
+        lines += ["[planner]", f"time_budget = {budget!r}", ""]
+    return "\n".join(lines)
+
+
+def scenario_of(mission: dict, budget: float | None, planner: str = "lattice"):
+    """The parsed plan-and-run scenario of one mission."""
     from pushtrain.mission.scenario import parse_scenario
 
-    pose = ("x", "y", "theta_deg")
-    return parse_scenario({
-        "name": mission["key"].replace(":", "_").replace(">", ""),
-        "mission": {"kind": "plan"}, "train": {"n": mission["n"]},
-        "map": {"grid": mission["grid"]},
-        "start": dict(zip(pose, mission["start"], strict=True)),
-        "goal": dict(zip(pose, mission["goal"], strict=True)),
-        "planner": {"planner": planner, "time_budget": budget},
-    }, mission["key"])
+    data = tomllib.loads(scenario_toml(mission, budget))
+    if planner != "lattice":
+        data.setdefault("planner", {})["planner"] = planner
+    return parse_scenario(data, mission["key"])
 
 
-def run_one(mission: dict, planner: str, budget: float, cosim: bool) -> dict:
-    """Plan (and co-simulate) one mission in this process; a plain dict of what happened."""
+def witness_of(mission: dict) -> Path:
+    return WITNESSES / f"{file_name(mission['key'])}.path.json"
+
+
+def impossible_reasons() -> dict:
+    """Mission key -> the recorded reason it is impossible (the proof, issue 34 item 3)."""
+    if not IMPOSSIBLE.exists():
+        return {}
+    return {k: v for k, v in tomllib.loads(IMPOSSIBLE.read_text()).get("impossible",
+                                                                          {}).items()}
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def run_one(mission: dict, planner: str, budget: float | None, cosim: bool,
+            save: str | None = None) -> dict:
+    """Prepare the map, plan (and co-simulate) one mission in this process; a plain dict of
+    what happened. ``save``: write the path there (atomically) if it reaches the goal."""
     from pushtrain.errors import PlanningError
     from pushtrain.mission import runner
     from pushtrain.planner.route import find_route
 
-    sc = scenario_of(mission, planner, budget)
+    sc = scenario_of(mission, budget, planner)
     out = {"key": mission["key"], "planner": planner, "n": mission["n"]}
-    t0 = time.perf_counter()  # the plan time includes reading the map and its distance field
+    t0, c0 = time.perf_counter(), _cpu()
+    world = runner.world_of(sc)  # cached: the plan reads the same
+    field = world.distance_field()
+    out.update(prep_s=time.perf_counter() - t0, prep_cpu=_cpu() - c0)
+    import pushtrain.planner.planner  # noqa: F401 - its imports (scipy, OMPL) are not the search
+    import pushtrain.planner.whole_train  # noqa: F401
+    t1, c1 = time.perf_counter(), _cpu()
     try:
         path = runner.plan_path(sc)
-        out.update(plan_s=time.perf_counter() - t0, length_m=path.length, cusps=path.n_cusps,
-                   capped=bool(path.info.get("time_capped")), status="planned")
+        out.update(status="planned", length_m=path.length, cusps=path.n_cusps,
+                   capped=bool(path.info.get("time_capped")), steps=path.info.get("steps"))
     except PlanningError as exc:
         path = None
-        out.update(status="no_plan", plan_s=time.perf_counter() - t0, reason=exc.reason,
-                   message=str(exc)[:600], capped=bool(exc.details.get("time_capped")),
-                   impossible=bool(exc.details.get("impossible")))
-    world = runner.world_of(sc)  # cached: the map the plan read
-    route = find_route(world.distance_field(), mission["start"][:2], mission["goal"][:2],
-                       0.5 * runner.train_of(sc).last.width + 0.05)
+        out.update(status="no_plan", reason=exc.reason, message=str(exc)[:600],
+                   capped=bool(exc.details.get("time_capped")),
+                   impossible=bool(exc.details.get("impossible")),
+                   steps=exc.details.get("steps"))
+    out.update(search_s=time.perf_counter() - t1, search_cpu=_cpu() - c1)
+    train = runner.train_of(sc)
+    route = find_route(field, sc_pose(sc.start)[:2], sc_pose(sc.goal)[:2],
+                       0.5 * train.last.width + 0.05)
     out["route_m"] = None if route is None else route.length
-    if path is None:
+    if path is None or not cosim:
         return out
-    if cosim:
-        reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
-        t1 = time.perf_counter()
-        result = runner.run_scenario(sc, None, reference=reference, progress=False)
-        out.update(cosim_s=time.perf_counter() - t1, status=result.status,
-                   message=result.message[:300],
-                   final_lateral_m=(result.summary.get("lateral_error_m") or {}).get("final"),
-                   min_clearance_m=(result.summary.get("map_check") or {}).get("min_clearance_m"))
+    reference = path.to_reference(speed=sc.planner.speed, cusp_dwell=sc.planner.cusp_dwell)
+    t2 = time.perf_counter()
+    result = runner.run_scenario(sc, None, reference=reference, progress=False)
+    out.update(cosim_s=time.perf_counter() - t2, status=result.status,
+               message=result.message[:300],
+               min_clearance_m=(result.summary.get("map_check") or {}).get("min_clearance_m"))
+    if save and result.status == "goal_reached":
+        from pushtrain.files import atomic_write_text
+
+        atomic_write_text(Path(save), path.to_json() + "\n")
     return out
 
 
-def big_map(budget: float) -> dict:
+def sc_pose(pose) -> tuple:
+    return (pose.x, pose.y, math.radians(pose.theta_deg))
+
+
+def big_map(budget: float | None) -> dict:
     """Plan across a 100 m x 100 m occupancy grid at 5 cm (4 million cells): rack rows every
     10 m with cross aisles every 25 m, as a map file would give it (traced walls and all)."""
     import numpy as np
@@ -158,81 +236,111 @@ def in_child(args: list[str]) -> dict:
     return result
 
 
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load {one:.1f} (5 min {five:.1f}) on {os.cpu_count()} cores"
+
+
+def _summary(planner: str, rows: list[dict], impossible: dict) -> str:
+    feasible = [r for r in rows if r["witness"]]
+    ok = [r for r in feasible if r.get("status") == "goal_reached"]
+    unresolved = [r for r in rows if not r["witness"] and r["key"] not in impossible]
+    false_impossible = [r for r in feasible if r.get("impossible")]
+    wall = [r["search_s"] for r in rows if "search_s" in r]
+    cpu = [r["search_cpu"] for r in rows if "search_cpu" in r]
+    prep = [r["prep_s"] for r in rows if "prep_s" in r]
+    ratios = [r["length_m"] / r["route_m"] for r in ok if r.get("route_m") and r.get("length_m")]
+    crashed = sum(r.get("status") == "crashed" for r in rows)
+    capped = sum(bool(r.get("capped")) for r in rows)
+    med = statistics.median(wall) if wall else math.nan
+    return (f"{planner}: {len(ok)}/{len(feasible)} feasible (witnessed) missions planned at the "
+            f"defaults and co-simulated to the goal ({100 * len(ok) / max(1, len(feasible)):.0f}"
+            f" %, target 100 %); search median {med:.2f} s (target <= 0.5), p95 "
+            f"{percentile(wall, 0.95):.2f} s (target <= 5), CPU median "
+            f"{statistics.median(cpu) if cpu else math.nan:.2f} s, p95 "
+            f"{percentile(cpu, 0.95):.2f} s, longest {max(wall, default=math.nan):.1f} s; map "
+            f"preparation median {statistics.median(prep) if prep else math.nan:.2f} s; peak "
+            f"{max((r['peak_mib'] for r in rows), default=0):.0f} MiB (target <= 1024); "
+            f"path/route median {statistics.median(ratios) if ratios else math.nan:.2f}; "
+            f"{crashed} crashed, {capped} cut by the clock; {len(false_impossible)} false "
+            f"'impossible'; {sum(r['key'] in impossible for r in rows)} impossible (proof "
+            f"recorded); {len(unresolved)} unresolved (no witness, no proof). {_load()}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--budget", type=float, default=10.0, help="planner.time_budget [s]")
-    ap.add_argument("--planners", default="lattice,rrtconnect")
+    ap.add_argument("--budget", type=float, default=None,
+                    help="planner.time_budget [s] (default: the scenario's default)")
+    ap.add_argument("--planners", default="lattice")
     ap.add_argument("--only", default=None, help="only missions whose key contains this")
     ap.add_argument("--no-cosim", action="store_true")
     ap.add_argument("--big-map", action="store_true")
-    ap.add_argument("--check", type=float, default=None,
-                    help="plan the missions no planner solved with this budget [s] and record "
-                         "the feasible ones in facility/feasibility.json")
-    ap.add_argument("--one", nargs=4, metavar=("INDEX", "PLANNER", "BUDGET", "COSIM"),
+    ap.add_argument("--list", action="store_true", help="list the missions and their witnesses")
+    ap.add_argument("--scenario", metavar="KEY",
+                    help="print the scenario file of mission KEY (for `pushtrain run SCENARIO "
+                         "--path WITNESS`)")
+    ap.add_argument("--witness", type=float, default=None, metavar="SECONDS",
+                    help="search a witness with this budget for every chosen mission without "
+                         "one (benchmarks/facility/witnesses)")
+    ap.add_argument("--one", nargs=5, metavar=("INDEX", "PLANNER", "BUDGET", "COSIM", "SAVE"),
                     help=argparse.SUPPRESS)
     args = ap.parse_args()
     missions = load_missions()
     if args.one:
-        index, planner, budget, cosim = args.one
+        index, planner, budget, cosim, save = args.one
+        budget = None if budget == "default" else float(budget)
         if index == "big":
-            print(json.dumps(big_map(float(budget))))
+            print(json.dumps(big_map(budget)))
         else:
-            print(json.dumps(run_one(missions[int(index)], planner, float(budget),
-                                     cosim == "1")))
+            print(json.dumps(run_one(missions[int(index)], planner, budget, cosim == "1",
+                                     None if save == "-" else save)))
         return
-    known = json.loads(FEASIBILITY.read_text()) if FEASIBILITY.exists() else {}
+    if args.scenario:
+        match = [m for m in missions if m["key"] == args.scenario]
+        if not match:
+            sys.exit(f"--scenario {args.scenario!r}: no such mission (--list shows them)")
+        print(scenario_toml(match[0]))
+        return
+    impossible = impossible_reasons()
     chosen = [(i, m) for i, m in enumerate(missions) if not args.only or args.only in m["key"]]
+    if args.list:
+        for _, m in chosen:
+            print(f"{m['key']:<58} witness {'yes' if witness_of(m).exists() else 'no '}  "
+                  f"{impossible.get(m['key'], '')}")
+        return
+    if args.witness:
+        WITNESSES.mkdir(parents=True, exist_ok=True)
+        for i, m in chosen:
+            if witness_of(m).exists():
+                continue
+            r = in_child([str(i), "lattice", str(args.witness), "1", str(witness_of(m))])
+            print(f"witness {m['key']:<52} budget {args.witness:g} s: {r.get('status')} "
+                  f"({r.get('search_s', math.nan):.1f} s) {r.get('message', '')[:160]}",
+                  flush=True)
+        return
+    budget = "default" if args.budget is None else str(args.budget)
     planners = args.planners.split(",")
     rows = {p: [] for p in planners}
-    print(f"{len(chosen)} missions, budget {args.budget:g} s, load "
-          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores", flush=True)
+    print(f"{len(chosen)} missions, budget {budget}, {_load()}", flush=True)
     for i, m in chosen:
         for p in planners:
-            r = in_child([str(i), p, str(args.budget), "0" if args.no_cosim else "1"])
-            r.update(key=m["key"], planner=p)
+            r = in_child([str(i), p, budget, "0" if args.no_cosim else "1", "-"])
+            r.update(key=m["key"], planner=p, witness=witness_of(m).exists())
             rows[p].append(r)
             ratio = (r["length_m"] / r["route_m"]) if r.get("length_m") and r.get(
                 "route_m") else math.nan
-            print(f"{m['key']:<58} {p:<10} {r.get('status', '?'):<13} "
-                  f"plan {r.get('plan_s', math.nan):6.2f} s  {r.get('peak_mib', 0):5.0f} MiB  "
-                  f"route {r.get('route_m') or math.nan:5.1f} m  path/route {ratio:4.2f}  "
+            tag = ("feasible" if r["witness"] else "impossible" if m["key"] in impossible
+                   else "unresolved")
+            print(f"{m['key']:<50} {tag:<10} {r.get('status', '?'):<13} prep "
+                  f"{r.get('prep_s', math.nan):5.2f} s search {r.get('search_s', math.nan):6.2f}"
+                  f" s ({r.get('search_cpu', math.nan):6.2f} s CPU) {r.get('peak_mib', 0):5.0f} "
+                  f"MiB route {r.get('route_m') or math.nan:5.1f} m path/route {ratio:4.2f} "
                   f"{r.get('reason', '')}", flush=True)
-            if r.get("status") == "goal_reached":
-                known[m["key"]] = {"feasible": True, "by": f"{p}, budget {args.budget:g} s, "
-                                   "co-simulated to the goal"}
-    if args.check:
-        for i, m in chosen:
-            if known.get(m["key"], {}).get("feasible"):
-                continue
-            r = in_child([str(i), "lattice", str(args.check), "1"])
-            print(f"check {m['key']:<52} budget {args.check:g} s: {r.get('status')} "
-                  f"({r.get('plan_s', math.nan):.1f} s) {r.get('message', '')[:160]}", flush=True)
-            known[m["key"]] = {"feasible": r.get("status") == "goal_reached",
-                               "by": f"lattice, budget {args.check:g} s: {r.get('status')}",
-                               "reason": r.get("reason"), "impossible": r.get("impossible")}
-        tmp = FEASIBILITY.with_suffix(".json.part")
-        tmp.write_text(json.dumps(dict(sorted(known.items())), indent=1) + "\n")
-        tmp.replace(FEASIBILITY)
     print()
     for p, rs in rows.items():
-        feasible = [r for r in rs if known.get(r["key"], {}).get("feasible")]
-        ok = [r for r in feasible if r.get("status") == "goal_reached"]
-        times = [r["plan_s"] for r in rs if "plan_s" in r]
-        ratios = [r["length_m"] / r["route_m"] for r in ok if r.get("route_m")]
-        crashed = sum(r.get("status") == "crashed" for r in rs)
-        capped = sum(bool(r.get("capped")) for r in rs)
-        infeasible = [r for r in rs if r not in feasible]
-        print(f"{p}: {len(ok)}/{len(feasible)} feasible missions planned and co-simulated to the "
-              f"goal ({100 * len(ok) / max(1, len(feasible)):.0f} %, target >= 95 %); "
-              f"plan time median {statistics.median(times) if times else math.nan:.2f} s "
-              f"(target <= 2), p95 {percentile(times, 0.95):.2f} s (target <= 10); peak "
-              f"{max((r['peak_mib'] for r in rs), default=0):.0f} MiB (target <= 1024); "
-              f"path/route median {statistics.median(ratios) if ratios else math.nan:.2f}; "
-              f"{crashed} crashed, {capped} cut by the clock; {len(infeasible)} not shown "
-              f"feasible, of them {sum(bool(r.get('impossible')) for r in infeasible)} "
-              "'impossible here'")
+        print(_summary(p, rs, impossible), flush=True)
     if args.big_map:
-        r = in_child(["big", "lattice", str(args.budget), "0"])
+        r = in_child(["big", "lattice", budget, "0", "-"])
         print(f"100 m x 100 m map at 5 cm (4 million cells), n = 3, 127 m across: {r['status']}, "
               f"plan {r.get('plan_s', math.nan):.2f} s, peak {r['peak_mib']:.0f} MiB "
               "(target <= 1024)")

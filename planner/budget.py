@@ -23,7 +23,8 @@ import math
 import time
 from dataclasses import dataclass
 
-__all__ = ["CHECKS_PER_SECOND", "STEPS_PER_CHECK", "STEPS_PER_SECOND", "Work", "checks_for",
+__all__ = ["CHECKS_PER_SECOND", "DEFAULT_SEARCH_SECONDS", "OMPL_DEFAULT_SECONDS",
+           "STEPS_PER_CHECK", "STEPS_PER_SECOND", "Work", "checks_for", "default_steps",
            "steps_for"]
 
 log = logging.getLogger(__name__)
@@ -51,6 +52,32 @@ about what the search does per CPU second with the compiled closed loop
 (:class:`~pushtrain.planner.propagate.Propagator` on the engine: about 2 us per step with its
 checks, plus the search's own work) for three trailers (three-point turn: 150 000 steps in
 1.1 s of CPU)."""
+
+
+DEFAULT_SEARCH_SECONDS = 20.0
+"""The whole-train search's default budget (no ``time_budget`` given): about this many CPU
+seconds of search on a current laptop core, whatever the number of trailers, counted in
+simulated control steps (:func:`default_steps`). The search stops at its first plan, so the
+budget only bounds a search that finds none: a mission that plans costs what it needs (median
+about a second on the facility benchmark), and one that does not is given up after about 20 s
+(measured 14-30 s of CPU: a step costs 5.5-11 us, more where many bodies are near walls),
+inside the minute a user waits (``benchmarks/bench_facility.py``)."""
+
+OMPL_DEFAULT_SECONDS = 1.0
+"""The OMPL planners' budget [s] when no ``time_budget`` is given."""
+
+STEP_SECONDS = (4.5e-6, 0.6e-6)
+"""CPU seconds of the whole-train search per simulated control step: a constant and a part per
+body (measured on the T-junction K-turn: 5.5 us a step with one trailer, 6.6 us with three,
+7.5 us with five, the rollouts' checks and the search's own work included)."""
+
+
+def default_steps(n: int) -> int:
+    """Simulated control steps [-] of the default budget for a train of ``n`` trailers: about
+    :data:`DEFAULT_SEARCH_SECONDS` of CPU (3.4 million steps for n = 1, 2.9 million for 3,
+    1.8 million for 10)."""
+    base, body = STEP_SECONDS
+    return int(round(DEFAULT_SEARCH_SECONDS / (base + body * (int(n) + 1))))
 
 
 def steps_for(seconds: float) -> int:

@@ -26,7 +26,13 @@ from pushtrain.errors import PlanningInputError
 from pushtrain.settings import angle_setting, setting
 from pushtrain.validation import NonNegFloat, PositiveFloat
 
-from .budget import checks_for, steps_for
+from .budget import (
+    DEFAULT_SEARCH_SECONDS,
+    OMPL_DEFAULT_SECONDS,
+    checks_for,
+    default_steps,
+    steps_for,
+)
 from .kinematic_loop import TrackerConfig
 from .train import Train
 
@@ -84,17 +90,20 @@ class PlannerConfig:
         RRTConnect, simplification and a local search on the path's states with new seeds and
         keeps the shortest; ``rrtstar``,
         ``bitstar`` and ``prmstar`` are OMPL's asymptotically optimal planners.
-    time_budget : float
-        Budget [s] of planning and all replanning together (default 1 s, the scenario's),
-        counted as work, not read from the clock (:mod:`~pushtrain.planner.budget`): for
-        ``lattice`` 150 000 simulated control steps per second; for the OMPL planners 1000
-        motion checks per second (the
-        validation of one local Reeds-Shepp curve, about 1 ms on a current laptop core; BIT*:
-        500, as its other work grows after its first solution), and each whole-train check
-        counts one motion check per 10 simulated control steps (a 10 m plan at 0.08 m/s:
-        about 500). The first attempt of ``rrtconnect`` may use all of it, each replan half
-        of what is left. 2 s = 2000 checks. PRM* alone stops on the clock after its budget's
-        seconds (OMPL checks its termination on a second thread).
+    time_budget : float or None
+        Budget [s] of planning and all replanning together, counted as work, not read from
+        the clock (:mod:`~pushtrain.planner.budget`). None (the default): for ``lattice``
+        about 20 s of CPU whatever n (:func:`~pushtrain.planner.budget.default_steps`: 2.9
+        million simulated control steps for three trailers); the search stops at its first
+        plan, so this only bounds a search that finds none. For the OMPL planners None is 1 s.
+        Given: for ``lattice`` 150 000 simulated control steps per second; for the OMPL
+        planners 1000 motion checks per second (the validation of one local Reeds-Shepp
+        curve, about 1 ms on a current laptop core; BIT*: 500, as its other work grows after
+        its first solution), and each whole-train check counts one motion check per 10
+        simulated control steps (a 10 m plan at 0.08 m/s: about 500). The first attempt of
+        ``rrtconnect`` may use all of it, each replan half of what is left. 2 s = 2000
+        checks. PRM* alone stops on the clock after its budget's seconds (OMPL checks its
+        termination on a second thread).
     anytime_time : float
         Budget [s] of one anytime-planner run, converted like ``time_budget`` (0.5 s = 500
         motion checks; a restart takes 100-300 in the bay and the L-corridors) and capped by
@@ -199,15 +208,16 @@ class PlannerConfig:
         (default): return the first path.
     time_cap : float or None
         Wall-clock safety cap [s] of one :func:`~pushtrain.planner.planner.plan` call; None:
-        10 x ``time_budget`` + 10 s. Only this stops a search by the clock; a plan it cut short
-        has ``info["time_capped"]`` True (a PlanningError: ``details["time_capped"]``) and a
-        warning is logged, since the result then depends on the machine's speed.
+        10 x the budget's seconds + 10 s (the default budget: 210 s). Only this stops a
+        search by the clock; a plan it cut short has ``info["time_capped"]`` True (a
+        PlanningError: ``details["time_capped"]``) and a warning is logged, since the result
+        then depends on the machine's speed.
     """
 
     turning_radius: float | None = setting(None, PositiveFloat | None)
     transient_margin: float = setting(0.6, NonNegFloat)
     planner: str = setting("lattice", Literal[PLANNERS])
-    time_budget: float = setting(1.0, PositiveFloat)
+    time_budget: float | None = setting(None, PositiveFloat | None)
     anytime_time: float = setting(0.5, PositiveFloat)
     seed: int | None = 1
     simplify: bool = True
@@ -250,6 +260,8 @@ class PlannerConfig:
                     "radius_growth", "block_radius")
         for key in positive:
             value = getattr(self, key)
+            if key == "time_budget" and value is None:
+                continue
             if not (math.isfinite(value) and value > 0.0):
                 raise PlanningInputError(f"{key} = {value!r}: must be finite and > 0")
         for key in ("inflation", "offtrack_allowance", "inflation_growth", "transient_margin"):
@@ -325,14 +337,22 @@ class PlannerConfig:
                 "and every trailer)")
         return np.broadcast_to(values, (train.n + 1,)).copy()
 
-    def budget_steps(self) -> int:
-        """``lattice``: simulated control steps of ``time_budget`` (see
-        :mod:`~pushtrain.planner.budget`)."""
+    def budget_steps(self, n: int = 3) -> int:
+        """``lattice``: simulated control steps of ``time_budget``, or of the default budget
+        for ``n`` trailers (see :mod:`~pushtrain.planner.budget`)."""
+        if self.time_budget is None:
+            return default_steps(n)
         return steps_for(self.time_budget)
 
+    def budget_seconds(self) -> float:
+        """The budget [s]: ``time_budget``, or the default for this planner."""
+        if self.time_budget is not None:
+            return float(self.time_budget)
+        return DEFAULT_SEARCH_SECONDS if self.planner == "lattice" else OMPL_DEFAULT_SECONDS
+
     def budget_checks(self) -> int:
-        """Motion checks of ``time_budget`` (see :mod:`~pushtrain.planner.budget`)."""
-        return checks_for(self.time_budget, "rrtconnect" if self.planner == "lattice"
+        """Motion checks of the budget (see :mod:`~pushtrain.planner.budget`)."""
+        return checks_for(self.budget_seconds(), "rrtconnect" if self.planner == "lattice"
                           else self.planner)
 
     def anytime_checks(self) -> int:
@@ -341,7 +361,9 @@ class PlannerConfig:
 
     def wall_cap(self) -> float:
         """The wall-clock safety cap [s] of a plan() call (``time_cap``, or its default)."""
-        return float(self.time_cap) if self.time_cap is not None else 10.0 * self.time_budget + 10.0
+        if self.time_cap is not None:
+            return float(self.time_cap)
+        return 10.0 * self.budget_seconds() + 10.0
 
     def extension_for(self, radius: float) -> float:
         """RRTConnect's longest tree extension [m] for turning ``radius`` [m]."""

@@ -38,7 +38,7 @@ MAX_NODES = 400_000
 cells."""
 
 MAX_CAR_CELLS = 20_000
-"""Most cells of the :class:`CarGrid` (x 24 headings x 2 gears states; a 35 m x 35 m map at
+"""Most cells of the :class:`CarGrid` (x 24 headings x 3 gears states; a 35 m x 35 m map at
 0.25 m); larger maps get coarser cells."""
 
 
@@ -108,7 +108,7 @@ class Heuristic:
             return 0
         xmin, ymin, xmax, ymax = field.bounds
         cells = min((xmax - xmin) * (ymax - ymin) / float(hc) ** 2, MAX_CAR_CELLS)
-        return int(cells * float(np.mean(self.free)) * options.get("headings", 24) * 2)
+        return int(cells * float(np.mean(self.free)) * options.get("headings", 24) * GEARS)
 
     def build_car(self) -> None:
         """Build the :class:`CarGrid` estimate (once; a few tenths of a second on a large map),
@@ -155,14 +155,17 @@ class Heuristic:
         self._a.setYaw(_yaw(pose[2]))
         return float(self._space.distance(self._a, self._b))
 
-    def __call__(self, pose, direction: int = 0) -> float:
-        """The largest of :meth:`rs`, :meth:`grid` and the :class:`CarGrid` cost (if built)."""
+    def __call__(self, pose, direction: int = 0, straight: bool = True) -> float:
+        """The largest of :meth:`rs`, :meth:`grid` and the :class:`CarGrid` cost (if built;
+        ``straight``: whether the chain may pull)."""
         g = self.grid(pose[0], pose[1])
         if g == math.inf:
             return math.inf
         best = max(g, self.rs(pose))
         if self.car is not None:
-            best = max(best, self.car(pose, direction))
+            car = self.car(pose, direction, straight)
+            if car < math.inf:  # the car's grid is coarse: it never rules a pose out
+                best = max(best, car)
         return best
 
 
@@ -179,11 +182,21 @@ class CarGrid:
     state's cost to the goal. Unlike the Reeds-Shepp length it knows that turning around needs
     room (a side branch, a wide spot) and a cusp; unlike the 2-D distance it knows headings.
     The grid's rounding makes it approximate (a few tenths of a metre).
+
+    The pull rule of the train is in it too: the car may change from pushing to pulling only
+    after a straight push of ``straighten`` metres (the chain straightens on it), and only
+    where the straight train (``train_length`` metres from the car toward the robot) fits, so a
+    turnaround costs the straight run into a branch that the train needs, and is not made where
+    the branch is shorter than the train. There are three gears: pushing (0), pulling (1) and
+    pushed straight (2: after such a run, or a straight push after a pull); pulls start from
+    gears 1 and 2 only (from any gear when ``straighten`` is 0), and states of gears 1 and 2
+    are only where the straight train fits. A turnaround in a room whose branches are shorter
+    than the train then costs the way round an island, as it does the train.
     """
 
     def __init__(self, free: np.ndarray, x0: float, y0: float, h: float, goal, radius: float,
                  headings: int = 24, turn_weight: float = 0.3, cusp_cost: float = 2.0,
-                 pull_factor: float = 1.2):
+                 pull_factor: float = 1.2, straighten: float = 0.0, train_length: float = 0.0):
         ny, nx = free.shape
         self.free, self.x0, self.y0, self.h, self.k = free, x0, y0, h, int(headings)
         k_n = self.k
@@ -196,46 +209,65 @@ class CarGrid:
         m = ii.size
         ks = np.arange(k_n)
         th0 = ks * dth  # (K,)
-        s_pts = np.linspace(0.0, length, 5)[1:]  # samples along a move
         rows, cols, weights = [], [], []
         cell = np.repeat(np.arange(m), k_n)  # (m K,): every free cell in every heading
         kk = np.tile(ks, m)
-        for gear, sigma, factor in ((0, -1.0, 1.0), (1, 1.0, pull_factor)):
-            for turn in (-1, 0, 1):
-                # offsets (K, samples) of the move from each heading (chain convention:
-                # sigma = -1 pushing, along theta + pi)
-                if turn == 0:
-                    px = sigma * s_pts[None, :] * np.cos(th0)[:, None]
-                    py = sigma * s_pts[None, :] * np.sin(th0)[:, None]
-                else:
-                    kap = turn / radius
-                    th = th0[:, None] + kap * s_pts[None, :]
-                    px = sigma * (np.sin(th) - np.sin(th0)[:, None]) / kap
-                    py = -sigma * (np.cos(th) - np.cos(th0)[:, None]) / kap
-                di = np.rint(py / h).astype(int)[kk]  # (m K, samples)
-                dj = np.rint(px / h).astype(int)[kk]
-                i2 = ii[cell][:, None] + di
-                j2 = jj[cell][:, None] + dj
-                ok = ((i2 >= 0) & (i2 < ny) & (j2 >= 0) & (j2 < nx)).all(axis=1)
-                i2c, j2c = np.clip(i2, 0, ny - 1), np.clip(j2, 0, nx - 1)
-                ok &= free[i2c, j2c].all(axis=1)
-                src = self._state(cell[ok], kk[ok], 0) // 2
-                dst_cell = index[i2c[ok, -1], j2c[ok, -1]]
-                k_end = (kk[ok] + turn * step) % k_n
-                cost = length * factor + turn_weight * abs(turn) * dth * step
-                for g_prev in (0, 1):
-                    rows.append(src * 2 + g_prev)
-                    cols.append(self._state(dst_cell, k_end, gear))
-                    w = cost + (cusp_cost if g_prev != gear else 0.0)
-                    weights.append(np.full(src.size, w))
-        n_states = m * k_n * 2
+        # (gear, sigma, turn, move length, cost factor, {gear before: gear after})
+        moves = []
+        for turn in (-1, 0, 1):
+            after = {0: 0, 1: 0, 2: 0} if turn else {0: 0, 1: 2, 2: 2}
+            moves.append((0, -1.0, turn, length, 1.0, after))
+            moves.append((1, 1.0, turn, length, pull_factor,
+                          {1: 1, 2: 1} if straighten > 0.0 else {0: 1, 1: 1, 2: 1}))
+        if straighten > 0.0:
+            long = length * max(1, math.ceil(straighten / length))
+            moves.append((0, -1.0, 0, long, 1.0, {0: 2}))
+        # where the straight train fits behind the car (toward the robot, along theta): the
+        # only places a pull may start or go (a driver pulls a straight train)
+        fits = np.ones((m, k_n), dtype=bool)
+        for reach in np.arange(h, train_length + 1e-9, h):
+            i2 = ii[:, None] + np.rint(reach * np.sin(th0) / h).astype(int)[None, :]
+            j2 = jj[:, None] + np.rint(reach * np.cos(th0) / h).astype(int)[None, :]
+            inside = (i2 >= 0) & (i2 < ny) & (j2 >= 0) & (j2 < nx)
+            fits &= inside & free[np.clip(i2, 0, ny - 1), np.clip(j2, 0, nx - 1)]
+        for gear, sigma, turn, run, factor, after in moves:
+            s_pts = np.linspace(0.0, run, max(5, int(math.ceil(run / h)) + 1))[1:]
+            # offsets (K, samples) of the move from each heading (chain convention:
+            # sigma = -1 pushing, along theta + pi)
+            if turn == 0:
+                px = sigma * s_pts[None, :] * np.cos(th0)[:, None]
+                py = sigma * s_pts[None, :] * np.sin(th0)[:, None]
+            else:
+                kap = turn / radius
+                th = th0[:, None] + kap * s_pts[None, :]
+                px = sigma * (np.sin(th) - np.sin(th0)[:, None]) / kap
+                py = -sigma * (np.cos(th) - np.cos(th0)[:, None]) / kap
+            di = np.rint(py / h).astype(int)[kk]  # (m K, samples)
+            dj = np.rint(px / h).astype(int)[kk]
+            i2 = ii[cell][:, None] + di
+            j2 = jj[cell][:, None] + dj
+            ok = ((i2 >= 0) & (i2 < ny) & (j2 >= 0) & (j2 < nx)).all(axis=1)
+            i2c, j2c = np.clip(i2, 0, ny - 1), np.clip(j2, 0, nx - 1)
+            ok &= free[i2c, j2c].all(axis=1)
+            src = self._state(cell[ok], kk[ok], 0) // GEARS
+            dst_cell = index[i2c[ok, -1], j2c[ok, -1]]
+            k_end = (kk[ok] + turn * step) % k_n
+            cost = run * factor + turn_weight * abs(turn) * dth * step
+            straight = fits[dst_cell, k_end]
+            for g_prev, g_next in after.items():
+                keep = straight if g_next in (1, 2) else slice(None)
+                rows.append((src * GEARS + g_prev)[keep])
+                cols.append(self._state(dst_cell, k_end, g_next)[keep])
+                cusp = (g_prev == 1) != (gear == 1)
+                weights.append(np.full(rows[-1].size, cost + (cusp_cost if cusp else 0.0)))
+        n_states = m * k_n * GEARS
         r = np.concatenate(rows)
         c = np.concatenate(cols)
         w = np.concatenate(weights)
         # reversed moves: the distance from the goal on the transposed graph is the cost to it
         graph = csr_matrix((w, (c, r)), shape=(n_states, n_states))
         # the goal: the cells around it (the rounding of the moves lands on any of them) in
-        # the goal's heading bin and its two neighbours, either gear
+        # the goal's heading bin and its two neighbours, any gear
         gu, gv = (goal[0] - x0) / h, (goal[1] - y0) / h
         kg = self._bin(goal[2])
         sources = []
@@ -243,15 +275,15 @@ class CarGrid:
             for gj in (int(math.floor(gu)), int(math.floor(gu)) + 1):
                 if 0 <= gi < ny and 0 <= gj < nx and free[gi, gj]:
                     sources += [self._state(index[gi, gj], (kg + dk) % k_n, g)
-                                for dk in (-1, 0, 1) for g in (0, 1)]
-        self.cost = np.full((ny, nx, k_n, 2), np.inf)
+                                for dk in (-1, 0, 1) for g in range(GEARS)]
+        self.cost = np.full((ny, nx, k_n, GEARS), np.inf)
         if sources:
             dist = dijkstra(graph, directed=True, indices=sources, min_only=True)
-            self.cost[ii, jj] = dist.reshape(m, k_n, 2)
+            self.cost[ii, jj] = dist.reshape(m, k_n, GEARS)
         self._index = index
 
     def _state(self, cell, k: int, gear: int):
-        return (cell * self.k + k) * 2 + gear
+        return (cell * self.k + k) * GEARS + gear
 
     def _cell(self, x: float, y: float) -> tuple[int, int]:
         return (int(round((y - self.y0) / self.h)), int(round((x - self.x0) / self.h)))
@@ -259,23 +291,32 @@ class CarGrid:
     def _bin(self, theta: float) -> int:
         return int(round(theta / (2.0 * math.pi / self.k))) % self.k
 
-    def __call__(self, pose, direction: int = 0) -> float:
+    def __call__(self, pose, direction: int = 0, straight: bool = True) -> float:
         """Cost [m] from ``pose`` (chain convention) with the last motion's ``direction``
-        (PUSH +1, PULL -1, 0 none) to the goal; inf off the grid or where unreachable."""
+        (PUSH +1, PULL -1, 0 none) to the goal; inf off the grid or where unreachable.
+        ``straight``: whether the chain is straight enough to pull (after a push)."""
         u, v = (pose[0] - self.x0) / self.h, (pose[1] - self.y0) / self.h
         ny, nx = self.free.shape
         i0, j0 = int(math.floor(v)), int(math.floor(u))
         if not (0 <= i0 < ny - 1 and 0 <= j0 < nx - 1):
             return math.inf
         k = self._bin(pose[2])
-        gears = {1: [0], -1: [1]}.get(direction, [0, 1])
+        push = [0, 2] if straight else [0]
+        gears = {1: push, -1: [1]}.get(direction, [0, 1, 2] if straight else [0, 1])
         # the best of the four surrounding cells, plus the way to its centre
         best = math.inf
         for i in (i0, i0 + 1):
             for j in (j0, j0 + 1):
                 value = float(self.cost[i, j, k, gears].min())
                 best = min(best, value + self.h * math.hypot(u - j, v - i))
+        if best == math.inf and not straight:
+            # no room for the car's straightening run: the chain may straighten in less
+            return self(pose, direction, True)
         return best
+
+
+GEARS = 3
+"""Gears of the :class:`CarGrid`'s states: pushing, pulling, pushed straight."""
 
 
 def _yaw(theta: float) -> float:

@@ -314,11 +314,17 @@ class Search:
         queued = [item[2] for item in self._open]
         self._open = []
         for node in queued:
-            node.h = self.heuristic(node.cursor.pose, node.cursor.direction)
+            node.h = self._h(node.cursor, node.state)
             if node.h < math.inf:
                 heapq.heappush(self._open, (node.g + self.s.weight * node.h,
                                             next(self._counter), node))
         log.debug("car heuristic built after %d expansions", self.stats.expansions)
+
+    def _h(self, cursor: Cursor, state: TrainState) -> float:
+        """The heuristic of a node: its reference pose, its last motion's direction and
+        whether its chain is straight enough to pull."""
+        straight = bool(np.abs(state.phi()).max() <= self.s.pull_phi)
+        return self.heuristic(cursor.pose, cursor.direction, straight)
 
     # ------------------------------------------------------------------ edges
     def _primitives(self, node: Node, fraction: float = 1.0):
@@ -413,7 +419,7 @@ class Search:
             if rollout.failure["kind"] not in ("budget", "deadline"):
                 self.stats.record(rollout.failure)
             return None
-        h = self.heuristic(rollout.cursor.pose, rollout.cursor.direction)
+        h = self._h(rollout.cursor, rollout.state)
         pull = segments[-1].direction == PULL
         child = Node(rollout.state, rollout.cursor, node.g + self._cost(node, segments), h, node,
                      tuple(segments), root if pull else None, run if pull else (),

@@ -331,7 +331,7 @@ def _final_error(last_result, last_error: PlanningError | None, history: list, t
     else:
         what = (f"before the wall-clock safety cap of {config.wall_cap():.3g} s" if work.capped
                 else f"within the budget of {config.budget_checks()} motion checks (time_budget "
-                f"{config.time_budget} s)")
+                f"{config.budget_seconds():g} s)")
         error = PlanningError("unreachable", f"no plan {what}", where=tuple(goal[:2]),
                               details={"attempts": history})
     error.details["time_capped"] = work.capped

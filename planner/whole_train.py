@@ -64,6 +64,11 @@ __all__ = ["plan_lattice"]
 
 log = logging.getLogger(__name__)
 
+FINE_SPACINGS = (0.01, 0.004)
+"""Sample spacings [m] of the bodies' outlines tried, in turn, when the start passes the exact
+clearance test but not the sampled one (conservative by half the spacing): a start 0.06 m off a
+wall with a 0.05 m clearance moves with 1 cm samples."""
+
 HEURISTIC_NODES_PER_SECOND = 1.0e6
 """Nodes a second assumed of the heuristic's grid Dijkstra when sizing it to the time budget
 (conservative: 3.5 million on a laptop core)."""
@@ -98,6 +103,19 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
                 else np.asarray(start_headings, dtype=float))
     state0 = prop.initial_state(start, headings)
     _check_ends(world, train, start, goal, state0, prop, margins)
+    for spacing in FINE_SPACINGS:
+        failure, _ = prop.check(np.array([state0.z]))
+        if failure is None or failure["kind"] != "collision" or spacing >= config.sample_spacing:
+            break
+        # the exact test passed the start (_check_ends): what refuses it is the sampled test's
+        # slack (half the sample spacing), and no motion could leave it. Finer samples let a
+        # train that starts a few centimetres off a wall move off it.
+        log.info("the start keeps its clearance but not the sampled test's slack: samples "
+                 "every %.3f m", spacing)
+        samples = body_samples(train, margins, spacing=spacing)
+        prop = Propagator(train, controller, tracker, field, samples, phi_limit,
+                          goal_phi=config.goal_max_phi)
+        state0 = prop.initial_state(start, headings)
     radius = config.radius_for(train)
     last = train.last
     # no way as wide as the last trailer's disc: impossible, said before any search (one
@@ -107,8 +125,15 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         raise _unreachable(field, train, start, goal, passage, impossible=True)
     # the grid's Dijkstra run (about 3.5 million nodes a second on a laptop core) is not
     # interruptible: it may take at most a quarter of the budget at a million nodes a second
+    # the car heuristic pulls only after a straight push that straightens the chain (about
+    # 0.6 of the train's length: the three-point turns' last push before their cusp). Its
+    # other rule, pulls only where the straight train fits (CarGrid's train_length), is left
+    # out: it sent the island loop with 4 and 5 trailers round the island (planned in 7 s
+    # instead of not at all) but lost the T junction's K-turn with 3 to 5 trailers
     heuristic = Heuristic(field, goal, radius, passage, build_car=False,
-                          max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.time_budget))
+                          car={"straighten": max(1.0, 0.6 * train.hitch_length)},
+                          max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25
+                                        * config.budget_seconds()))
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
     # the route of the last trailer (the body that goes everywhere the train goes: it leads
     # into docks and bays), kept to the middle of corridors; made when the search first needs
@@ -129,7 +154,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     approach = 1.5 if config.goal_max_phi is None else max(1.5, train.hitch_length + 0.5)
     settings = SearchSettings(
         radius=radius, step_length=config.step_length, weight=config.search_weight,
-        pull_phi=config.pull_max_phi, budget_steps=config.budget_steps(), deadline=deadline,
+        pull_phi=config.pull_max_phi, budget_steps=config.budget_steps(train.n), deadline=deadline,
         approach=approach)
     search = Search(train, prop, heuristic, state0, cursor0, goal, settings, route=route_of)
     rejected, best, found = 0, None, 0
@@ -362,7 +387,7 @@ def _planned(start, headings, segments, radius, config, tracker, checked, search
     stats = search.stats
     info = {
         "planner": "lattice", "seed": config.seed, "time": time.perf_counter() - t_begin,
-        "steps": search.prop.steps, "budget_steps": config.budget_steps(),
+        "steps": search.prop.steps, "budget_steps": config.budget_steps(search.train.n),
         "time_capped": stats.cut == "deadline", "expansions": stats.expansions,
         "rollouts": stats.rollouts, "rejected_by_verification": rejected,
         "failures": dict(stats.failures), "radius": radius,
@@ -466,14 +491,14 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
     elapsed = time.perf_counter() - t_begin
     if stats.cut == "budget":
         reason, head = "budget_exhausted", (
-            f"no plan within the budget of {config.budget_steps()} simulated control steps "
-            f"(time_budget {config.time_budget:g} s; {stats.expansions} expansions; a larger "
+            f"no plan within the budget of {config.budget_steps(train.n)} simulated control "
+            f"steps ({_budget_text(config)}; {stats.expansions} expansions; a larger "
             "planner.time_budget searches further)")
     elif stats.cut == "deadline":
         reason, head = "budget_exhausted", (
             f"no plan before the wall-clock safety cap of {config.wall_cap():g} s stopped the "
-            f"search ({search.prop.steps} of {config.budget_steps()} steps of time_budget "
-            f"{config.time_budget:g} s done, {stats.expansions} expansions; this result depends "
+            f"search ({search.prop.steps} of {config.budget_steps(train.n)} steps of "
+            f"{_budget_text(config)} done, {stats.expansions} expansions; this result depends "
             "on the machine's speed: a faster or less loaded machine, or a larger "
             "planner.time_budget, does more)")
     else:
@@ -504,6 +529,12 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
                          f"{route}",
                          where=(corner["x"], corner["y"]) if corner else tuple(goal[:2]),
                          details=details)
+
+
+def _budget_text(config) -> str:
+    if config.time_budget is None:
+        return f"the default budget, about {config.budget_seconds():g} s"
+    return f"time_budget {config.time_budget:g} s"
 
 
 def _train_at(state, train: Train) -> dict:

@@ -14,7 +14,8 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 PLOTS = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
 
 
-SLOW = {"docking", "three_point_turn", "narrow_l_5", "parallel_parking", "corner_10"}
+SLOW = {"docking", "three_point_turn", "narrow_l_5", "parallel_parking", "corner_10",
+        "hall_reversal_5", "t_junction_kturn", "island_loop"}
 """The facility manoeuvres: long plans and co-simulations (docking: 84 s simulated, the n = 10
 corner: 230 s)."""
 

@@ -163,7 +163,7 @@ def _plan_bookstore() -> dict:
         from pushtrain.facility.loading import map_world
         world = map_world(grid={str(BOOKSTORE)!r})
         path = plan(world, (-7.0, 1.2, math.pi / 2), (4.4, -6.2, math.pi), Train.uniform(2),
-                    PlannerConfig(time_budget=10.0))
+                    PlannerConfig())
         print(json.dumps({{"path": path.to_dict(), "capped": path.info["time_capped"],
                            "steps": path.info["steps"]}}))
     """)
@@ -174,7 +174,7 @@ def _plan_bookstore() -> dict:
 
 def test_the_same_path_with_and_without_a_cpu_hog_beside_it():
     """A plan is a function of its scenario: the same path.json whether the machine is idle or
-    two busy loops take its cores."""
+    two busy loops take its cores, with the default budget (counted steps, no clock)."""
     quiet = _plan_bookstore()
     hogs = [subprocess.Popen([sys.executable, "-c", _HOG]) for _ in range(2)]
     try:
