@@ -63,6 +63,12 @@ about a second on the facility benchmark), and one that does not is given up aft
 (measured 14-30 s of CPU: a step costs 5.5-11 us, more where many bodies are near walls),
 inside the minute a user waits (``benchmarks/bench_facility.py``)."""
 
+DEFAULT_WALL_CAP = 50.0
+"""Wall-clock safety cap [s] of a plan at the default budget: a search that finds nothing is
+given up after its counted work (about 20 s of CPU on a laptop core, 14-30 s measured) and, on a
+machine too loaded to do that work within 50 s, by this cap (the result then says it was cut by
+the clock). With the co-simulation after it, a run at the defaults stays within a minute."""
+
 OMPL_DEFAULT_SECONDS = 1.0
 """The OMPL planners' budget [s] when no ``time_budget`` is given."""
 

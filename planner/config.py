@@ -28,6 +28,7 @@ from pushtrain.validation import NonNegFloat, PositiveFloat
 
 from .budget import (
     DEFAULT_SEARCH_SECONDS,
+    DEFAULT_WALL_CAP,
     OMPL_DEFAULT_SECONDS,
     checks_for,
     default_steps,
@@ -208,7 +209,9 @@ class PlannerConfig:
         (default): return the first path.
     time_cap : float or None
         Wall-clock safety cap [s] of one :func:`~pushtrain.planner.planner.plan` call; None:
-        10 x the budget's seconds + 10 s (the default budget: 210 s). Only this stops a
+        10 x the budget's seconds + 10 s for an explicit ``time_budget``, and
+        :data:`~pushtrain.planner.budget.DEFAULT_WALL_CAP` (50 s) for the default budget, so
+        that no run at the defaults keeps a user waiting past a minute. Only this stops a
         search by the clock; a plan it cut short has ``info["time_capped"]`` True (a
         PlanningError: ``details["time_capped"]``) and a warning is logged, since the result
         then depends on the machine's speed.
@@ -363,6 +366,8 @@ class PlannerConfig:
         """The wall-clock safety cap [s] of a plan() call (``time_cap``, or its default)."""
         if self.time_cap is not None:
             return float(self.time_cap)
+        if self.time_budget is None:
+            return DEFAULT_WALL_CAP
         return 10.0 * self.budget_seconds() + 10.0
 
     def extension_for(self, radius: float) -> float:

@@ -82,7 +82,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
 
     Budgets count work (simulated control steps), so the plan is a function of the scenario
     alone; the wall clock only stops the search at the safety cap
-    (:meth:`~pushtrain.planner.config.PlannerConfig.wall_cap`, 10 x ``time_budget`` + 10 s),
+    (:meth:`~pushtrain.planner.config.PlannerConfig.wall_cap`: 50 s at the default budget),
     and a result cut short by it says so.
     """
     field = world.distance_field()
