@@ -706,6 +706,41 @@ def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
                                                      if r["key"] in kept]
 
 
+@pytest.mark.slow
+def test_sigterm_to_a_dask_sweep_is_exit_143_like_every_command(tmp_path):
+    """SIGTERM (a batch scheduler, ``kill``) to the sweep's main process while it runs on its
+    Dask cluster: exit 143 "terminated", the rows done kept (it was 130, Ctrl-C's code)."""
+    import signal
+    import subprocess
+    import sys
+    import threading
+
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(SPEC16_TOML)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-c", HOLD_AFTER_THE_FIRST_CHUNK, "sweep",
+                             str(tmp_path / "base.toml"), "--spec", str(tmp_path / "spec.toml"),
+                             "--out", str(out), "--no-plots", "--workers", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    watchdog = threading.Timer(600.0, os.killpg, (proc.pid, signal.SIGKILL))  # a hang only
+    watchdog.start()
+    try:
+        said = []
+        for line in proc.stderr:
+            said.append(line)
+            if line.startswith("holding after chunk-"):
+                break
+        assert said and said[-1].startswith("holding after chunk-"), "".join(said)
+        proc.send_signal(signal.SIGTERM)
+        stdout, stderr = proc.communicate()
+    finally:
+        watchdog.cancel()
+    assert proc.returncode == 143, stdout + "".join(said) + stderr
+    assert "Traceback" not in stderr and "terminated (SIGTERM)" in stderr, stderr
+    assert list(out.glob("chunks/chunk-*.csv"))
+
+
 def test_cli_bad_spec_exits_2_naming_the_field(tmp_path):
     from pushtrain.cli.main import cli
 
