@@ -78,7 +78,7 @@ def atlas_cmd(facility, trailers, out, scheduler, workers, serial, only):
                                  + (f" ({', '.join(twice)} given twice)" if twice else ""))
     workers = local_workers(workers, scheduler)
     serial = serial or workers == 0
-    if scheduler and not serial:
+    if scheduler:
         check_scheduler(scheduler)
     writable_folder("--out", out)
     with click_errors():
