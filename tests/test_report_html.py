@@ -257,6 +257,29 @@ def test_a_click_on_a_plot_moves_the_train_to_that_time(browser, corridor_run):
 
 
 @pytest.mark.browser
+def test_a_time_between_two_samples_shows_the_nearer_one(browser, corridor_run):
+    """What a click on a plot does (setTime): a time just past a sample shows that sample, a
+    time just before the next one shows the next; checked against the page's own times."""
+    _open(browser, corridor_run / "report.html")
+    times = browser.execute_script(
+        "const r = window.pushtrainReport; const out = [];"
+        "for (let k = 0; k < 6; k++) { r.setRow(k * 37 + 5); out.push(r.state().t); }"
+        "r.setRow(0); return out;")
+    rows = [k * 37 + 5 for k in range(6)]
+    nexts = browser.execute_script(
+        "const r = window.pushtrainReport;"
+        "return arguments[0].map((k) => { r.setRow(k + 1); return r.state().t; });", rows)
+    for row, t, t_next in zip(rows, times, nexts, strict=True):
+        assert t_next > t
+        for fraction, want in ((0.1, row), (0.4, row), (0.6, row + 1), (0.9, row + 1)):
+            state = browser.execute_script(
+                "window.pushtrainReport.setTime(arguments[0]);"
+                "return window.pushtrainReport.state();", t + fraction * (t_next - t))
+            assert state["row"] == want, (row, fraction, state["row"])
+    assert _errors(browser) == []
+
+
+@pytest.mark.browser
 def test_play_advances_the_train(browser, corridor_run):
     _open(browser, corridor_run / "report.html")
     browser.execute_script("window.pushtrainReport.setRow(0);")
