@@ -3,6 +3,7 @@ pushtrain's errors into exit codes, and the common arguments and options."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from contextlib import contextmanager
 from pathlib import Path
@@ -145,9 +146,9 @@ INSIDE_PATH_BYTES = 256
 
 
 def writable_folder(option: str, out: str) -> Path:
-    """The output folder ``out`` made (with its parents) and checked writable before any work,
-    or BadInput naming ``option``: an empty name, a file, a name or path too long, a place
-    where nothing can be written."""
+    """The output folder ``out`` checked writable before any work (made with its parents for
+    a probe file, then removed again), or BadInput naming ``option``: an empty name, a file, a
+    name or path too long, a place where nothing can be written."""
     import errno
     import os
     import tempfile
@@ -158,17 +159,26 @@ def writable_folder(option: str, out: str) -> Path:
     if not str(out).strip():
         raise BadInput(f"{option} {out!r}: an empty folder name; allowed: a folder path")
     path = Path(out)
+    made = []  # the folders made for the probe, deepest first: removed again
     try:
         if path.exists() and not path.is_dir():
             raise BadInput(f"{option} {shown}: is a file; allowed: a folder path")
-        path.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=path, prefix=".pushtrain-probe-"):
-            pass
         if len(os.fsencode(os.path.abspath(path))) > PATH_MAX - INSIDE_PATH_BYTES:
             raise OSError(errno.ENAMETOOLONG, f"too long for the files written inside "
                           f"(at most {PATH_MAX - INSIDE_PATH_BYTES} bytes)")
+        missing = path
+        while not missing.exists() and missing != missing.parent:
+            made.append(missing)
+            missing = missing.parent
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path, prefix=".pushtrain-probe-"):
+            pass
     except OSError as exc:
         raise BadInput(f"{option} {shown}: cannot be written: {exc.strerror or exc}; allowed: "
                        "a folder that can be created and written (each name at most 255 bytes, "
                        "the path at most 4096)") from None
+    finally:
+        for folder in made:  # a refusal, or the work that follows, finds things as they were
+            with contextlib.suppress(OSError):
+                folder.rmdir()
     return path

@@ -73,3 +73,13 @@ def test_a_long_phase_says_it_is_still_going():
     with phases.phase("save", "saving"):  # no ticks unless asked for
         time.sleep(0.1)
     assert not [line for line in stream.getvalue().splitlines() if "still saving" in line]
+
+
+def test_the_phase_summary_gives_each_phase_in_seconds():
+    ticks = iter([0.0, 1.0, 1.0, 1.25, 2.0, 2.0, 3.5])  # start; each phase: line, start, end
+    phases = Phases(stream=io.StringIO(), clock=lambda: next(ticks))
+    with phases.phase("plan", "planning"):
+        pass
+    with phases.phase("co-simulate", "co-simulating"):
+        pass
+    assert phases.summary() == "plan 0.25 s, co-simulate 1.50 s"

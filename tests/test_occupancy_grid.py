@@ -55,3 +55,28 @@ def test_a_start_a_third_of_a_cell_past_the_edge_is_exit_2(site, side):
     done = CliRunner().invoke(cli, ["validate", str(scenario)])
     assert done.exit_code == 2, (done.output, done.exception)
     assert "outside the map" in done.output and "start" in done.output, done.output
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.3, -2.0])
+def test_the_image_s_top_rows_are_the_map_s_far_side(tmp_path, yaw):
+    """An occupied block in the image's top-left corner (row 0 is the top, as map_server
+    reads images) lies at the far end of the map's y axis, whatever the origin's yaw."""
+    import math
+
+    pixels = np.full((HT, W), 254, dtype=np.uint8)
+    pixels[0:5, 0:5] = 0  # occupied
+    Image.fromarray(pixels).save(tmp_path / "site.pgm")
+    (tmp_path / "site.yaml").write_text(
+        f"image: site.pgm\nresolution: {H}\norigin: [{ORIGIN[0]}, {ORIGIN[1]}, {yaw}]\n"
+        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    grid = load_map(tmp_path / "site.yaml")
+
+    def world(row, col):  # the centre of pixel (row, col) [m]
+        u, v = (col + 0.5) * H, (HT - row - 0.5) * H
+        c, s = math.cos(yaw), math.sin(yaw)
+        return ORIGIN[0] + c * u - s * v, ORIGIN[1] + s * u + c * v
+
+    blocked = grid.why_blocked(*world(2, 2))
+    assert blocked is not None and "occupied" in blocked, blocked
+    assert grid.why_blocked(*world(HT - 3, 2)) is None  # the bottom-left corner is free
+    assert grid.why_blocked(*world(2, W - 3)) is None

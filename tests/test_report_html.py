@@ -74,6 +74,25 @@ def _payload(page: Path) -> dict:
 
 
 # ---------------------------------------------------------------------- the file
+def test_non_finite_numbers_become_json_null_in_the_page(tmp_path):
+    """NaN and inf (a diverged run) are written as null: the page's data is strict JSON, which
+    a browser's JSON.parse reads (it refuses NaN and Infinity)."""
+    from pushtrain.report.html import write_table_page
+
+    page = write_table_page(tmp_path / "t.html", "t", {"rate": math.nan, "big": math.inf},
+                            ["x", "y"], [[1.0, -math.inf], [np.float64(math.nan), 2.0]])
+    text = page.read_text()
+    raw = re.search(r'<script type="application/json" id="report-data">(.*?)</script>', text,
+                    flags=re.S).group(1)
+
+    def refuse(name):
+        raise ValueError(f"{name} in the page's JSON")
+
+    data = json.loads(raw.replace("<\\/", "</"), parse_constant=refuse)
+    assert data["summary"] == {"rate": None, "big": None}
+    assert data["rows"] == [[1.0, None], [None, 2.0]]
+
+
 def test_every_run_folder_has_one_self_contained_page(corridor_run):
     from pushtrain.cosim.result import load_results
 

@@ -132,3 +132,19 @@ def test_a_run_that_crosses_a_pillar_mid_way_is_a_collision(tmp_path):
     first = min(summary["map_check"]["collisions"].values(), key=lambda c: c["t"])
     assert 5.0 < first["t"] < summary["t_final"] - 5.0  # mid-run, not at an end
     assert 5.5 < first["x"] < 7.5
+
+
+def test_the_goal_heading_tolerance_reaches_the_master_in_radians():
+    sc = _scenario(sim={"goal_tolerance": 0.07, "goal_heading_tolerance_deg": 9.0})
+    from pushtrain.mission.runner import goal_tolerance_of
+
+    position, heading = goal_tolerance_of(sc)
+    assert position == 0.07
+    assert heading == pytest.approx(9.0 * math.pi / 180.0)
+
+
+def test_a_rotation_without_a_start_begins_at_the_origin_heading_east():
+    sc = parse_scenario({"mission": {"kind": "rotation"}, "train": {"n": 2}}, "rot.toml")
+    initial = initial_of(sc, None)
+    assert (initial.x0, initial.y0) == (0.0, 0.0)
+    assert np.array_equal(initial.theta, np.zeros(3))

@@ -486,3 +486,18 @@ def test_readme_snippets_run_the_package(short, tmp_path, tool, heading):
     else:  # it printed the time at done, and the last trailer's position
         t, x, y = (float(v) for v in proc.stdout.split())
         assert t < 100.0 and math.isfinite(x) and math.isfinite(y)
+
+
+@pytest.mark.parametrize("settle", [0.0, 0.0023, 1.0, 2.0049])
+def test_the_package_runs_at_least_to_the_end_of_the_reference_in_whole_steps(settle):
+    """SSP's stop time: the reference's end plus the settle time, rounded UP to whole steps
+    (never cutting the run short of what pushtrain's own master runs)."""
+    from pushtrain.mission.ssp import horizon_of
+
+    sc = parse_scenario({**SHORT, "sim": {"settle_time": settle}}, "short.toml")
+    reference = scripted_reference(sc)
+    step = sc.sim.step
+    want = float(reference.t_end) - float(reference.t0) + settle
+    got = horizon_of(sc, reference)
+    assert want - 1e-9 <= got < want + step
+    assert abs(got / step - round(got / step)) < 1e-9
