@@ -132,3 +132,21 @@ def test_an_out_folder_that_cannot_be_written_is_exit_2_before_any_work(tmp_path
     done = _invoke([FACILITY, *QUICK, "--out", out, "--serial"])
     _refused(done, "--out", "cannot be written", "allowed")
     assert len(done.output) < 2000
+
+
+@pytest.mark.slow
+def test_the_atlas_says_that_it_starts_dask_and_times_the_pairs_after_it(tmp_path):
+    """Starting the LocalCluster takes seconds to tens of seconds: it is announced, and the
+    time estimates count from when the pairs started, not from before the cluster."""
+    import subprocess
+    import sys
+
+    exe = Path(sys.executable).with_name("pushtrain")
+    proc = subprocess.run([str(exe), "atlas", str(FACILITY), *QUICK, "--out", str(tmp_path / "o"),
+                           "--workers", "1"], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stderr.splitlines()
+    start = [k for k, line in enumerate(lines)
+             if "starting a local Dask cluster of 1 worker" in line]
+    done = [k for k, line in enumerate(lines) if line.startswith("atlas: 1/2 pairs")]
+    assert start and done and start[0] < done[0], proc.stderr

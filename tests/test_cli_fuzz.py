@@ -480,6 +480,7 @@ def _finite_numbers(node) -> bool:
     return not isinstance(node, list) or all(_finite_numbers(v) for v in node)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(case=scenario_files())
