@@ -691,7 +691,7 @@ def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
     assert proc.returncode == 130, stdout + "".join(said) + stderr
     assert "Traceback" not in "".join(said) + stderr, stderr
     others = [line for line in stderr.splitlines() if not line.startswith("sweep: ")]
-    assert len(others) == 1 and others[0].startswith("interrupted: "), stderr
+    assert len(others) == 1 and others[0].startswith("interrupted (Ctrl-C): "), stderr
     assert "run the same command with the same --out to resume" in others[0]
     kept = {r["key"]: r for p in sorted(out.glob("chunks/chunk-*.csv")) for r in read_results(p)}
     assert 1 <= len(kept) < 16
