@@ -1,6 +1,6 @@
 """Planning on an occupancy grid against the same geometry as polygons (issue 15).
 
-Usage: python benchmarks/bench_maps.py [--seeds 3] [--resolution 0.05] [--budget 5.0]
+Usage: python benchmarks/bench_maps.py [--seeds 3] [--resolution 0.05] [--budget 5.0] [--prep-only]
 
 A 100 m x 100 m hall with rack rows, a cross aisle and a few boxes turned by 30 deg is given
 twice: as polygons (a World built from them), and rendered into a map_server map (PGM + YAML,
@@ -14,6 +14,14 @@ plans the same mission on both with the same seeds, and the script prints, side 
 - planning (``plan``, train check included);
 - the total, and the ratio grid / polygons judged against the target of 2.0;
 - path lengths, so that a fast but different answer shows.
+
+First, preparing a map (issue 34 item 6): a 50 m x 30 m depot rendered at 3 cm and at 5 cm,
+prepared as the planner does before its search (reading the files; the World: traced
+polygons, free space and distance field, from the map cache when there; the "impossible
+here" labelling; the heuristic's grid Dijkstra) and then the route graph the search asks for,
+with an empty cache (cold) and again from the cache (warm), in CPU seconds of this process,
+side by side, against the targets: cold <= 1 s with the route, warm <= 0.3 s to the search.
+Then the time to the answer "impossible here" on two public maps.
 """
 
 from __future__ import annotations
@@ -67,6 +75,108 @@ def write_map(world: World, folder: Path, resolution: float) -> Path:
     return yaml
 
 
+def depot(resolution: float, folder: Path) -> Path:
+    """A 50 m x 30 m depot (two blocks of six rack rows, a cross aisle, a box turned by 30
+    deg) rendered into a map_server map at ``resolution`` [m]; the YAML's path."""
+    obstacles = [box(3.0, y0, 22.0, y0 + 1.2) for y0 in 3.0 + 4.0 * np.arange(6)]
+    obstacles += [box(26.0, y0, 47.0, y0 + 1.2) for y0 in 3.0 + 4.0 * np.arange(6)]
+    obstacles.append(rotate(box(23.0, 14.0, 25.0, 15.0), 30.0))
+    world = World(box(0.0, 0.0, 50.0, 30.0), tuple(obstacles))
+    nx, ny = int(round(50.0 / resolution)), int(round(30.0 / resolution))
+    cx, cy = (np.arange(nx) + 0.5) * resolution, (np.arange(ny) + 0.5) * resolution
+    free = shapely.contains_xy(world.free, cx[None, :], cy[::-1, None])
+    Image.fromarray(np.where(free, 254, 0).astype(np.uint8)).save(folder / "depot.pgm")
+    yaml = folder / "depot.yaml"
+    yaml.write_text(f"image: depot.pgm\nresolution: {resolution}\norigin: [0.0, 0.0, 0.0]\n"
+                    "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    return yaml
+
+
+def prepare(yaml: Path) -> dict:
+    """CPU seconds of each step the planner takes on ``yaml`` before and at its search's
+    start (the defaults: PlannerConfig(), three trailers), from one corner to the other."""
+    from pushtrain.planner.heuristic import Heuristic
+    from pushtrain.planner.passage import needed_half_width, passable
+    from pushtrain.planner.route import find_route
+    from pushtrain.planner.whole_train import HEURISTIC_NODES_PER_SECOND
+
+    config, train = PlannerConfig(), Train.uniform(3)
+    start, goal = (1.5, 2.0, math.pi), (48.5, 28.0, 0.5 * math.pi)
+    half = needed_half_width(train, config.margins(train)[-1])
+    steps, t = {}, time.process_time()
+
+    def step(name):
+        nonlocal t
+        now = time.process_time()
+        steps[name], t = now - t, now
+
+    grid = load_map(yaml)
+    step("read")
+    field = grid_world(grid).distance_field()
+    step("world")
+    assert passable(field, start, goal, half)
+    step("impossible?")
+    Heuristic(field, goal, config.radius_for(train), half, build_car=False,
+              max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.time_budget))
+    step("heuristic")
+    steps["to search"] = sum(steps.values())
+    assert find_route(field, start, goal, 0.5 * train.last.width + config.margins(train)[-1])
+    step("route")
+    steps["with route"] = steps["to search"] + steps["route"]
+    return steps
+
+
+def preparation() -> None:
+    """Print cold and warm preparation of the depot at 3 cm and 5 cm, side by side."""
+    import os
+
+    from scipy import ndimage
+
+    ndimage.label(np.ones((2, 2)))  # the first call's imports are the process's, not the map's
+    print("preparing a 50 m x 30 m map (CPU s of this process, imports done; cold: empty map "
+          "cache, warm: the same map again)")
+    for resolution in (0.03, 0.05):
+        with tempfile.TemporaryDirectory() as tmp:
+            os.environ["PUSHTRAIN_CACHE"] = str(Path(tmp) / "cache")
+            yaml = depot(resolution, Path(tmp))
+            cold, warm = prepare(yaml), prepare(yaml)
+        names = list(cold)
+        print(f"  {resolution * 100:.0f} cm ({int(50 / resolution)} x {int(30 / resolution)} "
+              "cells): " + ", ".join(f"{k} {cold[k]:.3f}/{warm[k]:.3f}" for k in names))
+        print(f"    cold with route {cold['with route']:.2f} s (target <= 1 s: "
+              f"{'met' if cold['with route'] <= 1.0 else 'NOT met'}); warm to search "
+              f"{warm['to search']:.2f} s (target <= 0.3 s: "
+              f"{'met' if warm['to search'] <= 0.3 else 'NOT met'})")
+    os.environ.pop("PUSHTRAIN_CACHE", None)
+
+
+PUBLIC = Path(__file__).resolve().parents[1] / "examples" / "maps" / "public"
+IMPOSSIBLE = {  # roomy places whose every way narrows below 1.5 m (tests/test_planner_passage.py
+    # finds such pairs with its own maximin over scipy's distance transform)
+    "aws_bookstore": ((-0.47, -0.82, 157.5), (-3.02, 5.73, -22.5)),
+    "willow_garage": ((38.85, 18.65, 157.5), (10.25, 46.75, 0.0)),
+}
+
+
+def impossible() -> None:
+    """Print the CPU seconds to the answer "impossible here" (reading the map included) for a
+    trailer that asks 0.45 m of clearance (1.5 m passages) on two public maps."""
+    from pushtrain.facility.loading import map_world
+
+    times = []
+    for name, (start, goal) in IMPOSSIBLE.items():
+        t = time.process_time()
+        world = map_world(grid=str(PUBLIC / f"{name}.yaml"))
+        try:
+            plan(world, (*start[:2], math.radians(start[2])), (*goal[:2], math.radians(goal[2])),
+                 Train.uniform(1), PlannerConfig(clearance=[0.05, 0.45]))
+            answer = "planned (not impossible!)"
+        except PlanningError as exc:
+            answer = "impossible here" if exc.details.get("impossible") else exc.reason
+        times.append(f"{name} {time.process_time() - t:.3f} s ({answer})")
+    print("answer for a way too narrow (CPU s, map read included): " + ", ".join(times))
+
+
 def timed(fn):
     t0 = time.perf_counter()
     out = fn()
@@ -86,7 +196,13 @@ def main(argv=None) -> None:
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--resolution", type=float, default=0.05)
     parser.add_argument("--budget", type=float, default=5.0)
+    parser.add_argument("--prep-only", action="store_true",
+                        help="only the map preparation (cold vs warm)")
     args = parser.parse_args(argv)
+    preparation()
+    impossible()
+    if args.prep_only:
+        return
     print(f"planner: {plan.__module__}.{plan.__name__} (this checkout), seeds 1..{args.seeds}, "
           f"time_budget {args.budget} s")
     with tempfile.TemporaryDirectory() as tmp:

@@ -1,36 +1,29 @@
-"""Whole-command benchmark of ``plan-and-run`` (issue 14): wall time per phase and peak memory.
+"""What ``plan-and-run`` costs, phase by phase and picture by picture, in CPU-seconds (issue 35).
 
-Runs ``plan-and-run SCENARIO --out TMP`` in a fresh Python process, once to warm up (FMU build
-cache, matplotlib's font cache, the OS file cache), then ``--repeats`` times, and reports for
-each run and as medians:
+Runs, each in a fresh Python process, after one warm-up run per configuration (FMU build cache,
+matplotlib's font cache, the OS file cache):
 
-* the wall time of the whole process (start-up and imports included) and its CPU time (user +
-  system of the process and its plot processes, from ``wait4``: on a shared machine the CPU
-  time moves less with the load than the wall time),
-* the time of each phase as the command itself prints it on stderr (plan, co-simulate, save,
-  plots: the wait for the plot processes after saving) and the rest (interpreter start-up, the
-  CLI's imports, the scenario and map checks, exit),
-* the peak resident memory (RSS) of each process: the command's own (main) process and each
-  of the two plot processes that draw the PNGs and the GIF (as the command logs them in
-  ``run.log``); ``wait4`` gives the largest of them,
-* in separate, untimed runs (``--pss-runs``, default 1): the peak of the summed proportional
-  memory (PSS, shared pages split between the processes that share them) of the whole process
-  tree, sampled every 20 ms from ``/proc/PID/smaps_rollup``: what the command as a whole holds
-  (the plot processes are forked, so most of their RSS is shared with the main process and
-  counted in each RSS). The sampler is never on while a run is timed: reading
-  ``smaps_rollup`` walks the measured process's page tables under its memory-map lock, and
-  on 2 cores it made l_corridor's runs 26 % slower (medians of 5 alternating pairs, 6.25 s
-  without, 7.90 s with, load 5.3-6.7; issue #29 saw 25-30 %),
+* ``python -c "import pushtrain.cli.main"`` (the CLI's import) and ``python -c pass`` (the
+  interpreter alone), ``--repeats`` times each;
+* ``plan-and-run SCENARIO --out TMP`` with each configuration of pictures (default: the default
+  command, ``--no-plots``, and ``--plots all --gif`` for comparison), ``--repeats`` times each,
+  alternating the configurations so that a change of load touches them alike;
+* a 50-trailer, 60 s scripted run (``pushtrain run``, no map), whose page is timed.
 
-and prints the ratios to the targets: wall time / 4 s and peak memory / 150 MiB (<= 1 meets
-them), the memory judged on the largest single process's peak RSS (each process's peak is
-printed, and the sum of the RSS peaks and the PSS peak of the tree for comparison).
+CPU time is user + system of the command and of every process it waited for (``wait4``):
+on a shared machine it moves much less with the load than the wall time, which is printed
+beside it with the 1-minute load average. The phases' CPU times (plan, co-simulate, save, the
+page) are the command's own process's, as ``run.log`` records them; each picture's CPU time is
+that of the process that drew it (``run.log``); "other" is the rest of the total (interpreter
+start-up, imports, reading the scenario and the map, forking, exit).
 
-Every figure is printed with the load average (1 min) it was measured at: the wall time grows
-with the load (the CPU time less), so a figure without its load cannot be compared.
+It prints one table, medians over the repeats, a column per configuration, and the ratios to
+the targets: the default command <= 2.0 CPU-s in all, of which drawing (the page and any
+picture) <= 0.6; wall time <= 1.5 s on a quiet 2-core machine (judge it with the load); the
+50-trailer page <= 0.5 CPU-s and <= 5 MB.
 
-Run: python benchmarks/bench_plan_and_run.py [--scenario examples/l_corridor.toml] [--repeats 5]
-                                             [--pss-runs 1]
+Run: python benchmarks/bench_plan_and_run.py [--scenario examples/l_corridor.toml] [--repeats 3]
+                                             [--no-all]
 """
 
 from __future__ import annotations
@@ -42,164 +35,186 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
-TARGET_WALL_S = 4.0
-TARGET_RSS_MIB = 150.0
-_DONE = re.compile(r"^\[\s*([\d.]+) s\] done: (.*)$")
-_PHASE = re.compile(r"^(.*) ([\d.]+) s$")
-_PEAKS = re.compile(r"peak resident memory \[MiB\]: main process ([\d.]+), plot processes (.*)$")
+TARGET_CPU_S = 2.0
+TARGET_DRAW_CPU_S = 0.6
+TARGET_WALL_S = 1.5
+TARGET_PAGE_50_CPU_S = 0.5
+TARGET_PAGE_50_MB = 5.0
+TARGET_IMPORT_CPU_S = 0.25
+
+PHASES = ("plan", "co-simulate", "save", "page")
+PICTURES = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png",
+            "train.gif")
+_PHASE_CPU = re.compile(r"phase CPU times \(this process\): (.*)$")
+_DRAWN = re.compile(r"INFO \S+: (\S+) drawn in ([\d.]+) s \(CPU ([\d.]+) s\) by (.*)$")
+
+FIFTY = """name = "fifty"
+[mission]
+kind = "scripted"
+[train]
+n = 50
+[start]
+x = 0.0
+y = 0.0
+theta_deg = 180.0
+[reference]
+speed = 0.08
+segments = [{ kind = "line", length = 20.0 }]
+[sim]
+horizon = 60.0
+"""
+"""The 50-trailer, 60 s scripted run of issue 35 (no map: the page's cost is the data's)."""
 
 
-def _tree(pid: int) -> list[int]:
-    """``pid`` and its descendants (from /proc/PID/task/TID/children)."""
-    found, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        found.append(p)
-        try:
-            for task in os.listdir(f"/proc/{p}/task"):
-                with open(f"/proc/{p}/task/{task}/children") as f:
-                    todo += [int(c) for c in f.read().split()]
-        except OSError:
-            continue
+def run_process(args: list[str], cwd: Path) -> dict:
+    """Run ``args``; its wall time [s], CPU time of it and its children [s], peak RSS of the
+    largest of them [MiB], exit code, output and the 1-minute load average at its start."""
+    load = os.getloadavg()[0]
+    with tempfile.TemporaryFile("w+") as out:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=cwd)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        out.seek(0)
+        text = out.read()
+    return {"wall": wall, "cpu": usage.ru_utime + usage.ru_stime,
+            "rss_mib": usage.ru_maxrss / 1024.0, "exit": os.waitstatus_to_exitcode(status),
+            "output": text, "load": load}
+
+
+def _from_log(out_dir: Path) -> dict[str, float]:
+    """CPU time [s] of each phase (the command's process) and each picture (its process)."""
+    found: dict[str, float] = {}
+    log = out_dir / "run.log"
+    for line in log.read_text().splitlines() if log.is_file() else []:
+        match = _PHASE_CPU.search(line)
+        if match:
+            for item in match.group(1).split(", "):
+                name, seconds = item.rsplit(" ", 2)[:2]
+                found[name] = float(seconds)
+        match = _DRAWN.search(line)
+        if match:
+            found[match.group(1)] = float(match.group(3))
+            if match.group(4).startswith("plot process"):
+                found["in plot processes"] = (found.get("in plot processes", 0.0)
+                                              + float(match.group(3)))
     return found
 
 
-def _pss_kib(pid: int) -> int:
-    try:
-        with open(f"/proc/{pid}/smaps_rollup") as f:
-            for line in f:
-                if line.startswith("Pss:"):
-                    return int(line.split()[1])
-    except (OSError, ValueError):
-        pass
-    return 0
+def run_command(command: list[str], out_dir: Path) -> dict:
+    """``command`` (a plan-and-run or run) into ``out_dir``; :func:`run_process`'s numbers
+    plus the phases' and pictures' CPU times, the drawing's, the rest and the folder's size."""
+    args = [sys.executable, "-c", "from pushtrain.cli.entry import pushtrain; pushtrain()",
+            *command, "--out", str(out_dir)]
+    run = run_process(args, out_dir.parent)
+    if run["exit"] not in (0, 1):
+        raise RuntimeError(f"{' '.join(command)} failed (exit {run['exit']}):\n{run['output']}")
+    parts = _from_log(out_dir)
+    drawing = parts.get("page", 0.0) + sum(parts.get(p, 0.0) for p in PICTURES)
+    # the plots phase: this process drawing pictures (or waiting for the plot processes)
+    in_phases = sum(parts.get(p, 0.0) for p in (*PHASES, "plots"))
+    run.update(parts=parts, drawing=drawing,
+               other=run["cpu"] - in_phases - parts.get("in plot processes", 0.0),
+               size_mb=sum(p.stat().st_size for p in out_dir.iterdir()) / 1e6,
+               page_mb=((out_dir / "report.html").stat().st_size / 1e6
+                        if (out_dir / "report.html").is_file() else 0.0))
+    return run
 
 
-class _TreePss:
-    """Samples the summed PSS [KiB] of a process tree every ``interval`` s; ``peak`` the most."""
-
-    def __init__(self, pid: int, interval: float = 0.02):
-        self.pid, self.interval, self.peak = pid, interval, 0
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self._run, daemon=True)
-        self.thread.start()
-
-    def _run(self) -> None:
-        while not self.stop.wait(self.interval):
-            self.peak = max(self.peak, sum(_pss_kib(p) for p in _tree(self.pid)))
-
-    def end(self) -> float:
-        self.stop.set()
-        self.thread.join()
-        return self.peak / 1024.0
-
-
-def run_once(scenario: str, out_dir: str, extra: list[str], sample_pss: bool = False) -> dict:
-    """One ``plan-and-run`` in a new process: wall and CPU time [s] (CPU of the whole tree),
-    peak RSS [MiB] of the largest process and of each (main first), the peak PSS of the tree
-    [MiB] (with ``sample_pss`` only, else NaN: the sampler slows the run), the phase times [s]
-    it printed, its exit code, and the load average (1 min) when it started."""
-    code = "from pushtrain.cli.main import plan_and_run_main; plan_and_run_main()"
-    args = [sys.executable, "-c", code, str(Path(scenario).resolve()), "--out", out_dir, *extra]
-    load = os.getloadavg()[0]
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        t0 = time.perf_counter()
-        proc = subprocess.Popen(args, stdout=out, stderr=err, cwd=Path(out_dir).parent)
-        pss = (_TreePss(proc.pid) if sample_pss and os.path.exists(f"/proc/{proc.pid}/smaps_rollup")
-               else None)
-        _, status, usage = os.wait4(proc.pid, 0)
-        wall = time.perf_counter() - t0
-        pss_mib = pss.end() if pss is not None else float("nan")
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        err.seek(0)
-        stderr = err.read()
-    phases = {}
-    for line in stderr.splitlines():
-        match = _DONE.match(line)
-        if match:
-            for item in match.group(2).split(", "):
-                name, seconds = _PHASE.match(item).groups()
-                phases[name] = float(seconds)
-    if proc.returncode not in (0, 1):
-        raise RuntimeError(f"plan-and-run failed (exit {proc.returncode}):\n{stderr}")
-    phases["rest"] = wall - sum(phases.values())  # start-up, imports, exit (all if no phases)
-    peaks = []  # main process, then the plot processes [MiB]
-    log = Path(out_dir) / "run.log"
-    for line in log.read_text().splitlines() if log.is_file() else []:
-        match = _PEAKS.search(line)
-        if match:
-            peaks = [float(match.group(1))] + [float(v) for v in match.group(2).split(", ")]
-    return {"wall": wall, "cpu": usage.ru_utime + usage.ru_stime,
-            "rss_mib": usage.ru_maxrss / 1024.0, "peaks": peaks, "pss_mib": pss_mib,
-            "phases": phases, "exit": proc.returncode, "load": load}
+def _median(runs, key):
+    values = [key(r) for r in runs]
+    values = [v for v in values if v is not None]
+    return statistics.median(values) if values else None
 
 
 def _loads(runs) -> str:
-    """``load a-b`` (1-minute load averages at the starts of ``runs``)."""
     lo, hi = min(r["load"] for r in runs), max(r["load"] for r in runs)
-    return f"load {lo:.2f}" if f"{lo:.2f}" == f"{hi:.2f}" else f"load {lo:.2f}-{hi:.2f}"
+    return f"{lo:.2f}" if f"{lo:.2f}" == f"{hi:.2f}" else f"{lo:.2f}-{hi:.2f}"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenario", default="examples/l_corridor.toml")
-    parser.add_argument("--repeats", type=int, default=5, help="timed runs (after a warm-up)")
-    parser.add_argument("--pss-runs", type=int, default=1,
-                        help="untimed runs with the 20 ms PSS sampler, after the timed ones")
-    parser.add_argument("extra", nargs="*", help="more plan-and-run options (after --)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed runs of each command")
+    parser.add_argument("--no-all", action="store_true",
+                        help="leave out the --plots all --gif comparison")
     args = parser.parse_args()
+    scenario = str(Path(args.scenario).resolve())
+    configs = {"default": [], "--no-plots": ["--no-plots"]}
+    if not args.no_all:
+        configs["--plots all --gif"] = ["--plots", "all", "--gif"]
+    print(f"plan-and-run {args.scenario}: {os.cpu_count()} cores, load average (1 min) "
+          f"{os.getloadavg()[0]:.2f} before; CPU-seconds are user + system of the command and "
+          "every process it waited for; medians of", args.repeats)
     with tempfile.TemporaryDirectory() as tmp:
-        out = str(Path(tmp) / "run")
-        print(f"plan-and-run {args.scenario} {' '.join(args.extra)}".rstrip())
-        print(f"{os.cpu_count()} cores; load average (1 min) {os.getloadavg()[0]:.2f} before "
-              "(other processes share the cores: compare the loads printed)")
-        run_once(args.scenario, out, args.extra)  # warm-up
-        runs = []
+        base = Path(tmp)
+        imports = {"python -c pass": [], "import pushtrain.cli.main": []}
+        for _ in range(args.repeats):
+            imports["python -c pass"].append(run_process([sys.executable, "-c", "pass"], base))
+            imports["import pushtrain.cli.main"].append(
+                run_process([sys.executable, "-c", "import pushtrain.cli.main"], base))
+        runs: dict[str, list[dict]] = {name: [] for name in configs}
+        for extra in configs.values():  # warm-up
+            run_command(["plan-and-run", scenario, *extra], base / "warm")
         for k in range(args.repeats):
-            run = run_once(args.scenario, out, args.extra)
-            runs.append(run)
-            phases = ", ".join(f"{name} {s:.2f}" for name, s in run["phases"].items())
-            peaks = (f" (main {run['peaks'][0]:.0f}, plot processes "
-                     f"{', '.join(f'{v:.0f}' for v in run['peaks'][1:])})" if run["peaks"] else "")
-            print(f"run {k + 1} (load {run['load']:.2f}): wall {run['wall']:.2f} s, CPU "
-                  f"{run['cpu']:.2f} s, peak RSS {run['rss_mib']:.0f} MiB{peaks}, exit "
-                  f"{run['exit']} | {phases}")
-        pss_runs = []
-        for k in range(args.pss_runs):
-            run = run_once(args.scenario, out, args.extra, sample_pss=True)
-            pss_runs.append(run)
-            print(f"PSS run {k + 1} (load {run['load']:.2f}, sampler on, not timed): tree PSS "
-                  f"peak {run['pss_mib']:.0f} MiB (wall {run['wall']:.2f} s with the sampler)")
-        size = sum(p.stat().st_size for p in Path(out).iterdir()) / 1e6
-    print(f"load average after: {os.getloadavg()[0]:.2f}")
-    wall = statistics.median(r["wall"] for r in runs)
-    cpu = statistics.median(r["cpu"] for r in runs)
-    rss = max(r["rss_mib"] for r in runs)
-    print("median phase times [s]: " + ", ".join(
-        f"{name} {statistics.median(r['phases'][name] for r in runs):.2f}"
-        for name in runs[0]["phases"]) + f" ({_loads(runs)})")
-    print(f"run folder: {size:.1f} MB")
-    print(f"wall time (median of {len(runs)}, sampler off): {wall:.2f} s = "
-          f"{wall / TARGET_WALL_S:.2f} x the {TARGET_WALL_S:g} s target (CPU time {cpu:.2f} s = "
-          f"{cpu / TARGET_WALL_S:.2f} x); {_loads(runs)} on {os.cpu_count()} cores")
-    print(f"peak RSS of the largest process (largest of {len(runs)} runs, from wait4): "
-          f"{rss:.0f} MiB = {rss / TARGET_RSS_MIB:.2f} x the {TARGET_RSS_MIB:g} MiB target")
-    if all(r["peaks"] for r in runs):
-        main_peak = max(r["peaks"][0] for r in runs)
-        plot_peak = max(max(r["peaks"][1:], default=0.0) for r in runs)
-        total = max(sum(r["peaks"]) for r in runs)
-        print(f"  main process {main_peak:.0f} MiB = {main_peak / TARGET_RSS_MIB:.2f} x, largest "
-              f"plot process {plot_peak:.0f} MiB = {plot_peak / TARGET_RSS_MIB:.2f} x; sum of the "
-              f"processes' peaks {total:.0f} MiB (shared pages counted in each)")
-    if pss_runs:
-        pss = max(r["pss_mib"] for r in pss_runs)
-        print(f"  peak PSS of the process tree (shared pages split, sampled every 20 ms in "
-              f"{len(pss_runs)} untimed run(s)): {pss:.0f} MiB = {pss / TARGET_RSS_MIB:.2f} x; "
-              f"{_loads(pss_runs)}")
+            for name, extra in configs.items():
+                runs[name].append(run_command(["plan-and-run", scenario, *extra],
+                                              base / f"{k}-{len(runs[name])}-{name[2:6]}"))
+        fifty = base / "fifty.toml"
+        fifty.write_text(FIFTY)
+        run_command(["run", str(fifty), "--plots", "none"], base / "fifty-warm")
+        big = [run_command(["run", str(fifty)], base / f"fifty-{k}")
+               for k in range(args.repeats)]
+    print(f"load average after: {os.getloadavg()[0]:.2f}\n")
+
+    import_cpu = _median(imports["import pushtrain.cli.main"], lambda r: r["cpu"])
+    bare_cpu = _median(imports["python -c pass"], lambda r: r["cpu"])
+    names = list(configs)
+    width = max(20, *(len(n) + 2 for n in names))
+    print(f"{'CPU-seconds':<26}" + "".join(f"{n:>{width}}" for n in names))
+
+    def row(label, key, fmt="{:.3f}"):
+        cells = []
+        for name in names:
+            value = _median(runs[name], key)
+            cells.append(f"{'-' if value is None else fmt.format(value):>{width}}")
+        print(f"{label:<26}" + "".join(cells))
+
+    print(f"{'  (import CLI, alone)':<26}" + f"{import_cpu:>{width}.3f}"
+          + f"   python -c pass: {bare_cpu:.3f}")
+    for phase in PHASES:
+        row(phase, lambda r, p=phase: r["parts"].get(p))
+    for picture in PICTURES:
+        row(picture, lambda r, p=picture: r["parts"].get(p))
+    row("drawing (page + pictures)", lambda r: r["drawing"])
+    row("other (start, imports, ...)", lambda r: r["other"])
+    row("total CPU", lambda r: r["cpu"])
+    row("wall [s]", lambda r: r["wall"], "{:.2f}")
+    row("peak RSS [MiB]", lambda r: r["rss_mib"], "{:.0f}")
+    row("run folder [MB]", lambda r: r["size_mb"], "{:.2f}")
+    row("report.html [MB]", lambda r: r["page_mb"], "{:.2f}")
+    print(f"{'load (1 min)':<26}" + "".join(f"{_loads(runs[n]):>{width}}" for n in names))
+
+    default = runs["default"]
+    cpu = _median(default, lambda r: r["cpu"])
+    draw = _median(default, lambda r: r["drawing"])
+    wall = _median(default, lambda r: r["wall"])
+    page50 = _median(big, lambda r: r["parts"].get("page"))
+    mb50 = _median(big, lambda r: r["page_mb"])
+    print()
+    print(f"import pushtrain.cli.main: {import_cpu:.3f} CPU-s = "
+          f"{import_cpu / TARGET_IMPORT_CPU_S:.2f} x the {TARGET_IMPORT_CPU_S} target")
+    print(f"default command: {cpu:.2f} CPU-s = {cpu / TARGET_CPU_S:.2f} x the {TARGET_CPU_S} "
+          f"target; drawing {draw:.3f} CPU-s = {draw / TARGET_DRAW_CPU_S:.2f} x the "
+          f"{TARGET_DRAW_CPU_S} target; wall {wall:.2f} s = {wall / TARGET_WALL_S:.2f} x the "
+          f"{TARGET_WALL_S} s target (quiet machine; load here {_loads(default)})")
+    print(f"50 trailers, 60 s scripted run: page {page50:.3f} CPU-s = "
+          f"{page50 / TARGET_PAGE_50_CPU_S:.2f} x the {TARGET_PAGE_50_CPU_S} target, "
+          f"{mb50:.2f} MB = {mb50 / TARGET_PAGE_50_MB:.2f} x the {TARGET_PAGE_50_MB} MB target "
+          f"(whole command {_median(big, lambda r: r['cpu']):.2f} CPU-s; load {_loads(big)})")
 
 
 if __name__ == "__main__":

@@ -85,7 +85,7 @@ def main() -> None:
     print(f"report.html: {size:.2f} MB (target <= 5), train drawn {load_s:.2f} s after opening "
           f"(target < 2), {fps} frames per second playing (target >= 30)")
     if drawn:
-        print("written by the plot process:", drawn[0].split("INFO ")[-1])
+        print("written by:", drawn[0].split("INFO ")[-1])
 
 
 if __name__ == "__main__":

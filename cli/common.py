@@ -7,14 +7,17 @@ import contextlib
 import logging
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from pushtrain.errors import InputError, PlanningError, PushtrainError, ScenarioError
 from pushtrain.fmu.variables import MAX_TRAILERS
-from pushtrain.mission.scenario import Scenario, load_scenario, parse_scenario
 
 from .exits import EXIT_BAD_INPUT, EXIT_NOT_REACHED
+
+if TYPE_CHECKING:  # the scenario's models (pydantic, numpy) load when a command reads one
+    from pushtrain.mission.scenario import Scenario
 
 __all__ = ["BadInput", "load_scenario_with_overrides", "check_map", "click_error", "click_errors",
            "scenario_argument", "out_dir_option", "trailers_option", "csv_option",
@@ -35,6 +38,8 @@ class BadInput(click.ClickException):
 def load_scenario_with_overrides(path: str, trailers: int | None = None,
                                  seed: int | None = None) -> Scenario:
     """Load the scenario at ``path`` with the command line's overrides, or raise BadInput."""
+    from pushtrain.mission.scenario import load_scenario, parse_scenario
+
     try:
         sc = load_scenario(path)
         if trailers is not None or seed is not None:

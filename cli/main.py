@@ -16,6 +16,7 @@ import click
 from .commands.analyze import analyze_cmd
 from .commands.atlas import atlas_cmd
 from .commands.build_fmu import build_fmu_cmd
+from .commands.export_bag import export_bag_cmd
 from .commands.export_ssp import export_ssp_cmd
 from .commands.plan import plan_cmd
 from .commands.plan_and_run import plan_and_run
@@ -45,7 +46,7 @@ def cli(ctx: click.Context, verbose: int):
 
 
 for _command in (plan_and_run, plan_cmd, run_cmd, build_fmu_cmd, analyze_cmd, validate_cmd,
-                 slip_study_cmd, export_ssp_cmd, view_cmd, atlas_cmd):
+                 slip_study_cmd, export_ssp_cmd, export_bag_cmd, view_cmd, atlas_cmd):
     cli.add_command(_command)
 cli.add_command(sweep_cmd)
 

@@ -1,15 +1,21 @@
-"""The pictures of a run (four PNG plots and the GIF), drawn in helper processes while the main
-process plans, co-simulates and saves.
+"""The pictures of a run: what the options ask for (:func:`pictures_options`,
+:func:`chosen_files`), the page written in this process (:func:`draw_page`), and the PNG plots
+and the GIF drawn in helper processes while the main process plans, co-simulates and saves.
 
-:func:`plotter` forks a plot process as soon as the scenario is read. While the main process
-checks the map, plans and co-simulates, that process imports matplotlib (and the map's module,
-``pushtrain.facility.free_space``, to unpickle the map) and draws a small figure to ready the fonts.
-:meth:`PlotWorkers.submit` sends it the run's setting (map, geometry, planned path, status,
-output folder) and the results table (its raw bytes through the pipe, from a thread, so the
-main process saves the results meanwhile); it then forks the second plot process, which so
-shares matplotlib and the results, and each takes the next file nobody has taken yet (the GIF
-first, the largest job) until none is left. :meth:`PlotWorkers.wait` waits for the named files
-and returns what went wrong with them.
+By default a run writes ``report.html`` only: the main process writes it from the data with
+the bundled renderer (about 0.1 CPU-s, no matplotlib), and no plot process is started. With
+``--plots all`` (the four PNGs) or ``--gif``, :func:`plotter` forks a plot process as soon as the
+scenario is read. While the main process checks the map, plans and co-simulates, that process
+imports matplotlib (and the map's module, ``pushtrain.facility.free_space``, to unpickle the
+map) and draws a small figure to ready the fonts. :meth:`PlotWorkers.submit` sends it the run's
+setting (map, geometry, planned path, status, output folder) and the results table (its raw
+bytes through the pipe, from a thread, so the main process saves the results meanwhile); it
+then forks the second plot process, which so shares matplotlib and the results, and each takes
+the next file nobody has taken yet (the GIF first, the largest job) until none is left.
+:meth:`PlotWorkers.wait` waits for the named files and returns what went wrong with them.
+Measured (``benchmarks/bench_plan_and_run.py``): the plot processes cost no more CPU than
+drawing in the main process (matplotlib is imported once, before the fork) and on idle cores
+they draw while the main process plans; so they stay for the matplotlib files.
 
 What can go wrong becomes a :class:`PlotProblem` naming the file: the drawing raised (its
 message; the traceback goes to ``run.log``), the process died (its pipe closed), or no word came
@@ -27,7 +33,6 @@ from __future__ import annotations
 
 import gc
 import logging
-import multiprocessing
 import os
 import signal
 import threading
@@ -35,16 +40,17 @@ import time
 import traceback
 from contextlib import contextmanager
 from dataclasses import dataclass
-from multiprocessing.connection import wait as wait_for_any
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from pushtrain.files import remove_partials
-from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES  # names only: no matplotlib here
+from pushtrain.report import GIF_FILE, HTML_FILE  # names only: no matplotlib here
+
+if TYPE_CHECKING:  # numpy and multiprocessing load when a run is drawn
+    import numpy as np
 
 __all__ = ["footprints_of", "keep_out_of", "PlotProblem", "PlotWorkers", "InlinePlotter", "plotter",
-           "SILENCE_LIMIT_S"]
+           "run_of", "one_line", "SILENCE_LIMIT_S"]
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +93,10 @@ class _Run:
     keep_out: float | None = None  # the clearance whose band report.html draws [m]
 
 
-def _run_of(sc, out_dir, result, path) -> _Run:
+def run_of(sc, out_dir, result, path) -> _Run:
+    """What the files of a run of ``sc`` into ``out_dir`` need besides its table."""
+    import numpy as np
+
     from pushtrain.mission.runner import geometry_of, world_of
 
     t = sc.train
@@ -120,7 +129,8 @@ def _draw(name: str, data, run: _Run) -> Path:
                      summary=run.summary, phi_max_deg=run.phi_max_deg, keep_out=run.keep_out)
 
 
-def _one_line(exc: BaseException) -> str:
+def one_line(exc: BaseException) -> str:
+    """``exc`` as one line: its type and its message with the whitespace folded."""
     text = " ".join(str(exc).split())
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
@@ -147,18 +157,21 @@ class InlinePlotter:
         self.data = self.run = None
 
     def submit(self, out_dir, result, path=None) -> None:
-        self.data, self.run = result.data, _run_of(self.sc, out_dir, result, path)
+        self.data, self.run = result.data, run_of(self.sc, out_dir, result, path)
 
     def wait(self, names) -> list[PlotProblem]:
         problems = []
         for name in names:
             if name not in self.finished:
+                wall, cpu = time.perf_counter(), time.process_time()
                 try:
                     _draw(name, self.data, self.run)
                     self.finished[name] = None
+                    log.info("%s drawn in %.3f s (CPU %.3f s) by the main process", name,
+                             time.perf_counter() - wall, time.process_time() - cpu)
                 except Exception as exc:  # the traceback goes to run.log only
                     log.debug("drawing %s failed", name, exc_info=True)
-                    self.finished[name] = PlotProblem(name, _one_line(exc))
+                    self.finished[name] = PlotProblem(name, one_line(exc))
                 gc.collect()
             if self.finished[name] is not None:
                 problems.append(self.finished[name])
@@ -203,13 +216,15 @@ def _first_process(conns, counter, with_map: bool, inherited) -> None:
         _warm_up(with_map)
         conns[0].send(("ready", os.getpid()))
         header = conns[0].recv()
+        import numpy as np
+
         data = np.empty(header["rows"], dtype=header["dtype"])
         _read_exactly(conns[0].fileno(), memoryview(data.view(np.uint8)).cast("B"))
     except (EOFError, OSError):
         return  # the main process stopped us or went away: nothing to report to
     except Exception as exc:  # e.g. matplotlib missing: say so (not as a traceback) and end
         for conn in conns:
-            _last_word(conn, ("fatal", f"cannot draw: {_one_line(exc)}", traceback.format_exc()))
+            _last_word(conn, ("fatal", f"cannot draw: {one_line(exc)}", traceback.format_exc()))
         return
     second = 0
     if len(conns) > 1:
@@ -295,7 +310,7 @@ def _draw_files(conn, counter, header: dict, data: np.ndarray, *, hello: bool = 
             try:
                 _draw(name, data, run)
             except Exception as exc:
-                conn.send(("failed", name, _one_line(exc), traceback.format_exc()))
+                conn.send(("failed", name, one_line(exc), traceback.format_exc()))
             else:
                 conn.send(("done", name, time.perf_counter() - wall, time.process_time() - cpu))
             gc.collect()
@@ -303,7 +318,7 @@ def _draw_files(conn, counter, header: dict, data: np.ndarray, *, hello: bool = 
     except (EOFError, OSError):
         return  # the main process stopped us or went away: nothing to report to
     except Exception as exc:  # a bug here: say so (not as a traceback on stderr)
-        _last_word(conn, ("fatal", f"plot process failed: {_one_line(exc)}",
+        _last_word(conn, ("fatal", f"plot process failed: {one_line(exc)}",
                           traceback.format_exc()))
     finally:
         conn.close()
@@ -347,6 +362,8 @@ class PlotWorkers:
     """
 
     def __init__(self, sc, files, processes: int = MAX_PROCESSES):
+        import multiprocessing
+
         context = multiprocessing.get_context("fork")
         self.sc = sc
         self.files = tuple(name for name in _ORDER if name in files)
@@ -378,9 +395,11 @@ class PlotWorkers:
         """Send the run (into ``out_dir``, along the planned ``path``, if any) and its
         ``result`` to the first plot process, which forks the second; they start drawing.
         Returns at once (a thread sends)."""
+        import numpy as np
+
         data = np.ascontiguousarray(result.data)
         self.out_dir = Path(out_dir)
-        header = {"run": _run_of(self.sc, out_dir, result, path), "files": self.files,
+        header = {"run": run_of(self.sc, out_dir, result, path), "files": self.files,
                   "rows": len(data), "dtype": data.dtype}
         self.sender = threading.Thread(target=_send, args=([self.procs[0].conn], header, data),
                                        name="pushtrain-plot-sender", daemon=True)
@@ -390,12 +409,14 @@ class PlotWorkers:
     def wait(self, names) -> list[PlotProblem]:
         """Wait until each of ``names`` is written or has failed; the problems, in the order
         of ``names``."""
+        from multiprocessing.connection import wait
+
         while any(name not in self.finished for name in names):
             live = [p for p in self.procs if p.open]
             if not live:
                 self._give_up(f"no plot process left ({self.last_word})")
                 break
-            ready = wait_for_any([p.conn for p in live], timeout=SILENCE_LIMIT_S)
+            ready = wait([p.conn for p in live], timeout=SILENCE_LIMIT_S)
             if not ready:
                 self._stop_all()
                 self._give_up(f"no word from the plot processes in {SILENCE_LIMIT_S:g} s; "
@@ -419,7 +440,7 @@ class PlotWorkers:
             p.current = message[1]
         elif kind == "done":
             name, wall, cpu = message[1:]
-            log.info("%s drawn in %.2f s (CPU %.2f s) by plot process %s", name, wall, cpu,
+            log.info("%s drawn in %.3f s (CPU %.3f s) by plot process %s", name, wall, cpu,
                      p.pid)
             self.finished[name], p.current = None, None
         elif kind == "failed":
@@ -497,6 +518,8 @@ class PlotWorkers:
 def _send(conns, header: dict, data: np.ndarray) -> None:
     """Send ``header`` and the raw bytes of ``data`` through each pipe (a process that died is
     skipped: the main process learns of it from its pipe)."""
+    import numpy as np
+
     raw = memoryview(data.view(np.uint8)).cast("B")
     for conn in conns:
         try:
@@ -510,19 +533,22 @@ def _send(conns, header: dict, data: np.ndarray) -> None:
 
 # ---------------------------------------------------------------------------------------------
 @contextmanager
-def plotter(sc, *, plots: bool = True, gif: bool = True, processes: int | None = None):
-    """What draws the pictures of a run of ``sc``, closed at the end of the block:
-    :class:`PlotWorkers` (``processes`` of them; default 2, or 1 on one core), or
-    :class:`InlinePlotter` when processes cannot be forked or ``processes`` is 0; None
-    without ``plots``. Start it early: the plot processes get ready while the main one works."""
-    if not plots:
+def plotter(sc, files, *, processes: int | None = None):
+    """What draws the matplotlib ``files`` (PNGs, GIF) of a run of ``sc``, closed at the end of
+    the block: :class:`PlotWorkers` (``processes`` of them; default 2, or 1 on one core), or
+    :class:`InlinePlotter` when processes cannot be forked or ``processes`` is 0; None when no
+    such file is asked for (report.html is drawn by :func:`draw_page`). Start it early: the
+    plot processes get ready while the main one works."""
+    files = tuple(name for name in files if name != HTML_FILE)
+    if not files:
         yield None
         return
-    files = PNG_FILES + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)
     if processes is None:
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
         processes = max(1, min(MAX_PROCESSES, cores))
     used = InlinePlotter(sc, files)
+    import multiprocessing
+
     if processes > 0 and "fork" not in multiprocessing.get_all_start_methods():
         log.info("no fork on this platform: the plots are drawn in this process")
     elif processes > 0:

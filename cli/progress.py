@@ -6,8 +6,11 @@ so a piped or logged run shows what it is doing; the last line gives each phase'
     [  0.3 s] planning the path (lattice) ...
     [  0.4 s] co-simulating ...
     [  0.5 s] saving the results ...
-    [  0.6 s] plotting map.png, ..., lateral_forces.png and train.gif ...
-    [  1.4 s] done: plan 0.12 s, co-simulate 0.10 s, save 0.14 s, plots 0.73 s
+    [  0.6 s] writing report.html ...
+    [  0.7 s] done: plan 0.12 s, co-simulate 0.10 s, save 0.14 s, page 0.10 s
+
+(with ``--plots all`` or ``--gif`` a last phase waits for the plot processes: ``plotting
+map.png, ...``). ``run.log`` also gets each phase's CPU time in this process.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ class Phases:
         self.stream, self.clock = stream, clock
         self.start = clock()
         self.times: dict[str, float] = {}
+        self.cpu: dict[str, float] = {}  # this process's CPU time per phase [s], for run.log
 
     def _line(self, text: str) -> None:
         click.echo(f"[{self.clock() - self.start:5.1f} s] {text}",
@@ -45,7 +49,7 @@ class Phases:
         when (a long plan is not silent)."""
         self._line(f"{what} ...")
         log.info("%s ...", what)
-        t0 = self.clock()
+        t0, cpu0 = self.clock(), time.process_time()
         stop = threading.Event()
         ticker = None
         if tick_s:
@@ -62,6 +66,7 @@ class Phases:
             if ticker is not None:
                 ticker.join()
             self.times[name] = self.times.get(name, 0.0) + self.clock() - t0
+            self.cpu[name] = self.cpu.get(name, 0.0) + time.process_time() - cpu0
 
     def summary(self) -> str:
         """``plan 0.58 s, co-simulate 2.02 s, ...`` (the phases timed so far, in order)."""
@@ -72,3 +77,5 @@ class Phases:
         if self.times:
             self._line(f"done: {self.summary()}")
             log.info("phase times: %s", self.summary())
+            log.info("phase CPU times (this process): %s", ", ".join(
+                f"{name} {seconds:.3f} s" for name, seconds in self.cpu.items()))

@@ -9,15 +9,18 @@ import logging
 import math
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from pushtrain.files import atomic_write_text
-from pushtrain.mission.scenario import Scenario
 
 from .exits import EXIT_NOT_REACHED, EXIT_OK, interruption
 from .progress import Phases
 from .rundir import STATUS_INTERRUPTED
+
+if TYPE_CHECKING:
+    from pushtrain.mission.scenario import Scenario
 
 __all__ = ["plan_or_fail", "write_path", "write_scenario", "describe_path", "summary_text",
            "run_and_report", "PlotFailure"]
@@ -38,12 +41,35 @@ def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = Non
             path = plan_path(sc)
     except PlanningError as exc:
         if out_dir is not None:
+            _save_partial_path(sc, out_dir, exc)
             _save_diagnostic(sc, out_dir / "planning_failure.png", exc)
             _save_failure_page(sc, out_dir / "report.html", exc)
         raise
     log.info("planned %d segments, %.2f m, %d cusps in %.2f s", len(path.segments), path.length,
              path.n_cusps, time.perf_counter() - t0)
     return path
+
+
+def _save_partial_path(sc: Scenario, out_dir: Path, exc) -> None:
+    """``partial_path.json`` of a failed plan: the closest the search came (a planned-path
+    document with ``info.partial`` true), when the planner says; ``export-bag`` shows it."""
+    from pushtrain.core.reference import Segment
+    from pushtrain.planner.path import PlannedPath
+    from pushtrain.ros.run_folder import PARTIAL_PATH_JSON
+
+    closest = (getattr(exc, "details", None) or {}).get("closest") or {}
+    if not closest.get("segments"):
+        return
+    try:
+        segments = [Segment.from_dict(g) for g in closest["segments"]]
+        arcs = [abs(g.curvature) for g in segments if g.kind == "arc" and g.curvature]
+        path = PlannedPath((sc.start.x, sc.start.y, math.radians(sc.start.theta_deg)), segments,
+                           1.0 / max(arcs) if arcs else 0.0,
+                           info={"partial": True, "reason": getattr(exc, "reason", None),
+                                 "remaining_m": closest.get("remaining")})
+        write_path(path, out_dir / PARTIAL_PATH_JSON)
+    except Exception as err:  # the partial path must not hide the planning error
+        log.warning("could not save the partial path: %s", err)
 
 
 def _save_diagnostic(sc: Scenario, png: Path, exc=None) -> None:
@@ -183,40 +209,47 @@ class PlotFailure(click.ClickException):
     exit_code = EXIT_NOT_REACHED
 
 
-def run_and_report(sc: Scenario, out_dir: Path, reference, path, plots: bool, gif: bool, *,
+def run_and_report(sc: Scenario, out_dir: Path, reference, path, files=(), *,
                    csv: bool = False, phases: Phases | None = None, plotter=None) -> int:
     """Co-simulate ``sc``, save the results into ``out_dir`` (``results.csv`` too with
-    ``csv``), draw the plots (and with ``gif`` the animation), print the summary; the exit
-    code (0 if the goal was reached or the fixed-horizon run completed, else 1). Each step is
-    a phase of ``phases``, if given.
+    ``csv``), draw the picture ``files`` (from :func:`pushtrain.cli.plotting.chosen_files`),
+    print the summary; the exit code (0 if the goal was reached or the fixed-horizon run
+    completed, else 1). Each step is a phase of ``phases``, if given.
 
-    ``plotter`` (from :func:`pushtrain.cli.plotting.plotter`, started before planning) draws
-    the pictures while the results are saved; without one they are drawn here, after saving.
-    A picture that cannot be drawn raises :class:`PlotFailure` (exit 1) once the summary is
-    printed; the results and the other pictures stay written.
+    ``report.html`` is written here, from the data (no matplotlib). ``plotter`` (from
+    :func:`pushtrain.cli.plotting.plotter`, started before planning) draws the matplotlib
+    files (PNGs, GIF) while the results are saved and the page written; without one they are
+    drawn here, after saving. A picture that cannot be drawn raises :class:`PlotFailure`
+    (exit 1) once the summary is printed; the results and the other pictures stay written.
     """
     from pushtrain.mission.runner import run_scenario
-    from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
+    from pushtrain.report import HTML_FILE
 
+    from .pictures import draw_page
     from .plotting import plotter as start_plotter
 
+    files = tuple(files)
+    drawn = tuple(name for name in files if name != HTML_FILE)  # by matplotlib
     with contextlib.ExitStack() as stack:
-        if plots and plotter is None:
-            plotter = stack.enter_context(start_plotter(sc, gif=gif, processes=0))
+        if drawn and plotter is None:
+            plotter = stack.enter_context(start_plotter(sc, drawn, processes=0))
         _build_fmu_once(sc, phases)
         with _phase(phases, "co-simulate", "co-simulating"):
             result = run_scenario(sc, None, reference=reference)
         stack.push(_summary_on_interrupt(result, out_dir))
-        if plots:
+        if drawn:
             plotter.submit(out_dir, result, path)
         with _phase(phases, "save", "saving the results"):
             result.save(out_dir, csv=csv)
         problems = []
-        if plots:  # one phase: the plot processes draw the GIF beside the plots
-            files = PNG_FILES + ((GIF_FILE,) if gif else ()) + (HTML_FILE,)
-            what = f"plotting {', '.join(files[:-1])} and {files[-1]}"
+        if HTML_FILE in files:
+            with _phase(phases, "page", f"writing {HTML_FILE}"):
+                problem = draw_page(sc, out_dir, result, path)
+            problems += [problem] if problem is not None else []
+        if drawn:  # one phase: the plot processes draw the GIF beside the plots
+            what = f"plotting {', '.join(drawn)}"
             with _phase(phases, "plots", what):
-                problems += plotter.wait(files)
+                problems += plotter.wait(drawn)
             plotter.close()  # the plot processes end (and log their peak memory in run.log)
     if phases is not None:
         phases.done()

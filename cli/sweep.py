@@ -9,18 +9,16 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from pushtrain.errors import ScenarioError, SweepError
-from pushtrain.studies import sweep as sweep_lib
-from pushtrain.studies.sweep_results import SweepOutcome
-from pushtrain.studies.sweep_spec import (
-    DEFAULT_MAX_TOTAL,
-    SweepSpec,
-    count_runs,
-    load_sweep_spec,
-)
+from pushtrain.limits import SWEEP_MAX_TOTAL
+
+if TYPE_CHECKING:  # the sweep's modules (pydantic, numpy, Dask) load when a sweep runs
+    from pushtrain.studies.sweep_results import SweepOutcome
+    from pushtrain.studies.sweep_spec import SweepSpec
 
 from .common import workers_option
 
@@ -31,6 +29,8 @@ __all__ = ["sweep_cmd", "check_scheduler"]
 def check_scheduler(address: str) -> None:
     """Raise BadInput naming ``--scheduler`` unless ``address`` is a Dask address whose host
     accepts connections (:func:`pushtrain.studies.sweep.scheduler_problem`)."""
+    from pushtrain.studies import sweep as sweep_lib
+
     from .common import BadInput
 
     problem = sweep_lib.scheduler_problem(address)
@@ -102,7 +102,7 @@ class _Progress:
                    "interrupted sweep to resume it.")
 @click.option("--max-runs", type=click.IntRange(min=1), metavar="N",
               help="Run at most N new runs, then stop (resume later with the same --out).")
-@click.option("--max-total", type=click.IntRange(min=1), default=DEFAULT_MAX_TOTAL,
+@click.option("--max-total", type=click.IntRange(min=1), default=SWEEP_MAX_TOTAL,
               show_default=True, metavar="N",
               help="Refuse a spec that makes more than N runs (counted before anything runs).")
 @click.option("--no-plots", is_flag=True, help="Skip the PNG plots.")
@@ -124,6 +124,8 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
     Run the same command with the same --out again to resume an interrupted sweep.
     """
     from pushtrain.errors import FmuBuildError
+    from pushtrain.studies import sweep as sweep_lib
+    from pushtrain.studies.sweep_spec import count_runs, load_sweep_spec
 
     from .common import BadInput, load_scenario_with_overrides, local_workers, writable_folder
     from .exits import EXIT_OK, interruption

@@ -135,6 +135,14 @@ class World:
             self._fields[key] = cached
         return cached
 
+    def adopt_distance_field(self, field: DistanceField) -> None:
+        """Use ``field`` as the distance field of this grid world (one computed before from
+        the same :attr:`occupancy`, e.g. read from :mod:`~pushtrain.facility.map_cache`)."""
+        grid = self.occupancy
+        if grid is None or field.shape != grid.blocked.shape:
+            raise ValueError("adopt_distance_field: the field is not this grid world's")
+        self._fields[None] = field
+
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "World":

@@ -43,27 +43,44 @@ from shapely.ops import unary_union
 from pushtrain.errors import MapError, PlanningInputError
 from pushtrain.validation import clipped
 
+from .distance_field import DistanceField
+from .map_cache import Prepared, map_key, prepared
 from .map_server import load_map
 from .occupancy_grid import OccupancyGrid
 from .raster import blocked_polygons
 
 __all__ = ["grid_world", "map_world"]
 
-def grid_world(grid: OccupancyGrid, obstacles=(), keep_in: Polygon | None = None):
+def grid_world(grid: OccupancyGrid, obstacles=(), keep_in: Polygon | None = None,
+               cache: bool = True):
     """A :class:`~pushtrain.facility.free_space.World` of ``grid`` with ``obstacles`` (polygons [m])
     and, if given, ``keep_in`` (an outline [m]) burned in: ``occupancy`` is the burned grid, the
     outline the map's footprint (cut to ``keep_in``), the obstacles the traced blocked cells of
-    the map (one MultiPolygon) and ``obstacles`` themselves, exactly."""
+    the map (one MultiPolygon) and ``obstacles`` themselves, exactly. The traced polygons, the
+    free space and the distance field come from the map cache (:mod:`.map_cache`: by the
+    content of the grid and the polygons) when ``cache`` and it holds them."""
     from .free_space import World
 
     obstacles = tuple(obstacles)
-    traced = blocked_polygons(grid)
     burned = grid.burn(obstacles, keep_in)
     outline = burned.footprint()
-    free = outline.difference(traced)  # the traced pieces are disjoint: no union needed
-    if obstacles:
-        free = free.difference(unary_union(list(obstacles)))
-    return World(outline, (traced, *obstacles), occupancy=burned, free=free)
+
+    def build() -> Prepared:
+        traced = blocked_polygons(grid)
+        free = outline.difference(traced)  # the traced pieces are disjoint: no union needed
+        if obstacles:
+            free = free.difference(unary_union(list(obstacles)))
+        field = DistanceField.from_occupancy(burned.blocked, burned.x0, burned.y0,
+                                             burned.resolution)
+        return Prepared(traced, free, field)
+
+    if cache:
+        ready = prepared(burned, map_key(grid, obstacles, keep_in), build)
+    else:
+        ready = build()
+    world = World(outline, (ready.traced, *obstacles), occupancy=burned, free=ready.free)
+    world.adopt_distance_field(ready.field)
+    return world
 
 
 def _prefixed(exc: MapError, field: str, own: tuple = ()) -> MapError:

@@ -76,14 +76,19 @@ def _draw_failure(ax, world: World, details: dict, start) -> None:
         xy = np.asarray(route["points"], dtype=float)
         ax.plot(xy[:, 0], xy[:, 1], "-", color="tab:green", lw=2.0, alpha=0.5,
                 label=f"route ({route['length']:.1f} m)")
-    bottleneck = details.get("bottleneck")
-    what = "bottleneck"
-    if not bottleneck and route:
-        bottleneck, what = route.get("bottleneck"), "narrowest on the route"
-    if bottleneck:
-        ax.plot([bottleneck["x"]], [bottleneck["y"]], "o", ms=14, mfc="none", mew=2,
-                color="crimson", label=f"{what}: {bottleneck['width']:.2f} m wide, "
-                f"{bottleneck['needed']:.2f} m needed")
+    # the place that blocks (the widest way's narrowest passage, or a corner too tight to
+    # turn in) and, with a corner, the widest way's narrowest passage beside it
+    for key, marker in (("bottleneck", "o"), ("widest", "D")):
+        place = details.get(key)
+        if place:
+            what = place.get("what", "bottleneck")
+            ax.plot([place["x"]], [place["y"]], marker, ms=14 if marker == "o" else 9,
+                    mfc="none", mew=2, color="crimson", label=f"{what}: {place['width']:.2f} m "
+                    f"wide, {place['needed']:.2f} m needed")
+            ax.annotate(f"{place['width']:.2f} m < {place['needed']:.2f} m"
+                        if place["width"] < place["needed"] else f"{place['width']:.2f} m",
+                        (place["x"], place["y"]), xytext=(8, 8), textcoords="offset points",
+                        color="crimson", fontsize=8)
     for k, trace in enumerate(details.get("tree") or []):
         xy = np.asarray(trace, dtype=float)
         if xy.ndim == 2 and xy.shape[0] > 1:

@@ -29,7 +29,7 @@ from scipy.sparse.csgraph import dijkstra
 from pushtrain.facility.distance_field import DistanceField
 
 from .curves import reeds_shepp_space
-from .route import grid_graph, undirected_graph
+from .route import grid_graph
 
 __all__ = ["Heuristic", "CarGrid", "MAX_NODES", "MAX_CAR_CELLS"]
 
@@ -290,7 +290,10 @@ def _dijkstra(free: np.ndarray, source: tuple[int, int], h: float) -> np.ndarray
     if not free[source]:
         return out
     ii, jj, index, r, c, w = grid_graph(free, h)
-    dist = dijkstra(undirected_graph(r, c, w, ii.size), directed=False,
+    # each edge stored once: scipy's undirected Dijkstra walks it both ways (half the matrix
+    # to build; the distances are the same to the bit, being the unique fixpoint of
+    # d(v) = min over neighbours u of d(u) + w(u, v))
+    dist = dijkstra(csr_matrix((w, (r, c)), shape=(ii.size, ii.size)), directed=False,
                     indices=int(index[source]))
     out[ii, jj] = dist
     return out

@@ -19,11 +19,10 @@ Route
     The predecessors from the start to the goal, as a polyline of node centres, smoothed
     (a moving average over ``smooth`` metres, the ends kept) and resampled every
     :data:`SPACING` metres, with its heading of travel and the free half-width beside it.
-Bottleneck
-    The narrowest free width along the route, and where it is; when the goal cannot be
-    reached at all, the narrowest place of the widest way (:func:`widest_gap`: the largest
-    free distance at which start and goal are still connected) says where the building is too
-    narrow for the train and by how much.
+
+The route's own distance from the walls (``half_width``) is no passage's width: a smoothed route
+cuts the inside of corners. What a way is wide enough for is :mod:`~pushtrain.planner.passage`'s
+(the widest way's narrowest place, measured on the map).
 
 All lengths in metres, angles in radians; headings here are directions of *travel* (the chain
 convention's theta of a pushed train is the travel direction plus pi).
@@ -40,8 +39,8 @@ from scipy.sparse.csgraph import dijkstra
 
 from pushtrain.facility.distance_field import DistanceField
 
-__all__ = ["Route", "Bottleneck", "MAX_ROUTE_NODES", "SPACING", "find_route", "widest_gap",
-           "comes_in_across", "grid_graph", "undirected_graph"]
+__all__ = ["Route", "MAX_ROUTE_NODES", "SPACING", "find_route", "comes_in_across",
+           "grid_graph", "undirected_graph"]
 
 MAX_ROUTE_NODES = 400_000
 """Most nodes of the route's grid (about 26 MB of graph): a 100 m x 100 m map gets 16 cm cells."""
@@ -52,22 +51,8 @@ SPACING = 0.1
 MIN_CELL = 0.05
 """Finest cell [m] of the route's grid: a guide needs no finer (the heuristic's grid is as
 coarse), and a polygon map's 2 cm distance field would make it six times dearer. The widest
-way's bottleneck (:func:`widest_gap`) keeps the field's own resolution: it measures."""
-
-
-@dataclass(frozen=True)
-class Bottleneck:
-    """The narrowest place of a way: its free width [m] (wall to wall through the point) and
-    where it is (x, y) [m]; ``needed`` is the width the train needs there [m]."""
-
-    width: float
-    x: float
-    y: float
-    needed: float
-
-    def text(self) -> str:
-        return (f"the passage at ({self.x:.2f}, {self.y:.2f}) is {self.width:.2f} m wide; "
-                f"the train needs {self.needed:.2f} m")
+way's bottleneck (:func:`~pushtrain.planner.passage.widest_gap`) keeps the field's own
+resolution: it measures."""
 
 
 @dataclass(frozen=True)
@@ -98,12 +83,6 @@ class Route:
     def length(self) -> float:
         return float(self.s[-1])
 
-    def bottleneck(self) -> Bottleneck:
-        """The narrowest place along the route."""
-        i = int(np.argmin(self.half_width))
-        return Bottleneck(2.0 * float(self.half_width[i]), float(self.points[i, 0]),
-                          float(self.points[i, 1]), 2.0 * self.needed)
-
     def project(self, x: float, y: float) -> tuple[float, float]:
         """(length along the route [m], distance from it [m]) of the point nearest to (x, y)."""
         d2 = (self.points[:, 0] - x) ** 2 + (self.points[:, 1] - y) ** 2
@@ -131,11 +110,8 @@ class Route:
 
     def to_dict(self) -> dict:
         """Plain data (for the diagnostics and the picture)."""
-        b = self.bottleneck()
         return {"points": self.points[:: max(1, len(self.points) // 400)].tolist()
-                + [self.points[-1].tolist()],
-                "length": self.length, "bottleneck": {"x": b.x, "y": b.y, "width": b.width,
-                                                       "needed": b.needed}}
+                + [self.points[-1].tolist()], "length": self.length}
 
 
 class _Grid:
@@ -216,7 +192,7 @@ def find_route(field: DistanceField, start, goal, half_width: float, *,
                max_nodes: int = MAX_ROUTE_NODES) -> Route | None:
     """The route from ``start`` to ``goal`` (x, y, ...) [m] where a body of ``half_width``
     [m] (half its width plus its clearance) fits (see the module docstring); None if there is
-    none (see :func:`widest_gap` for why)."""
+    none (see :func:`~pushtrain.planner.passage.widest_gap` for why)."""
     grid = _Grid(field, half_width, max_nodes, MIN_CELL)
     if grid.ii.size < 2:
         return None
@@ -285,53 +261,3 @@ def _resample(xy: np.ndarray, spacing: float) -> np.ndarray:
     m = max(2, int(math.ceil(s[-1] / spacing)) + 1)
     t = np.linspace(0.0, s[-1], m)
     return np.column_stack([np.interp(t, s, xy[:, 0]), np.interp(t, s, xy[:, 1])])
-
-
-def widest_gap(field: DistanceField, start, goal, half_width: float,
-               max_nodes: int = MAX_ROUTE_NODES) -> Bottleneck | None:
-    """Where the widest way from ``start`` to ``goal`` is narrowest: the largest free distance
-    d* such that the nodes with at least d* join start and goal (8-connected components,
-    scipy.ndimage.label, bisected to 1 mm), and the node of the way that is narrowest. None
-    where no free way joins them. ``half_width`` [m] gives ``needed``."""
-    from scipy import ndimage
-
-    grid = _Grid(field, 0.0, max_nodes)
-    a = grid.nearest_open(start[0], start[1], 3.0 * grid.h + 0.5)
-    b = grid.nearest_open(goal[0], goal[1], 3.0 * grid.h + 0.5)
-    if a is None or b is None:
-        return None
-    ia, ja, ib, jb = grid.ii[a], grid.jj[a], grid.ii[b], grid.jj[b]
-    eight = np.ones((3, 3), dtype=bool)
-
-    def joined(level: float):
-        labels, _ = ndimage.label(grid.d >= level, structure=eight)
-        return labels if labels[ia, ja] and labels[ia, ja] == labels[ib, jb] else None
-
-    lo, hi = 0.0, float(min(grid.d[ia, ja], grid.d[ib, jb]))
-    if joined(lo) is None:
-        return None
-    if joined(hi) is not None:
-        lo = hi
-    while hi - lo > 1e-3:
-        mid = 0.5 * (lo + hi)
-        if joined(mid) is not None:
-            lo = mid
-        else:
-            hi = mid
-    # the bottleneck: of the nodes that drop out between lo and hi (the way breaks there),
-    # the one closest to both pieces the way breaks into
-    low = joined(lo)
-    comp = low == low[ia, ja]
-    above, _ = ndimage.label(grid.d >= hi, structure=eight)
-    pieces = []
-    for i, j in ((ia, ja), (ib, jb)):
-        piece = above == above[i, j] if above[i, j] else np.zeros_like(comp)
-        piece[i, j] = True
-        pieces.append(ndimage.distance_transform_edt(~piece))
-    narrow = comp & (grid.d < hi)
-    if not narrow.any():
-        narrow = comp
-    score = np.where(narrow, pieces[0] + pieces[1], np.inf)
-    i, j = np.unravel_index(int(np.argmin(score)), score.shape)
-    return Bottleneck(2.0 * lo, float(grid.x0 + grid.h * j), float(grid.y0 + grid.h * i),
-                      2.0 * half_width)

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
-import shapely
 
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.defaults import ROBOT_LENGTH, ROBOT_WIDTH
@@ -77,6 +76,8 @@ class BodyFootprint:
 
     def polygons(self, x, y, theta) -> np.ndarray:
         """Shapely polygons of the rectangle at the given poses (array of the broadcast shape)."""
+        import shapely  # here: a run without a map never needs it
+
         return shapely.polygons(self.corners(x, y, theta))
 
     def to_dict(self) -> dict:

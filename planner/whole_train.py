@@ -46,13 +46,15 @@ from pushtrain.core.reference import PULL
 from pushtrain.errors import PlanningError
 from pushtrain.facility.free_space import World
 
+from .config import turning_radius_from_joint_limit
 from .footprint import body_name, body_positions, body_samples
 from .heuristic import Heuristic
 from .kinematic_loop import TrackerConfig, Trajectory, reference_times
 from .lattice import Search
+from .passage import needed_half_width, passable, swept_band, tight_corners, widest_gap
 from .path import PlannedPath
 from .propagate import Cursor, Propagator
-from .route import find_route, widest_gap
+from .route import find_route
 from .search_settings import SearchSettings
 from .smooth import merge, path_cost, shortcut
 from .train import Train
@@ -98,10 +100,14 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     _check_ends(world, train, start, goal, state0, prop, margins)
     radius = config.radius_for(train)
     last = train.last
-    reach = min(0.5 * last.width, 0.5 * last.length - abs(last.offset))
+    # no way as wide as the last trailer's disc: impossible, said before any search (one
+    # labelling of the distance field)
+    passage = needed_half_width(train, margins[-1])
+    if not passable(field, start, goal, passage):
+        raise _unreachable(field, train, start, goal, passage, impossible=True)
     # the grid's Dijkstra run (about 3.5 million nodes a second on a laptop core) is not
     # interruptible: it may take at most a quarter of the budget at a million nodes a second
-    heuristic = Heuristic(field, goal, radius, reach + margins[-1], build_car=False,
+    heuristic = Heuristic(field, goal, radius, passage, build_car=False,
                           max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.time_budget))
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
     # the route of the last trailer (the body that goes everywhere the train goes: it leads
@@ -109,12 +115,13 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     # it (a goal the start connects to straight away needs none)
     half_width = 0.5 * last.width + float(margins[-1])
     if heuristic(cursor0.pose) == math.inf:
-        raise _unreachable(field, train, start, goal, half_width)
+        raise _unreachable(field, train, start, goal, passage, impossible=False,
+                           grid=heuristic.resolution)
 
     def route_of():
         route = find_route(field, start, goal, half_width)
         if route is not None:
-            log.info("route %.1f m; narrowest: %s", route.length, route.bottleneck().text())
+            log.info("route %.1f m", route.length)
         return route
 
     # with a straight train asked for at the goal, the final straight approach is as long as
@@ -170,36 +177,47 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         if not config.anytime:
             break
     if best is None:
-        raise _no_plan(search, train, goal, config, margins, phi_limit, t_begin)
+        raise _no_plan(search, train, goal, config, margins, phi_limit, t_begin,
+                       _widest(field, train, start, goal, config, margins, search.route))
     _, segments, checked, smooth_info = best
     smooth_info["solutions"] = found
     return _planned(start, headings, segments, radius, config, tracker, checked, search,
                     t_begin, rejected, smooth_info)
 
 
-def _unreachable(field, train: Train, start, goal, half_width: float) -> PlanningError:
+def _unreachable(field, train: Train, start, goal, half_width: float, impossible: bool,
+                 grid: float | None = None) -> PlanningError:
     """The PlanningError of a mission whose goal no way of the train's width reaches: where the
-    widest way between start and goal is narrowest (:func:`~pushtrain.planner.route.widest_gap`)
-    against the width the train needs."""
+    widest way between start and goal is narrowest (:func:`~pushtrain.planner.passage.widest_gap`)
+    against the width the train needs (``half_width`` [m]: the last trailer's disc and
+    clearance). ``impossible``: :func:`~pushtrain.planner.passage.passable` said no (every
+    way narrower than that by more than half a cell diagonal: "impossible here"); else
+    ``grid`` [m] names the heuristic's grid, which (and not the map) found no way."""
     width = train.last.width
     gap = widest_gap(field, start, goal, half_width)
+    ends = (f"from the start ({start[0]:.2f}, {start[1]:.2f}) to the goal ({goal[0]:.2f}, "
+            f"{goal[1]:.2f})")
+    impossible = impossible or gap is None
     if gap is None:
         text = (f"no free way at all joins the start ({start[0]:.2f}, {start[1]:.2f}) and the goal "
                 f"({goal[0]:.2f}, {goal[1]:.2f}): they lie in separate parts of the map")
         where = tuple(goal[:2])
     else:
-        text = (f"the last trailer ({width:.2f} m wide, clearance {half_width - 0.5 * width:.3f}"
-                f" m, leading the train into every place it goes) needs passages "
-                f"{2 * half_width:.2f} m wide, and every way from the start ({start[0]:.2f}, "
-                f"{start[1]:.2f}) to the goal ({goal[0]:.2f}, {goal[1]:.2f}) narrows to "
-                f"{gap.width:.2f} m or less: the widest way's narrowest place is at "
-                f"({gap.x:.2f}, {gap.y:.2f})")
+        text = (f"the last trailer ({width:.2f} m wide, clearance "
+                f"{half_width - needed_half_width(train, 0.0):.3f} m, leading the train into "
+                f"every place it goes) needs passages {2 * half_width:.2f} m wide, and every way "
+                f"{ends} narrows to {gap.width:.2f} m or less: the widest way's narrowest place "
+                f"is at ({gap.x:.2f}, {gap.y:.2f})")
+        if not impossible:
+            text += (f", within one map cell ({field.resolution:.3f} m) of what it needs, and "
+                     f"the planner's {grid or field.resolution:.3f} m grid finds no way through "
+                     "it")
         where = (gap.x, gap.y)
-    details = {"constraint": "map", "impossible": True,
-               "bottleneck": None if gap is None else {"x": gap.x, "y": gap.y,
-                                                       "width": gap.width,
-                                                       "needed": 2 * half_width}}
-    return PlanningError("unreachable", f"impossible here: {text}", where=where, details=details)
+    details = {"constraint": "map", "impossible": impossible,
+               "bottleneck": None if gap is None else {
+                   **gap.to_dict(), "what": "bottleneck"}}
+    head = "impossible here: " if impossible else "no way found: "
+    return PlanningError("unreachable", head + text, where=where, details=details)
 
 
 # --------------------------------------------------------------------------- the ends
@@ -374,9 +392,42 @@ def _planned(start, headings, segments, radius, config, tracker, checked, search
     return path
 
 
+def _widest(field, train: Train, start, goal, config, margins, route) -> dict:
+    """What the map has on the way (plain data for :func:`_no_plan`): the widest way's
+    narrowest place against what the last trailer needs (``bottleneck``), and the route's
+    corner the train's swept band does not fit, if any (``corner``, see
+    :mod:`~pushtrain.planner.passage`); ``text`` says both with numbers."""
+    gap = widest_gap(field, start, goal, needed_half_width(train, margins[-1]))
+    out = {"bottleneck": None if gap is None else {**gap.to_dict(), "what": "bottleneck"},
+           "corner": None, "text": ""}
+    if gap is None:
+        return out
+    out["text"] = (f". The widest way's narrowest place, at ({gap.x:.2f}, {gap.y:.2f}), is "
+                   f"{gap.width:.2f} m wide; the last trailer needs {gap.needed:.2f} m (its width "
+                   "and clearance)")
+    if route is None:
+        route = find_route(field, start, goal, 0.5 * train.last.width + float(margins[-1]))
+    if route is None:
+        return out
+    band = swept_band(train, config.radius_for(train), margins)
+    tightest = swept_band(train, turning_radius_from_joint_limit(
+        train.phi_max - config.joint_margin, train.max_link(), 0.0), margins)
+    corners = tight_corners(route, field, band, tightest)
+    if corners and corners[0].too_tight:
+        corner = corners[0]
+        out["corner"] = corner.to_dict()
+        out["bottleneck"] = {**corner.to_dict(), "what": (
+            f"corner too tight ({math.degrees(corner.turn):.0f} deg turn, "
+            f"{corner.band.width:.2f} m swept)")}
+        out["widest"] = {**gap.to_dict(), "what": "bottleneck"}
+        out["text"] += f". The train cannot turn on the planner's arcs {corner.text()}"
+    return out
+
+
 def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
-             t_begin) -> PlanningError:
-    """The PlanningError of a search that found nothing: what blocked it, with numbers."""
+             t_begin, way: dict) -> PlanningError:
+    """The PlanningError of a search that found nothing: what blocked it, with numbers;
+    ``way`` is :func:`_widest`'s."""
     stats = search.stats
     f = stats.failures
     tried = stats.rollouts
@@ -442,14 +493,17 @@ def _no_plan(search: Search, train: Train, goal, config, margins, phi_limit,
                     "pose": list(closest.cursor.pose), "remaining": closest.h,
                     **_train_at(closest.state, train)},
     }
+    details.update({k: v for k, v in way.items() if k != "text"})
     route = ""
     if search.route is not None:
-        route = (f". The route through the building is {search.route.length:.1f} m; on it "
-                 f"{search.route.bottleneck().text()} (the last trailer's width and clearance)")
+        route = f". The route through the building is {search.route.length:.1f} m"
+    route += way["text"]
+    corner = way.get("corner")
     return PlanningError(reason, f"{head}. Of {tried} motions tried: {blocked}. The closest "
                          f"the last trailer came was {closest.h:.2f} m of path from the goal"
                          f"{route}",
-                         where=tuple(goal[:2]), details=details)
+                         where=(corner["x"], corner["y"]) if corner else tuple(goal[:2]),
+                         details=details)
 
 
 def _train_at(state, train: Train) -> dict:

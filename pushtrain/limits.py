@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["BOUNDS", "Bound", "check", "MAP_BOUNDS", "MAP_YAML_BYTES"]
+__all__ = ["BOUNDS", "Bound", "check", "MAP_BOUNDS", "MAP_YAML_BYTES", "SWEEP_MAX_TOTAL"]
 
 
 @dataclass(frozen=True)
@@ -134,6 +134,10 @@ MAP_BOUNDS: dict[str, Bound] = {
 MAP_YAML_BYTES = 1 << 20
 """Largest map_server YAML file read [bytes] (1 MiB): map_saver writes about 150 bytes, and a
 larger file is refused before it is parsed."""
+
+SWEEP_MAX_TOTAL = 100_000
+"""Most runs a sweep makes unless the caller raises the limit (``--max-total``); here, not in
+:mod:`pushtrain.studies.sweep_spec`, so that the CLI shows it without loading the sweep."""
 
 
 def check(name: str, value) -> str | None:

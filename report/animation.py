@@ -29,10 +29,10 @@ from pushtrain.report.common import (
     C_SLIP,
     GIF_DPI,
     atomic,
-    col,
     new_figure,
     output_path,
 )
+from pushtrain.report.data import col
 from pushtrain.report.geometry import (
     TopView,
     body_corners,

@@ -16,7 +16,7 @@ import numpy as np
 
 from pushtrain.defaults import ROBOT_LENGTH, ROBOT_WIDTH
 from pushtrain.errors import PlotError
-from pushtrain.report.common import bodies, check_data, col, pose_columns
+from pushtrain.report.data import bodies, check_data, col, pose_columns
 from pushtrain.table1 import TRAILER_LENGTH, TRAILER_WIDTH
 
 __all__ = [

@@ -11,18 +11,18 @@ the page must hold a run in at most 5 MB with no network; Plotly's offline bundl
 about 3.5 MB, and drawing a few rectangles and polylines per frame needs nothing it offers.
 The renderer is about 500 lines of plain JavaScript with no dependencies.
 
-The map is embedded as a PNG picture of the free space (drawn by the map's own
-:meth:`~pushtrain.facility.free_space.World.plot`, so occupancy grids and polygons look as in
-``map.png``) with its extent in metres; everything else is vector data. The time series are
-decimated for the view to at most ``max_rows`` rows spread evenly over the results, first and
-last included (:func:`~pushtrain.report.geometry.frame_indices`, as the GIF's frames; each drawn
-pose is a row of ``results.npz`` exactly); ``results.npz`` itself is never decimated.
+The map is embedded as a PNG picture of the free space drawn with Pillow from the map's data
+(:mod:`~pushtrain.report.map_picture`: polygons and occupancy grids look as in ``map.png``),
+with its extent in metres; everything else is vector data. Nothing here imports matplotlib.
+The time series are decimated for the view to at most ``max_rows`` rows spread evenly over
+the results, first and last included (:func:`~pushtrain.report.geometry.frame_indices`, as the
+GIF's frames; each drawn pose is a row of ``results.npz`` exactly); ``results.npz`` itself is
+never decimated.
 """
 
 from __future__ import annotations
 
 import base64
-import io
 import json
 import math
 import re
@@ -33,8 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from pushtrain.files import atomic_write_text
-from pushtrain.report.common import check_n
+from pushtrain.report.data import check_n, finite_note
 from pushtrain.report.geometry import DEFAULT_FOOTPRINTS, frame_indices
+from pushtrain.report.map_picture import map_picture
 
 __all__ = ["HTML_FILE", "MAX_ROWS", "run_payload", "failure_payload", "write_html",
            "plot_report", "plot_failure_report", "write_table_page"]
@@ -42,41 +43,28 @@ __all__ = ["HTML_FILE", "MAX_ROWS", "run_payload", "failure_payload", "write_htm
 HTML_FILE = "report.html"
 MAX_ROWS = 4000
 """Most rows of the results the page carries (the view's decimation)."""
+MAX_VALUES = 500_000
+"""Most numbers the page carries over time (rows x columns): a long train gets fewer rows
+(50 trailers: about 1,900), so that its page stays within a few MB and is written in tenths
+of a second."""
 MAP_PIXELS = 2400
 """Longest side of the map's picture [px] (cells of real maps stay visible up to 1/20 m)."""
 MAX_OUTLINE_POINTS = 60_000
 """Most points of the keep-out band drawn (a band of more points is left out, and said so)."""
 
 
+class _Finite(list):
+    """A list already free of non-finite floats (from :func:`_rounded`): :func:`_finite`
+    passes it as it is instead of walking its thousands of values again."""
+
+
 def _rounded(a, digits: int = 4) -> list:
     """``a`` as a JSON-ready list, rounded, with non-finite values as None."""
     a = np.round(np.asarray(a, dtype=float), digits)
-    return [None if not math.isfinite(v) else v for v in a.tolist()]
-
-
-def _map_picture(world, pixels: int = MAP_PIXELS) -> dict:
-    """The map drawn by its own ``plot`` into a PNG (base64) with its extent [m]."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    grid = world.occupancy is not None and hasattr(world.occupancy, "plot")
-    xmin, ymin, xmax, ymax = world.bounds if grid else world.outline.bounds
-    pad = 0.05 * max(xmax - xmin, ymax - ymin, 1e-9)
-    extent = [xmin - pad, xmax + pad, ymin - pad, ymax + pad]
-    w_m, h_m = extent[1] - extent[0], extent[3] - extent[2]
-    scale = pixels / max(w_m, h_m)
-    width, height = max(1, round(w_m * scale)), max(1, round(h_m * scale))
-    fig = Figure(figsize=(width / 100.0, height / 100.0), dpi=100)
-    FigureCanvasAgg(fig)
-    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
-    world.plot(ax)
-    ax.set_xlim(extent[0], extent[1])
-    ax.set_ylim(extent[2], extent[3])
-    ax.set_aspect("auto")
-    ax.set_axis_off()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    return {"png": base64.b64encode(buf.getvalue()).decode("ascii"), "extent": extent}
+    finite = np.isfinite(a)
+    if finite.all():
+        return _Finite(a.tolist())
+    return _Finite(v if ok else None for v, ok in zip(a.tolist(), finite.tolist(), strict=True))
 
 
 def _keep_out(world, margin: float | None) -> dict | None:
@@ -102,24 +90,33 @@ def _base(n: int, world, footprints, keep_out, title: str) -> dict:
     fp.update(footprints or {})
     return {"format": "pushtrain-report", "version": 1, "title": title, "n": n,
             "footprints": {k: [float(v[0]), float(v[1])] for k, v in fp.items()},
-            "map": None if world is None else _map_picture(world),
+            "map": None if world is None else map_picture(world, MAP_PIXELS),
             "keep_out": _keep_out(world, keep_out)}
 
 
 def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, status=None,
                 summary: dict | None = None, phi_max_deg: float | None = None,
                 keep_out: float | None = None, max_rows: int = MAX_ROWS,
-                title: str | None = None) -> dict:
+                title: str | None = None, max_values: int = MAX_VALUES) -> dict:
     """What the page of a co-simulation run shows, as plain data.
 
     ``data`` is ``Result.data`` (columns as in ``master._columns(n)``); ``world`` the map or
     None; ``path_xy`` (N, 2) the planned path of the last trailer [m]; ``footprints`` as in
     :func:`~pushtrain.report.mapview.plot_map`; ``phi_max_deg`` the joint limit drawn on the
     joint plot; ``keep_out`` the clearance [m] whose band is drawn.
+
+    At most ``max_rows`` rows, and at most ``max_values`` numbers over time in all, spread
+    evenly over the rows whose time is finite. Values that are not finite (a diverged run) are
+    left out of the drawing (JSON null) and ``notes`` says which.
     """
     n = check_n(n)
     names = set(data.dtype.names)
-    rows = frame_indices(len(data), max_rows)
+    per_row = 5 * n + 12  # poses, reference, speeds, joints, errors, forces
+    timed = np.flatnonzero(np.isfinite(np.asarray(data["t"], dtype=float)))
+    rows = timed[frame_indices(len(timed), min(max_rows, max(2, max_values // per_row)))]
+    notes = [note for note in (finite_note(data),) if note]
+    if len(rows) == 0:
+        notes.append("the results have no row with a finite time: nothing to show over time")
 
     def col(name):
         return _rounded(np.asarray(data[name], dtype=float)[rows])
@@ -183,7 +180,7 @@ def run_payload(data, n: int, *, world=None, path_xy=None, footprints=None, stat
                       else None),
         "path": None if path_xy is None else [_rounded(np.asarray(path_xy)[:, 0]),
                                               _rounded(np.asarray(path_xy)[:, 1])],
-        "series": series, "summary": summary or {},
+        "series": series if len(rows) else [], "summary": summary or {}, "notes": notes,
     })
     return out
 
@@ -215,10 +212,8 @@ def failure_payload(n: int, details: dict, *, world=None, footprints=None, start
                  "theta": _rounded(closest["headings"])}
     route = details.get("route") or {}
     bottleneck = details.get("bottleneck")
-    if bottleneck:
-        bottleneck = {**bottleneck, "what": "bottleneck"}
-    elif route.get("bottleneck"):  # the route's narrowest place, wide enough: not the cause
-        bottleneck = {**route["bottleneck"], "what": "narrowest place on the route"}
+    if bottleneck:  # the widest way's narrowest place, or the place the train cannot turn
+        bottleneck = {"what": "bottleneck", **bottleneck}
     out = _base(n, world, footprints, keep_out, f"Planning failed with {n} trailer"
                 f"{'s' if n > 1 else ''}")
     out.update({
@@ -268,6 +263,8 @@ def write_html(path, payload: dict) -> Path:
 
 def _finite(obj):
     """``obj`` with every non-finite float (NaN, inf) as None: JSON has no such numbers."""
+    if isinstance(obj, _Finite):
+        return obj
     if isinstance(obj, float):
         return obj if math.isfinite(obj) else None
     if isinstance(obj, dict):

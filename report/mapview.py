@@ -22,11 +22,11 @@ from pushtrain.report.common import (
     C_ROBOT,
     C_SLIP,
     SNAPSHOT_CMAP,
-    col,
     new_figure,
     output_path,
     save,
 )
+from pushtrain.report.data import col
 from pushtrain.report.geometry import (
     TopView,
     body_corners,

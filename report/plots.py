@@ -23,6 +23,7 @@ from __future__ import annotations
 import gc
 import logging
 import time as _time
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -31,12 +32,13 @@ import numpy as np
 from pushtrain.errors import PlotError
 from pushtrain.report import GIF_FILE, HTML_FILE, PNG_FILES
 from pushtrain.report.animation import animate
-from pushtrain.report.common import check_n
-from pushtrain.report.mapview import plot_map
+from pushtrain.report.common import add_note, nothing_to_draw, save
+from pushtrain.report.data import check_data, check_n, drawable, finite_note, pose_columns
+from pushtrain.report.mapview import map_figure
 from pushtrain.report.timeseries import (
-    plot_inputs_and_joints,
-    plot_lateral_forces,
-    plot_tracking_error,
+    inputs_and_joints_figure,
+    lateral_forces_figure,
+    tracking_error_figure,
 )
 
 __all__ = ["plot_all", "plot_file"]
@@ -95,6 +97,11 @@ def plot_file(name: str, data, n: int, out_dir, *, world=None, path_xy=None, foo
     goes into the map's title. ``summary`` (the run's ``summary.json``), ``phi_max_deg`` (the
     joint limit) and ``keep_out`` (the clearance [m] whose band is drawn) are for the page and
     the joint plot.
+
+    A run that diverged or stopped early may hold NaN or inf: what is finite is drawn and the
+    picture says, in red below it, which columns were not (:func:`~pushtrain.report.data.
+    finite_note`); the map and the GIF draw the rows whose poses are finite. A table with no
+    row to draw gives a picture saying so instead of an error.
     """
     out = Path(out_dir)
     if name == HTML_FILE:
@@ -103,20 +110,50 @@ def plot_file(name: str, data, n: int, out_dir, *, world=None, path_xy=None, foo
         return plot_report(data, n, out / name, world=world, path_xy=path_xy,
                            footprints=footprints, status=status, summary=summary,
                            phi_max_deg=phi_max_deg, keep_out=keep_out)
-    if name == "map.png":
-        return plot_map(data, n, out / name, world=world, path_xy=path_xy, footprints=footprints,
-                        title=_title(n, status), geometry=geometry)
-    if name == "inputs_joints.png":
-        return plot_inputs_and_joints(data, n, out / name, phi_max_deg=phi_max_deg)
-    if name == "tracking_error.png":
-        return plot_tracking_error(data, n, out / name)
-    if name == "lateral_forces.png":
-        return plot_lateral_forces(data, n, out / name)
+    if name not in PNG_FILES + (GIF_FILE,):
+        raise PlotError(f"file {name!r}: the standard files are "
+                        f"{', '.join(PNG_FILES + (GIF_FILE, HTML_FILE))}")
+    n = check_n(n)
+    if getattr(getattr(data, "dtype", None), "names", None) is None:
+        check_data(data, n, ())  # raises PlotError saying what data is instead of a table
+    note = finite_note(data)
+    if note:
+        log.info("%s: %s", name, note)
+    poses = name in ("map.png", GIF_FILE)
+    shown = drawable(data, pose_columns(n) + ["x_d", "y_d", "theta_d"] if poses else ())
+    if len(shown) == 0:
+        why = ("the results have no rows" if len(data) == 0 else
+               "no row has a finite time" + (" and finite poses" if poses else ""))
+        return nothing_to_draw(out / name, f"{name}: nothing to draw: {why}.", note)
+    with warnings.catch_warnings(record=True) as caught:  # to run.log, not the terminal
+        warnings.simplefilter("always")
+        try:
+            return _draw_file(name, shown, n, out, note, world=world, path_xy=path_xy,
+                              footprints=footprints, geometry=geometry, status=status,
+                              phi_max_deg=phi_max_deg)
+        finally:
+            for w in caught:  # all-NaN columns (said by the note), matplotlib's layout hints
+                log.info("%s: %s: %s", name, w.category.__name__, w.message)
+
+
+def _draw_file(name, shown, n, out, note, *, world, path_xy, footprints, geometry, status,
+               phi_max_deg) -> Path:
+    """:func:`plot_file`'s drawing of a matplotlib file from the rows ``shown``."""
     if name == GIF_FILE:
-        return animate(data, n, out / name, world=world, footprints=footprints, path_xy=path_xy,
-                       geometry=geometry)
-    raise PlotError(f"file {name!r}: the standard files are "
-                    f"{', '.join(PNG_FILES + (GIF_FILE, HTML_FILE))}")
+        return animate(shown, n, out / name, world=world, footprints=footprints,
+                       path_xy=path_xy, geometry=geometry)
+    if name == "map.png":
+        fig = map_figure(shown, n, world=world, path_xy=path_xy, footprints=footprints,
+                         title=_title(n, status), geometry=geometry)
+    elif name == "inputs_joints.png":
+        fig = inputs_and_joints_figure(shown, n, phi_max_deg)
+    elif name == "tracking_error.png":
+        fig = tracking_error_figure(shown, n)
+    else:
+        fig = lateral_forces_figure(shown, n)
+    if note:
+        add_note(fig, note)
+    return save(fig, out / name)
 
 
 def plot_all(result_or_data, n: int, out_dir, *, world=None, path_xy=None, footprints=None,

@@ -20,17 +20,17 @@ from pushtrain.report.common import (
     C_ROBOT,
     C_SLIP,
     DIRECTION_BANDS,
-    check_data,
-    col,
     disturbance_mask,
     index_colorbar,
     intervals,
+    legend_place,
     new_figure,
     output_path,
     save,
     series_colors,
     shade,
 )
+from pushtrain.report.data import check_data, col
 
 __all__ = [
     "inputs_and_joints_figure",
@@ -82,7 +82,7 @@ def _robot_inputs(ax_v, ax_w, data, t: np.ndarray) -> None:
               gid="v_cmd", zorder=3)
     ax_v.set_ylabel("v0 [m/s]")
     ax_v.set_title("Robot longitudinal speed (negative: pushing)", fontsize=10)
-    ax_v.legend(loc="best", fontsize=8)
+    ax_v.legend(loc=legend_place(ax_v, (0.3, 0.35)), fontsize=8)
 
     ax_w.plot(t, np.degrees(col(data, "w0")), "-", color=C_ROBOT, lw=3.0, alpha=0.45,
               label="actual w0", gid="w0", zorder=2)
@@ -90,7 +90,7 @@ def _robot_inputs(ax_v, ax_w, data, t: np.ndarray) -> None:
               label="command w_cmd", gid="w_cmd", zorder=3)
     ax_w.set_ylabel("w0 [deg/s]")
     ax_w.set_title("Robot yaw rate", fontsize=10)
-    ax_w.legend(loc="best", fontsize=8)
+    ax_w.legend(loc=legend_place(ax_w, (0.3, 0.35)), fontsize=8)
 
 
 def _joint_angles(fig, ax, data, t: np.ndarray, n: int, phi_max_deg: float | None) -> None:
@@ -121,7 +121,10 @@ def _joint_angles(fig, ax, data, t: np.ndarray, n: int, phi_max_deg: float | Non
         handles += [Line2D([], [], color="0.3", ls="-"), Line2D([], [], color="0.3", ls=":")]
         labels += ["true", "measured"]
     if n <= 12:
-        ax.legend(handles, labels, loc="best", fontsize=8, ncol=max(1, min(4, (n + 3) // 4)))
+        ncol = max(1, min(4, (n + 3) // 4))
+        rows = -(-len(labels) // ncol)
+        ax.legend(handles, labels, loc=legend_place(ax, (0.15 * ncol, 0.07 * rows + 0.05)),
+                  fontsize=8, ncol=ncol)
     else:
         index_colorbar(fig, ax, colors, "joint index i")
 
@@ -177,7 +180,7 @@ def tracking_error_figure(data, n: int) -> Figure:
         ax.set_ylabel(ylabel)
         ax.set_title(what, fontsize=9)
         ax.grid(True, lw=0.4, alpha=0.5)
-        ax.legend(handles=[ax.get_lines()[0]], loc="best", fontsize=8)
+        ax.legend(handles=[ax.get_lines()[0]], loc=legend_place(ax, (0.45, 0.25)), fontsize=8)
     axes[-1].set_xlabel("time t [s]")
     _time_limits(axes[0], t)
     # only the bands that are drawn: a direction held for no time (the last sample's rest)
@@ -227,10 +230,16 @@ def lateral_forces_figure(data, n: int) -> Figure:
     return fig
 
 
+def _peak(a: np.ndarray) -> float:
+    """The largest finite value of ``a`` (0 where none is finite: a diverged run)."""
+    finite = a[np.isfinite(a)]
+    return float(finite.max()) if finite.size else 0.0
+
+
 def _peak_ratio(force: np.ndarray, limit: np.ndarray) -> float:
     """Peak force over the peak friction limit (nan without a positive limit)."""
-    lim = np.max(limit)
-    return float(np.max(force) / lim) if lim > 0 else float("nan")
+    lim = _peak(limit)
+    return float(_peak(force) / lim) if lim > 0 else float("nan")
 
 
 def _force_panels(t, force: list, limit: list, slips: list) -> Figure:
@@ -245,10 +254,10 @@ def _force_panels(t, force: list, limit: list, slips: list) -> Figure:
         ax.plot(t, force[i], "-", color="tab:blue", lw=1.3, label=f"|F_lat,{i + 1}|",
                 gid=f"F_lat{i + 1}")
         ax.plot(t, limit[i], "--", color="tab:red", lw=1.3,
-                label=f"friction limit {np.max(limit[i]):.1f} N", gid=f"F_lat_max{i + 1}")
-        ax.set_ylim(0.0, 1.15 * max(np.max(force[i]), np.max(limit[i]), 1e-9))
+                label=f"friction limit {_peak(limit[i]):.1f} N", gid=f"F_lat_max{i + 1}")
+        ax.set_ylim(0.0, 1.15 * max(_peak(force[i]), _peak(limit[i]), 1e-9))
         ax.set_ylabel(f"|F_lat,{i + 1}| [N]")
-        ax.set_title(f"trailer {i + 1}: peak {np.max(force[i]):.1f} N = "
+        ax.set_title(f"trailer {i + 1}: peak {_peak(force[i]):.1f} N = "
                      f"{100 * _peak_ratio(force[i], limit[i]):.0f} % of the limit, "
                      f"{len(slips[i])} slip interval{'s' if len(slips[i]) != 1 else ''}",
                      fontsize=9)
@@ -267,17 +276,20 @@ def _force_overview(t, force: list, limit: list, slips: list) -> Figure:
     colors = series_colors(n, categorical=False)
     for i in range(n):
         ax.plot(t, force[i], "-", color=colors[i], lw=1.0, gid=f"F_lat{i + 1}")
-        ax.plot(t, limit[i], "--", color=colors[i] if np.ptp([np.max(v) for v in limit]) > 0
+        ax.plot(t, limit[i], "--", color=colors[i] if np.ptp([_peak(v) for v in limit]) > 0
                 else "tab:red", lw=1.2, gid=f"F_lat_max{i + 1}")
         for a, b in slips[i]:
             ax_slip.broken_barh([(a, max(b - a, 1e-9))], (i + 0.6, 0.8), color=C_SLIP,
                                 gid=f"slip{i + 1}")
     ratios = [_peak_ratio(force[i], limit[i]) for i in range(n)]
-    worst = int(np.nanargmax(ratios))
     ax.set_ylabel("|F_lat,i| [N]")
+    if np.isfinite(ratios).any():
+        worst = int(np.nanargmax(ratios))
+        peak = f"trailer {worst + 1}, {100 * ratios[worst]:.0f} % of its limit"
+    else:
+        peak = "none finite"
     ax.set_title(f"Lateral wheel force of each trailer (dashed: friction limit); highest "
-                 f"peak: trailer {worst + 1}, {100 * ratios[worst]:.0f} % of its limit",
-                 fontsize=9)
+                 f"peak: {peak}", fontsize=9)
     ax.grid(True, lw=0.4, alpha=0.5)
     index_colorbar(fig, ax, colors, "trailer index i")
     ax_slip.set_ylim(0.5, n + 0.5)

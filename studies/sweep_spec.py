@@ -28,6 +28,7 @@ from pydantic import (
 )
 
 from pushtrain.errors import FieldErrors, SweepError
+from pushtrain.limits import SWEEP_MAX_TOTAL
 from pushtrain.validation import FiniteFloat, Integer, PositiveFloat, read_toml, validate_model
 
 __all__ = ["RangeSpec", "ParameterSpec", "SweepSpec", "METRICS", "DEFAULT_METRICS",
@@ -41,7 +42,7 @@ OK_STATUSES = ("goal_reached", "completed")
 STATUS_ERROR = "error"  # the task raised (bad combination found at run time, FMU load failure, ...)
 STATUS_LOST = "lost"  # the worker died or the task was cancelled: run again on resume
 SPEC_FORMAT = "pushtrain.sweep"
-DEFAULT_MAX_TOTAL = 100_000
+DEFAULT_MAX_TOTAL = SWEEP_MAX_TOTAL
 """Most runs a sweep makes unless the caller raises the limit (``max_total``, ``--max-total``)."""
 
 METRICS = {

@@ -11,7 +11,8 @@ from pushtrain.cli.main import cli
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 COMMANDS = [
-    "plan-and-run", "plan", "run", "build-fmu", "analyze", "validate", "slip-study", "sweep"
+    "plan-and-run", "plan", "run", "build-fmu", "analyze", "validate", "slip-study", "sweep",
+    "export-bag",
 ]
 
 

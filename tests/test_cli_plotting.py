@@ -22,6 +22,7 @@ from pushtrain.cli.main import cli
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 PNGS = ("map.png", "inputs_joints.png", "tracking_error.png", "lateral_forces.png")
 ALL = PNGS + ("train.gif",)
+EVERYTHING = ("--plots", "all", "--gif")  # every picture (the default: report.html only)
 
 
 def _short(tmp_path, horizon=1.0):
@@ -97,7 +98,7 @@ def test_the_plot_processes_write_the_same_files_as_the_main_process(tmp_path):
     from pushtrain.report import plots
 
     out = tmp_path / "out"
-    result = _invoke(["run", _quick(tmp_path), "--out", str(out)])
+    result = _invoke(["run", _quick(tmp_path), *EVERYTHING, "--out", str(out)])
     assert result.exit_code == 0, result.output
     _complete(out, ALL)
     _no_plot_process_left()
@@ -123,7 +124,7 @@ def test_drawing_in_the_main_process_when_no_process_can_be_forked(tmp_path, mon
 
     monkeypatch.setattr(plotting, "PlotWorkers", cannot_fork)
     out = tmp_path / "out"
-    result = _invoke(["run", _short(tmp_path), "--no-gif", "--out", str(out)])
+    result = _invoke(["run", _short(tmp_path), "--plots", "all", "--out", str(out)])
     assert result.exit_code == 1, result.output
     assert "cannot start plot processes" in result.output
     _complete(out, PNGS)
@@ -136,7 +137,8 @@ def test_the_main_process_does_not_import_matplotlib(tmp_path):
     out = tmp_path / "out"
     code = ("import sys\n"
             "from pushtrain.cli.main import plan_and_run_main\n"
-            f"sys.argv = ['plan-and-run', {_short(tmp_path, 0.3)!r}, '--out', {str(out)!r}]\n"
+            f"sys.argv = ['plan-and-run', {_short(tmp_path, 0.3)!r}, '--out', {str(out)!r},"
+            " '--plots', 'all', '--gif']\n"
             "try:\n"
             "    plan_and_run_main()\n"
             "except SystemExit as exc:\n"
@@ -145,6 +147,58 @@ def test_the_main_process_does_not_import_matplotlib(tmp_path):
                           timeout=300)
     assert done.stdout.strip().splitlines()[-1] == "exit 1 False", done.stdout + done.stderr
     _complete(out, ALL)
+
+
+def test_by_default_a_run_writes_its_page_without_matplotlib_or_plot_processes(tmp_path):
+    """The default pictures are report.html alone, written in the command's own process from
+    the data (no matplotlib imported, no plot process started); the PNGs and the GIF come with
+    --plots all and --gif, and --no-gif keeps working (it is the default)."""
+    out = tmp_path / "out"
+    code = ("import sys, multiprocessing\n"
+            "from pushtrain.cli.main import plan_and_run_main\n"
+            f"sys.argv = ['plan-and-run', {_quick(tmp_path)!r}, '--out', {str(out)!r},"
+            " '--no-gif']\n"
+            "try:\n"
+            "    plan_and_run_main()\n"
+            "except SystemExit as exc:\n"
+            "    print('exit', exc.code, 'matplotlib' in sys.modules,"
+            " len(multiprocessing.active_children()))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert done.stdout.strip().splitlines()[-1] == "exit 0 False 0", done.stdout + done.stderr
+    pictures = sorted(p.name for p in out.iterdir() if p.suffix in (".png", ".gif", ".html"))
+    assert pictures == ["report.html"]
+    assert "report.html drawn" in (out / "run.log").read_text()
+    assert "plot process" not in (out / "run.log").read_text()
+    gif_only = tmp_path / "gif"
+    result = _invoke(["run", _quick(tmp_path), "--gif", "--out", str(gif_only)])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in gif_only.iterdir()
+                  if p.suffix in (".png", ".gif", ".html")) == ["report.html", "train.gif"]
+    _complete(gif_only, ["train.gif"])
+
+
+@pytest.mark.parametrize("args, named", [
+    (["--plots", "none", "--gif"], "--gif"),
+    (["--no-plots", "--gif"], "--gif"),
+    (["--no-plots", "--plots", "all"], "--no-plots"),
+    (["--gif", "--no-gif"], "--gif"),
+    (["--plots", "some"], "--plots"),
+])
+def test_contradicting_picture_options_are_exit_2_naming_them(tmp_path, args, named):
+    out = tmp_path / "out"
+    result = _invoke(["run", _quick(tmp_path), *args, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert named in result.output
+    assert not out.exists()
+
+
+def test_plots_none_draws_nothing(tmp_path):
+    out = tmp_path / "out"
+    result = _invoke(["run", _quick(tmp_path), "--plots", "none", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert not [p for p in out.iterdir() if p.suffix in (".png", ".gif", ".html")]
+    assert (out / "results.npz").is_file()
 
 
 # -------------------------------------------------------------------------------- failures
@@ -157,7 +211,7 @@ def test_a_file_that_cannot_be_drawn_is_exit_1_naming_it_and_the_rest_is_kept(tm
 
     _failing(monkeypatch, "map.png", boom)
     out = tmp_path / "out"
-    result = _invoke(["run", _quick(tmp_path), "--out", str(out)])
+    result = _invoke(["run", _quick(tmp_path), *EVERYTHING, "--out", str(out)])
     assert result.exit_code == 1, result.output
     assert "could not draw map.png: PlotError: boom in the map" in result.output
     assert "status:" in result.output  # the summary is printed first
@@ -176,7 +230,7 @@ def test_a_plot_process_that_dies_is_exit_1_naming_the_file(tmp_path, monkeypatc
     _failing(monkeypatch, victim, lambda: os.kill(os.getpid(), signal.SIGKILL))
     out = tmp_path / "out"
     start = time.monotonic()
-    result = _invoke(["run", _quick(tmp_path), "--out", str(out)])
+    result = _invoke(["run", _quick(tmp_path), *EVERYTHING, "--out", str(out)])
     assert time.monotonic() - start < 60
     assert result.exit_code == 1, result.output
     assert f"could not draw {victim}: the plot process" in result.output
@@ -191,7 +245,7 @@ def test_a_silent_plot_process_is_stopped(tmp_path, monkeypatch):
     _failing(monkeypatch, "train.gif", lambda: time.sleep(120))
     out = tmp_path / "out"
     start = time.monotonic()
-    result = _invoke(["run", _quick(tmp_path), "--out", str(out)])
+    result = _invoke(["run", _quick(tmp_path), *EVERYTHING, "--out", str(out)])
     assert time.monotonic() - start < 30  # the run takes a few seconds, the silence 2 s
     assert result.exit_code == 1, result.output
     assert "train.gif" in result.output and "no word from the plot processes" in result.output
@@ -206,12 +260,12 @@ def test_plot_processes_that_cannot_start_drawing_say_why(tmp_path, monkeypatch)
 
     monkeypatch.setattr(plotting, "_warm_up", no_matplotlib)
     out = tmp_path / "out"
-    result = _invoke(["run", _quick(tmp_path), "--no-gif", "--out", str(out)])
+    result = _invoke(["run", _quick(tmp_path), "--plots", "all", "--out", str(out)])
     assert result.exit_code == 1, result.output
-    assert (f"could not draw {', '.join(PNGS)}, report.html: no plot process left (cannot draw: "
+    assert (f"could not draw {', '.join(PNGS)}: no plot process left (cannot draw: "
             "ImportError: "
             "No module named 'matplotlib')") in result.output
-    assert (out / "results.npz").is_file()
+    assert (out / "results.npz").is_file() and (out / "report.html").is_file()
     _no_plot_process_left()
 
 
@@ -280,7 +334,8 @@ def test_the_maps_module_imports_without_the_planner():
 def test_plot_processes_0_draws_here_the_same_files(tmp_path, monkeypatch):
     """--plot-processes 0 starts no plot process (the least memory) and writes the files the
     plot processes write; a count outside 0..2 is exit 2 naming the option."""
-    forked = _invoke(["run", _quick(tmp_path), "--out", str(tmp_path / "forked")])
+    forked = _invoke(["run", _quick(tmp_path), *EVERYTHING, "--out",
+                      str(tmp_path / "forked")])
     assert forked.exit_code == 0, forked.output
 
     def no_workers(*args, **kwargs):
@@ -288,7 +343,8 @@ def test_plot_processes_0_draws_here_the_same_files(tmp_path, monkeypatch):
 
     monkeypatch.setattr(plotting, "PlotWorkers", no_workers)
     here = tmp_path / "here"
-    result = _invoke(["run", _quick(tmp_path), "--plot-processes", "0", "--out", str(here)])
+    result = _invoke(["run", _quick(tmp_path), *EVERYTHING, "--plot-processes", "0", "--out",
+                      str(here)])
     assert result.exit_code == 0, result.output
     _complete(here, ALL)
     for name in ALL:

@@ -304,18 +304,17 @@ def test_progress_goes_to_a_pipe_one_line_per_phase(tmp_path):
     how long each took."""
     script = Path(sys.executable).with_name("plan-and-run")
     out = tmp_path / "out"
-    done = subprocess.run([str(script), _short(tmp_path, horizon=0.2), "--no-gif", "--out",
-                           str(out)], capture_output=True, text=True, timeout=300)
+    done = subprocess.run([str(script), _short(tmp_path, horizon=0.2), "--plots", "all",
+                           "--out", str(out)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 1, done.stderr
     lines = [line for line in done.stderr.splitlines() if line.startswith("[")]
     assert [line.split("] ", 1)[1] for line in lines[:-1]] == [
-        "co-simulating ...", "saving the results ...",
-        "plotting map.png, inputs_joints.png, tracking_error.png, lateral_forces.png and "
-        "report.html ..."]
+        "co-simulating ...", "saving the results ...", "writing report.html ...",
+        "plotting map.png, inputs_joints.png, tracking_error.png, lateral_forces.png ..."]
     stamps = [float(line[1:].split("s]")[0]) for line in lines]
     assert stamps == sorted(stamps)
     phases = lines[-1].split("] done: ", 1)[1].split(", ")
-    assert [p.rsplit(" ", 2)[0] for p in phases] == ["co-simulate", "save", "plots"]
+    assert [p.rsplit(" ", 2)[0] for p in phases] == ["co-simulate", "save", "page", "plots"]
     assert all(float(p.rsplit(" ", 2)[1]) >= 0 for p in phases)
     assert "status:" in done.stdout and "status:" not in done.stderr
     assert (out / "map.png").is_file() and not (out / "train.gif").exists()

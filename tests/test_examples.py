@@ -1,4 +1,5 @@
-"""Every bundled example scenario runs end to end through the CLI, with plots written."""
+"""Every bundled example scenario runs end to end through the CLI, with every picture written
+(``--plots all``; the GIF of one)."""
 
 import json
 from pathlib import Path
@@ -24,9 +25,9 @@ its GIF). The others are slow (the facility manoeuvres plan and co-simulate for 
              for p in sorted(EXAMPLES.glob("*.toml"))], ids=lambda p: p.stem)
 def test_example_runs_end_to_end(path, tmp_path):
     out = tmp_path / path.stem
-    args = ["plan-and-run", str(path), "--out", str(out)]
-    if path.stem != "straight_push":
-        args.append("--no-gif")  # one GIF is enough to know the animation works
+    args = ["plan-and-run", str(path), "--out", str(out), "--plots", "all"]
+    if path.stem == "straight_push":
+        args.append("--gif")  # one GIF is enough to know the animation works
     result = CliRunner().invoke(cli, args)
     summary = json.loads((out / "summary.json").read_text())
     if summary["mission"] == "rotation":
@@ -37,7 +38,7 @@ def test_example_runs_end_to_end(path, tmp_path):
         assert result.exit_code == 0, result.output
         assert summary["status"] == "goal_reached", summary["message"]
         _ends_at_the_goal(path, out)
-    for name in PLOTS:
+    for name in PLOTS + ("report.html",):
         assert (out / name).stat().st_size > 10_000, name
     if path.stem == "straight_push":
         assert (out / "train.gif").stat().st_size > 10_000

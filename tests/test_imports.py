@@ -2,7 +2,8 @@
 
 The rooms (folders mapped into ``pushtrain.*``) and what each may import::
 
-    cli -> {mission, studies, report, planner, facility, cosim, fmu, core}
+    cli -> {mission, studies, report, ros, planner, facility, cosim, fmu, core}
+    ros -> {mission, planner, facility, cosim, core}
     studies -> {mission, report, planner, facility, cosim, fmu, core}
     mission -> {planner, facility, cosim, fmu, core}
     planner -> {facility, core}     report -> {facility, core}     cosim -> {core, fmu}
@@ -25,7 +26,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 ROOMS = ("pushtrain", "core", "fmu", "facility", "planner", "cosim", "report", "mission",
-         "studies", "cli")
+         "ros", "studies", "cli")
 ALLOWED = {
     "pushtrain": set(),
     "core": set(),
@@ -35,11 +36,13 @@ ALLOWED = {
     "cosim": {"core", "fmu"},
     "report": {"core", "facility"},
     "mission": {"core", "fmu", "facility", "planner", "cosim"},
+    "ros": {"core", "facility", "planner", "cosim", "mission"},
     "studies": {"core", "fmu", "facility", "planner", "cosim", "report", "mission"},
-    "cli": {"core", "fmu", "facility", "planner", "cosim", "report", "mission", "studies"},
+    "cli": {"core", "fmu", "facility", "planner", "cosim", "report", "mission", "ros",
+            "studies"},
 }
 OWNERS = {"ompl": {"planner"}, "fmpy": {"cosim", "fmu"}, "dask": {"studies.sweep"},
-          "distributed": {"studies.sweep"}, "ezdxf": {"facility.dxf"}}
+          "distributed": {"studies.sweep"}, "ezdxf": {"facility.dxf"}, "rosbags": {"ros"}}
 
 
 def _module_name(path: Path) -> str:
@@ -182,6 +185,7 @@ def test_the_rules_would_catch_a_forbidden_arrow(tmp_path):
     ("pushtrain.core.controller, pushtrain.core.pulling, pushtrain.core.analysis",
      "pushtrain.planner"),
     ("pushtrain.cli.main", "distributed"),
+    ("pushtrain.cli.main", "rosbags"),
     ("pushtrain.facility.loading, pushtrain.facility.free_space, pushtrain.facility.dxf",
      "pushtrain.planner"),
 ])
@@ -194,7 +198,7 @@ def test_transitive_imports_stay_apart(modules, forbidden):
 def test_no_bare_top_level_modules_leak_from_the_install():
     code = ("import importlib.util as u;"
             "leaks = [m for m in ('planner', 'cli', 'cosim', 'fmu', 'core', 'mission', 'studies',"
-            " 'report', 'facility') if u.find_spec(m) is not None];"
+            " 'report', 'facility', 'ros') if u.find_spec(m) is not None];"
             "print(leaks)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
     assert done.stdout.strip() == "[]", done.stdout + done.stderr

@@ -17,6 +17,7 @@ from pushtrain.facility import example_layouts
 from pushtrain.facility.free_space import World
 from pushtrain.planner.config import PlannerConfig
 from pushtrain.planner.connect import MAX_SAMPLES, corner_segments, sample_reference
+from pushtrain.planner.passage import widest_gap
 from pushtrain.planner.planner import plan
 from pushtrain.planner.route import (
     MAX_ROUTE_NODES,
@@ -25,7 +26,6 @@ from pushtrain.planner.route import (
     _Grid,
     comes_in_across,
     find_route,
-    widest_gap,
 )
 from pushtrain.planner.train import Train
 

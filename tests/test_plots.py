@@ -622,3 +622,25 @@ def test_tracking_error_legend_names_only_the_bands_drawn(run3):
     data["direction"][-200:] = 0.0
     fig = timeseries.tracking_error_figure(data, 3)
     assert "rest" in [t.get_text() for lg in fig.legends for t in lg.get_texts()]
+
+
+def test_a_legend_goes_where_it_hides_the_fewest_points():
+    """report.common.legend_place (the cheap loc="best"): a line along the top of the axes
+    sends the legend to the bottom, one along the bottom to the top right, a falling line
+    (top left to bottom right) to the lower left or upper right, away from it."""
+    from pushtrain.report.common import legend_place, new_figure
+
+    def place(x, y):
+        ax = new_figure(4.0, 3.0).add_subplot()
+        ax.plot(x, y)
+        ax.plot([0.0, 10.0], [0.0, 10.0], alpha=0)  # fixes the limits: 0..10 both ways
+        ax.lines[-1].remove()
+        ax.set_xlim(0.0, 10.0)
+        ax.set_ylim(0.0, 10.0)
+        return legend_place(ax)
+
+    x = np.linspace(0.0, 10.0, 25_000)
+    assert place(x, np.full_like(x, 9.5)) == "lower left"
+    assert place(x, np.full_like(x, 0.5)) == "upper right"
+    assert place(x, 10.0 - x) in ("lower left", "upper right")
+    assert place(x, 10.0 - x) != "upper left"

@@ -149,7 +149,8 @@ def test_sigterm_while_saving_is_exit_143_interrupted_and_no_partial_file(tmp_pa
     """SIGTERM while results.npz is half written: exit 143 with one line, summary.json says
     ``interrupted`` (with the co-simulation's numbers), no partial file, no plot process."""
     out = tmp_path / "out"
-    proc = start(HOLD_IN_SAVE, [STRAIGHT, "--out", out, "--plot-processes", "2"])
+    proc = start(HOLD_IN_SAVE, [STRAIGHT, "--out", out, "--plots", "all", "--gif",
+                             "--plot-processes", "2"])
     before = _wait_for(proc, "holding results.npz")
     plot_processes = _descendants(proc.pid)
     assert list(out.glob(".results.npz.*.part")), "the hook writes half a file first"
@@ -176,7 +177,8 @@ def test_sigterm_while_plotting_is_exit_143_and_leaves_whole_files_only(tmp_path
     from PIL import Image
 
     out = tmp_path / "out"
-    proc = start(HOLD_IN_PLOT, [STRAIGHT, "--out", out, "--plot-processes", "2"])
+    proc = start(HOLD_IN_PLOT, [STRAIGHT, "--out", out, "--plots", "all", "--gif",
+                             "--plot-processes", "2"])
     before = _wait_for(proc, "holding map.png")
     plot_processes = _descendants(proc.pid)
     assert len(plot_processes) >= 2, plot_processes
@@ -215,7 +217,8 @@ def full_disk(partial, data):
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 results.write_npz = full_disk
 """
-    proc = start(patch, [STRAIGHT, "--out", out, "--plot-processes", "2"])
+    proc = start(patch, [STRAIGHT, "--out", out, "--plots", "all", "--gif",
+                             "--plot-processes", "2"])
     _, err = _finish(proc)
     assert proc.returncode == 1, err
     assert f"disk full while writing results.npz in {out}" in err, err

@@ -15,6 +15,7 @@ from ..common import (
     plot_processes_option,
     scenario_argument,
 )
+from ..pictures import chosen_files, pictures_options
 from ..plotting import plotter
 from ..progress import Phases
 from ..rundir import run_folder
@@ -63,12 +64,11 @@ def _check_path_fits(sc, path, path_file) -> None:
               metavar="PATH.json",
               help="A saved path (from `plan --out`); default: the scenario's scripted reference.")
 @out_dir_option
-@click.option("--no-plots", is_flag=True,
-              help="Skip the PNG plots, the GIF and report.html.")
-@click.option("--no-gif", is_flag=True, help="Skip the animated GIF (plots only).")
+@pictures_options
 @csv_option
 @plot_processes_option
-def run_cmd(scenario, path_file, out, no_plots, no_gif, csv, plot_processes):
+def run_cmd(scenario, path_file, out, plots, gif, no_plots, no_gif,
+            csv, plot_processes):
     """Co-simulate a saved path or the scenario's scripted line/arc reference.
 
     \b
@@ -76,14 +76,15 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv, plot_processes):
       pushtrain run examples/circle.toml
       pushtrain run examples/bay.toml --path bay_path.json
     Writes scenario.json, path.json (with --path), results.npz (results.csv with --csv),
-    summary.json, run.log and plots. Progress goes to stderr, one line per phase.
+    summary.json, run.log and report.html (--plots all: the PNGs too; --gif: train.gif).
+    Progress goes to stderr, one line per phase.
     """
+    files = chosen_files(plots, gif, no_plots, no_gif)
     phases = Phases()
     sc = load_scenario_with_overrides(scenario)
     # the plot processes get ready (import matplotlib) while the map is checked and the run
     # made
-    with plotter(sc, plots=not no_plots, gif=not no_gif,
-                 processes=plot_processes) as pictures:
+    with plotter(sc, files, processes=plot_processes) as pictures:
         check_map(sc)
         path = None
         if path_file:
@@ -99,6 +100,6 @@ def run_cmd(scenario, path_file, out, no_plots, no_gif, csv, plot_processes):
                 write_path(path, out_dir / "path.json")
                 reference = path.to_reference(speed=sc.planner.speed,
                                               cusp_dwell=sc.planner.cusp_dwell)
-            code = run_and_report(sc, out_dir, reference, path, not no_plots, not no_gif,
-                                  csv=csv, phases=phases, plotter=pictures)
+            code = run_and_report(sc, out_dir, reference, path, files, csv=csv,
+                                  phases=phases, plotter=pictures)
     sys.exit(code)

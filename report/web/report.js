@@ -13,6 +13,16 @@
   const $ = (id) => document.getElementById(id);
   $("title").textContent = D.title;
   $("message").textContent = D.message || (D.summary && D.summary.message) || "";
+  (D.notes || []).forEach((text) => {  // what is not drawn (values not finite, no rows)
+    const p = document.createElement("p"); p.className = "note"; p.textContent = text;
+    $("message").after(p);
+  });
+  const hasRows = isRun && D.t.length > 0;
+  function range(values) {  // [min, max] of the non-null values (no spread: long arrays)
+    let lo = Infinity, hi = -Infinity;
+    for (const v of values) { if (v !== null) { if (v < lo) lo = v; if (v > hi) hi = v; } }
+    return [lo, hi];
+  }
 
   // ---------------------------------------------------------------- map view
   const canvas = $("map");
@@ -33,11 +43,10 @@
     let xs = [], ys = [];
     if (isRun) D.bodies.forEach((b) => { xs = xs.concat(b.x); ys = ys.concat(b.y); });
     else (D.tree || []).forEach((tr) => { xs = xs.concat(tr[0]); ys = ys.concat(tr[1]); });
-    xs = xs.filter((v) => v !== null); ys = ys.filter((v) => v !== null);
-    if (!xs.length) return [-1, 1, -1, 1];
+    const [x0, x1] = range(xs), [y0, y1] = range(ys);
+    if (!(x0 <= x1 && y0 <= y1)) return [-1, 1, -1, 1];
     const pad = 1.0;
-    return [Math.min(...xs) - pad, Math.max(...xs) + pad, Math.min(...ys) - pad,
-            Math.max(...ys) + pad];
+    return [x0 - pad, x1 + pad, y0 - pad, y1 + pad];
   }
 
   function fit() {
@@ -149,7 +158,7 @@
   }
 
   function poseAt(i) {  // [[x, y, theta] of bodies 0..n] at view row i (or the failure's train)
-    if (isRun) return D.bodies.map((b) => [b.x[i], b.y[i], b.theta[i]]);
+    if (isRun) return hasRows ? D.bodies.map((b) => [b.x[i], b.y[i], b.theta[i]]) : [];
     if (!D.train) return [];
     return D.train.x.map((x, k) => [x, D.train.y[k], D.train.theta[k]]);
   }
@@ -160,11 +169,15 @@
     ctx.lineWidth = 1.2 * dpr;
     // the chain: body centre to body centre
     ctx.strokeStyle = "#333"; ctx.beginPath();
-    poses.forEach((p, k) => { const q = toPx(p[0], p[1]); if (k) ctx.lineTo(q[0], q[1]);
-                              else ctx.moveTo(q[0], q[1]); });
+    let pen = false;  // a body whose pose is not finite (null) is left out, the chain broken
+    poses.forEach((p) => {
+      if (p[0] === null || p[1] === null) { pen = false; return; }
+      const q = toPx(p[0], p[1]); if (pen) ctx.lineTo(q[0], q[1]); else ctx.moveTo(q[0], q[1]);
+      pen = true;
+    });
     ctx.stroke();
     poses.forEach((p, k) => {
-      if (p[0] === null) return;
+      if (p[0] === null || p[1] === null || p[2] === null) return;
       const fp = k === 0 ? D.footprints.robot : D.footprints.trailer;
       const corners = rect(p[0], p[1], p[2], fp[0], fp[1]);
       ctx.fillStyle = k === 0 ? COLORS.robot : COLORS.trailer;
@@ -265,10 +278,9 @@
     box.appendChild(c); box.appendChild(value); $("plots").appendChild(box);
     const g = c.getContext("2d");
     const M = {l: 52, r: 8, t: 18, b: 20};
-    let ys = [];
-    spec.lines.forEach((ln) => ln.y.forEach((v) => { if (v !== null) ys.push(v); }));
-    spec.limits.forEach((lm) => ys.push(lm.y));
-    let lo = ys.length ? Math.min(...ys) : -1, hi = ys.length ? Math.max(...ys) : 1;
+    let [lo, hi] = range([].concat(...spec.lines.map((ln) => ln.y),
+                                   spec.limits.map((lm) => lm.y)));
+    if (!(lo <= hi)) { lo = -1; hi = 1; }
     if (hi - lo < 1e-9) { lo -= 1; hi += 1; }
     const padY = 0.06 * (hi - lo); lo -= padY; hi += padY;
     const t0 = D.t[0], t1 = D.t[D.t.length - 1] > t0 ? D.t[D.t.length - 1] : t0 + 1;
@@ -368,7 +380,7 @@
     return (t - D.t[a] <= D.t[b] - t) ? a : b;
   }
   function setRow(i) {
-    if (!isRun) { draw(); return; }
+    if (!hasRows) { draw(); return; }
     row = Math.max(0, Math.min(D.t.length - 1, i | 0));
     slider.value = String(row);
     $("time").textContent = `t = ${D.t[row].toFixed(2)} s`;
@@ -393,7 +405,7 @@
     requestAnimationFrame(tick);
   }
   function pause() { playing = false; $("play").textContent = "\u25b6 play"; }
-  if (isRun) {
+  if (hasRows) {
     slider.max = String(D.t.length - 1);
     slider.addEventListener("input", () => { setRow(parseInt(slider.value, 10));
                                              simTime = D.t[row]; });
