@@ -110,7 +110,7 @@ def _serving(reply: bytes | None):
 
 
 @pytest.mark.parametrize("reply, why", [
-    (None, "said nothing in 3 s"),                          # hung past 180 s
+    pytest.param(None, "said nothing in 3 s", marks=pytest.mark.slow),  # hung past 180 s
     (b"\xff" * 64, "its first message is not a Dask comm's"),  # a multi-EiB allocation
     (b"SSH-2.0-OpenSSH_9.6\r\n", "its first message is not a Dask comm's"),
     (b"\x10" + b"\0" * 7 + b"\x07" * 16, "its first message is not a Dask comm's"),

@@ -146,6 +146,7 @@ def test_the_bundled_floor_plan(tmp_path):
         assert not shut.free.contains(Point(12.0, 6.0))
 
 
+@pytest.mark.slow
 def test_the_floor_plan_script_is_reproducible(tmp_path):
     """Run as the README says, twice a second apart: the same bytes, and the committed
     floor.dxf is what it writes (no dates, random GUIDs or time stamps inside)."""

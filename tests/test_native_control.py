@@ -436,6 +436,7 @@ def test_failing_compiler_is_a_clear_error(monkeypatch, tmp_path):
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]  # no partial library left
 
 
+@pytest.mark.slow
 def test_concurrent_builds_each_load_a_complete_library(tmp_path):
     """Three processes build into an empty cache at once; all load and compute."""
     code = ("from pushtrain.core import native; lib = native.load(); "
