@@ -23,11 +23,28 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _browser_problem() -> str | None:
+    """What is missing to drive a headless browser here (checked before any work), or None."""
+    missing = []
+    if not (shutil.which("chromium") or shutil.which("google-chrome")):
+        missing.append("a browser (Debian: apt install chromium)")
+    if not shutil.which("chromedriver"):
+        missing.append("chromedriver (Debian: apt install chromium-driver)")
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        missing.append("selenium (pip install -e '.[test]')")
+    return "; ".join(missing) or None
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", type=Path, help="a run folder (default: plan-and-run l_corridor)")
     ap.add_argument("--seconds", type=float, default=3.0, help="how long to play [s]")
     args = ap.parse_args()
+    problem = _browser_problem()
+    if problem:
+        sys.exit(f"bench_report: not measured: it drives a headless browser and needs {problem}")
     run = args.run
     if run is None:
         run = Path(tempfile.mkdtemp()) / "l_corridor"
@@ -45,7 +62,11 @@ def main() -> None:
     options.binary_location = shutil.which("chromium") or shutil.which("google-chrome")
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1400,1000"):
         options.add_argument(arg)
-    drv = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=options)
+    try:
+        drv = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=options)
+    except Exception as exc:  # a browser that cannot start here: say why, no traceback
+        sys.exit(f"bench_report: not measured: chromium did not start: "
+                 f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}")
     try:
         t0 = time.perf_counter()
         drv.get(page.resolve().as_uri())

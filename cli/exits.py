@@ -2,7 +2,7 @@
 console scripts' guard uses them before any other module has loaded)."""
 
 __all__ = ["EXIT_OK", "EXIT_NOT_REACHED", "EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "EXIT_TERMINATED",
-           "Terminated", "interruption", "terminate_as_interrupt"]
+           "EXIT_HUNG_UP", "Terminated", "HungUp", "interruption", "terminate_as_interrupt"]
 
 EXIT_OK = 0
 """The goal was reached, or a fixed-horizon run completed."""
@@ -15,6 +15,8 @@ EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
 """SIGTERM (128 + SIGTERM: ``kill``, ``docker stop``, a batch scheduler), handled as Ctrl-C is:
 what was written so far is kept."""
+EXIT_HUNG_UP = 129
+"""SIGHUP (128 + SIGHUP: the terminal or the SSH session closed), handled as SIGTERM is."""
 
 
 class Terminated(KeyboardInterrupt):
@@ -23,18 +25,32 @@ class Terminated(KeyboardInterrupt):
     summary, the plot processes stopped, partial files removed) does so on SIGTERM too."""
 
 
+class HungUp(Terminated):
+    """SIGHUP (the terminal closed), raised as :class:`Terminated` is, with its own exit code."""
+
+
 def interruption(exc: BaseException) -> tuple[int, str]:
-    """(exit code, what happened) of an interruption: SIGTERM (:class:`Terminated`) or Ctrl-C."""
+    """(exit code, what happened) of an interruption: SIGHUP (:class:`HungUp`), SIGTERM
+    (:class:`Terminated`) or Ctrl-C."""
+    if isinstance(exc, HungUp):
+        return EXIT_HUNG_UP, "hung up (SIGHUP)"
     if isinstance(exc, Terminated):
         return EXIT_TERMINATED, "terminated (SIGTERM)"
     return EXIT_INTERRUPTED, "interrupted (Ctrl-C)"
 
 
+def _ending_signals():
+    import signal
+
+    return [signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
+
+
 def _raise_terminated(signum, frame):
     import signal
 
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    raise Terminated()
+    for sig in _ending_signals():  # the first ends the command; the others wait for its end
+        signal.signal(sig, signal.SIG_IGN)
+    raise HungUp() if signum == getattr(signal, "SIGHUP", None) else Terminated()
 
 
 def _default_in_child() -> None:
@@ -43,8 +59,9 @@ def _default_in_child() -> None:
     import signal
 
     try:
-        if signal.getsignal(signal.SIGTERM) is _raise_terminated:
-            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        for sig in _ending_signals():
+            if signal.getsignal(sig) is _raise_terminated:
+                signal.signal(sig, signal.SIG_DFL)
     except ValueError:  # forked from another thread than the main one: it cannot be set
         pass
 
@@ -53,13 +70,15 @@ _FORK_HOOK = []
 
 
 def terminate_as_interrupt() -> None:
-    """From now on SIGTERM raises :class:`Terminated` in the main thread (once: a second SIGTERM
-    while the command ends is ignored, so the clean-up is not cut short; SIGKILL still ends it).
-    Forked children get the default back. Call from the main thread."""
+    """From now on SIGTERM raises :class:`Terminated` and SIGHUP :class:`HungUp` in the main
+    thread (once: a second signal while the command ends is ignored, so the clean-up is not cut
+    short; SIGKILL still ends it). Forked children get the defaults back. Call from the main
+    thread."""
     import os
     import signal
 
-    signal.signal(signal.SIGTERM, _raise_terminated)
+    for sig in _ending_signals():
+        signal.signal(sig, _raise_terminated)
     if not _FORK_HOOK and hasattr(os, "register_at_fork"):
         os.register_at_fork(after_in_child=_default_in_child)
         _FORK_HOOK.append(True)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import sys
+import threading
 import time
 from contextlib import contextmanager
 
@@ -42,14 +43,28 @@ class Phases:
                    file=self.stream or sys.stderr)
 
     @contextmanager
-    def phase(self, name: str, what: str):
-        """Announce ``what`` (e.g. "co-simulating") and time the block as phase ``name``."""
+    def phase(self, name: str, what: str, tick_s: float | None = None):
+        """Announce ``what`` (e.g. "co-simulating") and time the block as phase ``name``; with
+        ``tick_s``, a line every ``tick_s`` seconds says the phase is still going and since
+        when (a long plan is not silent)."""
         self._line(f"{what} ...")
         log.info("%s ...", what)
         t0, cpu0 = self.clock(), time.process_time()
+        stop = threading.Event()
+        ticker = None
+        if tick_s:
+            def tick():
+                while not stop.wait(tick_s):
+                    self._line(f"... still {what}, {self.clock() - t0:.0f} s so far")
+
+            ticker = threading.Thread(target=tick, name="pushtrain-progress", daemon=True)
+            ticker.start()
         try:
             yield
         finally:
+            stop.set()
+            if ticker is not None:
+                ticker.join()
             self.times[name] = self.times.get(name, 0.0) + self.clock() - t0
             self.cpu[name] = self.cpu.get(name, 0.0) + time.process_time() - cpu0
 

@@ -36,7 +36,8 @@ def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = Non
 
     t0 = time.perf_counter()
     try:
-        with _phase(phases, "plan", f"planning the path ({sc.planner.planner})"):
+        with _phase(phases, "plan", f"planning the path ({sc.planner.planner})",
+                    tick_s=PLAN_TICK_S):
             path = plan_path(sc)
     except PlanningError as exc:
         if out_dir is not None:
@@ -153,8 +154,13 @@ def summary_text(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def _phase(phases: Phases | None, name: str, what: str):
-    return phases.phase(name, what) if phases is not None else contextlib.nullcontext()
+PLAN_TICK_S = 10.0
+"""Seconds between the lines that say planning is still going (a long plan is not silent)."""
+
+
+def _phase(phases: Phases | None, name: str, what: str, tick_s: float | None = None):
+    return (phases.phase(name, what, tick_s) if phases is not None
+            else contextlib.nullcontext())
 
 
 def _build_fmu_once(sc: Scenario, phases: Phases | None) -> None:

@@ -20,6 +20,8 @@ if TYPE_CHECKING:  # the sweep's modules (pydantic, numpy, Dask) load when a swe
     from pushtrain.studies.sweep_results import SweepOutcome
     from pushtrain.studies.sweep_spec import SweepSpec
 
+from .common import workers_option
+
 __all__ = ["sweep_cmd", "check_scheduler"]
 
 
@@ -94,9 +96,7 @@ class _Progress:
               metavar="SWEEP.toml", help="The sweep specification (parameters, mode, metrics).")
 @click.option("--scheduler", metavar="ADDR",
               help="Use an existing Dask scheduler (tcp://host:8786); FMUs are shipped as bytes.")
-@click.option("--workers", type=click.IntRange(min=0), metavar="N",
-              help="Worker processes of the local cluster (default: one per core); 0 runs "
-                   "serially in this process.")
+@workers_option
 @click.option("--out", "-o", "out", type=click.Path(file_okay=False), metavar="DIR",
               help="Output folder (default runs/<spec name>-<timestamp>/); give the folder of an "
                    "interrupted sweep to resume it.")
@@ -127,8 +127,8 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
     from pushtrain.studies import sweep as sweep_lib
     from pushtrain.studies.sweep_spec import count_runs, load_sweep_spec
 
-    from .common import BadInput, load_scenario_with_overrides
-    from .exits import EXIT_INTERRUPTED, EXIT_OK
+    from .common import BadInput, load_scenario_with_overrides, local_workers, writable_folder
+    from .exits import EXIT_OK, interruption
 
     if out is not None and not out.strip():
         raise BadInput(f"--out {out!r}: an empty folder name; allowed: a folder path, or no "
@@ -138,11 +138,11 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
         spec = load_sweep_spec(spec_path)
     except SweepError as exc:
         raise BadInput(str(exc)) from None
-    if scheduler is not None and workers is not None and workers > 0:
-        raise BadInput("--workers N starts a local cluster; it cannot be combined with --scheduler")
+    workers = local_workers(workers, scheduler)
     if scheduler is not None and workers != 0:
         check_scheduler(scheduler)
     out_dir = Path(out) if out else Path("runs") / f"{spec.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    writable_folder("--out", str(out_dir))
     click.echo(f"sweep {spec.name}: {count_runs(spec)} runs ({spec.size_text}) "
                f"-> {out_dir}")
     progress = _Progress(tty=sys.stderr.isatty())
@@ -155,11 +155,12 @@ def sweep_cmd(scenario, spec_path, scheduler, workers, out, max_runs, max_total,
         raise BadInput(str(exc)) from None
     except FmuBuildError as exc:
         raise click.ClickException(str(exc)) from None
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C (130), or SIGTERM (cli.exits.Terminated: 143)
         progress.close()
-        click.echo(f"interrupted: {progress.done} new run(s) kept in {out_dir}; run the same "
+        code, what = interruption(exc)
+        click.echo(f"{what}: {progress.done} new run(s) kept in {out_dir}; run the same "
                    "command with the same --out to resume", err=True)
-        sys.exit(EXIT_INTERRUPTED)
+        sys.exit(code)
     finally:
         progress.close()
     _print_outcome(outcome, spec)

@@ -40,7 +40,7 @@ from ctypes import POINTER, c_double, c_int, c_size_t
 from importlib import resources
 from pathlib import Path
 
-from pushtrain.errors import NativeBuildError
+from pushtrain.errors import NativeBuildError, NativeCacheError
 
 __all__ = [
     "CFLAGS",
@@ -382,9 +382,12 @@ def library_path(rebuild: bool = False, stem: str = "pushtrain_control",
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise NativeBuildError(f"cache folder {str(target.parent)!r} cannot be created: "
-                                   f"{exc.strerror or exc}; set PUSHTRAIN_CACHE to a writable "
-                                   "folder") from exc
+            root = os.environ.get("PUSHTRAIN_CACHE")
+            where = f"PUSHTRAIN_CACHE = {root!r}: " if root else ""
+            raise NativeCacheError(f"{where}cache folder {str(target.parent)!r} cannot be "
+                                   f"created: {exc.strerror or exc}; allowed: PUSHTRAIN_CACHE "
+                                   "naming a folder (made if missing) where files can be "
+                                   "written") from exc
         log.info("compiling %s into %s", stem, target)
         _compile(argv, target, files)
     return target

@@ -219,6 +219,36 @@ def _shape(entity, curve, scale: float, thickness: float, name: str):
     return line.buffer(0.5 * thickness, cap_style="square", join_style="mitre"), False
 
 
+_NOT_COUNTED = {b"VERTEX", b"SEQEND", b"ATTRIB"}
+"""Sub-entities of an entity (a POLYLINE's vertices, an INSERT's attributes): not counted."""
+
+
+def _count_entities(path: Path, limit: int) -> int:
+    """The entities of the ENTITIES section of the ASCII DXF at ``path``, counted from its
+    group codes without reading the drawing (stops once past ``limit``; 0 for a binary DXF,
+    left to ezdxf). Seconds for a file ezdxf takes minutes to read."""
+    with open(path, "rb") as f:
+        if f.read(18) == b"AutoCAD Binary DXF":
+            return 0
+        f.seek(0)
+        lines = iter(f)
+        inside, count = False, 0
+        for code in lines:
+            value = next(lines, b"").strip()
+            if code.strip() != b"0":
+                continue
+            if value == b"SECTION":
+                next(lines, None)  # group code 2
+                inside = next(lines, b"").strip() == b"ENTITIES"
+            elif value == b"ENDSEC":
+                inside = False
+            elif inside and value not in _NOT_COUNTED:
+                count += 1
+                if count > limit:
+                    break
+    return count
+
+
 def read_dxf(path, layers, line_thickness: float = DEFAULT_LINE_THICKNESS,
              units: str | None = None) -> FloorPlan:
     """The obstacles [m] on ``layers`` of the DXF file at ``path`` (see the module docstring).
@@ -239,6 +269,15 @@ def read_dxf(path, layers, line_thickness: float = DEFAULT_LINE_THICKNESS,
         raise MapError(str(path), [("layers", [], "at least one layer name")])
     if path.exists() and not path.is_file():  # a folder, a FIFO, a device
         raise MapError(str(path), [("dxf", str(path), "not a regular file")])
+    try:
+        counted = _count_entities(path, MAX_ENTITIES)
+    except OSError as exc:
+        raise MapError(str(path), [("dxf", str(path), "cannot be read: "
+                                    f"{clip_text(exc.strerror or exc)}")]) from None
+    if counted > MAX_ENTITIES:
+        raise MapError(str(path), [("dxf", str(path), f"more than {MAX_ENTITIES} entities in "
+                                    f"its ENTITIES section: at most {MAX_ENTITIES} (counted "
+                                    "before reading the drawing)")])
     try:
         doc = ezdxf.readfile(path)
     except OSError as exc:

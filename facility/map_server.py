@@ -67,7 +67,8 @@ def _number(data: dict, key: str, problems: list, allowed: str, lo=None, hi=None
 
 def _yaml_loader():
     """A safe YAML loader that refuses aliases (``*name``): a map_server file needs none, and
-    nested aliases expand exponentially (a "billion laughs" of a few hundred bytes)."""
+    nested aliases expand exponentially (a "billion laughs" of a few hundred bytes); and a key
+    given twice in a mapping (the last would win silently)."""
     import yaml
 
     class NoAliasLoader(yaml.SafeLoader):
@@ -78,6 +79,22 @@ def _yaml_loader():
                     None, None, f"an alias (*{clip_text(event.anchor, 40)}): aliases are not "
                     "allowed in a map file", event.start_mark)
             return super().compose_node(parent, index)
+
+        def construct_mapping(self, node, deep=False):
+            # a key given twice: YAML 1.2 forbids it, PyYAML keeps the last one silently
+            seen = {}
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    first = seen.setdefault(key, key_node)
+                except TypeError:  # an unhashable key: the base class says so
+                    continue
+                if first is not key_node:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"the key {clip_text(repr(key), 40)} is given twice (first "
+                        f"on line {first.start_mark.line + 1}): each key once",
+                        key_node.start_mark)
+            return super().construct_mapping(node, deep=deep)
 
     return NoAliasLoader
 

@@ -163,4 +163,9 @@ class NativeBuildError(PushtrainError, RuntimeError):
     compiler that fails, or a library that does not match its Python binding."""
 
 
-__all__ += ["NativeBuildError"]
+class NativeCacheError(NativeBuildError, InputError):
+    """The compile cache folder (``PUSHTRAIN_CACHE``) cannot be made or written: bad input
+    (exit 2), like the FMU cache's."""
+
+
+__all__ += ["NativeBuildError", "NativeCacheError"]

@@ -126,13 +126,18 @@ def is_run_folder(path) -> bool:
 
 
 def _cannot(path: Path, exc: OSError, what: str) -> InputError:
+    from .validation import clip_text
+
     reason = exc.strerror or str(exc)
-    blocker = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
+    try:
+        blocker = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
+    except OSError:  # a name or path too long to look at
+        blocker = None
     if blocker is not None:
-        reason = f"{str(blocker)!r} is a file"
+        reason = f"{clip_text(str(blocker), 120)!r} is a file"
     elif exc.filename and str(exc.filename) != str(path):
-        reason += f" ({exc.filename})"
-    return InputError(f"output folder {str(path)!r}: cannot {what}: {reason}; "
+        reason += f" ({clip_text(str(exc.filename), 120)})"
+    return InputError(f"output folder {clip_text(str(path), 120)!r}: cannot {what}: {reason}; "
                       "allowed: a new or empty folder, or a previous pushtrain run folder, "
                       "in a place where folders can be created")
 
@@ -249,7 +254,11 @@ def claim_run_folder(path) -> Iterator[Path]:
     place where no folder can be created); a refusal changes nothing.
     """
     path = Path(path)
-    if path.exists() and not path.is_dir():
+    try:
+        is_file = path.exists() and not path.is_dir()
+    except OSError as exc:  # a name or a path too long
+        raise _cannot(path, exc, "be used as a run folder") from None
+    if is_file:
         raise InputError(f"output folder {str(path)!r} is a file; allowed: a folder path")
     claim, old = _Claim(path), None
     try:

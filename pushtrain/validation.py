@@ -165,6 +165,22 @@ def field_errors(exc) -> list[tuple[str, object, str]]:
     return lines
 
 
+def _toml_problem(text: str, message: str) -> tuple:
+    """(where, value, allowed) of a TOML syntax error: its line and that line's text, so a key
+    given twice ("Cannot overwrite a value") is named."""
+    import re
+
+    found = re.search(r"\(at line (\d+), column \d+\)", message)
+    if found is None:
+        return ("(syntax)", None, f"not valid TOML: {message}")
+    number = int(found.group(1))
+    lines = text.splitlines()
+    shown = clip_text(lines[number - 1].strip(), 80) if 0 < number <= len(lines) else None
+    if "overwrite" in message or "declare" in message:
+        message += " (a key or a table given twice: each once)"
+    return (f"(syntax) line {number}", shown, f"not valid TOML: {message}")
+
+
 def read_toml(path, error_cls) -> dict:
     """The TOML document at ``path`` (UTF-8) with ``name`` defaulting to the file's stem.
 
@@ -189,7 +205,7 @@ def read_toml(path, error_cls) -> dict:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise error_cls(str(path), [("(syntax)", None, f"not valid TOML: {exc}")]) from None
+        raise error_cls(str(path), [_toml_problem(text, str(exc))]) from None
     except RecursionError:
         raise error_cls(str(path), [("(syntax)", None,
                                      "not valid TOML: nested too deeply")]) from None

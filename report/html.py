@@ -25,6 +25,7 @@ from __future__ import annotations
 import base64
 import json
 import math
+import re
 from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
@@ -282,12 +283,11 @@ def _page(path, payload: dict, body: str, script: str, css: str | None = None) -
     data = data.replace("</", "<\\/")  # the JSON cannot end its <script> element
     title = payload.get("title", "pushtrain").replace("&", "&amp;").replace("<", "&lt;")
     styles = _asset("report.css") + (_asset(css) if css else "")
-    page = (_asset("page.html")
-            .replace("{{BODY}}", _asset(body))
-            .replace("{{TITLE}}", title)
-            .replace("{{CSS}}", styles)
-            .replace("{{JS}}", _asset(script))
-            .replace("{{DATA}}", data))  # last: the data may hold any text
+    parts = {"BODY": _asset(body), "TITLE": title, "CSS": styles, "JS": _asset(script),
+             "DATA": data}
+    # one pass over the template: a marker inside a part (a title, the data) stays as it is
+    page = re.sub(r"\{\{(BODY|TITLE|CSS|JS|DATA)\}\}", lambda m: parts[m.group(1)],
+                  _asset("page.html"))
     return atomic_write_text(Path(path), page)
 
 

@@ -49,7 +49,14 @@ SECTIONS = ("map", "train", "planner", "sim", "controller")
 RESULT_FIELDS = ("status", "plan_s", "length_m", "duration_s", "max_phi_deg", "min_clearance_m",
                  "reason")
 """What ``atlas.json`` records of each mission (``by_n``) and ``atlas.csv`` per row."""
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.]*$")
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.]*")
+"""A station's name (names files): matched whole (``fullmatch``; a ``$`` would let a trailing
+newline through)."""
+_FACILITY_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+"""A facility's name (names its missions, their files and the page's title)."""
+_TRAILERS = re.compile(r"([0-9]{1,6})(?:-([0-9]{1,6}))?|[0-9]{1,6}(?:,[0-9]{1,6})+")
+"""``--trailers``: a count, a range of two counts or counts separated by commas (plain digits:
+no sign, no ``_``, no spaces inside)."""
 
 
 class AtlasError(InputError):
@@ -111,7 +118,7 @@ def parse_facility(data: dict, source: str = "<facility>") -> Facility:
             raise _bad(f"{where}.{sorted(extra)[0]}", st[sorted(extra)[0]],
                        "not a station field; allowed: name, x, y, theta_deg")
         name = st.get("name")
-        if not isinstance(name, str) or not _NAME.match(name) or len(name) > 40:
+        if not isinstance(name, str) or not _NAME.fullmatch(name) or len(name) > 40:
             raise _bad(f"{where}.name", name, "1-40 letters, digits, '_' or '.', starting "
                        "with a letter or digit (it names files)")
         if name in seen:
@@ -125,8 +132,16 @@ def parse_facility(data: dict, source: str = "<facility>") -> Facility:
                            + (" [deg]" if field == "theta_deg" else " [m]"))
             pose.append(float(v))
         out.append((name, *pose))
-    facility = Facility(str(data.get("name") or Path(source).stem),
-                        {s: data[s] for s in SECTIONS if s in data}, tuple(out))
+    name = data.get("name", Path(source).stem)
+    if not isinstance(name, str) or not _FACILITY_NAME.fullmatch(name) or len(name) > 60:
+        raise _bad(f"{source}: name", name, "1-60 letters, digits, '_', '.' or '-', starting "
+                   "with a letter or digit (it names the missions and their files)")
+    train = data.get("train")
+    if isinstance(train, dict) and "n" in train:
+        raise _bad(f"{source}: train.n", train["n"], "not in a facility: the atlas tries the "
+                   "trailer counts of --trailers (e.g. --trailers "
+                   f"{train['n']!s:.12}); remove n from [train]")
+    facility = Facility(name, {s: data[s] for s in SECTIONS if s in data}, tuple(out))
     # every station must be a valid start and goal of a scenario, in the map's free space:
     # checked once, with n = 1 (a longer train that does not fit there fails its missions)
     from pushtrain.mission.runner import check_start_in_map
@@ -152,17 +167,20 @@ def parse_facility(data: dict, source: str = "<facility>") -> Facility:
 
 
 def parse_trailers(text: str) -> tuple[int, ...]:
-    """``--trailers``: "1-5", "2" or "1,3,5" as a sorted tuple of trailer counts."""
+    """``--trailers``: "1-5", "2" or "1,3,5" as a sorted tuple of trailer counts (the bounds
+    are checked before a range is expanded)."""
     allowed = f"a range like 1-5, a count, or counts like 1,3,5, within 1..{MAX_TRAILERS}"
-    try:
-        if "-" in text:
-            lo, hi = (int(p) for p in text.split("-", 1))
-            values = list(range(lo, hi + 1))
-        else:
-            values = [int(p) for p in text.split(",")]
-    except ValueError:
-        raise _bad("--trailers", text, allowed) from None
-    if not values or any(v < 1 or v > MAX_TRAILERS for v in values):
+    match = _TRAILERS.fullmatch(text.strip()) if isinstance(text, str) else None
+    if match is None:
+        raise _bad("--trailers", text, allowed)
+    if match.group(1) is not None:
+        lo = int(match.group(1))
+        hi = int(match.group(2)) if match.group(2) is not None else lo
+        if not 1 <= lo <= hi <= MAX_TRAILERS:
+            raise _bad("--trailers", text, allowed + " (a range from low to high)")
+        return tuple(range(lo, hi + 1))
+    values = [int(p) for p in text.strip().split(",")]
+    if any(v < 1 or v > MAX_TRAILERS for v in values):
         raise _bad("--trailers", text, allowed)
     return tuple(sorted(set(values)))
 
@@ -300,24 +318,29 @@ def _write_missions(out: Path, facility: Facility, answer: dict, trailers) -> No
 def atlas(facility: Facility, trailers, out_dir, *, serial: bool = False, client=None,
           scheduler: str | None = None, workers: int | None = None,
           progress: Callable[[int, int, float], None] | None = None,
-          only: tuple | None = None) -> dict:
+          only: tuple | None = None, on_cluster: Callable[[str], None] | None = None) -> dict:
     """Answer every ordered pair of ``facility``'s stations (those named in ``only``, if
     given) for ``trailers`` and write the atlas into ``out_dir``; returns ``atlas.json``'s
-    content. ``progress(done, total, elapsed_s)`` is called as pairs finish."""
+    content. ``progress(done, total, elapsed_s)`` is called as pairs finish (``elapsed_s``
+    counted from when the work started, after Dask's start-up); ``on_cluster(text)`` says
+    what Dask is doing before the first pair starts (starting a cluster: tens of seconds)."""
     out = Path(out_dir)
     trailers = tuple(trailers)
     names = [s[0] for s in facility.stations if only is None or s[0] in only]
     pairs = [(a, b) for a in names for b in names if a != b]
     done = _prepare_folder(out, facility, trailers)
     todo = [p for p in pairs if p not in done]
-    t0 = time.perf_counter()
+    t0 = [time.perf_counter()]
+
+    def started() -> None:
+        t0[0] = time.perf_counter()
 
     def record(answer: dict) -> None:
         done[(answer["from"], answer["to"])] = answer
         _write_missions(out, facility, answer, trailers)
         atomic_write_text(_pair_file(out, answer["from"], answer["to"]), json.dumps(answer))
         if progress:
-            progress(sum(p in done for p in pairs), len(pairs), time.perf_counter() - t0)
+            progress(sum(p in done for p in pairs), len(pairs), time.perf_counter() - t0[0])
 
     if progress:
         progress(len(pairs) - len(todo), len(pairs), 0.0)
@@ -326,16 +349,23 @@ def atlas(facility: Facility, trailers, out_dir, *, serial: bool = False, client
             record(run_pair(facility, a, b, trailers))
     else:
         _on_dask(todo, facility, trailers, record, client=client, scheduler=scheduler,
-                 workers=workers)
+                 workers=workers, started=started, on_cluster=on_cluster)
     return _write_outputs(out, facility, trailers, [done[p] for p in pairs], names)
 
 
-def _on_dask(todo, facility, trailers, record, *, client, scheduler, workers) -> None:
+def _on_dask(todo, facility, trailers, record, *, client, scheduler, workers, started,
+             on_cluster) -> None:
     from .sweep import completed, dask_client
 
     with contextlib.ExitStack() as stack:
         if client is None:
+            if on_cluster is not None:
+                on_cluster(f"connecting to the Dask scheduler at {scheduler}" if scheduler else
+                           "starting a local Dask cluster of "
+                           f"{workers or 'one worker per core'}"
+                           f"{' worker(s)' if workers else ''}")
             client = stack.enter_context(dask_client(scheduler, workers))
+        started()
         shared = client.scatter(facility, broadcast=True)
         futures = [client.submit(_pair_task, shared, a, b, trailers, pure=False)
                    for a, b in todo]

@@ -291,12 +291,20 @@ def local_client(n_workers: int):
 
 SCHEDULER_TIMEOUT_S = 10.0
 """Seconds a scheduler's host may take to accept a connection before it is refused."""
+SCHEDULER_GREETING_S = 3.0
+"""Seconds a program that accepted the connection has to greet as a Dask comm does (its first
+message, the handshake, is sent at once) and then to answer who it is."""
+GREETING_MAX_BYTES = 1 << 16
+"""The largest first message taken for a Dask handshake (a real one is about 100 bytes)."""
 
 
 def scheduler_problem(address: str) -> str | None:
-    """What is wrong with a Dask scheduler ``address`` (its form, or nothing accepting
-    connections there), or None (Dask's own errors were tracebacks: a ValueError for ``foo``,
-    an OSError after 30 s for a port nobody listens on)."""
+    """What is wrong with a Dask scheduler ``address`` (its form, nothing accepting connections
+    there, or something that is not a Dask scheduler answering), or None. Bounded in time: at
+    most :data:`SCHEDULER_TIMEOUT_S` to connect, then :data:`SCHEDULER_GREETING_S` for each of
+    the greeting and the identity (Dask's own errors were tracebacks: a ValueError for ``foo``,
+    an OSError after 30 s for a port nobody listens on, a silent hang on a port where another
+    program listens and a huge allocation for one that answers garbage)."""
     import socket
 
     from distributed.comm.addressing import parse_address, parse_host_port
@@ -315,11 +323,97 @@ def scheduler_problem(address: str) -> str | None:
     except ValueError as exc:
         return f"{allowed}; {exc}"
     try:
-        socket.create_connection((host, port), timeout=SCHEDULER_TIMEOUT_S).close()
+        sock = socket.create_connection((host, port), timeout=SCHEDULER_TIMEOUT_S)
     except OSError as exc:
         return (f"{allowed}; nothing accepts connections at {host}:{port} "
                 f"({exc.strerror or exc}): start the scheduler there (dask scheduler) or leave "
                 "--scheduler out to run on a local cluster")
+    if protocol == "tls":
+        sock.close()
+        return None
+    with sock:
+        found = _greeting_problem(sock)
+    if found is None:
+        found = _identity_problem(address)
+    if found is None:
+        return None
+    return (f"{allowed}; a program accepts connections at {host}:{port} but {found}: give the "
+            "scheduler's address (dask scheduler prints it) or leave --scheduler out to run on a "
+            "local cluster")
+
+
+def _greeting_problem(sock) -> str | None:
+    """None if ``sock`` (just connected) receives a Dask comm's handshake message within
+    :data:`SCHEDULER_GREETING_S`; else what it received instead."""
+    import socket
+    import struct
+
+    from distributed.protocol import loads
+    from distributed.protocol.utils import unpack_frames
+
+    deadline = time.monotonic() + SCHEDULER_GREETING_S
+
+    def receive(n: int) -> bytes:
+        data = b""
+        while len(data) < n:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError
+            sock.settimeout(left)
+            chunk = sock.recv(n - len(data))
+            if not chunk:
+                raise EOFError(data)
+            data += chunk
+        return data
+
+    try:
+        (size,) = struct.unpack("Q", receive(8))
+        if not 0 < size <= GREETING_MAX_BYTES:
+            return (f"its first message is not a Dask comm's (a length of {size} bytes; a Dask "
+                    "handshake has about 100)")
+        frames, _ = unpack_frames(receive(size), partial=True)
+        message = loads(frames)
+    except (TimeoutError, socket.timeout):
+        return (f"said nothing in {SCHEDULER_GREETING_S:g} s (a Dask scheduler greets at once "
+                "on a new connection)")
+    except EOFError as exc:
+        got = exc.args[0] if exc.args else b""
+        return ("closed the connection" + (f" after sending {got[:40]!r}" if got else
+                                           " without sending anything"))
+    except OSError as exc:
+        return f"the connection failed: {exc.strerror or exc}"
+    except Exception as exc:  # any decoding error: not Dask's protocol
+        return (f"its first message is not a Dask comm's (it does not decode: "
+                f"{type(exc).__name__}: {str(exc)[:80]})")
+    if not isinstance(message, dict) or "compression" not in message:
+        return "its first message is not a Dask handshake"
+    return None
+
+
+def _identity_problem(address: str) -> str | None:
+    """None if the Dask comm at ``address`` says it is a scheduler within
+    :data:`SCHEDULER_GREETING_S`; else what it is."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def identity():
+        comm = await connect(address, timeout=SCHEDULER_GREETING_S)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        answer = asyncio.run(asyncio.wait_for(identity(), 2 * SCHEDULER_GREETING_S))
+    except (asyncio.TimeoutError, TimeoutError):
+        return f"did not say who it is within {2 * SCHEDULER_GREETING_S:g} s"
+    except Exception as exc:
+        return f"the Dask identity request failed ({type(exc).__name__}: {exc})"
+    kind = answer.get("type") if isinstance(answer, dict) else None
+    if kind != "Scheduler":
+        return f"it is a Dask {kind or 'program'}, not a scheduler"
     return None
 
 

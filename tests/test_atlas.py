@@ -142,3 +142,30 @@ def test_a_mission_whose_co_simulation_fails_is_a_row_not_a_lost_atlas(monkeypat
     assert answer["by_n"]["1"]["status"] == "error"
     assert answer["by_n"]["1"]["reason"] == "CosimError"
     assert "could not be loaded" in answer["failure"]["message"]
+
+
+def test_the_pair_keeps_the_shape_of_its_best_n_and_the_failure_of_the_first_failing_n(
+        monkeypatch):
+    """n = 1 and 2 reach the goal, n = 3 collides: the pair's answer is 2, atlas.png draws
+    the path of n = 2 (not the failing n's), and the failure is n = 3's; n = 4 is not tried."""
+    import pushtrain.studies.atlas as atlas_mod
+    from pushtrain.studies.atlas import load_facility, run_pair
+
+    tried = []
+
+    def mission(data):
+        n = data["train"]["n"]
+        tried.append(n)
+        ok = n <= 2
+        return {**dict.fromkeys(atlas_mod.RESULT_FIELDS),
+                "status": "goal_reached" if ok else "collision",
+                "path": [[float(n), 0.0], [float(n), 1.0]],
+                "message": None if ok else f"trailer {n} leaves the free space"}
+
+    monkeypatch.setattr(atlas_mod, "_one_mission", mission)
+    answer = run_pair(load_facility(FACILITY), "hall", "recess", (1, 2, 3, 4))
+    assert tried == [1, 2, 3]
+    assert answer["max_trailers"] == 2
+    assert answer["shape"]["path"] == [[2.0, 0.0], [2.0, 1.0]]
+    assert answer["failure"]["n"] == 3 and "trailer 3" in answer["failure"]["message"]
+    assert list(answer["by_n"]) == ["1", "2", "3"]

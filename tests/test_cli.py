@@ -268,3 +268,16 @@ def test_ctrl_c_during_a_run_is_exit_130_with_a_summary_saying_so(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "interrupted" and summary["exit_code"] == 130
     assert (out / "scenario.json").exists() and (out / "run.log").exists()
+
+
+def test_the_readme_cli_block_lists_every_command():
+    """The README's ``## CLI`` block names every command of ``pushtrain`` (it left out sweep)."""
+    from pushtrain.cli.main import cli as group
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = text[text.index("## CLI"):]
+    block = section[section.index("```") + 3:]
+    block = block[:block.index("```")]
+    listed = {line.split()[1] for line in block.splitlines() if line.startswith("pushtrain ")}
+    hidden = {name for name, cmd in group.commands.items() if cmd.hidden}
+    assert set(group.commands) - hidden - listed == set()

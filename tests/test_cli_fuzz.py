@@ -392,6 +392,7 @@ def _check_caps(args, outcome: Outcome, scenario: str) -> None:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the caps need Linux")
+@pytest.mark.slow
 def test_the_caps_make_runaway_calls_fail(monkeypatch):
     """A call past the memory cap, the memory budget or the time cap fails naming the
     scenario (a command stands in for the CLI: the real one has no call that big on purpose)."""
@@ -480,6 +481,7 @@ def _finite_numbers(node) -> bool:
     return not isinstance(node, list) or all(_finite_numbers(v) for v in node)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(case=scenario_files())

@@ -86,6 +86,7 @@ def _failing(monkeypatch, bad_name: str, how):
 
 
 # ------------------------------------------------------------------------------- the files
+@pytest.mark.slow
 def test_the_plot_processes_write_the_same_files_as_the_main_process(tmp_path):
     """The files drawn in the plot processes equal, byte for byte, those drawn in the main
     process from the saved results (an independent route: report.plots.plot_all)."""
@@ -118,6 +119,7 @@ def test_the_plot_processes_write_the_same_files_as_the_main_process(tmp_path):
         assert (out / name).read_bytes() == (here / name).read_bytes(), name
 
 
+@pytest.mark.slow
 def test_drawing_in_the_main_process_when_no_process_can_be_forked(tmp_path, monkeypatch):
     def cannot_fork(*args, **kwargs):
         raise OSError("no fork here")
@@ -240,6 +242,7 @@ def test_a_plot_process_that_dies_is_exit_1_naming_the_file(tmp_path, monkeypatc
     _no_plot_process_left()
 
 
+@pytest.mark.slow
 def test_a_silent_plot_process_is_stopped(tmp_path, monkeypatch):
     monkeypatch.setattr(plotting, "SILENCE_LIMIT_S", 2.0)
     _failing(monkeypatch, "train.gif", lambda: time.sleep(120))
@@ -331,6 +334,7 @@ def test_the_maps_module_imports_without_the_planner():
     assert done.stdout.split() == ["[]"], done.stdout
 
 
+@pytest.mark.slow
 def test_plot_processes_0_draws_here_the_same_files(tmp_path, monkeypatch):
     """--plot-processes 0 starts no plot process (the least memory) and writes the files the
     plot processes write; a count outside 0..2 is exit 2 naming the option."""

@@ -178,6 +178,7 @@ def test_straight_reference_from_a_lateral_offset_converges():
     assert np.max(np.abs(log[:, 6:])) < np.radians(60.0)
 
 
+@pytest.mark.slow
 def test_circle_pushed_backward_converges():
     rho, speed, n = 2.5, 0.08, 3
     geom = ChainGeometry.uniform(n, D)
@@ -217,6 +218,7 @@ def test_joint_bias_offset_with_a_measured_last_pose(joint, eps_deg):
 
 
 @pytest.mark.parametrize("joint, eps_deg", [(3, 5.0), (3, 10.0), (2, 10.0)])
+@pytest.mark.slow
 def test_joint_bias_offset_with_the_pose_estimated_from_the_joints(joint, eps_deg):
     """Bias also in the pose estimate: the exact closed form of the analysis module."""
     y_e, biases = _steady_bias_run(joint, np.radians(eps_deg), measure_last_pose=False)
@@ -278,6 +280,7 @@ def test_pull_by_steering_the_last_trailer_jackknifes():
     assert np.max(np.abs(plant.phi)) > np.radians(90.0)  # ... while the chain jackknifes
 
 
+@pytest.mark.slow
 def test_push_cusp_pull_cusp_push_sequence():
     n = 3
     geom = ChainGeometry.uniform(n, D)

@@ -91,6 +91,13 @@ def test_paths_that_cannot_be_folders_are_input_errors(tmp_path):
     assert (tmp_path / "some_file").read_text() == "x"
 
 
+@pytest.mark.parametrize("parts", [["N" * 300], ["d" * 200] * 25])
+def test_a_name_or_path_too_long_is_an_input_error_quoted_short(tmp_path, parts):
+    with pytest.raises(InputError, match="File name too long") as err:
+        fresh_run_folder(tmp_path.joinpath(*parts))
+    assert len(str(err.value)) < 600
+
+
 def test_a_run_folder_holding_the_current_folder_is_not_replaced(tmp_path, monkeypatch):
     out = fresh_run_folder(tmp_path / "run")
     (out / "summary.json").write_text("old")

@@ -37,6 +37,7 @@ def test_bad_build_options_are_named(kwargs, message):
         build_fmu(**kwargs)
 
 
+@pytest.mark.slow
 def test_one_cached_build_serves_every_n_and_differs_from_the_fmi2_builds(tmp_path, monkeypatch):
     monkeypatch.setenv("PUSHTRAIN_CACHE", str(tmp_path / "cache"))
     first = build_fmu(fmi_version=3, output_path=tmp_path / "a.fmu")

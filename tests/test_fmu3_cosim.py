@@ -94,6 +94,7 @@ def test_simulate_on_the_fmi3_fmu_equals_the_fmi2_fmu_of_that_n(fmu3_path, built
                                    atol=1e-12, err_msg=name)
 
 
+@pytest.mark.slow
 def test_plan_and_run_with_fmi_version_3_needs_no_build_per_n(tmp_path, monkeypatch):
     """``[fmu] fmi_version = 3``: one FMU for n = 3 and n = 2 (no FMI 2.0 build), and the run
     equals the FMI 2.0 run of the same scenario."""

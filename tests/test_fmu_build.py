@@ -103,6 +103,7 @@ def test_sources_rebuild_with_another_compiler_call(built_fmu_unzipped, tmp_path
     np.testing.assert_allclose(rebuilt, run(unzipdir), rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_strict_build_with_werror_packages_sources_and_binary(tmp_path, monkeypatch):
     monkeypatch.setenv("PUSHTRAIN_CACHE", str(tmp_path / "cache"))
     out = build_fmu(2, tmp_path / "TT2.fmu", strict=True)

@@ -26,6 +26,7 @@ def test_pushtrain_cache_that_is_a_file_exits_2_naming_it(tmp_path, monkeypatch)
     assert built.exit_code == 2 and "PUSHTRAIN_CACHE" in built.output, built.output
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("damage", ["truncated", "empty", "garbage"])
 def test_a_damaged_fmu_in_the_cache_is_rebuilt_and_said_so(tmp_path, monkeypatch, built_fmu,
                                                             damage):
@@ -49,6 +50,7 @@ def test_a_damaged_fmu_in_the_cache_is_rebuilt_and_said_so(tmp_path, monkeypatch
     assert again.exit_code == 1 and "building the FMU" not in again.output, again.output
 
 
+@pytest.mark.slow
 def test_a_damaged_controller_fmu_in_the_cache_is_rebuilt(tmp_path, monkeypatch):
     """The controller FMU of export-ssp is cached the same way, and checked the same way."""
     monkeypatch.setenv("PUSHTRAIN_CACHE", str(tmp_path / "cache"))

@@ -264,3 +264,71 @@ def test_jackknifed_flag(built_fmu_sim):
                         "theta_start[2]": 0.2 - phi2, "theta_start[3]": 0.2 - phi2})
         assert sim.get(["jackknifed"]) == [expected], (phi2, phi_max)
         sim.free()
+
+
+def sliding_velocities(theta, v0, w0, front, rear, slide):
+    """Axle velocity vectors (n+1, 2) and yaw rates (n+1,) when trailer i's wheels slide
+    sideways at ``slide[i-1]`` [m/s] along n_i (the robot's do not): P_i = H_i - F_i e_i with
+    dP_i = v_i e_i + u_i n_i. Complex arithmetic works (for the complex step)."""
+    n = len(theta) - 1
+    vel = [v0 * np.array([np.cos(theta[0]), np.sin(theta[0])])]
+    rate = [w0]
+    for i in range(1, n + 1):
+        n_prev = np.array([-np.sin(theta[i - 1]), np.cos(theta[i - 1])])
+        hitch_vel = vel[i - 1] - rear[i - 1] * rate[i - 1] * n_prev
+        e_i = np.array([np.cos(theta[i]), np.sin(theta[i])])
+        n_i = np.array([-np.sin(theta[i]), np.cos(theta[i])])
+        u = slide[i - 1]
+        rate.append((hitch_vel @ n_i - u) / front[i - 1])
+        vel.append((hitch_vel @ e_i) * e_i + u * n_i)
+    return np.array(vel), np.array(rate)
+
+
+def sliding_accelerations(theta, v0, w0, dv0, dw0, front, rear, slide):
+    """Axle and yaw accelerations by complex step along the motion, the slides held constant."""
+    _, rate = sliding_velocities(theta, v0, w0, front, rear, slide)
+    eps = COMPLEX_STEP
+    vel_c, rate_c = sliding_velocities(theta + 1j * eps * rate, v0 + 1j * eps * dv0,
+                                       w0 + 1j * eps * dw0, front, rear, slide)
+    return vel_c.imag / eps, rate_c.imag / eps
+
+
+@pytest.mark.parametrize("n_trailers", [2, 3, 5])
+def test_forces_with_an_imposed_slide_in_a_turn_match_the_global_solve(built_fmu_sim,
+                                                                      n_trailers):
+    """An imposed sideways slide on every trailer while the train turns: the axle acceleration
+    along e_i loses u_i w_i (a_e = dv - u w), which the Newton-Euler forces must carry (with
+    n >= 2 the hitch force passes it on to the trailers ahead)."""
+    rng = np.random.default_rng(700 + n_trailers)
+    for trial in range(3):
+        params, inputs = random_case(rng, n_trailers)
+        params["w_start"] = 0.45 * (1 if trial % 2 else -1)  # in a turn
+        slide = rng.uniform(0.05, 0.25, n_trailers) * rng.choice([-1.0, 1.0], n_trailers)
+        inputs.update({f"slide[{i}]": slide[i - 1] for i in range(1, n_trailers + 1)})
+        sim = built_fmu_sim(n_trailers, instance_name=f"slide{trial}")
+        sim.initialize(params, inputs)
+        theta = sim.array("theta")
+        v0, w0 = sim.real("v[0]"), sim.real("w[0]")
+
+        def arr(name, first=1, params=params):
+            return np.array([params[f"{name}[{i}]"] for i in range(first, first + n_trailers)])
+
+        front, rear = arr("front"), arr("rear", 0)
+        mass, inertia = arr("mass") + arr("payload"), arr("inertia")
+        dv0 = lag(inputs["v_cmd"], v0, params["robot_tau"], params["robot_acc_max"])
+        dw0 = lag(inputs["w_cmd"], w0, params["robot_tau"], params["robot_alpha_max"])
+        acc, alpha = sliding_accelerations(np.asarray(theta, float), v0, w0, dv0, dw0, front,
+                                           rear, slide)
+        push = np.array([inputs["push_x"], inputs["push_y"]])
+        hitch, lateral = global_force_solve(theta, acc, alpha, front, rear, mass, inertia, push)
+        scale = 1.0 + float(np.max(np.abs(hitch)))
+        np.testing.assert_allclose(sim.array("F_lat"), lateral, rtol=1e-9, atol=1e-9 * scale)
+        np.testing.assert_allclose(sim.array("hitch_fx"), hitch[:, 0], rtol=1e-9,
+                                   atol=1e-9 * scale)
+        np.testing.assert_allclose(sim.array("hitch_fy"), hitch[:, 1], rtol=1e-9,
+                                   atol=1e-9 * scale)
+        # the slide matters here: the same state without it gives other forces
+        still, _ = sliding_accelerations(np.asarray(theta, float), v0, w0, dv0, dw0, front,
+                                         rear, np.zeros(n_trailers))
+        assert np.max(np.abs(still - acc)) > 1e-3
+        sim.free()

@@ -117,6 +117,7 @@ def test_yaml_nested_too_deeply_is_refused(tmp_path):
         read_map_yaml(path)
 
 
+@pytest.mark.slow
 def test_large_yaml_files_and_values_give_short_messages(tmp_path):
     path = tmp_path / "large.yaml"
     path.write_text("image: map.pgm\n" + MAP_FIELDS + "comment: " + "x" * (1 << 20) + "\n")

@@ -4,7 +4,9 @@ references, the errors (missing layers, missing ezdxf) and the bundled floor pla
 from __future__ import annotations
 
 import math
+import os
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -142,3 +144,60 @@ def test_the_bundled_floor_plan(tmp_path):
         assert world.free.contains(Point(12.0, 6.0))                      # the doorway
         shut = map_world(dxf=str(path), layers=["WALLS", "RACKS", "DIMENSIONS"])
         assert not shut.free.contains(Point(12.0, 6.0))
+
+
+@pytest.mark.slow
+def test_the_floor_plan_script_is_reproducible(tmp_path):
+    """Run as the README says, twice a second apart: the same bytes, and the committed
+    floor.dxf is what it writes (no dates, random GUIDs or time stamps inside)."""
+    import subprocess
+
+    script = EXAMPLES / "maps" / "make_floor_dxf.py"
+    for name, seed in (("a", "1"), ("b", "2")):  # a set's order varies with the hash seed
+        subprocess.run([sys.executable, str(script), "--out", str(tmp_path / name)], check=True,
+                       capture_output=True, timeout=300, env={**os.environ,
+                                                              "PYTHONHASHSEED": seed})
+        time.sleep(1.1)  # a time stamp to the second would differ
+    first = (tmp_path / "a" / "floor.dxf").read_bytes()
+    assert first == (tmp_path / "b" / "floor.dxf").read_bytes()
+    assert first == (EXAMPLES / "maps" / "floor.dxf").read_bytes()
+
+
+def _lines_dxf(path: Path, count: int) -> Path:
+    """A minimal ASCII DXF (R12 form) of ``count`` LINE entities on layer WALLS."""
+    line = "  0\nLINE\n  8\nWALLS\n 10\n0.0\n 20\n0.0\n 30\n0.0\n 11\n1.0\n 21\n1.0\n 31\n0.0\n"
+    with open(path, "w") as f:
+        f.write("  0\nSECTION\n  2\nENTITIES\n")
+        for _ in range(count):
+            f.write(line)
+        f.write("  0\nENDSEC\n  0\nEOF\n")
+    return path
+
+
+def test_too_many_entities_are_refused_from_their_count_within_seconds(tmp_path):
+    """300,000 entities: ezdxf took 57-123 s to read them before the count refused them; the
+    group codes are counted first (a bound against minutes, not a timing)."""
+    from pushtrain.facility.dxf import MAX_ENTITIES
+
+    path = _lines_dxf(tmp_path / "huge.dxf", 300_000)
+    t0 = time.process_time()
+    with pytest.raises(MapError) as info:
+        read_dxf(path, ["WALLS"])
+    assert time.process_time() - t0 < 15.0
+    assert f"more than {MAX_ENTITIES} entities" in str(info.value)
+    assert "huge.dxf" in str(info.value)
+
+
+def test_the_entity_count_agrees_with_ezdxf(tmp_path):
+    """The pre-count is the number of model-space entities ezdxf reads (sub-entities such as a
+    polyline's vertices not counted), for the bundled plan and a small line file."""
+    from pushtrain.facility.dxf import _count_entities
+
+    for path in (EXAMPLES / "maps" / "floor.dxf", _lines_dxf(tmp_path / "few.dxf", 7)):
+        doc = ezdxf.readfile(path)
+        want = len(doc.modelspace()) + len(doc.paperspace())
+        assert _count_entities(path, 10**6) == want, path
+    doc = ezdxf.new("R12")
+    doc.modelspace().add_polyline2d([(0, 0), (1, 0), (1, 1)])  # POLYLINE, 3 VERTEX, SEQEND
+    doc.saveas(tmp_path / "poly.dxf")
+    assert _count_entities(tmp_path / "poly.dxf", 10**6) == 1

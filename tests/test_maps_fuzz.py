@@ -253,6 +253,7 @@ def _room() -> bytes:
     return out.getvalue()
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(focus=st.sampled_from(["image", "yaml", "both"]), data=st.data())
 def test_random_grid_maps_plan_or_exit_1_or_2(tmp_path_factory, focus, data):
@@ -394,6 +395,7 @@ def dxf_files(draw) -> tuple[bytes, str]:
     return raw, "\n".join(lines)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(case=dxf_files())
 def test_random_floor_plans_plan_or_exit_1_or_2(tmp_path_factory, case):

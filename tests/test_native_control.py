@@ -476,6 +476,7 @@ def test_failing_compiler_is_a_clear_error(monkeypatch, tmp_path):
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]  # no partial library left
 
 
+@pytest.mark.slow
 def test_concurrent_builds_each_load_a_complete_library(tmp_path):
     """Three processes build into an empty cache at once; all load and compute."""
     code = ("from pushtrain.core import native; lib = native.load(); "
@@ -490,3 +491,19 @@ def test_concurrent_builds_each_load_a_complete_library(tmp_path):
     assert len(paths) == 1
     built = [p for p in (tmp_path / "native").iterdir()]
     assert [p.name for p in built] == [Path(paths.pop()).name]  # no partial files left
+
+
+def test_a_compile_cache_that_is_a_file_is_bad_input_exit_2(tmp_path, monkeypatch):
+    """PUSHTRAIN_CACHE naming a file: the message names it, and the CLI gives exit 2 (bad
+    input) as for the FMU cache, not 1 ("ran, goal not reached")."""
+    from pushtrain.cli.common import click_error
+    from pushtrain.core import native
+    from pushtrain.errors import InputError
+
+    blocker = tmp_path / "cache"
+    blocker.write_text("a file")
+    monkeypatch.setenv("PUSHTRAIN_CACHE", str(blocker))
+    with pytest.raises(InputError) as info:
+        native.library_path(rebuild=True)
+    assert "PUSHTRAIN_CACHE" in str(info.value) and str(blocker) in str(info.value)
+    assert click_error(info.value).exit_code == 2

@@ -134,6 +134,7 @@ def test_the_pictures_say_which_values_were_not_finite(run, tmp_path):
                for k, r in enumerate(shown) if not bad[k])
 
 
+@pytest.mark.slow
 def test_a_diverged_run_through_the_cli_says_so(run, tmp_path, monkeypatch):
     """A run whose results turn NaN half way: exit as the run says, the page written, one
     warning line naming the columns, no traceback."""

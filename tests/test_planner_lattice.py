@@ -193,6 +193,7 @@ def _plan_in_subprocess(name: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
 
 
+@pytest.mark.slow
 def test_the_same_plan_under_load():
     """Two plans at once (each slowing the other down) give the same path and the same work:
     the search's work decides, never the clock."""

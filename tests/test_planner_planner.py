@@ -452,6 +452,7 @@ def test_ompl_log_level_is_the_callers(capfd):
         ou.setLogLevel(before)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["rrtconnect", "restarts"])
 def test_same_seed_same_plan_at_once_on_a_loaded_cpu(name):
     """Results depend on the seed, not on the wall clock: two plans of the bay with the same

@@ -172,6 +172,7 @@ def _plan_bookstore() -> dict:
     return json.loads(out.stdout)
 
 
+@pytest.mark.slow
 def test_the_same_path_with_and_without_a_cpu_hog_beside_it():
     """A plan is a function of its scenario: the same path.json whether the machine is idle or
     two busy loops take its cores, with the default budget (counted steps, no clock)."""
@@ -216,6 +217,7 @@ def test_pushes_along_the_route_leave_the_corner_of_a_narrow_l_to_the_search():
     assert path.info["expansions"] <= 12
 
 
+@pytest.mark.slow
 def test_a_near_u_turn_goal_plans_in_bounded_memory(tmp_path):
     """l_corridor with its goal turned to -0.04 deg (found by the CLI fuzz): the corner
     connections' legs met 10 km away and their references were checked in one array

@@ -66,3 +66,16 @@ def test_rows_filled_through_views_are_committed_in_one_copy():
 def test_an_empty_recorder_gives_an_empty_table():
     data = Recorder(BLOCKS).to_array()
     assert len(data) == 0 and data.dtype.names == ("t", "x", "y", "theta", "slipping", "jackknifed")
+
+
+def test_advance_refuses_more_rows_than_are_free():
+    rec = Recorder(BLOCKS, capacity=4)
+    free = rec.free_rows()
+    free[:2] = np.arange(2 * free.shape[1]).reshape(2, -1)
+    rec.advance(2)
+    assert rec.rows == 2
+    with pytest.raises(ValueError, match=r"advance\(3\): 2 rows are free"):
+        rec.advance(3)
+    with pytest.raises(ValueError):
+        rec.advance(-1)
+    assert rec.rows == 2

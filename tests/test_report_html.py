@@ -74,6 +74,25 @@ def _payload(page: Path) -> dict:
 
 
 # ---------------------------------------------------------------------- the file
+def test_non_finite_numbers_become_json_null_in_the_page(tmp_path):
+    """NaN and inf (a diverged run) are written as null: the page's data is strict JSON, which
+    a browser's JSON.parse reads (it refuses NaN and Infinity)."""
+    from pushtrain.report.html import write_table_page
+
+    page = write_table_page(tmp_path / "t.html", "t", {"rate": math.nan, "big": math.inf},
+                            ["x", "y"], [[1.0, -math.inf], [np.float64(math.nan), 2.0]])
+    text = page.read_text()
+    raw = re.search(r'<script type="application/json" id="report-data">(.*?)</script>', text,
+                    flags=re.S).group(1)
+
+    def refuse(name):
+        raise ValueError(f"{name} in the page's JSON")
+
+    data = json.loads(raw.replace("<\\/", "</"), parse_constant=refuse)
+    assert data["summary"] == {"rate": None, "big": None}
+    assert data["rows"] == [[1.0, None], [None, 2.0]]
+
+
 def test_every_run_folder_has_one_self_contained_page(corridor_run):
     from pushtrain.cosim.result import load_results
 
@@ -253,6 +272,29 @@ def test_a_click_on_a_plot_moves_the_train_to_that_time(browser, corridor_run):
         assert slider == state["row"]
         times.append(state["t"])
     assert times[1] > times[0] + 20.0  # half the plot's width apart, of a 126 s run
+    assert _errors(browser) == []
+
+
+@pytest.mark.browser
+def test_a_time_between_two_samples_shows_the_nearer_one(browser, corridor_run):
+    """What a click on a plot does (setTime): a time just past a sample shows that sample, a
+    time just before the next one shows the next; checked against the page's own times."""
+    _open(browser, corridor_run / "report.html")
+    times = browser.execute_script(
+        "const r = window.pushtrainReport; const out = [];"
+        "for (let k = 0; k < 6; k++) { r.setRow(k * 37 + 5); out.push(r.state().t); }"
+        "r.setRow(0); return out;")
+    rows = [k * 37 + 5 for k in range(6)]
+    nexts = browser.execute_script(
+        "const r = window.pushtrainReport;"
+        "return arguments[0].map((k) => { r.setRow(k + 1); return r.state().t; });", rows)
+    for row, t, t_next in zip(rows, times, nexts, strict=True):
+        assert t_next > t
+        for fraction, want in ((0.1, row), (0.4, row), (0.6, row + 1), (0.9, row + 1)):
+            state = browser.execute_script(
+                "window.pushtrainReport.setTime(arguments[0]);"
+                "return window.pushtrainReport.state();", t + fraction * (t_next - t))
+            assert state["row"] == want, (row, fraction, state["row"])
     assert _errors(browser) == []
 
 

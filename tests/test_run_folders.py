@@ -116,3 +116,18 @@ def test_writing_to_dev_full_is_a_disk_full_error():
             f.write(b"x")
     error = WriteError(Path("/data/run/results.npz"), info.value)
     assert str(error) == "disk full while writing results.npz in /data/run"
+
+
+@pytest.mark.parametrize("name, stem", [("..hidden", "hidden"), ("a b/c", "a_b_c"),
+                                        (".", "run"), ("_x_.", "x")])
+def test_the_default_folder_is_a_visible_plain_name(tmp_path, monkeypatch, name, stem):
+    """runs/<name>-<timestamp>: the name reduced to letters, digits, '.', '_', '-', never
+    starting with a dot (a hidden folder) and never empty."""
+    import re
+
+    from pushtrain.cli.rundir import default_folder
+
+    monkeypatch.chdir(tmp_path)
+    folder = default_folder(name)
+    assert folder.parent == Path("runs")
+    assert re.fullmatch(re.escape(stem) + r"-\d{8}-\d{6}", folder.name), folder.name

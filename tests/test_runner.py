@@ -104,3 +104,47 @@ def test_the_start_offsets_and_joint_angles_are_degrees():
     assert theta[-1] == pytest.approx(math.radians(190.0))  # the last trailer
     # theta_{i-1} = theta_i + phi_i
     assert theta[:-1] - theta[1:] == pytest.approx(np.radians([5.0, 0.0, -5.0]))
+
+
+def test_a_run_that_crosses_a_pillar_mid_way_is_a_collision(tmp_path):
+    """straight_push with a thin pillar on the corridor's centre line half-way: the train runs
+    through it and comes out clear, so its first and last poses are free; the check along the
+    motion must still find the contact mid-run (exit 1, status collision)."""
+    import json
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from pushtrain.cli.main import cli
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "straight_push.toml"
+    text = example.read_text()
+    free = "free = [[-4.0, -1.0], [14.0, -1.0], [14.0, 1.0], [-4.0, 1.0]]"
+    assert free in text
+    pillar = "obstacles = [[[6.0, -0.05], [6.1, -0.05], [6.1, 0.05], [6.0, 0.05]]]"
+    scenario = tmp_path / "pillar.toml"
+    scenario.write_text(text.replace(free, free + "\n" + pillar))
+    out = tmp_path / "out"
+    done = CliRunner().invoke(cli, ["run", str(scenario), "--no-plots", "--out", str(out)])
+    assert done.exit_code == 1, done.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "collision", summary["status"]
+    first = min(summary["map_check"]["collisions"].values(), key=lambda c: c["t"])
+    assert 5.0 < first["t"] < summary["t_final"] - 5.0  # mid-run, not at an end
+    assert 5.5 < first["x"] < 7.5
+
+
+def test_the_goal_heading_tolerance_reaches_the_master_in_radians():
+    sc = _scenario(sim={"goal_tolerance": 0.07, "goal_heading_tolerance_deg": 9.0})
+    from pushtrain.mission.runner import goal_tolerance_of
+
+    position, heading = goal_tolerance_of(sc)
+    assert position == 0.07
+    assert heading == pytest.approx(9.0 * math.pi / 180.0)
+
+
+def test_a_rotation_without_a_start_begins_at_the_origin_heading_east():
+    sc = parse_scenario({"mission": {"kind": "rotation"}, "train": {"n": 2}}, "rot.toml")
+    initial = initial_of(sc, None)
+    assert (initial.x0, initial.y0) == (0.0, 0.0)
+    assert np.array_equal(initial.theta, np.zeros(3))

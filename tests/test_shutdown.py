@@ -264,3 +264,19 @@ results.write_npz = held_npz
     assert summary["status"] == "goal_reached" and (out / "results.npz").is_file()
     again = CliRunner().invoke(cli, ["run", STRAIGHT, "--no-plots", "--out", str(out)])
     assert again.exit_code == 0, again.output
+
+
+@linux_only
+def test_sighup_while_saving_is_exit_129_interrupted_with_a_summary(tmp_path, start):
+    """SIGHUP (the terminal or SSH session closed) while results.npz is half written: ended as
+    SIGTERM is, exit 129, summary.json says ``interrupted``, no partial file."""
+    out = tmp_path / "out"
+    proc = start(HOLD_IN_SAVE, [STRAIGHT, "--out", out, "--no-plots"])
+    before = _wait_for(proc, "holding results.npz")
+    proc.send_signal(signal.SIGHUP)
+    _, err = _finish(proc, before)
+    assert proc.returncode == 129, err
+    assert "Traceback" not in err and "hung up (SIGHUP)" in err, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["exit_code"] == 129, summary
+    assert _hidden(out) == [], "no partial file is left"

@@ -49,3 +49,12 @@ def test_slip_study_command_writes_table_and_plot(tmp_path):
     assert lines[0].startswith("sweep,n,alpha_deg") and len(lines) == 1 + (1 + 2) + (3 + 3) + 9
     bad = CliRunner().invoke(cli, ["slip-study", "--trailers", "0", "--out", str(out)])
     assert bad.exit_code == 2 and "trailers" in bad.output
+
+
+@pytest.mark.parametrize("trailers", [(0,), (1, 51), (-3, 2), ()])
+def test_trailer_counts_outside_1_to_50_are_refused(trailers):
+    from pushtrain.studies.slipstudy import SlipStudyConfig
+
+    with pytest.raises(ValueError, match=r"trailers = .*each must be 1\.\.50"):
+        SlipStudyConfig(trailers=trailers)
+    assert SlipStudyConfig(trailers=(1, 50)).trailers == (1, 50)

@@ -458,24 +458,46 @@ def _readme_block(after: str) -> str:
 
 @pytest.mark.parametrize("tool, heading", [("libcosimpy", "With libcosim (`pip install"),
                                            ("ecospy", "With ecos (`pip install")])
-def test_readme_snippets_run_the_package(short, tmp_path, monkeypatch, capsys, tool, heading):
-    """The README's snippets run an exported package to ``done`` (and plot it)."""
+def test_readme_snippets_run_the_package(short, tmp_path, tool, heading):
+    """The README's snippets, each alone in a fresh Python as a user pastes it (so the ecos one
+    must load libtbb itself), run an exported package to ``done`` (and plot it), quietly: no
+    debug log (libcosim printed 68 lines of it)."""
+    import subprocess
+    import sys
+
     _load_tbb()
     try:
         __import__(tool)
     except (ImportError, OSError) as exc:
         pytest.skip(f"{tool} not usable: {exc}")
-    import matplotlib
-
-    matplotlib.use("Agg")
     _, _, done = short
     (tmp_path / "mission.ssp").write_bytes(done.path.read_bytes())
-    monkeypatch.chdir(tmp_path)
-    namespace = {}
-    exec(compile(_readme_block(heading), f"README ({tool})", "exec"), namespace)
+    code = "import matplotlib\nmatplotlib.use('Agg')\n" + _readme_block(heading)
+    if tool == "libcosimpy":
+        code += "\nprint('points', len(xs))\n"
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert len(proc.stderr.splitlines()) <= 2, proc.stderr[-3000:]
     if tool == "libcosimpy":
         assert (tmp_path / "mission.png").stat().st_size > 1000
-        assert len(namespace["xs"]) < 10_000  # it stopped on done, not on the loop's bound
+        label, points = proc.stdout.split()
+        assert int(points) < 10_000  # it stopped on done, not on the loop's bound
     else:  # it printed the time at done, and the last trailer's position
-        t, x, y = (float(v) for v in capsys.readouterr().out.split())
+        t, x, y = (float(v) for v in proc.stdout.split())
         assert t < 100.0 and math.isfinite(x) and math.isfinite(y)
+
+
+@pytest.mark.parametrize("settle", [0.0, 0.0023, 1.0, 2.0049])
+def test_the_package_runs_at_least_to_the_end_of_the_reference_in_whole_steps(settle):
+    """SSP's stop time: the reference's end plus the settle time, rounded UP to whole steps
+    (never cutting the run short of what pushtrain's own master runs)."""
+    from pushtrain.mission.ssp import horizon_of
+
+    sc = parse_scenario({**SHORT, "sim": {"settle_time": settle}}, "short.toml")
+    reference = scripted_reference(sc)
+    step = sc.sim.step
+    want = float(reference.t_end) - float(reference.t0) + settle
+    got = horizon_of(sc, reference)
+    assert want - 1e-9 <= got < want + step
+    assert abs(got / step - round(got / step)) < 1e-9

@@ -691,7 +691,7 @@ def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
     assert proc.returncode == 130, stdout + "".join(said) + stderr
     assert "Traceback" not in "".join(said) + stderr, stderr
     others = [line for line in stderr.splitlines() if not line.startswith("sweep: ")]
-    assert len(others) == 1 and others[0].startswith("interrupted: "), stderr
+    assert len(others) == 1 and others[0].startswith("interrupted (Ctrl-C): "), stderr
     assert "run the same command with the same --out to resume" in others[0]
     kept = {r["key"]: r for p in sorted(out.glob("chunks/chunk-*.csv")) for r in read_results(p)}
     assert 1 <= len(kept) < 16
@@ -704,6 +704,41 @@ def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
     assert len(rows) == 16 and all(r["ok"] for r in rows)
     assert [r for r in rows if r["key"] in kept] == [kept[r["key"]] for r in rows
                                                      if r["key"] in kept]
+
+
+@pytest.mark.slow
+def test_sigterm_to_a_dask_sweep_is_exit_143_like_every_command(tmp_path):
+    """SIGTERM (a batch scheduler, ``kill``) to the sweep's main process while it runs on its
+    Dask cluster: exit 143 "terminated", the rows done kept (it was 130, Ctrl-C's code)."""
+    import signal
+    import subprocess
+    import sys
+    import threading
+
+    (tmp_path / "base.toml").write_text(BASE_TOML)
+    (tmp_path / "spec.toml").write_text(SPEC16_TOML)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-c", HOLD_AFTER_THE_FIRST_CHUNK, "sweep",
+                             str(tmp_path / "base.toml"), "--spec", str(tmp_path / "spec.toml"),
+                             "--out", str(out), "--no-plots", "--workers", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    watchdog = threading.Timer(600.0, os.killpg, (proc.pid, signal.SIGKILL))  # a hang only
+    watchdog.start()
+    try:
+        said = []
+        for line in proc.stderr:
+            said.append(line)
+            if line.startswith("holding after chunk-"):
+                break
+        assert said and said[-1].startswith("holding after chunk-"), "".join(said)
+        proc.send_signal(signal.SIGTERM)
+        stdout, stderr = proc.communicate()
+    finally:
+        watchdog.cancel()
+    assert proc.returncode == 143, stdout + "".join(said) + stderr
+    assert "Traceback" not in stderr and "terminated (SIGTERM)" in stderr, stderr
+    assert list(out.glob("chunks/chunk-*.csv"))
 
 
 def test_cli_bad_spec_exits_2_naming_the_field(tmp_path):

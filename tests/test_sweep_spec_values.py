@@ -54,3 +54,20 @@ def test_a_swept_boolean_is_refused_by_the_scenario_naming_the_run(tmp_path):
     with pytest.raises(SweepError) as err:
         prepare_runs(base, spec)
     assert "train.n = True" in str(err.value) and "not the boolean true" in str(err.value)
+
+
+@pytest.mark.parametrize("values, grid", [(5, 3), (7, 1), (1, 4)])
+def test_a_sweep_of_exactly_max_total_runs_is_allowed_and_one_more_is_refused(values, grid):
+    """The limit is inclusive: ``max_total = N`` allows N runs (a grid of values x grid)."""
+    from pushtrain.studies.sweep_spec import check_size, count_runs
+
+    spec = parse_sweep_spec({"parameters": [
+        {"path": "controller.k_y", "values": [float(v) for v in range(1, values + 1)]},
+        {"path": "controller.k_theta", "values": [float(v) for v in range(1, grid + 1)]}]},
+        "spec.toml")
+    n = values * grid
+    assert count_runs(spec) == n
+    assert check_size(spec, n) == n
+    assert check_size(spec, None) == n
+    with pytest.raises(SweepError, match=f"more than the limit of {n - 1} runs"):
+        check_size(spec, n - 1)

@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from ..common import click_errors
+from ..common import click_errors, workers_option
 
 __all__ = ["atlas_cmd"]
 
@@ -42,9 +42,8 @@ class _Progress:
                    "--trailers (resumed).")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="A running Dask scheduler (default: a LocalCluster on this machine).")
-@click.option("--workers", type=click.IntRange(1, 256), default=None, metavar="K",
-              help="Worker processes of the LocalCluster (default: the number of cores).")
-@click.option("--serial", is_flag=True, help="Run in this process, without Dask.")
+@workers_option
+@click.option("--serial", is_flag=True, help="Run in this process, without Dask (as --workers 0).")
 @click.option("--stations", "only", default=None, metavar="A,B,...",
               help="Only the pairs among these stations.")
 def atlas_cmd(facility, trailers, out, scheduler, workers, serial, only):
@@ -59,7 +58,7 @@ def atlas_cmd(facility, trailers, out, scheduler, workers, serial, only):
     """
     from pushtrain.studies.atlas import AtlasError, atlas, load_facility, parse_trailers
 
-    from ..common import BadInput
+    from ..common import BadInput, local_workers, writable_folder
     from ..sweep import check_scheduler
 
     if not str(out).strip():
@@ -72,14 +71,21 @@ def atlas_cmd(facility, trailers, out, scheduler, workers, serial, only):
             chosen = tuple(s.strip() for s in only.split(",") if s.strip())
             known = {s[0] for s in fac.stations}
             unknown = [s for s in chosen if s not in known]
-            if len(chosen) < 2 or unknown:
+            twice = sorted({s for s in chosen if chosen.count(s) > 1})
+            if len(chosen) < 2 or unknown or twice:
                 raise AtlasError(f"--stations = {only!r}: two or more of the facility's "
-                                 f"stations ({', '.join(sorted(known))})")
-        if scheduler:
-            check_scheduler(scheduler)
+                                 f"stations ({', '.join(sorted(known))}), each once"
+                                 + (f" ({', '.join(twice)} given twice)" if twice else ""))
+    workers = local_workers(workers, scheduler)
+    serial = serial or workers == 0
+    if scheduler:
+        check_scheduler(scheduler)
+    writable_folder("--out", out)
+    with click_errors():
         try:
-            doc = atlas(fac, counts, out, serial=serial, scheduler=scheduler, workers=workers,
-                        progress=_Progress(out), only=chosen)
+            doc = atlas(fac, counts, out, serial=serial, scheduler=scheduler,
+                        workers=workers or None, progress=_Progress(out), only=chosen,
+                        on_cluster=lambda text: click.echo(f"atlas: {text} ...", err=True))
         except KeyboardInterrupt:
             click.echo(f"atlas: the answers so far are kept in {out}; the same command goes "
                        "on from there", err=True)

@@ -15,6 +15,7 @@ from ..common import (
     load_scenario_with_overrides,
     scenario_argument,
 )
+from ..progress import Phases
 from ..runs import describe_path, plan_or_fail, write_path
 
 __all__ = ["plan_cmd"]
@@ -45,6 +46,34 @@ def _plot_path(sc, path, png: Path) -> None:
         atomic_write(png, lambda partial: fig.savefig(partial, dpi=120), keep_suffix=True)
     finally:
         plt.close(fig)
+
+
+def _check_target(option: str, target: str) -> None:
+    """Before planning: ``target`` is a file that may be written (new, or a regular file that
+    is replaced; never a folder, a device or a FIFO), its folder made as plan-and-run does."""
+    import os
+    import stat
+    import tempfile
+
+    from pushtrain.validation import clip_text
+
+    shown = clip_text(target, 120)
+    path = Path(target)
+    allowed = "allowed: a new file, or a regular file (replaced), in a folder that can be written"
+    try:
+        mode = path.stat().st_mode if path.exists() or path.is_symlink() else None
+        if mode is not None and not stat.S_ISREG(mode):
+            kind = "a folder" if stat.S_ISDIR(mode) else "not a regular file (a device, a FIFO)"
+            raise BadInput(f"{option} {shown}: is {kind}; {allowed}")
+        folder = path.parent
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder, prefix=".pushtrain-probe-"):
+            pass
+        if len(os.fsencode(path.name)) > 255 - 40:  # the partial file's name is longer
+            raise OSError(36, "File name too long")
+    except OSError as exc:
+        raise BadInput(f"{option} {shown}: cannot be written: {exc.strerror or exc}; "
+                       f"{allowed}") from None
 
 
 def _written(option: str, target: str, write) -> None:
@@ -78,8 +107,13 @@ def plan_cmd(scenario, out, seed, plot_path):
         raise BadInput(f"{scenario}: mission.kind = {sc.mission.kind!r}: 'plan' needs "
                        "mission.kind = 'plan'")
     check_map(sc)
+    for option, value in (("--out", out), ("--plot", plot_path)):
+        if value is not None:
+            _check_target(option, value)
+    phases = Phases()
     with click_errors():
-        path = plan_or_fail(sc, None)
+        path = plan_or_fail(sc, None, phases)
+    phases.done()
     click.echo(describe_path(path))
     if out:
         _written("--out", out, lambda target: write_path(path, target))

@@ -58,6 +58,24 @@ def make():
     return doc
 
 
+def write(target: Path) -> None:
+    """Make and save the floor plan reproducibly: the same bytes on every run (ezdxf's fixed
+    dates, GUIDs and marker strings, instead of now and random ones)."""
+    import ezdxf
+
+    fixed = ezdxf.options.write_fixed_meta_data_for_testing
+    ezdxf.options.write_fixed_meta_data_for_testing = True
+    try:
+        doc = make()
+        # ezdxf lists the CLASS entries of the types in use in a set's order, which varies with
+        # Python's hash seed: registered first, in name order, they keep that order
+        for name in sorted(doc.entitydb.dxf_types_in_use()):
+            doc.classes.add_class(name)
+        doc.saveas(target)
+    finally:
+        ezdxf.options.write_fixed_meta_data_for_testing = fixed
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent,
@@ -65,7 +83,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     target = args.out / "floor.dxf"
-    make().saveas(target)
+    write(target)
     print(f"wrote {target}")
 
 
