@@ -185,8 +185,8 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
 
 
 def test_replanning_changes_what_the_failure_calls_for():
+    from pushtrain.planner.ompl_search import Attempt
     from pushtrain.planner.planner import _next_attempt
-    from pushtrain.planner.search import Attempt
 
     cfg = ompl()
     base = Attempt(radius=1.0, inflation=0.05)
@@ -387,7 +387,7 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
 
 def test_local_search_keeps_the_path_valid_and_never_longer():
     from pushtrain.planner.curves import chain_to_planner_state, segments_from_states
-    from pushtrain.planner.search import Attempt, solve_once
+    from pushtrain.planner.ompl_search import Attempt, solve_once
 
     case = example_layouts.bay()
     world = World.from_dict(case["world"])

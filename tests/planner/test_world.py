@@ -47,7 +47,7 @@ def test_footprint_corners_follow_heading_and_offset():
 
 def test_validity_uses_last_trailer_in_chain_orientation():
     """The planner state yaw is theta + pi; an offset footprint must land on the theta side."""
-    from pushtrain.planner.search import Attempt, solve_once
+    from pushtrain.planner.ompl_search import Attempt, solve_once
 
     # a dead-end pocket: free only for x in [0, 3]; the last trailer's rectangle sticks out
     # 0.6 m toward the robot (theta side). At x = 0.5 with theta = 0 it fits; theta = pi not.
