@@ -16,7 +16,8 @@ check every body against the map. By default the planner runs with the scenario'
 **Feasible** means shown feasible independently of this run: the mission has a stored
 **witness** in ``benchmarks/facility/witnesses/`` (a path.json of the last trailer, found by
 any means: a long search, by hand), which ``pushtrain run SCENARIO --path WITNESS``
-co-simulates to the goal (``tests/test_facility_witnesses.py``, marked slow, checks every one).
+co-simulates to the goal (``tests/benchmarks/test_facility_witnesses.py``, marked slow,
+checks every one).
 ``--scenario KEY`` prints the scenario file to run it with. ``--witness SECONDS`` searches,
 with that budget, a witness for every chosen mission that has none and keeps it if the
 co-simulation reaches the goal. **Impossible** means a reason is recorded in

@@ -151,7 +151,7 @@ def preparation() -> None:
 
 
 PUBLIC = Path(__file__).resolve().parents[1] / "examples" / "maps" / "public"
-IMPOSSIBLE = {  # roomy places whose every way narrows below 1.5 m (tests/test_planner_passage.py
+IMPOSSIBLE = {  # roomy places whose every way narrows below 1.5 m (tests/planner/test_passage.py
     # finds such pairs with its own maximin over scipy's distance transform)
     "aws_bookstore": ((-0.47, -0.82, 157.5), (-3.02, 5.73, -22.5)),
     "willow_garage": ((38.85, 18.65, 157.5), (10.25, 46.75, 0.0)),

@@ -265,7 +265,7 @@ _PROTOTYPES = {
 
 _lock = threading.Lock()
 _loaded: dict[Path, ctypes.CDLL] = {}
-_by_setting: dict[tuple, ctypes.CDLL] = {}  # (CC, PUSHTRAIN_CACHE) -> the library loaded for it
+_by_setting: dict[tuple, ctypes.CDLL] = {}  # (stem, CC, PUSHTRAIN_CACHE) -> the library loaded
 
 
 def cache_dir() -> Path:
@@ -365,7 +365,11 @@ def _compile(argv: list[str], target: Path, files: dict) -> None:
         partial.unlink(missing_ok=True)
 
 
-def library_path(rebuild: bool = False, stem: str = "pushtrain_control",
+ENGINE_STEM = "pushtrain_control"
+"""File stem of the engine's compiled library."""
+
+
+def library_path(rebuild: bool = False, stem: str = ENGINE_STEM,
                  files: dict | None = None) -> Path:
     """The compiled library ``stem`` of ``files`` (default: the engine's) for the current
     sources and compiler, built if not cached.
@@ -393,15 +397,17 @@ def library_path(rebuild: bool = False, stem: str = "pushtrain_control",
     return target
 
 
-def load_library(stem: str, files: dict, rebuild: bool = False) -> ctypes.CDLL:
+def load_library(stem: str, files: dict, rebuild: bool = False, declare=None) -> ctypes.CDLL:
     """The library ``stem`` compiled from ``files`` (``{name: resource}``; a room's own C with
     the engine's, :func:`engine_files`), built and cached like the engine's, loaded once per
-    process and setting of ``CC`` and ``PUSHTRAIN_CACHE``; the caller declares its prototypes.
+    process and setting of ``CC`` and ``PUSHTRAIN_CACHE``. ``declare(lib, path)``, if given,
+    declares its prototypes (and may check it) once, when it is first loaded; otherwise the
+    caller declares them.
 
     Raises
     ------
     NativeBuildError
-        As :func:`library_path`, or if the library cannot be loaded.
+        As :func:`library_path`, if the library cannot be loaded, or from ``declare``.
     """
     key = (stem, os.environ.get("CC"), os.environ.get("PUSHTRAIN_CACHE"))
     if not rebuild and key in _by_setting:
@@ -414,6 +420,8 @@ def load_library(stem: str, files: dict, rebuild: bool = False) -> ctypes.CDLL:
                 lib = ctypes.CDLL(str(path))
             except OSError as exc:
                 raise NativeBuildError(f"cannot load {str(path)!r}: {exc}") from exc
+            if declare is not None:
+                declare(lib, path)
             _loaded[path] = lib
         _by_setting[key] = lib
         return lib
@@ -430,35 +438,27 @@ def load(rebuild: bool = False) -> ctypes.CDLL:
     NativeBuildError
         As :func:`library_path`, or if the library's struct layouts differ from this binding.
     """
-    key = (os.environ.get("CC"), os.environ.get("PUSHTRAIN_CACHE"))
-    if not rebuild and key in _by_setting:
-        return _by_setting[key]
-    with _lock:
-        path = library_path(rebuild)
-        lib = _loaded.get(path)
-        if lib is None:
-            try:
-                lib = ctypes.CDLL(str(path))
-            except OSError as exc:
-                raise NativeBuildError(f"cannot load {str(path)!r}: {exc}") from exc
-            for name, (restype, argtypes) in _PROTOTYPES.items():
-                function = getattr(lib, name)
-                function.restype, function.argtypes = restype, argtypes
-            sizes = [(lib.pt_sizeof, w, st) for w, st in enumerate(_STRUCTS)]
-            sizes += [(lib.pt_rollout_sizeof, w, st) for w, st in enumerate(_ROLLOUT_STRUCTS)]
-            sizes.append((lambda _: lib.pt_sensors_sizeof(), 0, PtSensors))
-            sizes.append((lambda _: lib.pt_step_sizeof(), 0, PtStep))
-            sizes.append((lambda _: lib.pt_governor_sizeof(), 0, PtGovernor))
-            for sizeof, which, struct in sizes:
-                size = sizeof(which)
-                if size != ctypes.sizeof(struct):
-                    raise NativeBuildError(
-                        f"{struct.__name__} is {size} bytes in {str(path)!r} but "
-                        f"{ctypes.sizeof(struct)} in core/native.py: the binding does not match "
-                        "its header in core/csrc")
-            _loaded[path] = lib
-        _by_setting[key] = lib
-        return lib
+    return load_library(ENGINE_STEM, None, rebuild, declare=_declare_engine)
+
+
+def _declare_engine(lib: ctypes.CDLL, path: Path) -> None:
+    """Declare the engine library's prototypes and check its struct sizes against this
+    binding's."""
+    for name, (restype, argtypes) in _PROTOTYPES.items():
+        function = getattr(lib, name)
+        function.restype, function.argtypes = restype, argtypes
+    sizes = [(lib.pt_sizeof, w, st) for w, st in enumerate(_STRUCTS)]
+    sizes += [(lib.pt_rollout_sizeof, w, st) for w, st in enumerate(_ROLLOUT_STRUCTS)]
+    sizes.append((lambda _: lib.pt_sensors_sizeof(), 0, PtSensors))
+    sizes.append((lambda _: lib.pt_step_sizeof(), 0, PtStep))
+    sizes.append((lambda _: lib.pt_governor_sizeof(), 0, PtGovernor))
+    for sizeof, which, struct in sizes:
+        size = sizeof(which)
+        if size != ctypes.sizeof(struct):
+            raise NativeBuildError(
+                f"{struct.__name__} is {size} bytes in {str(path)!r} but "
+                f"{ctypes.sizeof(struct)} in core/native.py: the binding does not match "
+                "its header in core/csrc")
 
 
 def dptr(array) -> D_PTR:

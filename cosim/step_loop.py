@@ -94,22 +94,22 @@ class PtMasterLoop(ctypes.Structure):
 def _library() -> ctypes.CDLL:
     """The co-simulation's own library: ``cosim/csrc/master_loop.c`` on the engine's files
     (:func:`pushtrain.core.native.engine_files`), built and cached like the engine's, the
-    loop's prototypes declared (layout checked)."""
+    loop's prototypes declared (layout checked) when it is first loaded."""
     folder = resources.files("pushtrain.cosim") / "csrc"
     files = {**native.engine_files(), **{name: folder / name for name in LOOP_FILES}}
-    lib = native.load_library("pushtrain_cosim", files)
-    if getattr(lib, "_pt_master_loop_ready", False):
-        return lib
+    return native.load_library("pushtrain_cosim", files, declare=_declare_loop)
+
+
+def _declare_loop(lib: ctypes.CDLL, path) -> None:
+    """Declare the step loop's prototypes and check its struct's size against the binding's."""
     lib.pt_master_loop_sizeof.restype, lib.pt_master_loop_sizeof.argtypes = ctypes.c_size_t, []
     lib.pt_master_run.restype = c_int
     lib.pt_master_run.argtypes = [POINTER(PtMasterLoop), c_long, c_long]
     size = lib.pt_master_loop_sizeof()
     if size != ctypes.sizeof(PtMasterLoop):
-        raise NativeBuildError(f"PtMasterLoop is {size} bytes in the library but "
+        raise NativeBuildError(f"PtMasterLoop is {size} bytes in {str(path)!r} but "
                                f"{ctypes.sizeof(PtMasterLoop)} in cosim/step_loop.py: the "
                                "binding does not match master_loop.h")
-    lib._pt_master_loop_ready = True
-    return lib
 
 
 class NoiseBuffer:

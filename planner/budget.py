@@ -37,7 +37,7 @@ RRTConnect, the restarts and RRT*). BIT* checks as fast until its first solution
 most of its time goes to work in OMPL that no check counts (2 m L-corridor: 250 checks 0.3 s,
 500 checks 1.2-4.4 s, 1000 checks 8.7 s of CPU; its first solution there needs 250-400
 checks), hence its lower rate. PRM* stops on the clock after ``checks / rate`` seconds
-instead (see :func:`pushtrain.planner.search._termination`)."""
+instead (see :func:`pushtrain.planner.ompl_search._termination`)."""
 
 STEPS_PER_CHECK = 10
 """Simulated control steps (0.025 s each) of the whole-train check counted as one motion check

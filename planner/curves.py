@@ -6,7 +6,7 @@ is therefore pushing (:data:`~pushtrain.core.reference.PUSH`, trailer leads) and
 pulling (:data:`~pushtrain.core.reference.PULL`, robot leads).
 
 OMPL's camelCase stays in the planner's modules that import ompl (this one and
-:mod:`~pushtrain.planner.search`); results are converted to numpy at once.
+:mod:`~pushtrain.planner.ompl_search`); results are converted to numpy at once.
 """
 
 from __future__ import annotations

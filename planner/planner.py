@@ -1,6 +1,6 @@
 """The whole-train planning loop: :func:`plan` and its replanning after failed train checks.
 
-``plan`` plans the last trailer's line/arc path with OMPL (:mod:`~pushtrain.planner.search`),
+``plan`` plans the last trailer's line/arc path with OMPL (:mod:`~pushtrain.planner.ompl_search`),
 recovers its segments (:mod:`~pushtrain.planner.curves`) and checks the whole train on it by
 simulating the co-simulation's controller in closed loop with the chain
 (:mod:`~pushtrain.planner.train_check`); a failure changes the next attempt (larger radius, or
@@ -39,8 +39,8 @@ from .curves import (
     segments_from_states,
 )
 from .kinematic_loop import TrackerConfig, reference_times
+from .ompl_search import Attempt, solve_once, solve_restarts
 from .path import PlannedPath
-from .search import Attempt, solve_once, solve_restarts
 from .train import Train
 from .train_check import check_train
 from .whole_train import plan_lattice

@@ -5,7 +5,7 @@ a straight chain at the pull's end (:class:`~pushtrain.core.pulling.PullGuide`).
 planned pulls within what that can do: the straight train at every pull's end must be free
 (:attr:`~pushtrain.planner.config.PlannerConfig.straight_pull_ends`), and a pull must start near the
 chain it needs (:attr:`~pushtrain.planner.config.PlannerConfig.pull_start_tolerance`). The motion
-validator (:mod:`~pushtrain.planner.search`) checks them inside each local curve with the
+validator (:mod:`~pushtrain.planner.ompl_search`) checks them inside each local curve with the
 rules built here; the junctions between curves and whole pulls over several curves are checked
 and repaired here on the finished path.
 

@@ -23,6 +23,7 @@ imports or reads another module's ``_private`` name.
 """
 
 import ast
+import functools
 import subprocess
 import sys
 from pathlib import Path
@@ -50,6 +51,18 @@ OWNERS = {"ompl": {"planner"}, "fmpy": {"cosim", "fmu"}, "dask": {"studies.sweep
           "distributed": {"studies.sweep"}, "ezdxf": {"facility.dxf"}, "rosbags": {"ros"}}
 
 
+def _tree(path: Path) -> ast.Module:
+    """The syntax tree of the file at ``path``: each text is parsed once for all the tests of
+    this module (the trees are only read; a probe file rewritten under one name is parsed
+    anew)."""
+    return _parse(path.read_text())
+
+
+@functools.cache
+def _parse(text: str) -> ast.Module:
+    return ast.parse(text)
+
+
 def _module_name(path: Path) -> str:
     room = path.relative_to(ROOT).parts[0]
     parts = [] if room == "pushtrain" else [room]
@@ -68,7 +81,7 @@ def _imports(path: Path) -> set[str]:
     module = _module_name(path)
     package = module if _is_package(path) else module.rpartition(".")[0]
     names = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(_tree(path)):
         if isinstance(node, ast.Import):
             names |= {alias.name for alias in node.names}
         elif isinstance(node, ast.ImportFrom):
@@ -241,7 +254,7 @@ def _top_level_statements(tree: ast.Module):
 def _defined_names(module: str) -> set[str]:
     """The names ``module`` binds itself (def, class, assignment), not the ones it imports."""
     names = set()
-    for node in _top_level_statements(ast.parse(MODULES[module].read_text())):
+    for node in _top_level_statements(_tree(MODULES[module])):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
             names.add(node.name)
         elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
@@ -255,7 +268,7 @@ DEFINED = {module: _defined_names(module) for module in MODULES}
 
 def _offered(module: str) -> list[str] | None:
     """The literal ``__all__`` of ``module``, or None when it has none."""
-    for node in _top_level_statements(ast.parse(MODULES[module].read_text())):
+    for node in _top_level_statements(_tree(MODULES[module])):
         targets = node.targets if isinstance(node, ast.Assign) else (
             [node.target] if isinstance(node, ast.AnnAssign) else [])
         if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets):
@@ -277,7 +290,7 @@ def _name_uses(path: Path):
     """Every (line, module, name) of a pushtrain module's name the file uses: ``from module import
     name`` and ``alias.name`` where ``alias`` is the module imported under a name of its own."""
     in_package = path.relative_to(ROOT).parts[0] in ROOMS
-    tree = ast.parse(path.read_text())
+    tree = _tree(path)
     aliases = {}
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
@@ -324,7 +337,7 @@ def test_every_imported_pushtrain_module_exists():
     wrong = []
     for path in _user_files():
         in_package = path.relative_to(ROOT).parts[0] in ROOMS
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.ImportFrom):
                 targets = [_absolute_target(path, node) if in_package else node.module]
             elif isinstance(node, ast.Import):

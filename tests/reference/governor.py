@@ -1,6 +1,6 @@
 """The slip governor's limit written in Python: the reference the engine's
 (``core/csrc/governor.c`` ``pt_governor_limit``, :class:`pushtrain.core.governor.SlipGovernor`)
-is held equal to, bit for bit (``tests/test_governor.py``, the master's governed runs).
+is held equal to, bit for bit (``tests/core/test_governor.py``, the master's governed runs).
 """
 
 from __future__ import annotations

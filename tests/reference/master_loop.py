@@ -1,6 +1,6 @@
 """The co-simulation master's loop written step by step in Python: the reference the one step
 loop (``cosim/csrc/master_loop.c`` through :mod:`pushtrain.cosim.step_loop`) is held equal to,
-bit for bit (``tests/test_master_loop.py``).
+bit for bit (``tests/cosim/test_master_loop.py``).
 
 At each communication point ``t_k = t0 + k step``: the bias switches due, the FMU's measured
 states, the sensors (the compiled model, :meth:`Sensors.measurer`, one noise draw per step), the

@@ -1,6 +1,6 @@
 """The pull guide written in Python: the reference the engine's (``core/csrc/control.c``
 ``pt_pull_run``, ``pt_leader_sample``; :class:`pushtrain.core.pulling.PullGuide`) is held equal
-to, bit for bit (``tests/test_native_control.py``).
+to, bit for bit (``tests/core/test_native.py``).
 
 For every pulling run [t_a, t_b] of the reference the chain starts drawn out straight at t_b and
 is driven backward in time (RK4, ``reference.ode.rk4_step``) by the last trailer's

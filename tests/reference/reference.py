@@ -1,6 +1,6 @@
 """The last trailer's line/arc reference written in Python: the reference the engine's (the phase
 table and sampling of ``core/csrc/control.c``, :class:`pushtrain.core.reference.Reference`) is
-held equal to, bit for bit (``tests/test_native_control.py``).
+held equal to, bit for bit (``tests/core/test_native.py``).
 
 One row per phase (a segment, or a dwell at a cusp): start time, start pose, the sign of v,
 the curvature and the speed; a sample advances the row's pose in closed form (Eq. 1).

@@ -1,5 +1,5 @@
 """The sensor model of ``pushtrain.core.sensors`` in numpy: the reference ``core/csrc/sensors.c``
-is held equal to, bit for bit (``tests/test_sensors.py``).
+is held equal to, bit for bit (``tests/core/test_sensors.py``).
 
 Joint i: ``play_i <- clip(play_i, phi_i - b/2, phi_i + b/2)``, ``reading = play_i + bias_i +
 N(0, joint_noise²)``, ``measured = q * round(reading / q)``; poses: true + N(0, std²). Noise is

@@ -1,0 +1,265 @@
+"""The route through the building and the planning it guides (issue 28): real maps, degenerate
+connections, bottlenecks, and plans that depend on nothing but their scenario."""
+
+import json
+import math
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pushtrain.core.reference import PULL, PUSH, Segment
+from pushtrain.errors import PlanningError
+from pushtrain.facility import example_layouts
+from pushtrain.facility.free_space import World
+from pushtrain.planner.config import PlannerConfig
+from pushtrain.planner.connect import MAX_SAMPLES, corner_segments, sample_reference
+from pushtrain.planner.passage import widest_gap
+from pushtrain.planner.planner import plan
+from pushtrain.planner.route import (
+    MAX_ROUTE_NODES,
+    MIN_CELL,
+    Route,
+    _Grid,
+    comes_in_across,
+    find_route,
+)
+from pushtrain.planner.train import Train
+
+PUBLIC = Path(__file__).resolve().parents[2] / "examples" / "maps" / "public"
+BOOKSTORE = PUBLIC / "aws_bookstore.yaml"
+
+
+@pytest.mark.parametrize("direction", [PUSH, PULL])
+@pytest.mark.parametrize("delta", [0.0, 1e-12, 1e-9, -1e-9, 1e-7])
+def test_opposite_headings_have_no_corner_and_no_giant_lines(direction, delta):
+    """Start and goal headings exactly (or nearly) opposite: the lines of travel are parallel
+    and meet nowhere (or 1e16 m away); no straight-arc-straight corner exists (it crashed)."""
+    pose = (2.0, 3.0, 0.0)
+    for goal in [(12.0, 3.0 + dy, math.pi + delta) for dy in (-2.0, 0.0, 2.0)] + [
+            (-5.0, 9.0, math.pi + delta), (2.0, 3.0, math.pi + delta)]:
+        path = corner_segments(pose, goal, direction)
+        assert path is None or all(g.length < 100.0 for g in path)
+
+
+def test_nearly_parallel_lines_meeting_far_away_give_no_corner():
+    # headings 1e-7 rad apart, 2 m apart sideways: the lines meet about 2e7 m ahead
+    assert corner_segments((0.0, 0.0, math.pi), (10.0, 2.0, math.pi + 1e-7), PUSH) is None
+    # a real corner still works
+    assert corner_segments((0.0, 0.0, math.pi), (5.0, 5.0, -math.pi / 2), PUSH, 2.0)
+
+
+def test_sampling_refuses_references_no_building_has():
+    with pytest.raises(ValueError, match="more than"):
+        sample_reference((0.0, 0.0, 0.0), [Segment("line", 1e16, 0.0, PUSH)], 0.05)
+    with pytest.raises(ValueError):
+        sample_reference((0.0, 0.0, 0.0), [Segment("line", 0.05 * MAX_SAMPLES * 2, 0.0, PUSH)],
+                         0.05)
+    assert sample_reference((0.0, 0.0, 0.0), [Segment("line", 1.0, 0.0, PUSH)], 0.05).shape \
+        == (21, 3)
+
+
+def test_the_route_goes_round_the_corner_in_the_middle_of_the_corridor():
+    case = example_layouts.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    field = world.distance_field()
+    start, goal = case["start"], case["goal"]
+    route = find_route(field, start, goal, 0.35)
+    assert route is not None
+    # it starts and ends at the poses and never comes nearer a wall than the trailer needs
+    assert route.points[0] == pytest.approx(start[:2])
+    assert route.points[-1] == pytest.approx(goal[:2])
+    assert route.half_width[5:-5].min() >= 0.35 - 0.05
+    # kept to the middle: away from the ends, most of it is near the centre line (1 m)
+    inner = route.half_width[int(0.1 * len(route.s)):int(0.9 * len(route.s))]
+    assert np.median(inner) > 0.85
+    # its length is that of a way round the corner, not through the wall
+    straight = math.hypot(goal[0] - start[0], goal[1] - start[1])
+    assert straight < route.length < 1.6 * straight
+    # the route turns by a quarter turn across the corner, hardly at all along a leg
+    assert route.turn(0.0, route.length) == pytest.approx(math.pi / 2, abs=0.05)
+    assert route.turn(0.0, 2.0) < math.radians(5.0)
+    assert route.turn(route.length - 2.0, route.length) < math.radians(5.0)
+    assert route.turn(route.length, route.length + 1.0) == 0.0
+    # on a 2 cm polygon map the route's grid is no finer than MIN_CELL
+    assert field.resolution == pytest.approx(0.02)
+    assert _Grid(field, 0.35, MAX_ROUTE_NODES, MIN_CELL).h == pytest.approx(MIN_CELL)
+    # headings follow the points
+    x, y, th = route.pose_at(0.5 * route.length)
+    s, off = route.project(x, y)
+    assert off < 0.06 and s == pytest.approx(0.5 * route.length, abs=0.11)
+
+
+def test_the_widest_way_names_the_slit_and_no_route_fits_it():
+    case = example_layouts.two_rooms(0.5)
+    world = World.from_dict(case["world"])
+    field = world.distance_field()
+    assert find_route(field, case["start"], case["goal"], 0.35) is None
+    assert find_route(field, case["start"], case["goal"], 0.2) is not None
+    gap = widest_gap(field, case["start"], case["goal"], 0.35)
+    assert gap.width == pytest.approx(0.5, abs=0.03)
+    assert 4.95 <= gap.x <= 6.05 and gap.y == pytest.approx(2.5, abs=0.05)
+    assert gap.needed == pytest.approx(0.7)
+
+
+def test_a_u_turn_across_a_real_bookstore_plans():
+    """Opposite headings at start and goal on a public map (this mission crashed with
+    MemoryError): west along the north aisle, down the west side, east along the south."""
+    from pushtrain.facility.loading import map_world
+
+    world = map_world(grid=str(BOOKSTORE))
+    path = plan(world, (-3.4, 6.3, 0.0), (4.4, -6.2, math.pi), Train.uniform(1),
+                PlannerConfig(time_budget=10.0))
+    assert path.length > 15.0
+    assert path.info["train_check"]["min_clearance"] >= 0.0
+    goal_error = path.info["train_check"]["goal_error"]
+    assert goal_error[0] <= 0.05 and goal_error[1] <= math.radians(5.0)
+
+
+@pytest.mark.slow
+def test_the_office_t_junction_plans_by_pushing_past_and_pulling_back():
+    """Issue 28's office mission west_corridor_south -> north_hall_east with three trailers
+    (Willow Garage's floor, benchmarks/facility/missions.toml): up a corridor into the north
+    hall, to stop at the junction pushed east. Its 10 s budget found nothing before the
+    pull-back connection (719 expansions at the junction); now the train is pushed round into
+    the north-east diagonal and pulled back onto the goal, one cusp."""
+    from pushtrain.facility.loading import map_world
+
+    world = map_world(grid=str(PUBLIC / "willow_garage.yaml"))
+    goal = (15.0, 46.8, math.pi)
+    config = PlannerConfig(time_budget=10.0)
+    path = plan(world, (9.4, 21.0, math.radians(-85.0)), goal, Train.uniform(3), config)
+    assert path.n_cusps == 1 and path.segments[-1].direction == PULL
+    assert path.info["expansions"] <= 50
+    assert path.poses[:, 0].max() > goal[0] + 3.0  # pushed past the junction, north-east
+    check = path.info["train_check"]
+    assert check["goal_error"][0] <= 0.05 and check["goal_error"][1] <= math.radians(5.0)
+    assert check["wall_clearance"] >= 0.05 - 1e-9
+
+
+def test_pushes_along_the_route_carry_a_long_corridor():
+    """A 16 m corridor with a corner: the route's pushes reach the goal in a handful of
+    expansions (the primitives alone need dozens)."""
+    case = example_layouts.corner_long(2.5, 16.0, 3)
+    world = World.from_dict(case["world"])
+    path = plan(world, case["start"], case["goal"], Train.uniform(3),
+                PlannerConfig(time_budget=5.0))
+    assert path.info["expansions"] <= 12
+    assert path.info["train_check"]["min_clearance"] >= 0.0
+
+
+_HOG = "import time\nt = time.time()\nwhile time.time() - t < 120:\n    pass\n"
+
+
+def _plan_bookstore() -> dict:
+    code = textwrap.dedent(f"""
+        import json, math
+        from pushtrain.planner.config import PlannerConfig
+        from pushtrain.planner.planner import plan
+        from pushtrain.planner.train import Train
+        from pushtrain.facility.loading import map_world
+        world = map_world(grid={str(BOOKSTORE)!r})
+        path = plan(world, (-7.0, 1.2, math.pi / 2), (4.4, -6.2, math.pi), Train.uniform(2),
+                    PlannerConfig())
+        print(json.dumps({{"path": path.to_dict(), "capped": path.info["time_capped"],
+                           "steps": path.info["steps"]}}))
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=600, check=True)
+    return json.loads(out.stdout)
+
+
+@pytest.mark.slow
+def test_the_same_path_with_and_without_a_cpu_hog_beside_it():
+    """A plan is a function of its scenario: the same path.json whether the machine is idle or
+    two busy loops take its cores, with the default budget (counted steps, no clock)."""
+    quiet = _plan_bookstore()
+    hogs = [subprocess.Popen([sys.executable, "-c", _HOG]) for _ in range(2)]
+    try:
+        loaded = _plan_bookstore()
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+    assert not quiet["capped"] and not loaded["capped"]
+    assert "time" not in quiet["path"]["info"]  # the wall time is no part of path.json
+    assert quiet == loaded
+
+
+def test_an_impossible_mission_names_the_bottleneck():
+    """A 0.6 m trailer and a 0.5 m slit: 'impossible here', the slit's place and width, at
+    once (no search)."""
+    case = example_layouts.two_rooms(0.5)
+    world = World.from_dict(case["world"])
+    with pytest.raises(PlanningError) as info:
+        plan(world, case["start"], case["goal"], Train.uniform(2), PlannerConfig())
+    err = info.value
+    assert err.reason == "unreachable" and err.details["impossible"]
+    assert err.details.get("expansions") is None
+    b = err.details["bottleneck"]
+    assert 4.9 <= b["x"] <= 6.1 and f"({b['x']:.2f}, {b['y']:.2f})" in str(err)
+    assert "0.50 m" in str(err)
+
+
+def test_pushes_along_the_route_leave_the_corner_of_a_narrow_l_to_the_search():
+    """Five trailers round the corner of a 1.3 m L (examples/narrow_l_5.toml): pushes that
+    follow the route round the corner mislead the search (without the turn limit: 4 times
+    the expansions, or two cusps); left to the primitives it goes round in one push."""
+    from pushtrain.mission import runner
+    from pushtrain.mission.scenario import load_scenario
+
+    sc = load_scenario(Path(__file__).resolve().parents[2] / "examples" / "narrow_l_5.toml")
+    path = runner.plan_path(sc)
+    assert path.n_cusps == 0
+    assert path.info["expansions"] <= 12
+
+
+@pytest.mark.slow
+def test_a_near_u_turn_goal_plans_in_bounded_memory(tmp_path):
+    """l_corridor with its goal turned to -0.04 deg (found by the CLI fuzz): the corner
+    connections' legs met 10 km away and their references were checked in one array
+    (2.5 GB, 47 s). A leg longer than the map's diagonal is no connection."""
+    import subprocess
+    import sys
+
+    from pushtrain.core.reference import PUSH
+    from pushtrain.planner.connect import corner_segments
+
+    # nearly opposite travel directions: the lines meet about 14 km ahead
+    far = corner_segments((0.0, 0.0, 0.0), (0.0, 1.0, math.radians(179.996)), PUSH, 1.0)
+    assert far is None or sum(s.length for s in far) < 2e4
+    assert corner_segments((0.0, 0.0, 0.0), (0.0, 1.0, math.radians(179.996)), PUSH, 1.0,
+                           max_reach=50.0) is None
+    text = (Path(__file__).resolve().parents[2] / "examples" / "l_corridor.toml").read_text()
+    scenario = tmp_path / "uturn.toml"
+    scenario.write_text(text.replace("theta_deg = -90.0", "theta_deg = -0.04"))
+    # the plan in a child of its own, which reports its own peak memory
+    code = ("import resource, sys\n"
+            "from pushtrain.cli.main import cli\n"
+            "try:\n"
+            "    cli.main(['plan', sys.argv[1]], standalone_mode=False)\n"
+            "except Exception as exc:\n"
+            "    print('ERROR', type(exc).__name__)\n"
+            "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(scenario)], capture_output=True,
+                          text=True, timeout=600)
+    peak_mib = int(proc.stdout.split("PEAK")[-1]) / 1024
+    assert "Traceback" not in proc.stderr, proc.stderr[-500:]
+    assert peak_mib < 600, f"peak {peak_mib:.0f} MiB"
+
+
+def test_a_route_up_a_corridor_comes_in_across_a_goal_facing_along_the_hall():
+    """The pull-back connections are tried only where the route's last metre runs across the
+    direction the train is pushed at the goal (chain convention: theta + pi)."""
+    y = np.linspace(-5.0, 1.0, 61)
+    points = np.column_stack([np.zeros_like(y), y])  # travelling north, along +y
+    route = Route(points, y - y[0], np.full(y.size, 0.5 * math.pi), np.ones(y.size), 0.35)
+    limit = math.radians(60.0)
+    assert comes_in_across(route, (0.0, 1.0, math.pi), limit)  # pushed east: across
+    assert comes_in_across(route, (0.0, 1.0, 0.0), limit)  # pushed west: across
+    assert not comes_in_across(route, (0.0, 1.0, -0.5 * math.pi), limit)  # pushed north
+    assert not comes_in_across(route, (0.0, 1.0, -0.5 * math.pi + math.radians(50.0)), limit)
+    assert comes_in_across(route, (0.0, 1.0, 0.5 * math.pi), limit)  # pulled in: pushed south
