@@ -371,13 +371,43 @@ def _footprints(world: World, train: Train, corners, x, y, margins, regions, mea
     if measure and measured.any():
         # a body's distance beyond its margin is its distance to the walls minus the margin
         # (the distance to the level set {d = m} of the distance to the walls is d - m)
-        gap = world.wall_distance(polys[measured])
-        covered = shapely.covers(world.eroded(0.0), polys[measured])  # this thread's copy
+        gap = np.full(x.shape, np.inf)
+        far = measured & inside
+        limit = None if upper is None else _measure_limit(field, upper, margins, far)
+        if limit is not None:
+            # only the smallest distances are reported: bodies that cannot come within the
+            # limit (by the field, to within its slack) are not measured, the others' search
+            # stops at it
+            far &= lower - (1.5 * field.resolution + 0.002) <= limit
+            gap[far] = world.wall_distance(polys[far], max_distance=limit)
+            gap[measured & ~inside] = world.wall_distance(polys[measured & ~inside])
+        else:
+            gap[measured] = world.wall_distance(polys[measured])
+        # a body inside its eroded region (within the free space) is covered by the free space
+        covered = inside.copy()
+        loose = measured & ~inside
+        if loose.any():
+            covered[loose] = shapely.covers(world.eroded(0.0), polys[loose])  # thread's copy
         gap = np.where(covered, gap, -gap)
-        clear[measured] = gap - np.broadcast_to(margins[None, :], x.shape)[measured]
-        walls = float(np.min(gap))
+        measured &= np.isfinite(gap)
+        clear[measured] = (gap - np.broadcast_to(margins[None, :], x.shape))[measured]
+        walls = float(np.min(gap[measured])) if measured.any() else math.nan
     clear = np.where(inside, np.abs(clear), -np.abs(clear))
     return inside, clear, walls, polys
+
+
+def _measure_limit(field, upper, margins, sel) -> float | None:
+    """A distance [m] beyond which no body of ``sel`` can be the closest to the walls nor the
+    closest beyond its margin (None: nothing to limit). A body is at most as far from the walls
+    as its axle midpoint (inside its rectangle), whose distance is the field's value there
+    (``upper``) to within 1.5 cells and 2 mm."""
+    if not sel.any():
+        return None
+    slack = 1.5 * field.resolution + 0.002
+    bound = (upper + slack)[sel]
+    beyond = (upper + slack - margins[None, :])[sel]
+    limit = max(float(bound.min()), float(beyond.min()) + float(margins.max()))
+    return limit if math.isfinite(limit) else None
 
 
 def _last_moving_direction(direction: np.ndarray, segments: Sequence[Segment]) -> np.ndarray:
