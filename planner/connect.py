@@ -104,21 +104,25 @@ def sample_reference(pose, segments, spacing: float) -> np.ndarray:
     if not total <= MAX_SAMPLES:
         raise ValueError(f"sample_reference: {sum(s.length for s in segments):.6g} m at "
                          f"{spacing} m spacing is more than {MAX_SAMPLES} poses")
-    out = [tuple(pose)]
+    # vectorized, and the same floats as stepping pose by pose: each running sum is a
+    # sequential np.cumsum of the same increments (np.sin, np.cos are math.sin, math.cos here)
+    parts = [np.array([tuple(pose)], dtype=float)]
     x, y, th = (float(a) for a in pose)
     for seg in segments:
         sigma = -float(seg.direction)
         m = max(1, int(math.ceil(seg.length / spacing)))
         ds = seg.length / m
         k = seg.curvature
-        for _ in range(m):
-            if abs(k) < 1e-12:
-                x += sigma * ds * math.cos(th)
-                y += sigma * ds * math.sin(th)
-            else:
-                th1 = th + k * ds
-                x += sigma * (math.sin(th1) - math.sin(th)) / k
-                y -= sigma * (math.cos(th1) - math.cos(th)) / k
-                th = th1
-            out.append((x, y, th))
-    return np.array(out)
+        if abs(k) < 1e-12:
+            xs = np.cumsum(np.concatenate(([x], np.full(m, sigma * ds * math.cos(th)))))[1:]
+            ys = np.cumsum(np.concatenate(([y], np.full(m, sigma * ds * math.sin(th)))))[1:]
+            ths = np.full(m, th)
+        else:
+            ths = np.cumsum(np.concatenate(([th], np.full(m, k * ds))))
+            sin, cos = np.sin(ths), np.cos(ths)
+            xs = np.cumsum(np.concatenate(([x], sigma * (sin[1:] - sin[:-1]) / k)))[1:]
+            ys = np.cumsum(np.concatenate(([y], -(sigma * (cos[1:] - cos[:-1]) / k))))[1:]
+            ths = ths[1:]
+        parts.append(np.column_stack((xs, ys, ths)))
+        x, y, th = float(xs[-1]), float(ys[-1]), float(ths[-1])
+    return np.concatenate(parts)

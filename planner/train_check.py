@@ -271,8 +271,10 @@ def check_train(
     goal_head = abs(wrap_scalar(last[k_goal, 2] - goal[2]))
 
     # footprints at the checked samples, joints at every sample
+    travel = np.concatenate(([0.0], np.cumsum(move)))[keep]
     inside, clear, walls, polys = _footprints(world, train, corners[keep], x_all[keep],
-                                              y_all[keep], margins, regions, measure, field)
+                                              y_all[keep], margins, regions, measure, field,
+                                              travel)
     phi = joint_angles(headings_all)
     abs_phi = np.abs(phi)
     moving_dir = _last_moving_direction(traj.direction, segments)
@@ -333,10 +335,12 @@ def check_train(
 
 
 def _footprints(world: World, train: Train, corners, x, y, margins, regions, measure: bool,
-                field):
+                field, travel=None):
     """Containment (N, n+1) of every body in its eroded region, its clearance beyond the margin
     (N, n+1; NaN where not measured), the smallest distance to the walls and the polygons
-    made (an object array, None where skipped). See :func:`check_train`'s ``field``."""
+    made (an object array, None where skipped). See :func:`check_train`'s ``field``.
+    ``travel`` (N,): the corner travel [m] from the first sample, which bounds how much any
+    body's distance to the walls changes between two samples (see :func:`_nearest_gaps`)."""
     n1 = x.shape[1]
     if field is None:
         need = np.ones(x.shape, dtype=bool)
@@ -371,13 +375,82 @@ def _footprints(world: World, train: Train, corners, x, y, margins, regions, mea
     if measure and measured.any():
         # a body's distance beyond its margin is its distance to the walls minus the margin
         # (the distance to the level set {d = m} of the distance to the walls is d - m)
-        gap = world.wall_distance(polys[measured])
-        covered = shapely.covers(world.eroded(0.0), polys[measured])  # this thread's copy
+        gap = np.full(x.shape, np.inf)
+        far = measured & inside
+        limit = None if upper is None else _measure_limit(field, upper, margins, far)
+        if limit is not None:
+            # only the smallest distances are reported: bodies that cannot come within the
+            # limit (by the field, to within its slack) are not measured, the others' search
+            # stops at it
+            far &= lower - (1.5 * field.resolution + 0.002) <= limit
+            if travel is None:
+                gap[far] = world.wall_distance(polys[far], max_distance=limit)
+            else:
+                gap[far] = _nearest_gaps(world, polys, far, travel, margins, limit)[far]
+            gap[measured & ~inside] = world.wall_distance(polys[measured & ~inside])
+        else:
+            gap[measured] = world.wall_distance(polys[measured])
+        # a body inside its eroded region (within the free space) is covered by the free space
+        covered = inside.copy()
+        loose = measured & ~inside
+        if loose.any():
+            covered[loose] = shapely.covers(world.eroded(0.0), polys[loose])  # thread's copy
         gap = np.where(covered, gap, -gap)
-        clear[measured] = gap - np.broadcast_to(margins[None, :], x.shape)[measured]
-        walls = float(np.min(gap))
+        measured &= np.isfinite(gap)
+        clear[measured] = (gap - np.broadcast_to(margins[None, :], x.shape))[measured]
+        walls = float(np.min(gap[measured])) if measured.any() else math.nan
     clear = np.where(inside, np.abs(clear), -np.abs(clear))
     return inside, clear, walls, polys
+
+
+def _nearest_gaps(world: World, polys, sel, travel, margins, limit: float,
+                  spacing: float = 0.1) -> np.ndarray:
+    """Distances [m] to the walls of the bodies ``sel`` (N, n+1) that can be the smallest, or
+    the smallest beyond their margin (``inf`` for the others). A body moved rigidly so that no
+    corner travels more than t is within t of where it was (a rigid motion moves no point
+    farther than a corner), so its distance to the walls changed by at most t: the bodies at
+    samples about ``spacing`` [m] of travel apart are measured first, and a body whose bound
+    from its neighbouring measured samples (before and after) cannot reach the smallest found
+    is not measured."""
+    n_rows = sel.shape[0]
+    gap = np.full(sel.shape, np.inf)
+    bucket = np.floor(travel / spacing)
+    anchor_rows = np.flatnonzero(np.r_[True, bucket[1:] != bucket[:-1]])
+    anchors = np.zeros(sel.shape, dtype=bool)
+    anchors[anchor_rows] = True
+    anchors &= sel
+    gap[anchors] = world.wall_distance(polys[anchors], max_distance=limit)
+    # a body's distance is at least what was measured (at least the limit where nothing was
+    # found within it); -inf where not measured: no bound from there
+    known = np.where(anchors, np.minimum(gap, limit), -np.inf)
+    # the measured sample before and after every row (anchor rows only), per body
+    pos = np.searchsorted(anchor_rows, np.arange(n_rows), side="right") - 1
+    before = anchor_rows[np.maximum(pos, 0)]
+    after = anchor_rows[np.minimum(pos + 1, anchor_rows.size - 1)]
+    lower = np.maximum(known[before] - np.abs(travel - travel[before])[:, None],
+                       known[after] - np.abs(travel[after] - travel)[:, None])
+    found = gap[anchors]
+    best = float(found.min()) if found.size else math.inf
+    best_beyond = (float((gap - margins[None, :])[anchors].min()) if found.size else math.inf)
+    todo = sel & ~anchors & ((lower <= best + 1e-9)
+                             | (lower - margins[None, :] <= best_beyond + 1e-9))
+    if todo.any():
+        gap[todo] = world.wall_distance(polys[todo], max_distance=limit)
+    return gap
+
+
+def _measure_limit(field, upper, margins, sel) -> float | None:
+    """A distance [m] beyond which no body of ``sel`` can be the closest to the walls nor the
+    closest beyond its margin (None: nothing to limit). A body is at most as far from the walls
+    as its axle midpoint (inside its rectangle), whose distance is the field's value there
+    (``upper``) to within 1.5 cells and 2 mm."""
+    if not sel.any():
+        return None
+    slack = 1.5 * field.resolution + 0.002
+    bound = (upper + slack)[sel]
+    beyond = (upper + slack - margins[None, :])[sel]
+    limit = max(float(bound.min()), float(beyond.min()) + float(margins.max()))
+    return limit if math.isfinite(limit) else None
 
 
 def _last_moving_direction(direction: np.ndarray, segments: Sequence[Segment]) -> np.ndarray:

@@ -280,3 +280,31 @@ def test_pulling_an_arc_open_loop_jackknifes_but_the_closed_loop_does_not():
     assert worst > TRAIN.phi_max
     res = check_train(OPEN, TRAIN, (0, 0, 0), segs, tracker=TrackerConfig(goal_tolerance=None))
     assert res.ok and res.max_abs_phi.max() < TRAIN.phi_max / 3
+
+
+@pytest.mark.parametrize("margins", [0.0, [0.05, 0.1, 0.02, 0.15]])
+def test_measured_clearances_are_the_smallest_of_every_body_at_every_sample(margins):
+    """The check measures only the bodies that can be the closest to a wall (bounded by the
+    distance field and by how far each body moved between samples); its wall clearance and
+    its clearance beyond the margins equal the minimum over every body at every checked
+    sample, measured here one by one (shapely.distance to the walls)."""
+    import shapely
+
+    world = World.from_dict({"bounds": [-2, -3, 16, 3],
+                             "obstacles": [[[9, -3], [10, -3], [10, -0.5], [9, -0.5]],
+                                           [[4, 0.95], [4.7, 0.95], [4.7, 3], [4, 3]],
+                                           [[1.0, -0.6], [1.3, -0.6], [1.3, -0.3],
+                                            [1.0, -0.3]]]})
+    segments = [Segment("line", 3.0, 0.0, PUSH), Segment("arc", 1.0, 0.25, PUSH),
+                Segment("arc", 2.0, -0.25, PUSH), Segment("line", 5.0, 0.0, PUSH)]
+    res = check_train(world, TRAIN, (12.0, 0.0, 0.0), segments, margin=margins,
+                      field=world.distance_field())
+    assert np.isfinite(res.min_clearance) and np.isfinite(res.wall_clearance)
+    m = np.broadcast_to(np.asarray(margins, dtype=float), (TRAIN.n + 1,))
+    walls = world.free.boundary
+    gaps = np.array([[shapely.distance(walls, shapely.polygons(b.corners(
+        res.x[k, i], res.y[k, i], res.headings[k, i]))) for i, b in enumerate(TRAIN.bodies)]
+        for k in range(res.t.size)])
+    assert res.wall_clearance == pytest.approx(gaps.min(), abs=1e-9)
+    assert res.min_clearance == pytest.approx((gaps - m[None, :]).min(), abs=1e-9)
+    assert (gaps - m[None, :]).min() > 0.0  # all inside: the pruning's case
