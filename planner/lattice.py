@@ -357,7 +357,7 @@ class Search:
         if route is None:
             return
         pose = node.cursor.pose
-        along, off = route.project(pose[0], pose[1])
+        along, off = route.project(pose[0], pose[1], pose[2] + math.pi)
         if off > s.follow_offset:
             return
         travel_here = route.pose_at(along)[2]
