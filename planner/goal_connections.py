@@ -31,7 +31,7 @@ from pushtrain.core.reference import PULL, PUSH, Segment
 
 from .connect import corner_segments, rs_segments, sample_reference
 from .propagate import Propagator
-from .route import Route, comes_in_across
+from .route import Route, comes_in_across, starts_against
 from .train import Train
 
 __all__ = ["GoalConnections"]
@@ -58,11 +58,16 @@ class GoalConnections:
     clear : callable
         ``clear(pose, segments)``: whether the last trailer's footprint keeps its clearance
         along ``segments`` from ``pose`` (the search's cheap reference test).
+    start : (x, y, theta) or None
+        The last trailer's start pose (the K-turns are tried only where the train must turn
+        round: the route leaves against it and goes round no loop).
     """
 
     def __init__(self, train: Train, propagator: Propagator, goal, settings, reach: float,
-                 route: Callable[[], Route | None], clear: Callable[..., bool]):
+                 route: Callable[[], Route | None], clear: Callable[..., bool], start=None):
         self.train = train
+        self.start = start
+        self._turning: bool | None = None
         self.prop = propagator
         self.goal = goal
         self.s = settings
@@ -71,9 +76,11 @@ class GoalConnections:
         self._clear = clear
         self._pullback_starts: list | None = None
 
-    def candidates(self, pose, phi) -> Iterator[tuple[tuple, list[Segment]]]:
+    def candidates(self, pose, phi, kturns: bool = True) -> Iterator[tuple[tuple, list[Segment]]]:
         """(kind, segments) of every connection from reference ``pose`` (x, y, theta) with the
-        chain's joint angles ``phi`` (n,) [rad], in the order of the module docstring."""
+        chain's joint angles ``phi`` (n,) [rad], in the order of the module docstring (without
+        the K-turns unless ``kturns``: their checks of the straight train cost a millisecond
+        each, and the search tries them only every few expansions)."""
         s = self.s
         bend = float(np.abs(phi).max())
         bent = bend > s.pull_phi
@@ -101,6 +108,8 @@ class GoalConnections:
                 if push and self._straightens(push, bend) and self._clear(pose, push):
                     yield ("pullback", factor), push + pull
                     break
+        if kturns:
+            yield from self.kturns(pose, bent)
         gx, gy, gth = self.goal
         pre = (gx + s.approach * math.cos(gth), gy + s.approach * math.sin(gth), gth)
         for factor in s.analytic_radii:
@@ -112,6 +121,56 @@ class GoalConnections:
             direct = rs_segments(pose, self.goal, radius)
             if direct is not None:
                 yield ("direct", factor), direct
+
+    def kturns(self, pose, bent: bool) -> Iterator[tuple[tuple, list[Segment]]]:
+        """A K-turn's last legs from ``pose``: a straight push as long as the train plus
+        ``kturn_push`` (the train straightens in the branch; none where the chain is already
+        straight enough to pull), a straight pull back along that line until the goal's line
+        is ``kturn_extra`` [m] beyond the corner's tangent, then the driver's corner push onto
+        the goal (arc of the turning radius). What a tugger driver does in a T junction to go
+        back down the corridor he came up. Only where the straight train fits at the pull's
+        both ends."""
+        if not self.turning_round():
+            return
+        s = self.s
+        gx, gy, gth = self.goal
+        bx, by = math.cos(gth), math.sin(gth)
+        pushes = [self.train.hitch_length + e for e in s.kturn_push]
+        for push_length in ([] if bent else [0.0]) + pushes:
+            head = [Segment("line", push_length, 0.0, PUSH)] if push_length > 0.0 else []
+            ahead = tuple(map(float, sample_reference(pose, head, 0.05)[-1])) if head else pose
+            ux, uy = math.cos(ahead[2]), math.sin(ahead[2])  # a pull moves along theta
+            cross = ux * by - uy * bx
+            if abs(cross) < math.sin(s.kturn_min_turn):
+                return  # the lines are (nearly) parallel: no corner between them
+            meet = ((gx - ahead[0]) * by - (gy - ahead[1]) * bx) / cross
+            turn = math.pi - math.acos(max(-1.0, min(1.0, ux * bx + uy * by)))
+            if not self._straight_fits(ahead):
+                continue
+            for extra in s.kturn_extra:
+                pull = meet + s.radius * math.tan(0.5 * turn) + extra
+                if not 0.3 <= pull <= self.reach:
+                    continue
+                back = (ahead[0] + pull * ux, ahead[1] + pull * uy, ahead[2])
+                corner = corner_segments(back, self.goal, PUSH, s.radius, max_reach=self.reach)
+                if corner and self._straight_fits(back):
+                    yield (("kturn", push_length, extra),
+                           head + [Segment("line", pull, 0.0, PULL)] + corner)
+
+    def turning_round(self) -> bool:
+        """Whether the train must turn round without a loop to go round: the route leaves
+        against the start's direction of travel and is no loop (decided once)."""
+        if self._turning is None:
+            route = self._route() if self.start is not None else None
+            self._turning = (route is not None and not route.loop
+                             and starts_against(route, self.start))
+        return self._turning
+
+    def _straight_fits(self, pose) -> bool:
+        """Whether the straight train with its last trailer at ``pose`` is clear."""
+        state = self.prop.initial_state(pose, np.full(self.train.n + 1, pose[2]))
+        failure, _ = self.prop.check(np.array([state.z]))
+        return failure is None
 
     def pullbacks(self) -> list:
         """The pull-back connections' pulls onto the goal: (the pose the pull starts from, its

@@ -97,6 +97,7 @@ class Heuristic:
         self.free = free
         self.distance = _dijkstra(free, self._cell(self.goal[0], self.goal[1]), h)
         self.car = None
+        self.loop = None
         self._car_args = (field, clearance, car_resolution, car or {})
         if build_car:
             self.build_car()
@@ -122,6 +123,37 @@ class Heuristic:
         yc = ymin + hc * np.arange(int(math.floor((ymax - ymin) / hc)) + 1)
         free_c = field.at(xc[None, :], yc[:, None]) >= clearance - hc * math.sqrt(0.5)
         self.car = CarGrid(free_c, xmin, ymin, hc, self.goal, self.radius, **options)
+
+    def build_loop(self, start, band: tuple = ()) -> np.ndarray | None:
+        """The way round (a loop: an island, a hall to turn in) from ``start`` (x, y, theta;
+        chain convention) to the goal pushing only, as the car of :class:`CarGrid` drives it
+        ((m, 2) positions [m]), or None if the car cannot get there without pulling. Its arcs
+        keep the clearance on the field itself, and so do the arcs of radii ``band`` [m] round
+        their centres (the ring the turning train sweeps, less the clearance). When
+        there is one, :meth:`__call__` takes its pushing-only cost into account from then on:
+        the search is led round the loop, as a driver goes, rather than into turning on the
+        spot."""
+        field, clearance, hc, options = self._car_args
+        if hc is None:
+            return None
+        grid = CarGrid(*self._car_free(field, clearance, hc), self.goal, self.radius,
+                       headings=options.get("headings", 24),
+                       turn_weight=options.get("turn_weight", 0.3), push_only=True,
+                       band=(field, clearance, tuple(band)))
+        path = grid.push_path(start)
+        if path is not None:
+            self.loop = grid
+        return path
+
+    @staticmethod
+    def _car_free(field, clearance: float, hc: float):
+        """(free cells, x0, y0, cell size) of a :class:`CarGrid` of about ``hc`` [m] cells."""
+        xmin, ymin, xmax, ymax = field.bounds
+        hc = max(float(hc), math.sqrt((xmax - xmin) * (ymax - ymin) / MAX_CAR_CELLS))
+        xc = xmin + hc * np.arange(int(math.floor((xmax - xmin) / hc)) + 1)
+        yc = ymin + hc * np.arange(int(math.floor((ymax - ymin) / hc)) + 1)
+        free_c = field.at(xc[None, :], yc[:, None]) >= clearance - hc * math.sqrt(0.5)
+        return free_c, xmin, ymin, hc
 
     def _cell(self, x: float, y: float) -> tuple[int, int]:
         """(row, column) of the grid node nearest to (x, y), clamped to the grid."""
@@ -162,6 +194,10 @@ class Heuristic:
         if g == math.inf:
             return math.inf
         best = max(g, self.rs(pose))
+        if self.loop is not None:
+            loop = self.loop(pose, direction, straight)
+            if loop < math.inf:
+                best = max(best, loop)
         if self.car is not None:
             car = self.car(pose, direction, straight)
             if car < math.inf:  # the car's grid is coarse: it never rules a pose out
@@ -196,7 +232,8 @@ class CarGrid:
 
     def __init__(self, free: np.ndarray, x0: float, y0: float, h: float, goal, radius: float,
                  headings: int = 24, turn_weight: float = 0.3, cusp_cost: float = 2.0,
-                 pull_factor: float = 1.2, straighten: float = 0.0, train_length: float = 0.0):
+                 pull_factor: float = 1.2, straighten: float = 0.0, train_length: float = 0.0,
+                 push_only: bool = False, band: tuple | None = None):
         ny, nx = free.shape
         self.free, self.x0, self.y0, self.h, self.k = free, x0, y0, h, int(headings)
         k_n = self.k
@@ -222,6 +259,8 @@ class CarGrid:
         if straighten > 0.0:
             long = length * max(1, math.ceil(straighten / length))
             moves.append((0, -1.0, 0, long, 1.0, {0: 2}))
+        if push_only:  # a loop: the car never pulls (see push_path)
+            moves = [(0, -1.0, turn, length, 1.0, {0: 0}) for turn in (-1, 0, 1)]
         # where the straight train fits behind the car (toward the robot, along theta): the
         # only places a pull may start or go (a driver pulls a straight train)
         fits = np.ones((m, k_n), dtype=bool)
@@ -249,6 +288,9 @@ class CarGrid:
             ok = ((i2 >= 0) & (i2 < ny) & (j2 >= 0) & (j2 < nx)).all(axis=1)
             i2c, j2c = np.clip(i2, 0, ny - 1), np.clip(j2, 0, nx - 1)
             ok &= free[i2c, j2c].all(axis=1)
+            if band is not None:
+                ok &= _band_clear(band, x0 + h * jj[cell], y0 + h * ii[cell], kk, px, py,
+                                  th0, turn, radius, sigma, s_pts)
             src = self._state(cell[ok], kk[ok], 0) // GEARS
             dst_cell = index[i2c[ok, -1], j2c[ok, -1]]
             k_end = (kk[ok] + turn * step) % k_n
@@ -275,12 +317,47 @@ class CarGrid:
             for gj in (int(math.floor(gu)), int(math.floor(gu)) + 1):
                 if 0 <= gi < ny and 0 <= gj < nx and free[gi, gj]:
                     sources += [self._state(index[gi, gj], (kg + dk) % k_n, g)
-                                for dk in (-1, 0, 1) for g in range(GEARS)]
+                                for dk in (-1, 0, 1) for g in ((0,) if push_only
+                                                               else range(GEARS))]
         self.cost = np.full((ny, nx, k_n, GEARS), np.inf)
-        if sources:
+        self._next = None
+        if sources and push_only:
+            # the predecessors on the reversed graph are each state's next state toward the goal
+            dist, self._next, _ = dijkstra(graph, directed=True, indices=sources,
+                                           min_only=True, return_predecessors=True)
+            self.cost[ii, jj] = dist.reshape(m, k_n, GEARS)
+        elif sources:
             dist = dijkstra(graph, directed=True, indices=sources, min_only=True)
             self.cost[ii, jj] = dist.reshape(m, k_n, GEARS)
         self._index = index
+        self._cells = (ii, jj)
+        self._goal = (float(goal[0]), float(goal[1]))
+
+    def push_path(self, pose) -> np.ndarray | None:
+        """The car's cheapest pushing-only way (built with ``push_only``) from ``pose`` (chain
+        convention) to the goal: (m, 2) positions [m] of its moves' ends, from ``pose`` to the
+        goal; None where it has none."""
+        if self._next is None:
+            return None
+        ny, nx = self.free.shape
+        k = self._bin(pose[2])
+        u, v = (pose[0] - self.x0) / self.h, (pose[1] - self.y0) / self.h
+        best, state = math.inf, None
+        for i in (int(math.floor(v)), int(math.floor(v)) + 1):
+            for j in (int(math.floor(u)), int(math.floor(u)) + 1):
+                if 0 <= i < ny and 0 <= j < nx and self._index[i, j] >= 0:
+                    if self.cost[i, j, k, 0] < best:
+                        best, state = self.cost[i, j, k, 0], self._state(self._index[i, j], k, 0)
+        if state is None:
+            return None
+        ii, jj = self._cells
+        out = [(float(pose[0]), float(pose[1]))]
+        while state >= 0:
+            cell = state // (self.k * GEARS)
+            out.append((self.x0 + self.h * jj[cell], self.y0 + self.h * ii[cell]))
+            state = int(self._next[state])
+        out.append(self._goal)
+        return np.array(out)
 
     def _state(self, cell, k: int, gear: int):
         return (cell * self.k + k) * GEARS + gear
@@ -313,6 +390,29 @@ class CarGrid:
             # no room for the car's straightening run: the chain may straighten in less
             return self(pose, direction, True)
         return best
+
+
+def _band_clear(band: tuple, x: np.ndarray, y: np.ndarray, kk: np.ndarray, px: np.ndarray,
+                py: np.ndarray, th0: np.ndarray, turn: int, radius: float, sigma: float,
+                s_pts: np.ndarray) -> np.ndarray:
+    """Whether a move of the car from (x, y) (m K,) [m] in heading bins ``kk`` keeps, on the
+    distance field itself, ``clearance`` at its own samples (offsets ``px``, ``py``
+    (K, samples) [m]) and, on an arc, at the same samples on the arcs of ``radii`` [m] round
+    its centre: ``band`` = (field, clearance, radii), the ring the turning train sweeps."""
+    field, clearance, radii = band
+    offsets = [(px, py)]
+    if turn != 0:
+        kap = turn / radius
+        th = th0[:, None] + kap * s_pts[None, :]
+        vx, vy = sigma * np.sin(th) / kap, -sigma * np.cos(th) / kap  # centre -> car
+        cx, cy = -vx[:, :1], -vy[:, :1]
+        offsets += [(cx + vx * r * abs(kap), cy + vy * r * abs(kap)) for r in radii
+                    if abs(r - radius) > 0.01]
+    ok = np.ones(x.size, dtype=bool)
+    for qx, qy in offsets:
+        d = field.at(x[:, None] + qx[kk], y[:, None] + qy[kk])
+        ok &= (d >= clearance).all(axis=1)
+    return ok
 
 
 GEARS = 3

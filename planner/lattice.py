@@ -205,7 +205,8 @@ class Search:
         self._last_analytic = -10**9
         self._pending: Node | None = None
         self.connections = GoalConnections(train, propagator, self.goal, settings, self.reach,
-                                           lambda: self.route, self.reference_clear)
+                                           lambda: self.route, self.reference_clear,
+                                           start=start_cursor.pose)
         root = Node(start, start_cursor, 0.0, heuristic(start_cursor.pose))
         self.root = root
         self.closest = root
@@ -357,7 +358,7 @@ class Search:
         if route is None:
             return
         pose = node.cursor.pose
-        along, off = route.project(pose[0], pose[1])
+        along, off = route.project(pose[0], pose[1], pose[2] + math.pi)
         if off > s.follow_offset:
             return
         travel_here = route.pose_at(along)[2]
@@ -463,15 +464,16 @@ class Search:
         due = (self.stats.expansions - self._last_analytic >= s.analytic_every
                or node is self.root)
         attempts = 0
-        for kind, segments in self.connections.candidates(node.cursor.pose, node.state.phi()):
-            if kind[0] in ("pullback", "approach", "direct") and not due:
+        for kind, segments in self.connections.candidates(node.cursor.pose, node.state.phi(),
+                                                           kturns=due):
+            if kind[0] in ("pullback", "kturn", "approach", "direct") and not due:
                 break
             if attempts >= s.analytic_per_node and not due:
                 break
             if not segments or not self._reference_clear(node.cursor, segments):
                 continue
             attempts += 1
-            if kind[0] in ("pullback", "approach", "direct"):
+            if kind[0] in ("pullback", "kturn", "approach", "direct"):
                 self._last_analytic = self.stats.expansions
             self.stats.analytic_closed_loop += 1
             rollout, _, _ = self._roll(node, segments, goal=self.goal)

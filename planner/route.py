@@ -40,7 +40,7 @@ from scipy.sparse.csgraph import dijkstra
 from pushtrain.facility.distance_field import DistanceField
 
 __all__ = ["Route", "MAX_ROUTE_NODES", "SPACING", "find_route", "comes_in_across",
-           "grid_graph", "undirected_graph"]
+           "starts_against", "passes_back", "loop_route", "grid_graph", "undirected_graph"]
 
 MAX_ROUTE_NODES = 400_000
 """Most nodes of the route's grid (about 26 MB of graph): a 100 m x 100 m map gets 16 cm cells."""
@@ -71,6 +71,9 @@ class Route:
         Distance [m] from each point to the nearest wall.
     needed : float
         Half the width [m] the train needs (the last trailer's width plus its clearance).
+    loop : bool
+        The route goes round a loop (:func:`loop_route`) and may pass a place twice, in
+        opposite directions: a point is projected onto the stretch travelled its way.
     """
 
     points: np.ndarray
@@ -78,14 +81,21 @@ class Route:
     heading: np.ndarray
     half_width: np.ndarray
     needed: float
+    loop: bool = False
 
     @property
     def length(self) -> float:
         return float(self.s[-1])
 
-    def project(self, x: float, y: float) -> tuple[float, float]:
-        """(length along the route [m], distance from it [m]) of the point nearest to (x, y)."""
+    def project(self, x: float, y: float, travel: float | None = None) -> tuple[float, float]:
+        """(length along the route [m], distance from it [m]) of the point nearest to (x, y);
+        on a loop with ``travel`` (a direction of travel [rad]), the nearest of the points
+        travelled within 90 degrees of it."""
         d2 = (self.points[:, 0] - x) ** 2 + (self.points[:, 1] - y) ** 2
+        if self.loop and travel is not None:
+            against = np.abs(np.remainder(self.heading - travel + math.pi, 2.0 * math.pi)
+                             - math.pi) > 0.5 * math.pi
+            d2 = np.where(against, np.inf, d2)
         i = int(np.argmin(d2))
         return float(self.s[i]), math.sqrt(float(d2[i]))
 
@@ -216,6 +226,36 @@ def find_route(field: DistanceField, start, goal, half_width: float, *,
     return _route_from_polyline(xy, field, half_width, smooth)
 
 
+def starts_against(route: Route, start, angle: float = 0.5 * math.pi) -> bool:
+    """Whether ``route``'s direction of travel over its first metre differs from the direction
+    the train is pushed at ``start`` (x, y, theta; chain convention) by more than ``angle``
+    [rad]: the train must turn round (its goal is behind it)."""
+    if route.length < 0.2:
+        return False
+    x, y, _ = route.pose_at(min(1.0, route.length))
+    travel_out = math.atan2(y - float(start[1]), x - float(start[0]))
+    pushed = float(start[2]) + math.pi
+    return abs(math.remainder(pushed - travel_out, 2.0 * math.pi)) > angle
+
+
+def passes_back(route: Route, start, within: float = 1.0) -> bool:
+    """Whether ``route`` comes back within ``within`` [m] of ``start`` (x, y, theta; chain
+    convention) travelling against the train's start direction: a loop round an island or a
+    hall and back out of the way the train came in (not merely another way to a far goal)."""
+    away = float(start[2])  # the start's direction of travel (theta + pi) reversed
+    along, off = route.project(float(start[0]), float(start[1]), away)
+    return off <= within and along > within
+
+
+def loop_route(points: np.ndarray, field: DistanceField, half_width: float,
+               smooth: float = 1.0) -> Route:
+    """The route along ``points`` ((m, 2) [m]: a way round a loop from the start to the
+    goal, :meth:`~pushtrain.planner.heuristic.Heuristic.build_loop`), smoothed and resampled
+    like :func:`find_route`'s."""
+    return _route_from_polyline(np.asarray(points, dtype=float), field, half_width, smooth,
+                                loop=True)
+
+
 def comes_in_across(route: Route, goal, angle: float) -> bool:
     """Whether ``route``'s direction of travel over its last metre differs from the direction
     a train is pushed at ``goal`` (x, y, theta; chain convention: theta + pi) by more than
@@ -229,7 +269,7 @@ def comes_in_across(route: Route, goal, angle: float) -> bool:
 
 
 def _route_from_polyline(xy: np.ndarray, field: DistanceField, needed: float,
-                         smooth: float) -> Route:
+                         smooth: float, loop: bool = False) -> Route:
     """Resample the node polyline every :data:`SPACING` m, smooth it over ``smooth`` m (the
     ends kept), and measure its headings and free half-widths."""
     xy = _resample(xy, SPACING)
@@ -246,7 +286,7 @@ def _route_from_polyline(xy: np.ndarray, field: DistanceField, needed: float,
     heading = np.arctan2(d[:, 1], d[:, 0])
     heading = np.unwrap(np.concatenate([heading, heading[-1:]]))
     half = field.at(xy[:, 0], xy[:, 1])
-    return Route(xy, s, heading, half, float(needed))
+    return Route(xy, s, heading, half, float(needed), loop)
 
 
 def _resample(xy: np.ndarray, spacing: float) -> np.ndarray:

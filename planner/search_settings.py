@@ -76,6 +76,13 @@ class SearchSettings:
     pullback_settle : float
         Length [m] of the straight pull after the pull-back's arc: the last trailer, which
         cuts the arc's inside while pulled, settles onto the goal's line on it.
+    kturn_push, kturn_extra : tuple of float
+        The K-turn connection (:meth:`GoalConnections.kturns
+        <pushtrain.planner.goal_connections.GoalConnections.kturns>`): where the chain is bent,
+        a straight push as long as the train plus each of ``kturn_push`` [m] first; the
+        pull back goes ``kturn_extra`` [m] beyond the corner's tangent point.
+    kturn_min_turn : float
+        The least turn [rad] from the pull's line onto the goal's for a K-turn corner.
     analytic_every, analytic_per_node : int
         Reeds-Shepp connections are tried every ``analytic_every`` expansions; at most
         ``analytic_per_node`` closed-loop connection attempts per node otherwise.
@@ -117,6 +124,9 @@ class SearchSettings:
     pullback_enter: float = math.radians(60.0)
     pullback_turns: tuple = tuple(math.radians(a) for a in range(-90, 91, 5))
     pullback_extra: tuple = (0.5, 2.0)
+    kturn_push: tuple = (0.5,)
+    kturn_extra: tuple = (0.3,)
+    kturn_min_turn: float = math.radians(30.0)
     pullback_keep: int = 3
     pullback_settle: float = 1.0
     analytic_every: int = 4

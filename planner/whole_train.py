@@ -54,7 +54,7 @@ from .lattice import Search
 from .passage import needed_half_width, passable, swept_band, tight_corners, widest_gap
 from .path import PlannedPath
 from .propagate import Cursor, Propagator
-from .route import find_route
+from .route import find_route, loop_route, passes_back, starts_against
 from .search_settings import SearchSettings
 from .smooth import merge, path_cost, shortcut
 from .train import Train
@@ -145,6 +145,18 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
 
     def route_of():
         route = find_route(field, start, goal, half_width)
+        if route is not None and starts_against(route, start):
+            # the goal is behind the train: a way round (an island, a hall) pushing only and
+            # back past the start is the driver's route, and leads the search (see
+            # Heuristic.build_loop)
+            band = swept_band(train, radius, margins)
+            loop = heuristic.build_loop(start, (band.r_in + passage, band.r_out - passage))
+            loop = None if loop is None else loop_route(loop, field, half_width)
+            if loop is not None and passes_back(loop, start):
+                route = loop
+                log.info("the goal is behind the train: a loop round, %.1f m", route.length)
+            else:
+                heuristic.loop = None  # another way to a far goal: the driver's route leads
         if route is not None:
             log.info("route %.1f m", route.length)
         return route
