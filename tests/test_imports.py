@@ -533,3 +533,28 @@ def test_c_files_call_one_another_without_a_circle(files):
     for name in graph:
         visit(name)
     assert len(paths) >= 1
+
+
+TEST_ROOMS = {*ROOMS, "base", "benchmarks"} - {"pushtrain"}
+"""Folders of tests/: one a room (``base`` for ``pushtrain/`` itself, ``benchmarks`` for the
+benchmark scripts' own checks)."""
+CROSS_ROOM_TESTS = {"test_examples.py", "test_imports.py", "test_one_definition.py"}
+"""The test modules of the whole product, which stay at the top of tests/."""
+
+
+def test_tests_are_laid_out_like_the_product():
+    """tests/<room>/test_<module>.py: every test module in the folder of the room it tests (or
+    one of the few cross-room modules at the top), none named after an issue."""
+    tests = ROOT / "tests"
+    wrong = []
+    for path in sorted(tests.rglob("test_*.py")):
+        where = path.relative_to(tests)
+        if len(where.parts) == 1:
+            ok = where.name in CROSS_ROOM_TESTS
+        else:
+            ok = len(where.parts) == 2 and where.parts[0] in TEST_ROOMS
+        if not ok or any(word in path.stem for word in ("planted", "issue")):
+            wrong.append(str(where))
+    assert not wrong, "test modules outside tests/<room>/ or named after an issue: " + \
+        ", ".join(wrong)
+

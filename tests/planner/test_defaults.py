@@ -56,7 +56,7 @@ def test_the_default_plans_the_k_turn_that_the_old_one_second_did_not():
     """Five trailers K-turned in a T junction (examples/t_junction_kturn.toml): the old
     default of 1 s (150 000 steps) runs out; the scenario's defaults plan it. (The hall
     reversal of five trailers, once this test's case, now plans within the old second: the
-    search is led round the hall by its loop, see test_planner_turnarounds.py.)"""
+    search is led round the hall by its loop, see tests/planner/test_turnarounds.py.)"""
     with pytest.raises(PlanningError) as info:
         runner.plan_path(_example("t_junction_kturn", n=5, time_budget=1.0))
     assert info.value.reason == "budget_exhausted"

@@ -16,7 +16,7 @@ from pushtrain.planner.heuristic import Heuristic
 from pushtrain.planner.passage import needed_half_width, swept_band
 from pushtrain.planner.route import loop_route
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def _example(name: str, n: int):
