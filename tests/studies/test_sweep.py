@@ -10,10 +10,12 @@ import json
 import logging
 import math
 import os
+import sys
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from sweep_tasks import INJECTED, die_when_asked, install_failing_runner, restore_runner
 
 from pushtrain.errors import SweepError
 from pushtrain.mission.scenario import parse_scenario
@@ -243,31 +245,6 @@ def test_bias_offset_matches_the_closed_form(serial8):
         assert row["steady_lat_m"] == pytest.approx(expected, rel=0.03), row
 
 
-INJECTED = "injected failure of the co-simulation"
-
-
-def _install_failing_runner(settle_time: float) -> None:
-    """Make every run with ``sim.settle_time == settle_time`` raise, in this process (a worker
-    of the test cluster or the test itself); :func:`_restore_runner` undoes it."""
-    from pushtrain.mission import runner
-
-    real = getattr(runner, "_real_run_scenario", runner.run_scenario)
-    runner._real_run_scenario = real
-
-    def run_scenario(sc, *args, **kwargs):
-        if sc.sim.settle_time == settle_time:
-            raise RuntimeError(INJECTED)
-        return real(sc, *args, **kwargs)
-
-    runner.run_scenario = run_scenario
-
-
-def _restore_runner() -> None:
-    from pushtrain.mission import runner
-
-    if hasattr(runner, "_real_run_scenario"):
-        runner.run_scenario = runner._real_run_scenario
-        del runner._real_run_scenario
 
 
 def test_failing_runs_are_recorded_and_the_sweep_finishes(client, base, tmp_path):
@@ -276,11 +253,11 @@ def test_failing_runs_are_recorded_and_the_sweep_finishes(client, base, tmp_path
         "parameters": [{"path": "train.phi_max_deg", "values": [90.0, 1.0]},
                        # runs with settle_time 0.5 raise inside the workers
                        {"path": "sim.settle_time", "values": [0.0, 0.5]}]})
-    client.run(_install_failing_runner, 0.5)
+    client.run(install_failing_runner, 0.5)
     try:
         outcome = sweep(base, spec, tmp_path, client=client, plots=True)
     finally:
-        client.run(_restore_runner)
+        client.run(restore_runner)
     by = {(r["train.phi_max_deg"], r["sim.settle_time"]): r for r in outcome.rows}
     assert outcome.complete and len(by) == 4
     assert by[(90.0, 0.0)]["ok"] and by[(90.0, 0.0)]["status"] == "goal_reached"
@@ -321,12 +298,12 @@ def _chunk_rows(out: Path) -> list[dict]:
 def test_a_run_that_raises_is_an_error_row_with_nan_metrics_not_zeros(base, tmp_path):
     spec = parse_sweep_spec({"metrics": list(METRICS), "chunk_size": 1, "overrides": {
         "sim.settle_time": 0.5}, "parameters": [{"path": "controller.k_y", "values": [3.0, 4.0]}]})
-    _install_failing_runner(0.5)
+    install_failing_runner(0.5)
     try:
         outcome = sweep(base, spec, tmp_path, serial=True, plots=False)
         resumed = sweep(base, spec, tmp_path, serial=True, plots=False)
     finally:
-        _restore_runner()
+        restore_runner()
     assert outcome.complete and outcome.new == 2 and resumed.skipped == 2 and resumed.new == 0
     for where, rows in [("returned", outcome.rows), ("resumed", resumed.rows),
                         ("results.csv", read_results(tmp_path / "results.csv")),
@@ -338,13 +315,6 @@ def test_a_run_that_raises_is_an_error_row_with_nan_metrics_not_zeros(base, tmp_
             numbers = {m: row[m] for m in METRICS}
             assert all(isinstance(v, float) and math.isnan(v) for v in numbers.values()), \
                 (where, numbers)
-
-
-def _die_when_asked(payload, shared):
-    """Task function whose worker process dies (as on a crash inside the FMU) when asked."""
-    if payload.get("die"):
-        os._exit(3)
-    return run_task(payload, shared)
 
 
 @pytest.mark.slow
@@ -362,7 +332,7 @@ def test_a_resumed_sweep_runs_a_lost_run_again(base, tmp_path):
             LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                          dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
             Client(cluster) as client:
-        first = run_sweep(runs, _die_when_asked, tmp_path, client=client, **kwargs)
+        first = run_sweep(runs, die_when_asked, tmp_path, client=client, **kwargs)
     # a run that finished just before the worker died may not have been reported: lost as well
     statuses = [r["status"] for r in first.rows]
     assert statuses[2] == "lost" and set(statuses[:2]) <= {"goal_reached", "lost"}, statuses
@@ -661,7 +631,6 @@ def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
     not after a time: on a loaded machine the sweep finished before a timed Ctrl-C arrived."""
     import signal
     import subprocess
-    import sys
     import threading
 
     from pushtrain.cli.main import cli
@@ -712,7 +681,6 @@ def test_sigterm_to_a_dask_sweep_is_exit_143_like_every_command(tmp_path):
     Dask cluster: exit 143 "terminated", the rows done kept (it was 130, Ctrl-C's code)."""
     import signal
     import subprocess
-    import sys
     import threading
 
     (tmp_path / "base.toml").write_text(BASE_TOML)
