@@ -117,7 +117,7 @@ def prepare(yaml: Path) -> dict:
     assert passable(field, start, goal, half)
     step("impossible?")
     Heuristic(field, goal, config.radius_for(train), half, build_car=False,
-              max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.time_budget))
+              max_nodes=int(HEURISTIC_NODES_PER_SECOND * 0.25 * config.budget_seconds()))
     step("heuristic")
     steps["to search"] = sum(steps.values())
     assert find_route(field, start, goal, 0.5 * train.last.width + config.margins(train)[-1])
