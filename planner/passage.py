@@ -242,38 +242,57 @@ def corner_need(band: SweptBand, turn: float) -> float:
     return band.r_out - band.r_in * math.cos(0.5 * turn)
 
 
+def chords(field: DistanceField, x, y, headings, reach: float = 5.0) -> np.ndarray:
+    """Free widths [m] wall to wall through the points (x, y) [m] (P,) across each direction
+    ``headings`` [rad] (A,) or (P, A) (each point's own): (P, A), along the normal of each
+    heading, the field's zero crossings interpolated (half-cell samples); 0 where the point
+    is in a wall, ``2 reach`` at most. One call to the field for every point and direction."""
+    h = 0.5 * field.resolution
+    t = np.arange(-reach, reach + h, h)
+    k0 = int(np.argmin(np.abs(t)))
+    x = np.atleast_1d(np.asarray(x, dtype=float))[:, None, None]
+    y = np.atleast_1d(np.asarray(y, dtype=float))[:, None, None]
+    headings = np.asarray(headings, dtype=float)
+    headings = headings[:, :, None] if headings.ndim == 2 else np.atleast_1d(headings)[None, :,
+                                                                                      None]
+    d = field.at(x - t * np.sin(headings), y + t * np.cos(headings))  # (P, A, T)
+    d[~np.isfinite(d)] = -1.0
+    ends = []
+    for side, t_side, sign in ((d[..., k0:], t[k0:], 1.0), (d[..., k0::-1], t[k0::-1], -1.0)):
+        # from the point outwards, one way: the last free sample, then the wall interpolated
+        wall = side[..., 1:] <= 0.0
+        hit = wall.any(axis=-1)
+        k = np.where(hit, np.argmax(wall, axis=-1), side.shape[-1] - 1)
+        a = np.take_along_axis(side, k[..., None], axis=-1)[..., 0]
+        b = np.take_along_axis(side, np.minimum(k + 1, side.shape[-1] - 1)[..., None],
+                               axis=-1)[..., 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ends.append(t_side[k] + np.where(hit, sign * h * a / (a - b), 0.0))
+    return np.where(d[..., k0] > 0.0, ends[0] - ends[1], 0.0)
+
+
 def width_across(field: DistanceField, x: float, y: float, heading: float,
                  reach: float = 5.0) -> float:
     """Free width [m] of the corridor through (x, y) across the direction ``heading`` [rad]:
     wall to wall along the normal (the field's zero crossings, interpolated); 0 in a wall."""
-    h = 0.5 * field.resolution
-    t = np.arange(-reach, reach + h, h)
-    nx, ny = -math.sin(heading), math.cos(heading)
-    d = field.at(x + t * nx, y + t * ny)
-    d[~np.isfinite(d)] = -1.0
-    k0 = int(np.argmin(np.abs(t)))
-    if d[k0] <= 0.0:
-        return 0.0
-    ends = []
-    for step in (-1, 1):
-        k = k0
-        while 0 <= k + step < t.size and d[k + step] > 0.0:
-            k += step
-        if not 0 <= k + step < t.size:
-            ends.append(t[k])
-            continue
-        a, b = d[k], d[k + step]  # a > 0 >= b: the wall between
-        ends.append(t[k] + step * h * a / (a - b))
-    return float(ends[1] - ends[0])
+    return float(chords(field, [x], [y], [heading], reach)[0, 0])
+
+
+CHORD_DIRECTIONS = np.linspace(0.0, math.pi, 36, endpoint=False)
+"""The directions [rad] :func:`shortest_chord` tries (a chord 2.5 deg off is 0.1 % long)."""
+
+
+def shortest_chords(field: DistanceField, x, y, reach: float = 2.5) -> np.ndarray:
+    """The shortest chord [m] through each point (x, y) (P,), wall to wall, over
+    :data:`CHORD_DIRECTIONS`: a corridor's or a door's width wherever in it the point is (at
+    least twice the point's distance from the walls); chords longer than ``2 reach`` count as
+    ``2 reach``."""
+    return chords(field, x, y, CHORD_DIRECTIONS, reach).min(axis=1)
 
 
 def shortest_chord(field: DistanceField, x: float, y: float, reach: float = 2.5) -> float:
-    """The shortest chord [m] through (x, y), wall to wall, over 36 directions (a chord
-    across a corridor 2.5 deg off is 0.1 % long): a corridor's or a door's width wherever in
-    it the point is (at least twice the point's distance from the walls); chords longer than
-    ``2 reach`` count as ``2 reach``."""
-    return min(width_across(field, x, y, th, reach) for th in np.linspace(0.0, math.pi, 36,
-                                                                           endpoint=False))
+    """:func:`shortest_chords` of one point (x, y) [m]."""
+    return float(shortest_chords(field, [x], [y], reach)[0])
 
 
 @dataclass(frozen=True)
@@ -321,11 +340,14 @@ class Corner:
 
 
 def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptBand,
-                  window: float = 1.0, min_turn: float = math.radians(30.0)) -> list[Corner]:
+                  window: float = 1.0, min_turn: float = math.radians(30.0),
+                  only_too_tight: bool = False) -> list[Corner]:
     """The corners of ``route`` (a :class:`~pushtrain.planner.route.Route`): turns of more
     than ``min_turn`` [rad] within ``2 window`` [m], each measured (:class:`Corner`) against
     ``band`` (the planner's radius) and ``tightest`` (the joints' tightest steady radius);
-    the tightest corner (the smallest width minus need) first."""
+    the tightest corner (the smallest width minus need) first. ``only_too_tight``: leave out
+    at once the corners twice the route's distance from the walls shows wide enough (a chord
+    through a point is at least twice its distance from the walls)."""
     s, heading = route.s, route.heading
     if route.length < 2.0 * window:
         return []
@@ -346,8 +368,24 @@ def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptB
         # the narrowest the legs get within 1.5 windows of the corner: the shortest chord,
         # wall to wall, through the route's points every 5 cm (a door in a thin wall is only
         # a few centimetres of a leg)
-        width = min(shortest_chord(field, *route.pose_at(sc + ds)[:2])
-                    for ds in np.arange(-1.5 * window, 1.5 * window + 1e-9, 0.05))
+        if only_too_tight:
+            # between the route's points (d is 1-Lipschitz) and to a sample of the field
+            near = np.abs(s - sc) <= 1.5 * window + 1e-9
+            spacing = float(np.max(np.diff(s))) if s.size > 1 else 0.0
+            lower = 2.0 * (float(route.half_width[near].min()) - 0.5 * spacing
+                           - field.resolution)
+            if lower >= corner_need(band, turn):
+                continue
+        legs = np.array([route.pose_at(sc + ds)
+                         for ds in np.arange(-1.5 * window, 1.5 * window + 1e-9, 0.05)])
+        if only_too_tight:
+            # across the legs only (within 20 deg of their normals), as far as the need: a
+            # width no smaller than the full measure's, the same wherever it is too tight
+            need = corner_need(band, turn)
+            across = legs[:, 2:3] + np.radians(np.arange(-20.0, 20.1, 5.0))[None, :]
+            width = float(chords(field, legs[:, 0], legs[:, 1], across, need).min())
+        else:
+            width = float(shortest_chords(field, legs[:, 0], legs[:, 1]).min())
         x, y, _ = route.pose_at(sc)
         corners.append(Corner(x, y, min(turn, math.pi), width, corner_need(band, turn),
                               corner_need(tightest, turn), tightest.radius, band))

@@ -128,7 +128,7 @@ class _Grid:
     """The route's grid over a distance field: nodes, their free distance and open mask."""
 
     def __init__(self, field: DistanceField, half_width: float, max_nodes: int,
-                 min_cell: float = 0.0):
+                 min_cell: float = 0.0, avoid: tuple = ()):
         xmin, ymin, xmax, ymax = field.bounds
         h = max(field.resolution, min_cell, math.sqrt((xmax - xmin) * (ymax - ymin) / max_nodes))
         self.h, self.x0, self.y0 = h, xmin, ymin
@@ -138,6 +138,8 @@ class _Grid:
         ys = ymin + h * np.arange(ny)
         self.d = field.at(xs[None, :], ys[:, None])
         self.open = self.d >= half_width - h * math.sqrt(0.5)
+        for ax, ay, radius in avoid:
+            self.open &= (xs[None, :] - ax) ** 2 + (ys[:, None] - ay) ** 2 > radius ** 2
         self.ii, self.jj, self.index, *self._graph = grid_graph(self.open, h)
 
     def cell(self, x: float, y: float) -> tuple[int, int]:
@@ -199,11 +201,12 @@ def undirected_graph(rows, cols, weights, m: int) -> csr_matrix:
 
 def find_route(field: DistanceField, start, goal, half_width: float, *,
                centre_band: float = 0.6, centre_weight: float = 2.0, smooth: float = 1.0,
-               max_nodes: int = MAX_ROUTE_NODES) -> Route | None:
+               max_nodes: int = MAX_ROUTE_NODES, avoid: tuple = ()) -> Route | None:
     """The route from ``start`` to ``goal`` (x, y, ...) [m] where a body of ``half_width``
     [m] (half its width plus its clearance) fits (see the module docstring); None if there is
-    none (see :func:`~pushtrain.planner.passage.widest_gap` for why)."""
-    grid = _Grid(field, half_width, max_nodes, MIN_CELL)
+    none (see :func:`~pushtrain.planner.passage.widest_gap` for why). ``avoid``: discs
+    (x, y, radius) [m] the route may not enter (corners the train cannot turn)."""
+    grid = _Grid(field, half_width, max_nodes, MIN_CELL, avoid)
     if grid.ii.size < 2:
         return None
     a = grid.nearest_open(start[0], start[1], 3.0 * grid.h + 0.5)

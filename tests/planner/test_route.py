@@ -263,3 +263,81 @@ def test_a_route_up_a_corridor_comes_in_across_a_goal_facing_along_the_hall():
     assert not comes_in_across(route, (0.0, 1.0, -0.5 * math.pi), limit)  # pushed north
     assert not comes_in_across(route, (0.0, 1.0, -0.5 * math.pi + math.radians(50.0)), limit)
     assert comes_in_across(route, (0.0, 1.0, 0.5 * math.pi), limit)  # pulled in: pushed south
+
+
+def _two_ways():
+    """A 0.9 m corridor along x (the train pushed +x in it), left of which a 0.9 m corridor
+    turns up at x = 4-4.9 m (a right-angle corner too tight for three trailers, see
+    test_passage) into a 2.5 m hall along the top; the first corridor also widens at x = 7 m
+    into a 2.5 m column that leads up into the same hall round wide corners. The goal is in
+    the hall."""
+    from shapely.geometry import box
+    from shapely.ops import unary_union
+
+    free = unary_union([box(0.0, 0.0, 7.2, 0.9), box(4.0, 0.5, 4.9, 6.2),
+                        box(4.0, 6.0, 12.5, 8.5), box(7.0, -0.8, 12.5, 1.7),
+                        box(10.0, -0.8, 12.5, 8.5)])
+    world = World(free.envelope.buffer(0.5).envelope, (free.envelope.buffer(0.5).envelope
+                                                       .difference(free),))
+    return world, (1.5, 0.45, math.pi), (6.0, 7.25, 0.0)
+
+
+def _in(route, x0, x1, y0, y1) -> bool:
+    p = route.points
+    return bool(np.any((p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 1] > y0) & (p[:, 1] < y1)))
+
+
+def test_the_route_keeps_off_a_corner_the_train_cannot_turn():
+    """The shortest way (up the 0.9 m side corridor) turns where three trailers cannot
+    (corner_need against the corridor's 0.9 m): the route the search follows goes round by
+    the wide column instead, and none of its corners is too tight; with the wide way shut the
+    tight corner is the only way, and the route keeps it."""
+    from pushtrain.planner.passage import swept_band, tight_corners
+    from pushtrain.planner.whole_train import turnable_route
+
+    world, start, goal = _two_ways()
+    field = world.distance_field()
+    train, config = Train.uniform(3), PlannerConfig()
+    margins = config.margins(train)
+    half = 0.5 * train.last.width + float(margins[-1])
+    shortest = find_route(field, start, goal, half)
+    assert _in(shortest, 4.0, 4.9, 2.0, 5.0)  # up the side corridor
+    band = swept_band(train, config.radius_for(train), margins)
+    route = turnable_route(field, train, start, goal, half, config, margins)
+    assert not _in(route, 4.0, 4.9, 2.0, 5.0) and _in(route, 10.0, 12.5, 2.0, 5.0)
+    assert route.length > shortest.length + 3.0
+    assert not any(c.width < c.needed - field.resolution
+                   for c in tight_corners(route, field, band, band))
+    # the wide column shut: the tight corner is the only way in, and stays
+    from shapely.geometry import box
+
+    shut = World(world.outline, (world.obstacles[0].union(box(10.0, 3.0, 12.5, 3.5)),))
+    field = shut.distance_field()
+    only = turnable_route(field, train, start, goal, half, config, margins)
+    assert _in(only, 4.0, 4.9, 2.0, 5.0)
+    assert only.length == pytest.approx(find_route(field, start, goal, half).length)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 10.0, 25.0, 40.0])
+def test_chords_across_a_straight_corridor_are_its_width_over_the_cosine(angle_deg):
+    """A 1.1 m corridor (y from 0 to 1.1): the chord through any point in it, across a
+    heading ``angle_deg`` off the corridor's direction, is 1.1 m / cos(angle) (plane
+    geometry), within a cell of the map; the shortest chord over all directions is 1.1 m."""
+    from shapely.geometry import box
+
+    from pushtrain.planner.passage import chords, shortest_chords
+
+    free = box(-5.0, 0.0, 5.0, 1.1)
+    outline = free.buffer(0.5).envelope
+    field = World(outline, (outline.difference(free),)).distance_field()
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-2.0, 2.0, 40), rng.uniform(0.05, 1.05, 40)
+    a = math.radians(angle_deg)
+    got = chords(field, x, y, [a, -a], reach=2.5)
+    assert got == pytest.approx(np.full((40, 2), 1.1 / math.cos(a)), abs=field.resolution)
+    assert shortest_chords(field, x, y) == pytest.approx(np.full(40, 1.1),
+                                                         abs=field.resolution)
+    # each point's own headings
+    own = chords(field, x, y, np.column_stack([np.full(40, a), rng.uniform(-1.0, 1.0, 40)]),
+                 reach=2.5)
+    assert own[:, 0] == pytest.approx(got[:, 0])
