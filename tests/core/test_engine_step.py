@@ -37,8 +37,8 @@ class _OneCall:
     def __init__(self, tracker, sensors, events, truth, phi_meas):
         self.tracker, self.events, self.truth, self.phi = tracker, events, truth, phi_meas
         self.sensors = sensors
-        self.struct = native.PtStep(ctypes.pointer(tracker.instant),
-                                    ctypes.pointer(sensors.model))
+        self.struct = native.PtStep(track=ctypes.pointer(tracker.instant),
+                                    sensors=ctypes.pointer(sensors.model))
         tracker.has_last = bool(sensors.config.measure_last_pose)
 
     def step(self, t):
@@ -53,8 +53,11 @@ class _OneCall:
             raise self.tracker.error(status, t, Measurement(m.x0, m.y0, m.theta0,
                                                             self.phi.tolist(), None), None)
         k, s = self.tracker.instant, self.struct
-        sample = k.sample
-        return (k.cmd[0], k.cmd[1], s.push[0], s.push[1], sample.x, sample.y, sample.theta,
+        sample = s.sample  # the step's own copies of the track's command and sample
+        fields = [name for name, _ in sample._fields_]
+        assert tuple(s.cmd) == tuple(k.cmd)
+        assert [getattr(sample, f) for f in fields] == [getattr(k.sample, f) for f in fields]
+        return (s.cmd[0], s.cmd[1], s.push[0], s.push[1], sample.x, sample.y, sample.theta,
                 sample.v, sample.w, sample.direction, *s.errors)
 
 
