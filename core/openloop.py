@@ -167,6 +167,12 @@ class ConstantCommand:
     w0: float = 0.0
     guide_geometry: None = None
 
+    def __post_init__(self):
+        for name in ("v0", "w0"):
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                raise ValueError(f"{name} = {value!r}: must be finite")
+
     @cached_property
     def profile(self) -> Profile:
         """The command as a :class:`Profile` of one piece that holds from the start of time."""

@@ -84,3 +84,14 @@ def test_a_table_the_c_cannot_take_is_refused_naming_the_field(pieces, period, f
     with pytest.raises(ValueError, match=re.escape(field)):
         Profile(pieces, period)
 
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: ConstantCommand(2, math.nan), "v0"), (lambda: ConstantCommand(2, 0.0, math.inf), "w0"),
+    (lambda: RotationProfile(2, 0.0, 1.0), "w_max"), (lambda: RotationProfile(2, 1.0, math.nan),
+                                                      "alpha"),
+    (lambda: RotationProfile(2, 1.0, 1.0, -1.0), "hold"),
+])
+def test_bad_profile_settings_are_refused_naming_the_field(make, field):
+    with pytest.raises(ValueError, match=f"^{field} = "):
+        make()
