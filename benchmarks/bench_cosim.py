@@ -7,8 +7,8 @@ For n = 3 and n = 50, in one process, on the same FMI 2.0 FMU:
     run takes the same number of steps): events, sensors, reference, controller, recorder, FMU.
     Judged: the master's one step loop (many steps per C call, ``cosim/csrc/master_loop.c``)
     with the compiled control law. Side by side: the same loop calling back the tests' readable
-    Python law each step (``tests/reference/controller.py``, passed in built: the path of the
-    slip governor and open-loop profiles); both must give the same run bit for bit.
+    Python law each step (``tests/reference/controller.py``, passed in built: the path of a law
+    written in Python); both must give the same run bit for bit.
 (b) raw
     a loop of bare ctypes calls on the FMU's own functions with preallocated value-reference and
     value arrays, doing per step the FMI calls the master does: ``fmi2GetReal`` of the states
@@ -28,7 +28,15 @@ alone on the master's measurements; it must give the master's commands bit for b
 masters cost without it, and the raw loop's getter share (the raw loop without its three
 gets). ``--profile`` adds a cProfile of one master run per n (top functions by own time).
 
-Run: python benchmarks/bench_cosim.py [--repeats 5] [--profile] [--n 3 50]
+(c) open loop, n = 3
+    the rotation of ``examples/rotation_slip.toml`` (a :class:`RotationProfile`, no reference,
+    32 s): the master with the profile's table evaluated in C each step (what every open-loop
+    run does), side by side with the same profile called back through the loop's Python hook
+    (the profile behind an object without its table: the path open-loop runs took before); both
+    must give the same run bit for bit, and the raw loop replaying the run's commands is the
+    floor. Printed: us per step of each and their ratios to raw.
+
+Run: python benchmarks/bench_cosim.py [--repeats 5] [--profile] [--n 3 50] [--no-open-loop]
 """
 
 from __future__ import annotations
@@ -52,6 +60,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from pushtrain.core.controller import Controller, ControllerConfig
+from pushtrain.core.openloop import RotationProfile
 from pushtrain.core.reference import Reference, Segment
 from pushtrain.core.sensors import Measurement
 from pushtrain.core.tracking import TrackingLoop
@@ -204,12 +213,13 @@ class RawLoop:
         shutil.rmtree(self.unzip, ignore_errors=True)
 
 
-def run_raw(fmu, n: int, result, without_gets: bool = False):
-    """(us per step, whether its last outputs equal the master's last row) of the raw loop;
-    with ``without_gets`` the us per step of its set and doStep calls alone instead."""
-    ref, cfg = mission(n)
+def run_raw(fmu, n: int, result, without_gets: bool = False, initial=None):
+    """(us per step, whether its last outputs equal the master's last row) of the raw loop
+    (from ``initial``, default the arc mission's start); with ``without_gets`` the us per step
+    of its set and doStep calls alone instead."""
     plant = PlantConfig(n_trailers=n)
-    initial = InitialState.behind_reference(ref, plant.geometry())
+    if initial is None:
+        initial = InitialState.behind_reference(mission(n)[0], plant.geometry())
     data = result.data
     raw = RawLoop(fmu, n)
     try:
@@ -261,11 +271,65 @@ def profile(fmu, n: int, horizon: float) -> None:
     pstats.Stats(prof).sort_stats("tottime").print_stats(14)
 
 
+ROTATION = dict(w_max=math.radians(10.0), alpha=math.radians(5.0))  # rotation_slip's swing
+ROTATION_HORIZON = 32.0  # [s]: 6,400 steps
+
+
+class HookedProfile:
+    """A profile behind an object without its C table: the master calls its ``command`` back
+    through the loop's Python hook each step."""
+
+    def __init__(self, profile):
+        self.n, self.guide_geometry, self.command = profile.n, None, profile.command
+
+
+def run_open_loop(fmu, hooked: bool):
+    """(us per step, Result) of the rotation's master run, the table in C or called back."""
+    profile = RotationProfile(3, **ROTATION)
+    controller = HookedProfile(profile) if hooked else profile
+    initial = InitialState(0.0, 0.0, np.zeros(4))
+    start = time.process_time()
+    result = simulate(fmu, None, controller, initial=initial, horizon=ROTATION_HORIZON,
+                      progress=False)
+    wall = time.process_time() - start
+    if not result.ok:
+        raise SystemExit(f"open-loop run ended early: {result.status}: {result.message}")
+    return wall / (len(result.data) - 1) * 1e6, result
+
+
+def open_loop(repeats: int) -> None:
+    """Section (c): the rotation profile in C against the same profile called back."""
+    fmu = build_fmu(3)
+    for hooked in (False, True):
+        run_open_loop(fmu, hooked)  # warm-up
+    times = {False: [], True: []}
+    raws, same, equal = [], True, True
+    for _ in range(repeats):
+        results = {}
+        for hooked in (False, True):
+            us, results[hooked] = run_open_loop(fmu, hooked)
+            times[hooked].append(us)
+        same = same and results[False].data.tobytes() == results[True].data.tobytes()
+        us_raw, ok = run_raw(fmu, 3, results[False],
+                             initial=InitialState(0.0, 0.0, np.zeros(4)))
+        raws.append(us_raw)
+        equal = equal and ok
+    r = statistics.median(raws)
+    c, py = statistics.median(times[False]), statistics.median(times[True])
+    print(f"open loop (rotation_slip's swing), n = 3, {len(results[False].data) - 1} steps, "
+          f"medians of {repeats} (CPU time of this process):\n"
+          f"  master, profile table in C   {c:7.2f} us/step: {c / r:.2f}x raw ({r:.2f} us/step)\n"
+          f"  master, profile called back  {py:7.2f} us/step: {py / r:.2f}x raw; "
+          f"called back / C = {py / c:.2f}x\n"
+          f"  the two runs bit-identical: {same}; raw loop reproduces the outputs: {equal}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--n", type=int, nargs="+", default=[3, 50])
     parser.add_argument("--profile", action="store_true")
+    parser.add_argument("--no-open-loop", action="store_true", help="skip section (c)")
     args = parser.parse_args()
     ratios = {}
     for n in args.n:
@@ -317,6 +381,8 @@ def main() -> None:
               f"set + doStep {bare:.2f} us/step")
         if args.profile:
             profile(fmu, n, horizon)
+    if not args.no_open_loop:
+        open_loop(args.repeats)
     print("RATIO master/raw, " + "; ".join(
         f"n = {n}: {ratios[n]['C law']:.2f}x (Python law {ratios[n]['Py law']:.2f}x)"
         for n in ratios) + " -- judged: the compiled law, target <= 1.5x")

@@ -1,11 +1,12 @@
 """Build and load the closed-loop engine (``core/csrc``) with ctypes.
 
 The engine's C files (:data:`ENGINE_FILES`: ``control.c``, the law, reference and pull guide,
-``ode.h``, the RK4, ``sensors.c``, the sensor model, ``step.c``, a co-simulation step's
-closed-loop work, ``rollout.c``, the planner's closed loop) are compiled once per machine with
-the system C compiler into a shared library, ``-std=c99 -O2 -fPIC -shared -ffp-contract=off
--lm`` (no fused multiply-add, so the C arithmetic rounds like Python's), and cached under
-``$PUSHTRAIN_CACHE/native`` (default ``~/.cache/pushtrain/native``) by a hash of the sources,
+``ode.h``, the RK4, ``sensors.c``, the sensor model, ``openloop.c``, open-loop command
+profiles, ``step.c``, a co-simulation step's closed-loop work, ``rollout.c``, the planner's
+closed loop) are compiled once per machine with the system C compiler into a shared library,
+``-std=c99 -O2 -fPIC -shared -ffp-contract=off -lm`` (no fused multiply-add, so the C
+arithmetic rounds like Python's), and cached under ``$PUSHTRAIN_CACHE/native`` (default
+``~/.cache/pushtrain/native``) by a hash of the sources,
 the compiler command, its version and the flags. Another room builds its own library on the
 engine's files the same way (:func:`load_library`: the co-simulation's step loop), and the
 controller FMU compiles :data:`ENGINE_FILES` ``["instant"]`` (:func:`engine_files`): the
@@ -17,8 +18,8 @@ The compiler is ``$CC`` if set, else Python's own (``sysconfig``'s ``CC``), else
 one :class:`~pushtrain.errors.NativeBuildError` says what to install or set.
 
 :func:`load` returns the :class:`ctypes.CDLL` with every prototype declared; the ``Pt*``
-structures below mirror the C structs of ``control.h``, ``sensors.h``, ``step.h`` and
-``rollout.h`` (their sizes are checked against the library at load time).
+structures below mirror the C structs of ``control.h``, ``sensors.h``, ``openloop.h``,
+``step.h`` and ``rollout.h`` (their sizes are checked against the library at load time).
 """
 
 from __future__ import annotations
@@ -53,6 +54,8 @@ __all__ = [
     "PtGovernor",
     "PtMeasurement",
     "PtPhase",
+    "PtProfile",
+    "PtProfilePiece",
     "PtRecord",
     "PtReference",
     "PtRollout",
@@ -76,8 +79,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ENGINE_FILES = {
-    "instant": ("control.c", "control.h", "governor.c", "governor.h", "ode.h", "sensors.c",
-                "sensors.h", "step.c", "step.h"),
+    "instant": ("control.c", "control.h", "governor.c", "governor.h", "ode.h", "openloop.c",
+                "openloop.h", "sensors.c", "sensors.h", "step.c", "step.h"),
     "rollout": ("rollout.c", "rollout.h"),
 }
 """The engine's C files in ``core/csrc``: one control instant with its sensors and step
@@ -176,9 +179,20 @@ class PtGovernor(ctypes.Structure):
                 ("w_prev", c_double), ("saturated", ctypes.c_long), ("limited", ctypes.c_long)]
 
 
+class PtProfilePiece(ctypes.Structure):
+    _fields_ = [("t", c_double), ("start", c_double * 2), ("rate", c_double * 2),
+                ("stop", c_double * 2)]
+
+
+class PtProfile(ctypes.Structure):
+    _fields_ = [("n_pieces", c_int), ("pieces", POINTER(PtProfilePiece)), ("period", c_double),
+                ("flip", c_int)]
+
+
 class PtStep(ctypes.Structure):
-    _fields_ = [("track", POINTER(PtTrack)), ("sensors", POINTER(PtSensors)),
-                ("n_pushes", c_int), ("pushes", D_PTR), ("push", c_double * 2),
+    _fields_ = [("track", POINTER(PtTrack)), ("profile", POINTER(PtProfile)),
+                ("sensors", POINTER(PtSensors)), ("n_pushes", c_int), ("pushes", D_PTR),
+                ("cmd", c_double * 2), ("sample", PtSample), ("push", c_double * 2),
                 ("errors", c_double * 3), ("governor", POINTER(PtGovernor)),
                 ("governor_work", D_PTR)]
 
@@ -248,6 +262,8 @@ _PROTOTYPES = {
     "pt_measure_joints": (None, [P(PtSensors), D_PTR, D_PTR, D_PTR]),
     "pt_measure": (c_int, [P(PtSensors), D_PTR, D_PTR, D_PTR, P(PtMeasurement)]),
     "pt_step_sizeof": (c_size_t, []),
+    "pt_profile_sizeof": (c_size_t, [c_int]),
+    "pt_profile_command": (c_int, [P(PtProfile), c_double, D_PTR]),
     "pt_governor_sizeof": (c_size_t, []),
     "pt_governor_work": (c_int, [c_int]),
     "pt_governor_limit": (None, [P(PtGovernor), D_PTR, D_PTR, D_PTR, D_PTR]),
@@ -452,6 +468,7 @@ def _declare_engine(lib: ctypes.CDLL, path: Path) -> None:
     sizes.append((lambda _: lib.pt_sensors_sizeof(), 0, PtSensors))
     sizes.append((lambda _: lib.pt_step_sizeof(), 0, PtStep))
     sizes.append((lambda _: lib.pt_governor_sizeof(), 0, PtGovernor))
+    sizes += [(lib.pt_profile_sizeof, w, st) for w, st in enumerate((PtProfile, PtProfilePiece))]
     for sizeof, which, struct in sizes:
         size = sizeof(which)
         if size != ctypes.sizeof(struct):

@@ -4,7 +4,8 @@ At every control instant ``t``: sample the last trailer's reference at ``t`` (a 
 during cusp dwells, before the start and after the goal), while pulling also the robot's own
 reference from the :class:`~pushtrain.core.pulling.PullGuide` built with the controller's chain
 model (``controller.guide_geometry``), and ask the controller for the robot command. The
-co-simulation master uses it for the slip governor and open-loop profiles; with the compiled law
+co-simulation master calls it back for a law written in Python (the compiled law, with its slip
+governor, and open-loop profiles run in its C loop); with the compiled law
 (:class:`~pushtrain.core.controller.Controller`) the whole instant is one C call
 (``pt_track``), which the engine (``core/csrc``) also runs inside its loops. The tests' reference
 closed loop (``tests/reference/closed_loop.py``) steps it with the readable reference law

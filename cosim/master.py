@@ -21,11 +21,12 @@ do step
 Per step that is four FMI calls and one doStep, in one loop: the step loop in C
 (:mod:`~pushtrain.cosim.step_loop`, ``cosim/csrc/master_loop.c``: up to
 :data:`~pushtrain.cosim.step_loop.CHUNK` steps per C call, FMI 2.0 and 3.0, back in Python only
-for events, the progress bar, the goal, a jackknife or a failure). A controller the engine does
-not run (open-loop profiles, a law written in Python) is called back from it
-each step. ``tests/reference/master_loop.py`` writes the same loop step by step in Python; the
-tests hold the two equal bit for bit, and ``benchmarks/bench_cosim.py`` times the loop against a
-raw-ctypes loop doing the same calls.
+for events, the progress bar, the goal, a jackknife or a failure). The compiled law (with the
+slip governor) and open-loop profiles (:mod:`~pushtrain.core.openloop`: their table) run inside
+it; only a law written in Python (or the compiled law on a sampled reference) is called back
+from it each step. ``tests/reference/master_loop.py`` writes the same loop step by step in
+Python; the tests hold the two equal bit for bit, and ``benchmarks/bench_cosim.py`` times the
+loop against a raw-ctypes loop doing the same calls.
 
 Use :func:`simulate`; it returns a :class:`Result` that can :meth:`~Result.save` CSV, NPZ and
 ``summary.json`` (each written atomically).

@@ -15,10 +15,12 @@ the doStep) and returns to Python only where Python must act:
 The step's closed-loop work is the engine's ``pt_step`` (``core/csrc/step.c``: sensors,
 reference sample, pull leader, command, push force, tracking errors) when the controller is the
 compiled law tracking a line/arc reference (with the slip governor after it, in C, when the law
-is governed); any other controller (an open-loop profile, a law written in Python, a sampled
-reference) is called back from the loop
-each step through a hook (:class:`PythonLaw`: the compiled sensors, the Python command, the push
-force and errors in Python).
+is governed) or an open-loop profile (its :class:`~pushtrain.core.openloop.Profile` table,
+handed to C once and evaluated there each step; the reference sample's pose and the errors are
+the NaN ``PT_NO_VALUE``). Only a law written in Python (the tests' readable law) or the compiled
+law on a sampled reference is called back from the loop each step through a hook
+(:class:`PythonLaw`: the compiled sensors, the Python command, the push force and errors in
+Python); no bundled example takes that path.
 
 Noise comes from the sensors' own ``numpy.random.Generator``: Python draws the standard normals
 of a call's steps in one block (:class:`NoiseBuffer`), in the sensor model's order, scaled as
@@ -38,9 +40,10 @@ import numpy as np
 from pushtrain.core import native
 from pushtrain.core.controller import Tracker
 from pushtrain.core.kinematics import wrap_scalar
+from pushtrain.core.openloop import Profile
 from pushtrain.core.reference import ReferenceSample
 from pushtrain.core.sensors import Measurement, Sensors
-from pushtrain.errors import CosimError, NativeBuildError
+from pushtrain.errors import ControllerError, CosimError, NativeBuildError
 
 __all__ = ["CHUNK", "LOOP_FILES", "PythonLaw", "NoiseBuffer", "StepLoop"]
 
@@ -133,13 +136,12 @@ class NoiseBuffer:
 
 
 class PythonLaw:
-    """The step's closed-loop work for a controller the engine does not run (an open-loop
-    profile, a law written in Python, a sampled reference), called back from the
-    C loop: the compiled sensors measure ``truth`` into ``phi``, the controller commands through
+    """The step's closed-loop work for a controller the engine does not run (a law written in
+    Python, the compiled law on a sampled reference), called back from the C loop: the compiled
+    sensors measure ``truth`` into ``phi``, the controller commands through
     ``command(t, measurement) -> (v0, w0, info, ref)``, and the push force and tracking errors
-    are computed here (an open loop's reference sample is NaN: the sign of a NaN result depends
-    on how a compiler orders the operands, so its bits are those of this Python). The results go
-    to :attr:`out` (``PT_OUT_*`` order); an exception is kept in :attr:`error`."""
+    are computed here. The results go to :attr:`out` (``PT_OUT_*`` order); an exception is kept
+    in :attr:`error`."""
 
     def __init__(self, truth: np.ndarray, sensors: Sensors, events, command):
         self.truth, self.events, self.command = truth, events, command
@@ -156,6 +158,8 @@ class PythonLaw:
         v_cmd, w_cmd, _, ref = self.command(t, self._measure())
         x_n, y_n, th_n = self.truth[3:6].tolist()
         push_x, push_y = self.events.push_force(t, th_n) if self.events.pushes else (0.0, 0.0)
+        if math.isnan(ref.x):  # no reference: the one NaN, as pt_step's PT_NO_VALUE
+            return (v_cmd, w_cmd, push_x, push_y, *ref, math.nan, math.nan, math.nan)
         dx, dy = x_n - ref.x, y_n - ref.y  # the last trailer's error in the reference frame
         c, s = math.cos(ref.theta), math.sin(ref.theta)
         return (v_cmd, w_cmd, push_x, push_y, *ref, c * dx + s * dy, -s * dx + c * dy,
@@ -208,24 +212,30 @@ class StepLoop:
             raise CosimError(f"the FMU's inputs {io.input_names} are not four scalars")
         m.input_vr = self._pointer((c_uint * 4)(*refs), _U_PTR)
         m.n = n
-        # the step's closed-loop work: the engine (the law's instant, the run's own sensor
-        # model and memory, noise drawn per call, the pushes set per call) or the Python law
+        # the step's closed-loop work: the engine (the law's instant or an open-loop profile,
+        # the run's own sensor model and memory, noise drawn per call, the pushes set per call)
+        # or a law written in Python, called back
         self.tracker: Tracker | None = tracking.tracker
+        profile = getattr(tracking.controller, "profile", None)
+        self.profile = profile if self.tracker is None and isinstance(profile, Profile) else None
         self.truth = np.zeros(n + 6)
         m.truth = self._pointer(self.truth)
-        if self.tracker is not None:
-            self.tracker.has_last = bool(sensors.config.measure_last_pose)
-            self.engine = native.PtStep(ctypes.pointer(self.tracker.instant),
-                                        ctypes.pointer(sensors.model))
-            governor = self.tracker.governor  # the slip governor, in C after the law
-            if governor is not None:
-                governor.struct.dt = self.tracker.dt
-                self.engine.governor = ctypes.pointer(governor.struct)
-                self.engine.governor_work = self._pointer(governor.work)
+        self.law = None
+        if self.tracker is not None or self.profile is not None:
+            self.engine = native.PtStep(sensors=ctypes.pointer(sensors.model))
+            if self.tracker is not None:
+                self.tracker.has_last = bool(sensors.config.measure_last_pose)
+                self.engine.track = ctypes.pointer(self.tracker.instant)
+                governor = self.tracker.governor  # the slip governor, in C after the law
+                if governor is not None:
+                    governor.struct.dt = self.tracker.dt
+                    self.engine.governor = ctypes.pointer(governor.struct)
+                    self.engine.governor_work = self._pointer(governor.work)
+            else:
+                self.engine.profile = ctypes.pointer(self.profile.struct)
             m.engine = ctypes.pointer(self.engine)
             m.noise_per_step = sensors.noise_scales.size
             self.noise = NoiseBuffer(sensors) if m.noise_per_step else None
-            self.law = None
         else:
             self.law = PythonLaw(self.truth, sensors, events, tracking.command)
             m.hook = self.law.callback
@@ -336,7 +346,7 @@ class StepLoop:
             for i, speed in events.slide_changes(t):
                 self.io.write_slide[i]((speed,))
             m.slide = events.slide_speed(self.n)
-        if self.tracker is not None:
+        if self.law is None:
             active = events.active_pushes(t)
             self._pushes = np.array([(p.fx, p.fy, p.lateral) for p in active] or [(0.0,) * 3],
                                     dtype=float)
@@ -360,11 +370,16 @@ class StepLoop:
         return slave.step_error(t, step, status)
 
     def _control_error(self, t: float) -> BaseException:
-        """The exception of the control instant refused at ``t``: the Python law's own, or the
-        compiled tracker's error for the measurement it was given."""
+        """The exception of the control instant refused at ``t``: the Python law's own, the
+        open-loop profile's, or the compiled tracker's error for the measurement it was
+        given."""
         if self.law is not None:
             error, self.law.error = self.law.error, None
             return error
+        if self.profile is not None:
+            status = self.m.control_status
+            return ControllerError(f"the open-loop profile refused t = {t!r} s: "
+                                   f"{native.STATUS.get(status, status)}")
         tracker = self.tracker
         k = tracker.instant
         row = self.recorder.free_rows()[0]  # the refused step's row, not recorded

@@ -33,6 +33,7 @@ CLASSES = _classes()
     ("Controller", "core/controller.py"), ("Tracker", "core/controller.py"),
     ("SlipGovernor", "core/governor.py"), ("Sensors", "core/sensors.py"),
     ("StepLoop", "cosim/step_loop.py"), ("Segment", "core/reference.py"),
+    ("Profile", "core/openloop.py"), ("RotationProfile", "core/openloop.py"),
 ])
 def test_each_concept_has_one_class(name, home):
     assert CLASSES.get(name) == [home]

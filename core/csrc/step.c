@@ -17,9 +17,8 @@ void pt_tracking_errors(const PtSample *sample, double x, double y, double theta
     errors[2] = pt_wrap(theta - sample->theta);
 }
 
-/* The push force and the errors of the true state truth against the reference sample. */
-static void outputs(PtStep *s, const double *truth, const PtSample *sample) {
-    const double th_n = truth[5];
+/* The total push force on the last trailer (heading th_n [rad]) into s->push. */
+static void push_force(PtStep *s, double th_n) {
     int i;
     s->push[0] = 0.0;
     s->push[1] = 0.0;
@@ -28,17 +27,43 @@ static void outputs(PtStep *s, const double *truth, const PtSample *sample) {
         s->push[0] += p[0] - sin(th_n) * p[2];
         s->push[1] += p[1] + cos(th_n) * p[2];
     }
-    pt_tracking_errors(sample, truth[3], truth[4], th_n, s->errors);
+}
+
+/* An open-loop profile's step: the readings, the profile's command, a rest sample and errors
+ * without a value (PT_NO_VALUE), the push force. */
+static int open_loop(PtStep *s, double t, const double *truth, const double *noise,
+                     double *phi_meas) {
+    PtMeasurement m;
+    int status;
+    pt_measure(s->sensors, truth, noise, phi_meas, &m);
+    status = pt_profile_command(s->profile, t, s->cmd);
+    if (status != PT_OK) {
+        return status;
+    }
+    s->sample.x = PT_NO_VALUE;
+    s->sample.y = PT_NO_VALUE;
+    s->sample.theta = PT_NO_VALUE;
+    s->sample.v = 0.0;
+    s->sample.w = 0.0;
+    s->sample.direction = PT_REST;
+    push_force(s, truth[5]);
+    s->errors[0] = PT_NO_VALUE;
+    s->errors[1] = PT_NO_VALUE;
+    s->errors[2] = PT_NO_VALUE;
+    return PT_OK;
 }
 
 int pt_step(PtStep *s, double t, const double *truth, const double *noise, double *phi_meas) {
     PtTrack *track;
     const double *saved_phi;
     int status;
-    if (s == NULL || s->track == NULL || s->sensors == NULL || truth == NULL ||
-        phi_meas == NULL || (s->n_pushes > 0 && s->pushes == NULL) ||
-        (s->governor != NULL && s->governor_work == NULL)) {
+    if (s == NULL || (s->track == NULL) == (s->profile == NULL) || s->sensors == NULL ||
+        truth == NULL || phi_meas == NULL || (s->n_pushes > 0 && s->pushes == NULL) ||
+        (s->governor != NULL && (s->governor_work == NULL || s->profile != NULL))) {
         return PT_ERR_ARGUMENT;
+    }
+    if (s->profile != NULL) {
+        return open_loop(s, t, truth, noise, phi_meas);
     }
     track = s->track;
     saved_phi = track->m.phi;
@@ -59,6 +84,10 @@ int pt_step(PtStep *s, double t, const double *truth, const double *noise, doubl
             track->cmd[1] = w;
         }
     }
-    outputs(s, truth, &track->sample);
+    s->cmd[0] = track->cmd[0];
+    s->cmd[1] = track->cmd[1];
+    s->sample = track->sample;
+    push_force(s, truth[5]);
+    pt_tracking_errors(&track->sample, truth[3], truth[4], truth[5], s->errors);
     return PT_OK;
 }

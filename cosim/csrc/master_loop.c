@@ -45,7 +45,8 @@ static int valid(const PtMasterLoop *m) {
         return m->hook != NULL && m->hook_out != NULL && m->hook_phi != NULL;
     }
     s = m->engine->sensors;
-    return m->engine->track != NULL && s != NULL && s->n == m->n && s->bias != NULL &&
+    return (m->engine->track != NULL) != (m->engine->profile != NULL) && s != NULL &&
+           s->n == m->n && s->bias != NULL &&
            (s->half_backlash == 0.0 || s->play != NULL) &&
            (s->noise == 0 ||
             (m->noise_values != NULL && m->noise_per_step == pt_sensors_noise_count(s))) &&
@@ -106,7 +107,7 @@ static int do_step(const PtMasterLoop *m, double t) {
 
 /* The step's closed-loop work into out (PT_OUT_*) and phi_meas; PT_OK or the refusal. */
 static int closed_loop(PtMasterLoop *m, double t, long j, double *phi_meas, double *out) {
-    const PtTrack *track;
+    const PtStep *step;
     int status;
     if (m->engine == NULL) {
         status = m->hook(m->hook_user, t);
@@ -124,20 +125,20 @@ static int closed_loop(PtMasterLoop *m, double t, long j, double *phi_meas, doub
     if (status != PT_OK) {
         return status;
     }
-    track = m->engine->track;
-    out[PT_OUT_V_CMD] = track->cmd[0];
-    out[PT_OUT_W_CMD] = track->cmd[1];
-    out[PT_OUT_PUSH_X] = m->engine->push[0];
-    out[PT_OUT_PUSH_Y] = m->engine->push[1];
-    out[PT_OUT_X_D] = track->sample.x;
-    out[PT_OUT_Y_D] = track->sample.y;
-    out[PT_OUT_THETA_D] = track->sample.theta;
-    out[PT_OUT_V_D] = track->sample.v;
-    out[PT_OUT_W_D] = track->sample.w;
-    out[PT_OUT_DIRECTION] = (double)track->sample.direction;
-    out[PT_OUT_E_LON] = m->engine->errors[0];
-    out[PT_OUT_E_LAT] = m->engine->errors[1];
-    out[PT_OUT_E_THETA] = m->engine->errors[2];
+    step = m->engine;
+    out[PT_OUT_V_CMD] = step->cmd[0];
+    out[PT_OUT_W_CMD] = step->cmd[1];
+    out[PT_OUT_PUSH_X] = step->push[0];
+    out[PT_OUT_PUSH_Y] = step->push[1];
+    out[PT_OUT_X_D] = step->sample.x;
+    out[PT_OUT_Y_D] = step->sample.y;
+    out[PT_OUT_THETA_D] = step->sample.theta;
+    out[PT_OUT_V_D] = step->sample.v;
+    out[PT_OUT_W_D] = step->sample.w;
+    out[PT_OUT_DIRECTION] = (double)step->sample.direction;
+    out[PT_OUT_E_LON] = step->errors[0];
+    out[PT_OUT_E_LAT] = step->errors[1];
+    out[PT_OUT_E_THETA] = step->errors[2];
     return PT_OK;
 }
 

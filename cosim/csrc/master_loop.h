@@ -5,9 +5,9 @@
  * At each communication point t_k = t0 + k step:
  *   get the measured states (robot pose, last trailer's pose, joint angles)
  *   -> the step's closed-loop work: either pt_step, the engine (core/csrc/step.c: sensors,
- *      reference sample, pull leader, command, push force, tracking errors), or the caller's
- *      command hook (a law written in Python: the slip governor, an open-loop profile), which
- *      fills hook_out and hook_phi
+ *      reference sample, pull leader, command with the slip governor, or an open-loop
+ *      profile's command; push force, tracking errors), or the caller's command hook (a law
+ *      written in Python, a sampled reference), which fills hook_out and hook_phi
  *   -> set (v_cmd, w_cmd, push_x, push_y)
  *   -> get every recorded output and the flags; the row (the result table's columns) gets
  *      them, the measured joint angles, the time, inputs, reference sample and tracking errors
@@ -100,7 +100,8 @@ typedef struct {
     long n_steps;                  /* the last communication point is k = n_steps */
 
     /* ---- the step's closed-loop work: the engine, or the caller's hook ---- */
-    PtStep *engine;                /* its track, sensors and the call's active pushes; or NULL */
+    PtStep *engine;                /* its law (track) or open-loop profile, sensors and the
+                                    * call's active pushes; or NULL */
     const double *noise_values;    /* engine: noise_per_step values per step from the call's
                                     * first step on (pt_sensors_noise_count); NULL without */
     int noise_per_step;

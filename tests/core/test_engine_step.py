@@ -37,8 +37,8 @@ class _OneCall:
     def __init__(self, tracker, sensors, events, truth, phi_meas):
         self.tracker, self.events, self.truth, self.phi = tracker, events, truth, phi_meas
         self.sensors = sensors
-        self.struct = native.PtStep(ctypes.pointer(tracker.instant),
-                                    ctypes.pointer(sensors.model))
+        self.struct = native.PtStep(track=ctypes.pointer(tracker.instant),
+                                    sensors=ctypes.pointer(sensors.model))
         tracker.has_last = bool(sensors.config.measure_last_pose)
 
     def step(self, t):
@@ -53,8 +53,11 @@ class _OneCall:
             raise self.tracker.error(status, t, Measurement(m.x0, m.y0, m.theta0,
                                                             self.phi.tolist(), None), None)
         k, s = self.tracker.instant, self.struct
-        sample = k.sample
-        return (k.cmd[0], k.cmd[1], s.push[0], s.push[1], sample.x, sample.y, sample.theta,
+        sample = s.sample  # the step's own copies of the track's command and sample
+        fields = [name for name, _ in sample._fields_]
+        assert tuple(s.cmd) == tuple(k.cmd)
+        assert [getattr(sample, f) for f in fields] == [getattr(k.sample, f) for f in fields]
+        return (s.cmd[0], s.cmd[1], s.push[0], s.push[1], sample.x, sample.y, sample.theta,
                 sample.v, sample.w, sample.direction, *s.errors)
 
 
@@ -97,3 +100,31 @@ def test_a_refused_step_raises_the_trackers_error():
     truth[6] = math.nan
     with pytest.raises(ControllerError, match="non-finite measurement"):
         engine.step(0.0)
+
+
+def test_a_step_takes_the_law_or_a_profile_and_no_governor_with_a_profile():
+    """pt_step refuses neither or both of a law and a profile, and a governor on a profile;
+    with a profile alone it commands the profile's value, a rest sample and NaN errors."""
+    from pushtrain.core.governor import GovernorConfig, SlipGovernor
+    from pushtrain.core.openloop import ConstantCommand
+
+    engine, truth, phi = _engine(True)
+    lib, step = native.load(), engine.struct
+    profile = ConstantCommand(N, -0.05, 0.02).profile
+    governor = SlipGovernor(GovernorConfig(ChainGeometry.uniform(N, 0.52), np.full(N, 40.0),
+                                           np.full(N, 3.0), np.full(N, 0.1)))
+
+    def call():
+        return lib.pt_step(ctypes.byref(step), 0.0, native.dptr(truth),
+                           native.dptr(np.zeros(16)), native.dptr(phi))
+
+    step.profile = ctypes.pointer(profile.struct)
+    assert call() == 5  # PT_ERR_ARGUMENT: both
+    step.track = None
+    assert call() == 0
+    assert tuple(step.cmd) == (-0.05, 0.02) and step.sample.direction == 0
+    assert all(math.isnan(e) for e in step.errors) and math.isnan(step.sample.x)
+    step.governor, step.governor_work = ctypes.pointer(governor.struct), native.dptr(governor.work)
+    assert call() == 5  # a governor on a profile
+    step.governor, step.profile = None, None
+    assert call() == 5  # neither

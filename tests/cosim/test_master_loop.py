@@ -7,11 +7,12 @@ status and the message. The cases are chosen so that each feature the loop has i
 them (checked from the recorded data): noisy, quantized, biased sensors with play; bias
 switches; pushes turning with the trailer, while pushing, at a cusp and while pulling; slip_mode
 1 with sliding wheels; imposed slides; a jackknife; the goal; FMU and control-law failures; the
-slip governor, open-loop profiles and a law written in Python (called back from the loop); FMI
-2.0 and 3.0.
+slip governor and open-loop profiles (in C: no call back into Python, for any bundled example)
+and a law written in Python (called back from the loop); FMI 2.0 and 3.0.
 """
 
 import math
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from reference.controller import BackwardController
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.openloop import RotationProfile
+from pushtrain.core.openloop import ConstantCommand, RotationProfile
 from pushtrain.core.reference import PULL, PUSH, REST, Reference, SampledReference, Segment
 from pushtrain.core.sensors import SensorConfig, Sensors
 from pushtrain.cosim import step_loop
@@ -215,20 +216,55 @@ def test_the_governor_runs_in_c_and_equals_the_readable_one(fmu3):
     assert law.governor.limited > 1000
 
 
-def test_laws_written_in_python_are_called_back_from_the_loop(fmu3):
-    """The slip governor, an open-loop profile (no reference: NaN samples and errors, their bits
-    those of Python), the tests' Python law and a sampled reference run in the one loop."""
+@pytest.fixture
+def hook_calls(monkeypatch):
+    """How often the C loop called back into Python this test (``calls[0]``): the master's
+    hook (step_loop.PythonLaw) counted."""
+    calls = [0]
+
+    class CountedLaw(step_loop.PythonLaw):
+        def _call(self, user, t):
+            calls[0] += 1
+            return super()._call(user, t)
+
+    monkeypatch.setattr(step_loop, "PythonLaw", CountedLaw)
+    return calls
+
+
+NAN_BITS = struct.pack("<d", math.nan)
+
+
+def test_open_loop_profiles_run_in_c_without_calling_back(fmu3, hook_calls):
+    """A rotation profile (with noisy sensors and a lateral push) and a constant command run
+    inside the C loop (pt_step on the profile's table) with no call back into Python, equal to
+    the reference loop bit for bit; without a reference the sample's pose and the errors are
+    the one NaN of math.nan in every row."""
+    rotation = lambda: RotationProfile(3, math.radians(10.0), math.radians(5.0), 0.5)  # noqa: E731
+    initial = InitialState(0.0, 0.0, np.zeros(4))
+    c = _both(fmu3, None, make=rotation, initial=initial, horizon=9.0,
+              sensors=SensorConfig(3, joint_noise=0.002, seed=4),
+              events=[Push(2.0, 3.0, lateral=20.0)])
+    assert c.status == "completed" and c.data["push_x"].any() and c.data["push_y"].any()
+    assert np.abs(c.data["w_cmd"]).max() == pytest.approx(math.radians(10.0))
+    assert (c.data["w_cmd"] < 0).any() and np.any(c.data["phi_meas1"] != c.data["phi1"])
+    for column in ("x_d", "y_d", "theta_d", "e_lon", "e_lat", "e_theta"):
+        assert {c.data[column][k].tobytes() for k in range(len(c.data))} == {NAN_BITS}, column
+    c = _both(fmu3, None, make=lambda: ConstantCommand(3, -0.05, 0.01), initial=initial,
+              horizon=3.0)
+    assert set(c.data["v_cmd"]) == {-0.05} and c.data["x3"][-1] < -0.1
+    assert hook_calls[0] == 0
+
+
+def test_laws_written_in_python_are_called_back_from_the_loop(fmu3, hook_calls):
+    """The tests' Python law and the compiled law on a sampled reference run in the one loop
+    through the hook, once per step; the slip governor on the compiled law does not."""
     c = _both(fmu3, _push_pull(), make=_governed, events=[Push(2.0, 1.0, lateral=30.0)],
               sensors=SensorConfig(3, joint_noise=0.002, seed=4))
-    assert len(c.data) > 2000
-    rotation = lambda: RotationProfile(3, math.radians(10.0), math.radians(5.0))  # noqa: E731
-    initial = InitialState(0.0, 0.0, np.zeros(4))
-    c = _both(fmu3, None, make=rotation, initial=initial, horizon=8.0)
-    assert c.status == "completed" and np.isnan(c.data["e_lat"]).all()
-    assert np.abs(c.data["w_cmd"]).max() == pytest.approx(math.radians(10.0))
+    assert len(c.data) > 2000 and hook_calls[0] == 0
     c = _both(fmu3, _push_pull(), make=lambda: BackwardController(_config()),
               events=[Push(9.0, 4.0, lateral=-30.0)])
     assert PULL in c.data["direction"] and c.data["push_x"].any()
+    assert hook_calls[0] == len(c.data)
     sampled = SampledReference.from_reference(_arc(2.0), 0.05)
     c = _both(fmu3, sampled, horizon=6.0, check_goal=False)
     assert np.isfinite(c.data["e_lat"]).all()
@@ -253,7 +289,7 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 @pytest.mark.parametrize("name", ["joint_bias_5deg", "circle", "l_corridor", "slip_governor"])
-def test_bundled_examples_run_alike_in_the_reference_loop(name):
+def test_bundled_examples_run_alike_in_the_reference_loop(name, hook_calls):
     """A scripted run with a joint bias and the last trailer localized, an arc, a planned
     push-pull corridor mission, and the governor."""
     from pushtrain.mission.runner import (
@@ -284,3 +320,19 @@ def test_bundled_examples_run_alike_in_the_reference_loop(name):
         goal_tolerance=goal_tolerance_of(sc))
     assert run.status == "goal_reached"
     _same(run, want)
+    assert hook_calls[0] == 0  # the master ran it without calling back into Python
+
+
+@pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*.toml")), ids=lambda p: p.stem)
+def test_no_bundled_example_calls_back_into_python(path, hook_calls):
+    """Each example's co-simulation (a planned example's with a straight reference in place of
+    its plan: the runner builds its controller the same way) makes no call back into Python:
+    its law, governor or open-loop profile runs in the C loop."""
+    sc = load_scenario(path)
+    assert sc.mission.kind in ("plan", "scripted", "rotation")
+    reference = None
+    if sc.mission.kind == "plan":
+        start = (sc.start.x, sc.start.y, math.radians(sc.start.theta_deg))
+        reference = Reference.from_segments(start, [Segment("line", 0.05)], speed=0.08)
+    run = run_scenario(sc, reference=reference, progress=False)
+    assert len(run.data) > 1 and hook_calls[0] == 0

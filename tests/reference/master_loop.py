@@ -6,8 +6,11 @@ At each communication point ``t_k = t0 + k step``: the bias switches due, the FM
 states, the sensors (the compiled model, :meth:`Sensors.measurer`, one noise draw per step), the
 controller through :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, pull guide,
 command), the push force (:meth:`EventSchedule.push_force`) and the last trailer's tracking
-errors, the FMU's inputs, the slide speeds that change, every output and flag into the row, the
-jackknife and goal tests, the doStep. SI units, radians.
+errors (without a reference, an open loop, the NaN of ``math.nan``: a NaN computed from the
+sample's NaN pose takes its sign from whichever operand the float operation returns, and
+CPython 3.11 changes that once it specializes the expression), the FMU's inputs, the slide
+speeds that change, every output and flag into the row, the jackknife and goal tests, the
+doStep. SI units, radians.
 """
 
 from __future__ import annotations
@@ -92,9 +95,12 @@ def run(fmu, reference, controller, sensors=None, events=(), *, plant=None, init
             v_cmd, w_cmd, _, ref = loop.command(t, measure())
             x_n, y_n, th_n = truth[3:6].tolist()
             push_x, push_y = schedule.push_force(t, th_n) if schedule.pushes else (0.0, 0.0)
-            dx, dy = x_n - ref.x, y_n - ref.y
-            c, s = math.cos(ref.theta), math.sin(ref.theta)
-            errors = (c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
+            if reference is None:  # open loop: no errors, the one NaN (math.nan's bits)
+                errors = (math.nan, math.nan, math.nan)
+            else:
+                dx, dy = x_n - ref.x, y_n - ref.y
+                c, s = math.cos(ref.theta), math.sin(ref.theta)
+                errors = (c * dx + s * dy, -s * dx + c * dy, wrap_scalar(th_n - ref.theta))
             write_inputs((v_cmd, w_cmd, push_x, push_y))
             for i, speed in schedule.slide_changes(t) if schedule.slides else ():
                 write_slide[i]((speed,))
