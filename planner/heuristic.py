@@ -28,7 +28,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from pushtrain.facility.distance_field import DistanceField
 
-from .curves import reeds_shepp_space
+from .reeds_shepp import reeds_shepp_space
 from .route import grid_graph
 
 __all__ = ["Heuristic", "CarGrid", "MAX_NODES", "MAX_CAR_CELLS"]
