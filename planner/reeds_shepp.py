@@ -37,7 +37,7 @@ from pushtrain.core.reference import PULL, PUSH, Segment
 __all__ = ["Primitive", "ReedsSheppPath", "shortest_path", "advance_yaw", "evaluate_primitives",
            "primitives_to_segments", "rs_segments", "segments_from_states", "ReedsSheppCurve",
            "reeds_shepp_space", "rs_distance", "sample_curve_into", "travel_between_states",
-           "chain_to_planner_state", "wrap_yaw"]
+           "chain_to_planner_state", "planner_yaw", "wrap_yaw"]
 
 log = logging.getLogger(__name__)
 
@@ -441,6 +441,12 @@ def reeds_shepp_space(rho: float, bounds) -> ob.ReedsSheppStateSpace:
 def wrap_yaw(yaw: float) -> float:
     """Yaw in [-pi, pi) as OMPL's SO2 bounds require."""
     return (float(yaw) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def planner_yaw(theta: float) -> float:
+    """Chain heading theta -> the planner state's yaw (theta + pi) in [-pi, pi), as OMPL's SO2
+    state holds it (``wrap_yaw(theta + pi)`` up to rounding)."""
+    return (float(theta) + 2.0 * math.pi) % (2.0 * math.pi) - math.pi
 
 
 def chain_to_planner_state(pose) -> tuple[float, float, float]:
