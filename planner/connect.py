@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from pushtrain.core.reference import PUSH, Segment
+from pushtrain.core.segment import PUSH, Segment
 
 __all__ = ["corner_segments", "sample_reference", "MAX_CORNER_REACH", "MAX_SAMPLES"]
 

@@ -75,7 +75,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pushtrain.core.reference import PULL, PUSH, Segment
+from pushtrain.core.segment import PULL, PUSH, Segment
 
 from .connect import corner_segments, sample_reference
 from .footprint import body_positions

@@ -28,7 +28,7 @@ from shapely.geometry import Point
 from shapely.geometry import box as _box
 
 from pushtrain.core.kinematics import body_positions_along
-from pushtrain.core.reference import PULL, Segment
+from pushtrain.core.segment import PULL, Segment
 from pushtrain.errors import PlanningError, PlanningInputError
 from pushtrain.facility.free_space import World
 

@@ -17,8 +17,8 @@ line (S) or a right arc (R), each travelled forward (+) or backward (-).
 
 Planner state: the last trailer's axle midpoint (x, y) and ``yaw`` = its direction of travel
 when pushing, yaw = theta + pi (theta: chain heading, toward the robot). Reeds-Shepp "forward"
-is therefore pushing (:data:`~pushtrain.core.reference.PUSH`, trailer leads) and "backward"
-pulling (:data:`~pushtrain.core.reference.PULL`, robot leads). OMPL's camelCase stays in the
+is therefore pushing (:data:`~pushtrain.core.segment.PUSH`, trailer leads) and "backward"
+pulling (:data:`~pushtrain.core.segment.PULL`, robot leads). OMPL's camelCase stays in the
 planner's modules that import ompl (this one and :mod:`~pushtrain.planner.ompl_search`).
 """
 
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from ompl import base as ob
 
-from pushtrain.core.reference import PULL, PUSH, Segment
+from pushtrain.core.segment import PULL, PUSH, Segment
 
 __all__ = ["Primitive", "ReedsSheppPath", "shortest_path", "advance_yaw", "evaluate_primitives",
            "primitives_to_segments", "rs_segments", "segments_from_states", "ReedsSheppCurve",

@@ -24,7 +24,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 
-from pushtrain.core.reference import Segment
+from pushtrain.core.segment import Segment
 
 from .connect import corner_segments, sample_reference
 from .reeds_shepp import rs_segments

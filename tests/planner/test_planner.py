@@ -16,7 +16,8 @@ from pushtrain.core.kinematics import (
     heading_rates_from_robot,
     joint_angles,
 )
-from pushtrain.core.reference import PULL, PUSH, Reference
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH
 from pushtrain.errors import PlanningError, PlanningInputError
 from pushtrain.facility import example_layouts
 from pushtrain.facility.free_space import World
@@ -275,7 +276,7 @@ def test_radius_rule_and_transient_margin():
     assert 2 * math.atan(d / r) == pytest.approx(phi_max / 1.6)
     assert ompl().radius_for(TRAIN) == pytest.approx(r)
     # kinematic worst case: steady left arc, then a right arc (3 trailers, pushing)
-    from pushtrain.core.reference import Segment
+    from pushtrain.core.segment import Segment
 
     world = World.from_dict({"bounds": [-50, -50, 50, 50]})
     segs = [

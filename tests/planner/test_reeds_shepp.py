@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pushtrain.core.reference import PULL, PUSH, Reference
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH
 from pushtrain.planner.reeds_shepp import (
     Primitive,
     ReedsSheppCurve,
