@@ -61,7 +61,8 @@ from fmpy.fmi2 import FMU2Slave
 
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.openloop import RotationProfile
-from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import Segment
 from pushtrain.core.sensors import Measurement
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.master import simulate

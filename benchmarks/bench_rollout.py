@@ -20,7 +20,8 @@ import numpy as np
 
 from pushtrain.core.engine import ClosedLoopEngine, simulate
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.planner.kinematic_loop import default_controller
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

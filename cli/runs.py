@@ -53,7 +53,7 @@ def plan_or_fail(sc: Scenario, out_dir: Path | None, phases: Phases | None = Non
 def _save_partial_path(sc: Scenario, out_dir: Path, exc) -> None:
     """``partial_path.json`` of a failed plan: the closest the search came (a planned-path
     document with ``info.partial`` true), when the planner says; ``export-bag`` shows it."""
-    from pushtrain.core.reference import Segment
+    from pushtrain.core.segment import Segment
     from pushtrain.planner.path import PlannedPath
     from pushtrain.ros.run_folder import PARTIAL_PATH_JSON
 

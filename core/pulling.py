@@ -37,7 +37,8 @@ from pushtrain.errors import ReferencePathError
 
 from . import native
 from .kinematics import ChainGeometry, body_positions_along, velocities_from_last
-from .reference import PULL, Reference, ReferenceSample
+from .reference import Reference, ReferenceSample
+from .segment import PULL
 
 __all__ = ["PullGuide", "PullRun", "rates_driven_by_last", "straight_chain_mismatch"]
 

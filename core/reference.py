@@ -9,20 +9,17 @@ pushing: the trailer leads), ``w = d(theta)/dt``. Eq. (1) of the paper in this +
 
     dx/dt = v cos(theta),  dy/dt = v sin(theta),  d(theta)/dt = w
 
-A :class:`Segment` is a line or an arc travelled at constant speed in one direction. Its
-``curvature`` is d(theta)/ds per metre *travelled* (s increases in both directions), so
-``w = curvature * |v|``. Direction changes (cusps) are stops: the reference rests for
-``cusp_dwell`` seconds and continues the other way.
+The reference runs through line and arc :class:`~pushtrain.core.segment.Segment` objects at
+constant speed, each in one direction. Direction changes (cusps) are stops: the reference rests
+for ``cusp_dwell`` seconds and continues the other way. A reference given as samples is
+:class:`~pushtrain.core.sampled_reference.SampledReference`.
 """
 
 from __future__ import annotations
 
 import ctypes
-import math
-from bisect import bisect_right
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Literal, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -31,18 +28,9 @@ from pushtrain.errors import ReferencePathError
 
 from . import native
 from .kinematics import wrap_angle
+from .segment import Segment, segment_struct
 
-__all__ = ["PULL", "PUSH", "REST", "Reference", "ReferenceSample", "SampledReference", "Segment",
-           "path_points", "segment_struct"]
-
-PUSH = +1
-"""Direction of a segment travelled trailer first (the robot pushes): v < 0."""
-PULL = -1
-"""Direction of a segment travelled robot first (the robot pulls): v > 0."""
-
-
-REST = 0
-"""Direction value while the reference rests (cusp dwell, before the start, after the goal)."""
+__all__ = ["Reference", "ReferenceSample", "path_points"]
 
 
 class ReferenceSample(NamedTuple):
@@ -59,7 +47,8 @@ class ReferenceSample(NamedTuple):
     w : float
         Yaw rate d(theta)/dt [rad/s].
     direction : int
-        :data:`PUSH` (+1), :data:`PULL` (-1) or :data:`REST` (0).
+        :data:`~pushtrain.core.segment.PUSH` (+1), :data:`~pushtrain.core.segment.PULL` (-1) or
+        :data:`~pushtrain.core.segment.REST` (0).
     """
 
     x: float
@@ -70,59 +59,6 @@ class ReferenceSample(NamedTuple):
     direction: int
 
 
-@dataclass(frozen=True)
-class Segment:
-    """One line or arc of the last trailer's path.
-
-    Parameters
-    ----------
-    kind : "line" or "arc"
-    length : float
-        Distance travelled along the segment [m], > 0.
-    curvature : float
-        d(theta)/ds [1/m] per metre travelled; 0 for a line, CCW positive.
-    direction : int
-        :data:`PUSH` (+1, trailer leads, v < 0) or :data:`PULL` (-1, robot leads, v > 0).
-    speed : float or None
-        Travel speed |v| [m/s]; ``None`` takes the reference's default speed.
-    """
-
-    kind: Literal["line", "arc"]
-    length: float
-    curvature: float = 0.0
-    direction: int = PUSH
-    speed: float | None = None
-
-    def __post_init__(self):
-        if self.kind not in ("line", "arc"):
-            raise ReferencePathError(f"segment kind = {self.kind!r}: allowed are 'line' and 'arc'")
-        if not (np.isfinite(self.length) and self.length > 0.0):
-            raise ReferencePathError(f"segment length = {self.length!r} m: must be finite and > 0")
-        if not np.isfinite(self.curvature):
-            raise ReferencePathError(f"segment curvature = {self.curvature!r} 1/m: must be finite")
-        if self.kind == "line" and self.curvature != 0.0:
-            raise ReferencePathError(f"a line has curvature 0, got {self.curvature!r} 1/m")
-        if self.kind == "arc" and self.curvature == 0.0:
-            raise ReferencePathError("an arc needs a non-zero curvature")
-        if self.direction not in (PUSH, PULL):
-            raise ReferencePathError(
-                f"segment direction = {self.direction!r}: allowed are +1 (push) and -1 (pull)"
-            )
-        if self.speed is not None and not (np.isfinite(self.speed) and self.speed > 0.0):
-            raise ReferencePathError(f"segment speed = {self.speed!r} m/s: must be finite and > 0")
-
-    @classmethod
-    def from_dict(cls, data: dict) -> Segment:
-        """The segment of its plain form (``path.json``, a planning failure's ``closest``):
-        ``kind``, ``length``, ``curvature``, ``direction`` ('push' or 'pull'), ``speed``."""
-        direction = {"push": PUSH, "pull": PULL}.get(data.get("direction"))
-        if direction is None:
-            raise ReferencePathError(f"segment direction = {data.get('direction')!r}: allowed "
-                                     "are 'push' and 'pull'")
-        return cls(data["kind"], float(data["length"]), float(data.get("curvature", 0.0)),
-                   direction, data.get("speed"))
-
-
 def path_points(start, segments, spacing: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
     """Positions (x, y) [m] every ``spacing`` metres along ``segments`` from ``start``
     (x, y, theta), both ends included."""
@@ -130,38 +66,6 @@ def path_points(start, segments, spacing: float = 0.02) -> tuple[np.ndarray, np.
     s = np.linspace(0.0, ref.t_end, max(2, int(ref.t_end / spacing) + 1))
     x, y, _, _, _ = ref.sample(s)
     return np.asarray(x), np.asarray(y)
-
-
-def _advance(x, y, theta, sigma, kappa, s, sin=math.sin, cos=math.cos):
-    """Pose after travelling ``s`` [m] from ``(x, y, theta)`` along a line or arc (Eq. 1
-    integrated in closed form).
-
-    ``sigma`` is the sign of v (-direction, 0 at rest) and ``kappa`` the curvature [1/m]; below
-    1e-12 1/m the segment counts as straight. With :func:`math.sin`, :func:`math.cos` for a float
-    ``s``, with :func:`numpy.sin`, :func:`numpy.cos` for an array of distances (the same formulas,
-    element by element).
-    """
-    th = theta + kappa * s
-    if abs(kappa) < 1e-12:
-        return x + sigma * s * cos(theta), y + sigma * s * sin(theta), th
-    return (
-        x + sigma * (sin(th) - sin(theta)) / kappa,
-        y - sigma * (cos(th) - cos(theta)) / kappa,
-        th,
-    )
-
-
-_KINDS = {"line": 0, "arc": 1}
-
-
-def segment_struct(segment: Segment):
-    """The C ``PtSegment`` of a :class:`Segment` (speed 0: the reference's default)."""
-    if not isinstance(segment, Segment):
-        raise ReferencePathError(f"segments must be Segment objects, got "
-                                 f"{type(segment).__name__}")
-    return native.PtSegment(float(segment.length), float(segment.curvature),
-                            0.0 if segment.speed is None else float(segment.speed),
-                            int(segment.direction), _KINDS[segment.kind])
 
 
 class Reference:
@@ -390,8 +294,8 @@ class Reference:
         Returns
         -------
         ReferenceSample
-            Pose, velocities and direction (:data:`REST` during a cusp dwell, before ``t0`` and
-            from :attr:`t_end` on, where v = w = 0).
+            Pose, velocities and direction (:data:`~pushtrain.core.segment.REST` during a cusp
+            dwell, before ``t0`` and from :attr:`t_end` on, where v = w = 0).
         """
         status = self._lib.pt_reference_sample(ctypes.byref(self.struct), float(t),
                                                ctypes.byref(self._sample))
@@ -405,218 +309,3 @@ class Reference:
 def _rebuild(start, segments, speed, cusp_dwell, t0, previous_direction) -> Reference:
     """A pickled :class:`Reference` rebuilt (its C table is made again)."""
     return Reference(start, segments, speed, cusp_dwell, t0, previous_direction)
-
-
-def _pull_intervals(bounds, directions) -> list[tuple[float, float]]:
-    """Maximal intervals [bounds[i], bounds[j]] [s] over consecutive phases i..j-1 whose
-    direction is PULL; phase k lasts from ``bounds[k]`` to ``bounds[k + 1]``."""
-    pulling = np.asarray(directions) == PULL
-    edges = np.diff(np.concatenate(([0], pulling.astype(int), [0])))
-    return [(float(bounds[i]), float(bounds[j]))
-            for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True)
-            if bounds[j] > bounds[i]]
-
-
-def _check_no_jumps(what: str, unit: str, rates: str, change, rate, t, dt, rel_tol, abs_tol):
-    """Raise if a sampled ``change`` between neighbours exceeds what the larger of the two
-    neighbouring ``rate`` samples allows over ``dt`` (plus tolerances)."""
-    allowed = np.maximum(np.abs(rate[:-1]), np.abs(rate[1:])) * dt * (1.0 + rel_tol) + abs_tol
-    bad = np.flatnonzero(change > allowed)
-    if bad.size:
-        k = int(bad[0])
-        raise ReferencePathError(
-            f"{what} jumps by {change[k]:.6g} {unit} between t = {t[k]!r} s and {t[k + 1]!r} s;"
-            f" at most {allowed[k]:.6g} {unit} is allowed by the sampled {rates}"
-        )
-
-
-class SampledReference:
-    """Reference of the last trailer given as samples (e.g. from a planner), linearly interpolated.
-
-    The samples must describe a continuous motion: between consecutive samples the position may
-    move at most ``max(|v_k|, |v_k+1|) dt (1 + rel_tol) + pos_tol`` and the (unwrapped) heading at
-    most ``max(|w_k|, |w_k+1|) dt (1 + rel_tol) + angle_tol``; anything more is a jump and raises
-    :class:`ReferencePathError`. The sign of ``v`` must agree with ``direction`` (v <= 0 when
-    pushing, >= 0 when pulling, 0 at rest, within ``speed_tol``). The same query methods as
-    :class:`Reference` are offered (:meth:`sample`, :meth:`sample_at`,
-    :meth:`direction_at`, :attr:`t_end`, :attr:`goal`, :attr:`length`).
-
-    Parameters
-    ----------
-    t : array of shape (m,)
-        Strictly increasing sample times [s], m >= 2.
-    x, y : arrays of shape (m,)
-        Axle-midpoint positions [m].
-    theta : array of shape (m,)
-        Headings [rad]; wrapped values are unwrapped first.
-    v, w : arrays of shape (m,)
-        Signed longitudinal speed [m/s] and yaw rate [rad/s].
-    direction : array of shape (m,)
-        :data:`PUSH`, :data:`PULL` or :data:`REST`; held from a sample to the next one.
-    pos_tol : float
-        Absolute position allowance per step [m] (default 1 mm).
-    angle_tol : float
-        Absolute heading allowance per step [rad] (default 1 mrad).
-    rel_tol : float
-        Relative allowance on the speed bounds (default 0.05).
-    speed_tol : float
-        Tolerance of the sign check of ``v`` against ``direction`` [m/s] (default 1e-9).
-    """
-
-    def __init__(
-        self,
-        t,
-        x,
-        y,
-        theta,
-        v,
-        w,
-        direction,
-        pos_tol: float = 1e-3,
-        angle_tol: float = 1e-3,
-        rel_tol: float = 0.05,
-        speed_tol: float = 1e-9,
-    ):
-        names = ("t", "x", "y", "theta", "v", "w", "direction")
-        arrays = [np.asarray(a, dtype=float).reshape(-1) for a in (t, x, y, theta, v, w, direction)]
-        m = arrays[0].size
-        if m < 2:
-            raise ReferencePathError(f"a sampled reference needs at least 2 samples, got {m}")
-        for name, a in zip(names, arrays, strict=True):
-            if a.size != m:
-                raise ReferencePathError(
-                    f"{name} has {a.size} samples, t has {m}: sizes must agree"
-                )
-            bad = np.flatnonzero(~np.isfinite(a))
-            if bad.size:
-                raise ReferencePathError(
-                    f"{name}[{bad[0]}] = {a[bad[0]]!r}: samples must be finite"
-                )
-        for name, value in (
-            ("pos_tol", pos_tol),
-            ("angle_tol", angle_tol),
-            ("rel_tol", rel_tol),
-            ("speed_tol", speed_tol),
-        ):
-            if not (np.isfinite(value) and value >= 0.0):
-                raise ReferencePathError(f"{name} = {value!r}: must be finite and >= 0")
-        t, x, y, theta, v, w, direction = arrays
-        dt = np.diff(t)
-        bad = np.flatnonzero(dt <= 0.0)
-        if bad.size:
-            k = int(bad[0])
-            raise ReferencePathError(
-                f"t[{k + 1}] = {t[k + 1]!r} s <= t[{k}] = {t[k]!r} s: times must strictly increase"
-            )
-        bad = np.flatnonzero(~np.isin(direction, (PUSH, PULL, REST)))
-        if bad.size:
-            k = int(bad[0])
-            raise ReferencePathError(
-                f"direction[{k}] = {direction[k]!r}: allowed are +1 (push), -1 (pull), 0 (rest)"
-            )
-        wrong_sign = (
-            ((direction == PUSH) & (v > speed_tol))
-            | ((direction == PULL) & (v < -speed_tol))
-            | ((direction == REST) & (np.abs(v) > speed_tol))
-        )
-        bad = np.flatnonzero(wrong_sign)
-        if bad.size:
-            k = int(bad[0])
-            raise ReferencePathError(
-                f"v[{k}] = {v[k]!r} m/s at t = {t[k]!r} s contradicts direction"
-                f" {int(direction[k])}: pushing needs v <= 0, pulling v >= 0, rest v = 0"
-            )
-        theta = np.unwrap(theta)
-        step = np.hypot(np.diff(x), np.diff(y))
-        _check_no_jumps("position", "m", "speeds", step, v, t, dt, rel_tol, pos_tol)
-        _check_no_jumps("heading", "rad", "yaw rates", np.abs(np.diff(theta)), w, t, dt,
-                        rel_tol, angle_tol)
-        self._t, self._x, self._y, self._theta = t, x, y, theta
-        self._v, self._w, self._direction = v, w, direction.astype(int)
-        self._s = np.concatenate(([0.0], np.cumsum(step)))  # distance travelled [m]
-        self._t_list = t.tolist()
-        self._cols = (
-            x.tolist(),
-            y.tolist(),
-            theta.tolist(),
-            v.tolist(),
-            w.tolist(),
-            self._direction.tolist(),
-        )
-
-    @classmethod
-    def from_reference(cls, reference: Reference, dt: float, **tolerances) -> SampledReference:
-        """Sample a :class:`Reference` every ``dt`` [s] from its ``t0`` to its :attr:`t_end`."""
-        if not (np.isfinite(dt) and dt > 0.0):
-            raise ReferencePathError(f"dt = {dt!r} s: must be finite and > 0")
-        m = int(np.ceil((reference.t_end - reference.t0) / dt)) + 1
-        t = reference.t0 + dt * np.arange(m)
-        x, y, theta, v, w = reference.sample(t)
-        direction = reference.direction_at(t)
-        return cls(t, x, y, theta, v, w, direction, **tolerances)
-
-    @property
-    def start(self) -> tuple[float, float, float]:
-        """First pose (x, y, theta) [m, m, rad]."""
-        return (float(self._x[0]), float(self._y[0]), float(self._theta[0]))
-
-    @property
-    def t0(self) -> float:
-        """Time of the first sample [s]."""
-        return self._t_list[0]
-
-    @property
-    def t_end(self) -> float:
-        """Time of the last sample [s]; the reference rests there afterwards."""
-        return self._t_list[-1]
-
-    @property
-    def goal(self) -> np.ndarray:
-        """Final pose (x, y, theta) [m, m, rad], theta wrapped to (-pi, pi]."""
-        return np.array([self._x[-1], self._y[-1], wrap_angle(self._theta[-1])])
-
-    @property
-    def length(self) -> float:
-        """Total travelled distance [m] (sum of the sample-to-sample distances)."""
-        return float(self._s[-1])
-
-    def sample(self, t):
-        """Reference at times ``t`` [s] (array): ``(x, y, theta, v, w)``, linearly interpolated.
-
-        Outside the sampled span the reference rests at its first or last pose with v = w = 0.
-        """
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        inside = (t >= self._t[0]) & (t < self._t[-1])
-        out = [np.interp(t, self._t, col) for col in (self._x, self._y, self._theta)]
-        out += [np.where(inside, np.interp(t, self._t, col), 0.0) for col in (self._v, self._w)]
-        return tuple(out)
-
-    def direction_at(self, t) -> np.ndarray:
-        """Direction held from the preceding sample; :data:`REST` outside the sampled span."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        k = np.clip(np.searchsorted(self._t, t, side="right") - 1, 0, self._t.size - 1)
-        inside = (t >= self._t[0]) & (t < self._t[-1])
-        return np.where(inside, self._direction[k], REST).astype(int)
-
-    def pull_intervals(self) -> list[tuple[float, float]]:
-        """Start and end times [s] of every maximal run of pulling samples (a sample's direction
-        holds until the next sample)."""
-        return _pull_intervals(self._t, self._direction[:-1])
-
-    def sample_at(self, t: float) -> ReferenceSample:
-        """Reference at one time ``t`` [s] as plain floats: :meth:`sample` and
-        :meth:`direction_at` at one time, equal to them bit for bit (the interpolation of
-        :func:`numpy.interp`: ``slope * (t - t_k) + value_k``, a sample's own value at its time)."""
-        t = float(t)
-        ts = self._t_list
-        tc = min(max(t, ts[0]), ts[-1])
-        k = bisect_right(ts, tc) - 1
-        if k == len(ts) - 1 or ts[k] == tc:
-            values = [col[k] for col in self._cols[:5]]
-        else:
-            dt, dtc = ts[k + 1] - ts[k], tc - ts[k]
-            values = [(col[k + 1] - col[k]) / dt * dtc + col[k] for col in self._cols[:5]]
-        if ts[0] <= t < ts[-1]:
-            return ReferenceSample(*values, int(self._cols[5][k]))
-        return ReferenceSample(*values[:3], 0.0, 0.0, REST)
-

@@ -17,7 +17,8 @@ from __future__ import annotations
 import math
 
 from .pulling import PullGuide
-from .reference import PULL, REST, ReferenceSample
+from .reference import ReferenceSample
+from .segment import PULL, REST
 
 __all__ = ["TrackingLoop"]
 

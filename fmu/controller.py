@@ -4,7 +4,7 @@ The FMU compiles the engine's control instant, the files ``core/csrc`` declares 
 (:func:`pushtrain.core.native.engine_files` ``("instant")``: the one control law, reference and
 pull guide of ``control.c``, held equal to the tests' readable ``tests/reference/``, the
 sensor model ``sensors.c`` and the step's tracking errors ``step.c``; this module's one
-dependency on core, with :class:`~pushtrain.core.reference.Segment`), with the plant's FMI glue
+dependency on core, with :class:`~pushtrain.core.segment.Segment`), with the plant's FMI glue
 (``fmu/src``: ``instance.c`` under ``fmi2.c``, see ``fmu_model.h``), the controller's model in
 ``fmu/controller_src`` (its variables, the mission table) and the files rendered from
 :mod:`.controller_variables`. The mission is data: the last
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from pushtrain.core.native import engine_files
-from pushtrain.core.reference import Segment
+from pushtrain.core.segment import Segment
 from pushtrain.errors import FmuInputError
 from pushtrain.files import atomic_write
 

@@ -15,7 +15,8 @@ import numpy as np
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.openloop import RotationProfile
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.core.sensors import SensorConfig
 from pushtrain.cosim.events import Push, SetBias, Slide
 from pushtrain.cosim.master import simulate

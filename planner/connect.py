@@ -1,23 +1,18 @@
 """Local connections between two poses of the last trailer (chain convention), as the line and
-arc reference segments the controller tracks: a driver's corner (straight, arc, straight) and
-OMPL's shortest Reeds-Shepp curve; and poses sampled along segments. Used by the search
+arc reference segments the controller tracks: a driver's corner (straight, arc, straight; the
+shortest Reeds-Shepp path is :func:`~pushtrain.planner.reeds_shepp.rs_segments`); and poses
+sampled along segments. Used by the search
 (:mod:`~pushtrain.planner.lattice`) and the smoothing (:mod:`~pushtrain.planner.smooth`)."""
 
 from __future__ import annotations
 
-import logging
 import math
 
 import numpy as np
 
-from pushtrain.core.reference import PUSH, Segment
+from pushtrain.core.segment import PUSH, Segment
 
-from .curves import ReedsSheppCurve, primitives_to_segments
-
-__all__ = ["corner_segments", "rs_segments", "sample_reference", "MAX_CORNER_REACH",
-           "MAX_SAMPLES"]
-
-log = logging.getLogger(__name__)
+__all__ = ["corner_segments", "sample_reference", "MAX_CORNER_REACH", "MAX_SAMPLES"]
 
 MAX_CORNER_REACH = 1.0e4
 """Farthest corner [m] of a straight-arc-straight connection: nearly parallel lines of travel
@@ -74,24 +69,6 @@ def corner_segments(pose, goal, direction: int, radius: float | None = None,
     if t - tangent > 1e-6:
         out.append(Segment("line", t - tangent, 0.0, direction))
     return out
-
-
-def rs_segments(pose, goal, radius: float) -> list[Segment] | None:
-    """The shortest Reeds-Shepp path of ``radius`` [m] from ``pose`` to ``goal`` (chain
-    convention) as reference segments (forward = pushing); None if its pieces cannot be
-    recovered from OMPL's curve (logged; the caller goes without this connection)."""
-    a = (pose[0], pose[1], pose[2] + math.pi)
-    b = (goal[0], goal[1], goal[2] + math.pi)
-    curve = ReedsSheppCurve(radius, a, b)
-    if curve.length < 1e-6:
-        return []
-    try:
-        primitives = curve.primitives(tol=1e-7)
-    except RuntimeError as exc:
-        log.warning("no Reeds-Shepp connection from %s to %s: %s", tuple(pose), tuple(goal), exc)
-        return None
-    segments = primitives_to_segments(primitives, radius)
-    return [g for g in segments if g.length > 1e-6]
 
 
 def sample_reference(pose, segments, spacing: float) -> np.ndarray:

@@ -113,7 +113,8 @@ def _draw_failure(ax, world: World, details: dict, start) -> None:
         ax.plot([p["x"]], [p["y"]], marker, color=color, ms=5, mfc="none", label=label)
     closest = details.get("closest")
     if closest and closest.get("segments") and start is not None:
-        from pushtrain.core.reference import Segment, path_points
+        from pushtrain.core.reference import path_points
+        from pushtrain.core.segment import Segment
 
         x, y = path_points(start, [Segment.from_dict(g) for g in closest["segments"]])
         ax.plot(x, y, "-", color="tab:blue", lw=2, label="best partial plan")

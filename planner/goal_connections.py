@@ -27,10 +27,11 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from pushtrain.core.reference import PULL, PUSH, Segment
+from pushtrain.core.segment import PULL, PUSH, Segment
 
-from .connect import corner_segments, rs_segments, sample_reference
+from .connect import corner_segments, sample_reference
 from .propagate import Propagator
+from .reeds_shepp import rs_segments
 from .route import Route, comes_in_across, starts_against
 from .train import Train
 

@@ -28,7 +28,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from pushtrain.facility.distance_field import DistanceField
 
-from .curves import reeds_shepp_space
+from .reeds_shepp import planner_yaw, reeds_shepp_space
 from .route import grid_graph
 
 __all__ = ["Heuristic", "CarGrid", "MAX_NODES", "MAX_CAR_CELLS"]
@@ -82,7 +82,7 @@ class Heuristic:
         self._b = self._space.allocState()
         self._b.setX(self.goal[0])
         self._b.setY(self.goal[1])
-        self._b.setYaw(_yaw(self.goal[2]))
+        self._b.setYaw(planner_yaw(self.goal[2]))
         # at most max_nodes grid nodes: a large map gets a coarser grid
         nodes = max(1000, min(int(max_nodes), MAX_NODES))
         h = max(float(resolution), math.sqrt((xmax - xmin) * (ymax - ymin) / nodes))
@@ -184,7 +184,7 @@ class Heuristic:
         goal."""
         self._a.setX(float(pose[0]))
         self._a.setY(float(pose[1]))
-        self._a.setYaw(_yaw(pose[2]))
+        self._a.setYaw(planner_yaw(pose[2]))
         return float(self._space.distance(self._a, self._b))
 
     def __call__(self, pose, direction: int = 0, straight: bool = True) -> float:
@@ -417,11 +417,6 @@ def _band_clear(band: tuple, x: np.ndarray, y: np.ndarray, kk: np.ndarray, px: n
 
 GEARS = 3
 """Gears of the :class:`CarGrid`'s states: pushing, pulling, pushed straight."""
-
-
-def _yaw(theta: float) -> float:
-    """Chain heading -> the Reeds-Shepp state's yaw (theta + pi) in [-pi, pi)."""
-    return (float(theta) + 2.0 * math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _dijkstra(free: np.ndarray, source: tuple[int, int], h: float) -> np.ndarray:

@@ -46,7 +46,8 @@ import numpy as np
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import ClosedLoopEngine
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import Segment
 from pushtrain.defaults import CUSP_DWELL, GOAL_TOLERANCE, REFERENCE_SPEED
 from pushtrain.errors import ControllerError, PlanningInputError
 

@@ -75,13 +75,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pushtrain.core.reference import PULL, PUSH, Segment
+from pushtrain.core.segment import PULL, PUSH, Segment
 
-from .connect import corner_segments, rs_segments, sample_reference
+from .connect import corner_segments, sample_reference
 from .footprint import body_positions
 from .goal_connections import GoalConnections
 from .heuristic import Heuristic
 from .propagate import Cursor, Propagator, Rollout, TrainState
+from .reeds_shepp import rs_segments
 from .route import Route
 from .search_settings import SearchSettings, segments_cost
 from .train import Train

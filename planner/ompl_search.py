@@ -1,8 +1,8 @@
 """OMPL search of the last trailer's path: space, motion validator, solve, simplification.
 
 OMPL's camelCase stays in the planner's modules that import ompl (this one and
-:mod:`~pushtrain.planner.curves`); results are converted to numpy at once. Poses are planner
-states (x, y, yaw = theta + pi), see :mod:`~pushtrain.planner.curves`.
+:mod:`~pushtrain.planner.reeds_shepp`); results are converted to numpy at once. Poses are planner
+states (x, y, yaw = theta + pi), see :mod:`~pushtrain.planner.reeds_shepp`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from pushtrain.facility.free_space import World
 
 from .budget import CHECKS_PER_SECOND, Work
 from .config import OPTIMIZING_PLANNERS, PlannerConfig
-from .curves import reeds_shepp_space, sample_curve_into, travel_between_states, wrap_yaw
+from .reeds_shepp import reeds_shepp_space, sample_curve_into, travel_between_states, wrap_yaw
 from .repair import (
     first_pull_start_outside,
     pull_end_rule,

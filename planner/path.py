@@ -1,7 +1,7 @@
 """The planner's result: a line-and-arc path of the last trailer (:class:`PlannedPath`).
 
 Poses use the chain convention of :mod:`pushtrain.core.kinematics` (theta points toward the
-robot). Segments are :class:`pushtrain.core.reference.Segment` objects, so the path turns into
+robot). Segments are :class:`pushtrain.core.segment.Segment` objects, so the path turns into
 the co-simulation master's :class:`~pushtrain.core.reference.Reference` directly.
 """
 
@@ -14,7 +14,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.defaults import CUSP_DWELL, REFERENCE_SPEED
 from pushtrain.errors import PlanningInputError
 

@@ -1,7 +1,7 @@
 """The whole-train planning loop: :func:`plan` and its replanning after failed train checks.
 
 ``plan`` plans the last trailer's line/arc path with OMPL (:mod:`~pushtrain.planner.ompl_search`),
-recovers its segments (:mod:`~pushtrain.planner.curves`) and checks the whole train on it by
+computes its segments (:mod:`~pushtrain.planner.reeds_shepp`) and checks the whole train on it by
 simulating the co-simulation's controller in closed loop with the chain
 (:mod:`~pushtrain.planner.train_check`); a failure changes the next attempt (larger radius, or
 a blocked region and more inflation, see :func:`_next_attempt`) until a plan passes,
@@ -28,19 +28,16 @@ from shapely.geometry import Point
 from shapely.geometry import box as _box
 
 from pushtrain.core.kinematics import body_positions_along
-from pushtrain.core.reference import PULL, Segment
+from pushtrain.core.segment import PULL, Segment
 from pushtrain.errors import PlanningError, PlanningInputError
 from pushtrain.facility.free_space import World
 
 from .budget import STEPS_PER_CHECK, Work
 from .config import ANYTIME_PLANNERS, PlannerConfig
-from .curves import (
-    chain_to_planner_state,
-    segments_from_states,
-)
 from .kinematic_loop import TrackerConfig, reference_times
 from .ompl_search import Attempt, solve_once, solve_restarts
 from .path import PlannedPath
+from .reeds_shepp import chain_to_planner_state, segments_from_states
 from .train import Train
 from .train_check import check_train
 from .whole_train import plan_lattice

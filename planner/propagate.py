@@ -50,7 +50,8 @@ import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import Checks, ClosedLoopEngine, LoopState
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.facility.distance_field import DistanceField
 
 from .footprint import FIELD_TOLERANCE, BodySamples, disc_cover, first_failure

@@ -24,7 +24,7 @@ from pushtrain.core.pulling import straight_chain_mismatch
 from pushtrain.facility.free_space import World
 
 from .budget import Work
-from .curves import sample_curve_into, travel_between_states, wrap_yaw
+from .reeds_shepp import sample_curve_into, travel_between_states, wrap_yaw
 from .train import Train
 
 __all__ = ["shorten_by_local_search", "pull_end_rule", "first_pull_start_outside",

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pushtrain.core.reference import PULL, PUSH
+from pushtrain.core.segment import PULL, PUSH
 
 from .config import PlannerConfig
 

@@ -24,9 +24,10 @@ import math
 import time
 from collections.abc import Callable, Sequence
 
-from pushtrain.core.reference import Segment
+from pushtrain.core.segment import Segment
 
-from .connect import corner_segments, rs_segments, sample_reference
+from .connect import corner_segments, sample_reference
+from .reeds_shepp import rs_segments
 from .search_settings import SearchSettings, segments_cost
 
 __all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]

@@ -32,7 +32,8 @@ from pushtrain.core.kinematics import (
     wrap_angle,
     wrap_scalar,
 )
-from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import Segment
 from pushtrain.errors import PlanningInputError
 from pushtrain.facility.free_space import World
 

@@ -42,7 +42,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Point
 
-from pushtrain.core.reference import PULL
+from pushtrain.core.segment import PULL
 from pushtrain.errors import PlanningError
 from pushtrain.facility.free_space import World
 

@@ -202,7 +202,8 @@ def failure_payload(n: int, details: dict, *, world=None, footprints=None, start
     partial = None
     closest = details.get("closest") or {}
     if closest.get("segments") and start is not None:
-        from pushtrain.core.reference import Segment, path_points
+        from pushtrain.core.reference import path_points
+        from pushtrain.core.segment import Segment
 
         x, y = path_points(start, [Segment.from_dict(g) for g in closest["segments"]])
         partial = [_rounded(x), _rounded(y)]

@@ -198,7 +198,8 @@ def test_the_rules_would_catch_a_forbidden_arrow(tmp_path):
 
 
 @pytest.mark.parametrize("modules, forbidden", [
-    ("pushtrain.planner, pushtrain.core.controller, pushtrain.core.reference", "fmpy"),
+    ("pushtrain.planner, pushtrain.core.controller, pushtrain.core.reference, "
+     "pushtrain.core.segment, pushtrain.core.sampled_reference", "fmpy"),
     ("pushtrain.cosim.master, pushtrain.core.governor, pushtrain.fmu", "ompl"),
     ("pushtrain.core.controller, pushtrain.core.pulling, pushtrain.core.analysis",
      "pushtrain.planner"),
@@ -410,13 +411,13 @@ def _c_files():
 
 def test_fmu_imports_core_only_for_the_controller_fmu():
     """fmu -> core is one declared arrow: the controller FMU's builder takes the engine's C
-    files (core.native.engine_files) and the reference's Segment; nothing else of fmu imports
+    files (core.native.engine_files) and the path's Segment; nothing else of fmu imports
     core."""
     wrong = [f"{path.relative_to(ROOT)} imports {target}"
              for room, path, target in _internal_edges()
              if room == "fmu" and _room_of(target) == "core"
              and (path != ROOT / "fmu" / "controller.py"
-                  or target not in ("pushtrain.core.native", "pushtrain.core.reference"))]
+                  or target not in ("pushtrain.core.native", "pushtrain.core.segment"))]
     assert not wrong, "\n".join(wrong)
 
 

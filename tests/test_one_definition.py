@@ -32,7 +32,8 @@ CLASSES = _classes()
     ("Reference", "core/reference.py"), ("PullGuide", "core/pulling.py"),
     ("Controller", "core/controller.py"), ("Tracker", "core/controller.py"),
     ("SlipGovernor", "core/governor.py"), ("Sensors", "core/sensors.py"),
-    ("StepLoop", "cosim/step_loop.py"), ("Segment", "core/reference.py"),
+    ("StepLoop", "cosim/step_loop.py"), ("Segment", "core/segment.py"),
+    ("SampledReference", "core/sampled_reference.py"),
     ("Profile", "core/openloop.py"), ("RotationProfile", "core/openloop.py"),
 ])
 def test_each_concept_has_one_class(name, home):

@@ -278,7 +278,7 @@ int pt_command(const PtController *c, PtControlState *state, double t, const PtM
 
 /* ------------------------------------------------------------------ the reference */
 
-/* Pose after travelling s [m] along a line or arc (reference._advance). */
+/* Pose after travelling s [m] along a line or arc (Eq. 1 integrated in closed form). */
 static void advance(double x, double y, double theta, double sigma, double kappa, double s,
                     double out[3]) {
     const double th = theta + kappa * s;

@@ -5,10 +5,11 @@
  *
  * It is the compiled twin of the Python reference implementation (the law in the tests'
  * tests/reference/controller.py, with core/controller.py's settings and diagnostics;
- * core/kinematics.py, core/reference.py, core/pulling.py): every formula is evaluated in the
- * same order as there, so both give the same numbers (tests/test_native_control.py holds them
- * equal to 1e-12). Self-contained (<math.h>, <string.h>, <stddef.h> only), reentrant (no
- * globals, no allocation: every array is the caller's), so it compiles unchanged into an FMU.
+ * core/kinematics.py, core/segment.py, core/reference.py, core/pulling.py): every formula is
+ * evaluated in the same order as there, so both give the same numbers
+ * (tests/test_native_control.py holds them equal to 1e-12). Self-contained (<math.h>,
+ * <string.h>, <stddef.h> only), reentrant (no globals, no allocation: every array is the
+ * caller's), so it compiles unchanged into an FMU.
  *
  * Conventions (core/kinematics.py): body 0 is the robot, bodies 1..n the trailers. theta[i] is
  * measured from +x, CCW, and points toward the robot; phi[i-1] = theta[i-1] - theta[i] is joint
@@ -48,7 +49,7 @@ enum {
     PT_ERR_EMPTY_REFERENCE = 9        /* sampling a reference without segments */
 };
 
-/* Reference directions (core/reference.py PUSH, PULL, REST). */
+/* Reference directions (core/segment.py PUSH, PULL, REST). */
 enum { PT_PULL = -1, PT_REST = 0, PT_PUSH = 1 };
 
 /* Controller modes (ControlInfo.mode). */
@@ -106,7 +107,7 @@ typedef struct {
     double scale;
 } PtControlInfo;
 
-/* One line or arc of the last trailer's path (core/reference.py Segment). */
+/* One line or arc of the last trailer's path (core/segment.py Segment). */
 typedef struct {
     double length;    /* distance travelled [m], > 0 */
     double curvature; /* d(theta)/ds per metre travelled [1/m]; 0 for a line */

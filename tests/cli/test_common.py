@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from pushtrain.cli.common import BadInput, load_scenario_with_overrides
 from pushtrain.cli.main import cli
 from pushtrain.cli.runs import describe_path
-from pushtrain.core.reference import PUSH, Segment
+from pushtrain.core.segment import PUSH, Segment
 from pushtrain.planner.connect import sample_reference
 from pushtrain.planner.path import PlannedPath
 

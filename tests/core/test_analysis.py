@@ -23,7 +23,8 @@ from pushtrain.core.kinematics import (
     body_positions_from_last,
     forward_velocities,
 )
-from pushtrain.core.reference import PUSH, ReferenceSample
+from pushtrain.core.reference import ReferenceSample
+from pushtrain.core.segment import PUSH
 from pushtrain.core.sensors import Measurement
 from pushtrain.errors import AnalysisError
 

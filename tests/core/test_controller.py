@@ -31,7 +31,8 @@ from pushtrain.core.kinematics import (
     joint_angles,
     wrap_angle,
 )
-from pushtrain.core.reference import PULL, PUSH, REST, Reference, ReferenceSample, Segment
+from pushtrain.core.reference import Reference, ReferenceSample
+from pushtrain.core.segment import PULL, PUSH, REST, Segment
 from pushtrain.core.sensors import Measurement, SensorConfig, Sensors
 from pushtrain.errors import ControllerError
 

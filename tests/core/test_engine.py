@@ -23,7 +23,8 @@ from pushtrain.core import native
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import Checks, ClosedLoopEngine, LoopState, rectangle_points, simulate
 from pushtrain.core.kinematics import ChainGeometry, body_positions, joint_angles, wrap_angle
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.errors import ControllerError
 from pushtrain.planner import kinematic_loop
 from pushtrain.planner.kinematic_loop import default_controller

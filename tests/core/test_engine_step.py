@@ -14,7 +14,8 @@ import pytest
 from pushtrain.core import native
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.reference import PULL, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, Segment
 from pushtrain.core.sensors import Measurement, SensorConfig, Sensors
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import EventSchedule, Push

@@ -28,15 +28,9 @@ from pushtrain.core import native
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, wrap_scalar
 from pushtrain.core.pulling import PullGuide, rates_driven_by_last
-from pushtrain.core.reference import (
-    PULL,
-    PUSH,
-    REST,
-    Reference,
-    ReferenceSample,
-    SampledReference,
-    Segment,
-)
+from pushtrain.core.reference import Reference, ReferenceSample
+from pushtrain.core.sampled_reference import SampledReference
+from pushtrain.core.segment import PULL, PUSH, REST, Segment
 from pushtrain.errors import ControllerError, NativeBuildError, ReferencePathError
 
 CSRC = Path(native.__file__).with_name("csrc")

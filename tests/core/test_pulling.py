@@ -14,7 +14,9 @@ from pushtrain.core.kinematics import (
     joint_angles,
 )
 from pushtrain.core.pulling import PullGuide, straight_chain_mismatch
-from pushtrain.core.reference import PULL, PUSH, Reference, SampledReference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.sampled_reference import SampledReference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.errors import ReferencePathError
 from pushtrain.planner.kinematic_loop import default_controller, simulate_tracking
 

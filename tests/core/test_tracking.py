@@ -8,7 +8,8 @@ from reference.controller import BackwardController
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand
 from pushtrain.core.pulling import PullGuide
-from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, REST, Segment
 from pushtrain.core.sensors import Measurement
 from pushtrain.core.tracking import TrackingLoop
 

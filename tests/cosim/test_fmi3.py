@@ -13,7 +13,8 @@ from click.testing import CliRunner
 
 from pushtrain.cli.main import cli
 from pushtrain.core.controller import ControllerConfig
-from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import Segment
 from pushtrain.cosim.events import Push, Slide
 from pushtrain.cosim.fmu_slave import TrailerTrainSlave
 from pushtrain.cosim.master import simulate

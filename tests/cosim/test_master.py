@@ -9,7 +9,8 @@ import pytest
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand
-from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import Segment
 from pushtrain.core.sensors import SensorConfig
 from pushtrain.cosim.events import Push, SetBias, Slide
 from pushtrain.cosim.master import simulate
@@ -117,7 +118,7 @@ def test_bad_configuration_is_refused_before_any_stepping(fmu3):
 
 
 def test_reference_with_a_jump_is_refused():
-    from pushtrain.core.reference import SampledReference
+    from pushtrain.core.sampled_reference import SampledReference
 
     t = np.arange(0.0, 2.0, 0.1)
     x = -0.08 * t
@@ -159,7 +160,7 @@ def test_joint_bias_steady_offset_matches_the_analysis_fig14(fmu3, bias_deg, joi
 
 
 def test_a_sampled_reference_drives_the_same_run_as_its_segments(fmu3):
-    from pushtrain.core.reference import SampledReference
+    from pushtrain.core.sampled_reference import SampledReference
 
     ref = Reference.from_segments((0.0, 0.0, math.pi),
                                   [Segment("line", 0.5), Segment("arc", 0.5, 0.8)], speed=0.08)

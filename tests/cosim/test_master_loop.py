@@ -24,7 +24,9 @@ from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.openloop import ConstantCommand, RotationProfile
-from pushtrain.core.reference import PULL, PUSH, REST, Reference, SampledReference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.sampled_reference import SampledReference
+from pushtrain.core.segment import PULL, PUSH, REST, Segment
 from pushtrain.core.sensors import SensorConfig, Sensors
 from pushtrain.cosim import step_loop
 from pushtrain.cosim.events import Push, SetBias, Slide

@@ -18,7 +18,8 @@ from pushtrain.cli.main import cli
 from pushtrain.core.controller import Controller, ControllerConfig
 from pushtrain.core.governor import GovernedController, GovernorConfig, SlipGovernor
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.core.reference import PULL, PUSH, REST, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, REST, Segment
 from pushtrain.core.sensors import Measurement, SensorConfig
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.cosim.events import SetBias

@@ -21,7 +21,8 @@ from reference.controller import BackwardController
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.core.sensors import SensorConfig, Sensors
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.errors import FmuInputError

@@ -7,7 +7,8 @@ import pytest
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.openloop import ConstantCommand, RotationProfile
-from pushtrain.core.reference import Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import Segment
 from pushtrain.cosim.events import Push
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState, PlantConfig

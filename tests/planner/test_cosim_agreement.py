@@ -4,7 +4,8 @@ import math
 
 import numpy as np
 
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState
 from pushtrain.facility.free_space import World

@@ -6,8 +6,8 @@ import pytest
 
 from pushtrain.facility import example_layouts
 from pushtrain.facility.free_space import World
-from pushtrain.planner.curves import rs_distance
 from pushtrain.planner.heuristic import Heuristic
+from pushtrain.planner.reeds_shepp import rs_distance
 
 
 def test_grid_distance_goes_around_the_corner():

@@ -10,7 +10,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from pushtrain.core.reference import PULL, PUSH, Reference
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH
 from pushtrain.errors import PlanningError
 from pushtrain.facility import example_layouts
 from pushtrain.facility.free_space import World
@@ -240,7 +241,7 @@ def _corridor_into_a_hall(corridor: float = 2.0, hall: float = 2.0) -> dict:
 
 def test_the_pull_back_of_a_turn_round_lands_on_the_goal():
     """The pull-back connections' pulls, computed backward from the goal, end on it."""
-    from pushtrain.core.reference import Segment
+    from pushtrain.core.segment import Segment
     from pushtrain.planner.connect import sample_reference
     from pushtrain.planner.goal_connections import _reversed
 

@@ -16,7 +16,8 @@ from pushtrain.core.kinematics import (
     heading_rates_from_robot,
     joint_angles,
 )
-from pushtrain.core.reference import PULL, PUSH, Reference
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH
 from pushtrain.errors import PlanningError, PlanningInputError
 from pushtrain.facility import example_layouts
 from pushtrain.facility.free_space import World
@@ -275,7 +276,7 @@ def test_radius_rule_and_transient_margin():
     assert 2 * math.atan(d / r) == pytest.approx(phi_max / 1.6)
     assert ompl().radius_for(TRAIN) == pytest.approx(r)
     # kinematic worst case: steady left arc, then a right arc (3 trailers, pushing)
-    from pushtrain.core.reference import Segment
+    from pushtrain.core.segment import Segment
 
     world = World.from_dict({"bounds": [-50, -50, 50, 50]})
     segs = [
@@ -379,15 +380,15 @@ def test_restarts_shortens_the_first_solution_and_the_train_passes(name):
         checked = plan(world, case["start"], case["goal"], TRAIN,
                        PlannerConfig(planner="restarts", seed=3, anytime_time=0.5))
         assert checked.info["attempts"][-1]["train_ok"]
-    from pushtrain.planner.curves import rs_distance
+    from pushtrain.planner.reeds_shepp import rs_distance
     radius = best.turning_radius
     yaw = lambda p: (p[0], p[1], p[2] + math.pi)  # noqa: E731
     assert best.length >= rs_distance(radius, yaw(case["start"]), yaw(case["goal"])) - 1e-9
 
 
 def test_local_search_keeps_the_path_valid_and_never_longer():
-    from pushtrain.planner.curves import chain_to_planner_state, segments_from_states
     from pushtrain.planner.ompl_search import Attempt, solve_once
+    from pushtrain.planner.reeds_shepp import chain_to_planner_state, segments_from_states
 
     case = example_layouts.bay()
     world = World.from_dict(case["world"])

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from reference.closed_loop import simulate_tracking
 
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.facility.free_space import World
 from pushtrain.planner.footprint import body_samples
 from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pushtrain.core.reference import PULL, PUSH, Segment
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.errors import PlanningError
 from pushtrain.facility import example_layouts
 from pushtrain.facility.free_space import World
@@ -225,7 +225,7 @@ def test_a_near_u_turn_goal_plans_in_bounded_memory(tmp_path):
     import subprocess
     import sys
 
-    from pushtrain.core.reference import PUSH
+    from pushtrain.core.segment import PUSH
     from pushtrain.planner.connect import corner_segments
 
     # nearly opposite travel directions: the lines meet about 14 km ahead

@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 import shapely
 
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.facility.free_space import World
 from pushtrain.planner.footprint import body_positions, body_samples, first_failure
 from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller

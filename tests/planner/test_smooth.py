@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pushtrain.core.reference import PUSH, Segment
+from pushtrain.core.segment import PUSH, Segment
 from pushtrain.planner.smooth import junction_poses, path_cost, shortcut
 
 R = 1.0  # turning radius [m]

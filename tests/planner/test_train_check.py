@@ -22,7 +22,8 @@ from pushtrain.core.kinematics import (
     joint_angles,
     steady_joint_angle,
 )
-from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.core.reference import Reference
+from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.errors import PlanningInputError
 from pushtrain.facility.free_space import World
 from pushtrain.planner.kinematic_loop import (

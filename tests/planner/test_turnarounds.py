@@ -70,7 +70,7 @@ def test_the_k_turn_connection_pulls_back_across_the_junction_and_pushes_round_o
     push as long as the train first), the K-turn connection (of the search that planned the
     mission) pushes on, pulls straight back past the corridor and pushes round the corner
     onto the goal; the mission needs it (the route leaves against the start)."""
-    from pushtrain.core.reference import PULL, PUSH
+    from pushtrain.core.segment import PULL, PUSH
     from pushtrain.planner.connect import sample_reference
     from pushtrain.planner.goal_connections import GoalConnections
 

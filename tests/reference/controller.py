@@ -24,7 +24,8 @@ from pushtrain.core.controller import (
     Gains,
 )
 from pushtrain.core.kinematics import robot_velocity_from_last, wrap_scalar
-from pushtrain.core.reference import PULL, PUSH, REST, ReferenceSample
+from pushtrain.core.reference import ReferenceSample
+from pushtrain.core.segment import PULL, PUSH, REST
 from pushtrain.core.tracking import TrackingLoop
 from pushtrain.errors import ControllerError
 
@@ -223,7 +224,7 @@ class BackwardController:
         """:meth:`command` with ``ref`` and ``leader`` taken from ``reference`` at ``t``.
 
         ``reference`` is a :class:`~pushtrain.core.reference.Reference` or
-        :class:`~pushtrain.core.reference.SampledReference`; the samples come from a
+        :class:`~pushtrain.core.sampled_reference.SampledReference`; the samples come from a
         :class:`~pushtrain.core.tracking.TrackingLoop` of this controller and ``reference``,
         kept while the calls pass the same reference object.
         """

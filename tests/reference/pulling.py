@@ -20,7 +20,8 @@ from pushtrain.core.kinematics import (
     robot_velocity_from_last,
 )
 from pushtrain.core.pulling import PullRun, rates_driven_by_last
-from pushtrain.core.reference import PULL, ReferenceSample
+from pushtrain.core.reference import ReferenceSample
+from pushtrain.core.segment import PULL
 from pushtrain.errors import ReferencePathError
 from reference.ode import rk4_step
 

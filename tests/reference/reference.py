@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pushtrain.core.kinematics import wrap_angle
-from pushtrain.core.reference import PULL, REST, ReferenceSample, Segment
+from pushtrain.core.reference import ReferenceSample
+from pushtrain.core.segment import PULL, REST, Segment
 from pushtrain.errors import ReferencePathError
 
 

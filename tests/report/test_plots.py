@@ -29,7 +29,8 @@ D = 0.52
 def run3(built_fmu):
     """A real co-simulation: robot + 3 trailers pushing along a line then an arc."""
     from pushtrain.core.controller import ControllerConfig
-    from pushtrain.core.reference import Reference, Segment
+    from pushtrain.core.reference import Reference
+    from pushtrain.core.segment import Segment
     from pushtrain.core.sensors import SensorConfig
     from pushtrain.cosim.events import Slide
     from pushtrain.cosim.master import simulate
