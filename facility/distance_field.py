@@ -154,13 +154,20 @@ class DistanceField:
         u = (x - self.x0) / self.resolution
         v = (y - self.y0) / self.resolution
         inside = (u >= 0.0) & (u <= nx - 1) & (v >= 0.0) & (v <= ny - 1)
-        j = np.clip(np.floor(u).astype(np.intp), 0, nx - 2)
-        i = np.clip(np.floor(v).astype(np.intp), 0, ny - 2)
-        a = np.clip(u - j, 0.0, 1.0)
-        b = np.clip(v - i, 0.0, 1.0)
-        f = self.values
-        out = ((1.0 - b) * ((1.0 - a) * f[i, j] + a * f[i, j + 1])
-               + b * ((1.0 - a) * f[i + 1, j] + a * f[i + 1, j + 1]))
+        # a point outside (or NaN) is looked up at node (0, 0) and then set to -inf; inside,
+        # the cell's corner is the node below (the last cell's at the grid's far edges), so the
+        # weights a, b lie in [0, 1]. Flat indices: one take per corner (2-3 times faster than
+        # indexing with two arrays)
+        u = np.where(inside, u, 0.0)
+        v = np.where(inside, v, 0.0)
+        j = np.minimum(np.floor(u), nx - 2)
+        i = np.minimum(np.floor(v), ny - 2)
+        a = u - j
+        b = v - i
+        k = i.astype(np.intp) * nx + j.astype(np.intp)
+        f = self.values.reshape(-1)
+        out = ((1.0 - b) * ((1.0 - a) * f.take(k) + a * f.take(k + 1))
+               + b * ((1.0 - a) * f.take(k + nx) + a * f.take(k + nx + 1)))
         return np.where(inside, out, -np.inf)
 
     def clear(self, x, y, margin) -> np.ndarray:

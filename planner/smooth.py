@@ -24,12 +24,18 @@ import math
 import time
 from collections.abc import Callable, Sequence
 
-from pushtrain.core.reference import Segment
+from pushtrain.core.reference import PULL, Segment
 
 from .connect import corner_segments, rs_segments, sample_reference
 from .search_settings import SearchSettings, segments_cost
 
 __all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]
+
+_SETTINGS = SearchSettings(radius=1.0)
+"""The prices of :func:`path_cost`."""
+
+_CHEAPEST_METRE = min(1.0, _SETTINGS.pull_factor)
+"""The least :func:`path_cost` of a metre of path (pushing 1, pulling ``pull_factor``)."""
 
 
 def merge(segments: Sequence[Segment]) -> list[Segment]:
@@ -53,7 +59,7 @@ def total_turning(segments: Sequence[Segment]) -> float:
 def path_cost(segments: Sequence[Segment], settings: SearchSettings | None = None) -> float:
     """The path's cost as the search prices it (:func:`segments_cost` with ``settings``,
     default :class:`~pushtrain.planner.search_settings.SearchSettings`)."""
-    return segments_cost(segments, settings or SearchSettings(radius=1.0))
+    return segments_cost(segments, settings or _SETTINGS)
 
 
 def junction_poses(start, segments: Sequence[Segment]) -> list[tuple]:
@@ -62,6 +68,19 @@ def junction_poses(start, segments: Sequence[Segment]) -> list[tuple]:
     for g in segments:
         poses.append(tuple(sample_reference(poses[-1], [g], g.length + 1.0)[-1]))
     return poses
+
+
+def _floors(segments: Sequence[Segment]) -> list[float]:
+    """Lower bounds of :func:`path_cost` of the first k segments, k = 0..len: their lengths
+    and turning at the search's prices, without the changes of curvature and the cusps (all
+    prices are >= 0, so the cost of a path that holds these segments is at least this)."""
+    s = _SETTINGS
+    out = [0.0]
+    for g in segments:
+        pull = g.direction == PULL
+        out.append(out[-1] + g.length * (s.pull_factor if pull else 1.0)
+                   + (s.pull_turn_weight if pull else s.turn_weight) * abs(g.curvature) * g.length)
+    return out
 
 
 def _bridges(a, b, direction: int, radius: float):
@@ -94,13 +113,20 @@ def shortcut(segments: list[Segment], checked, start, goal, radius: float,
     i = 0
     while i < len(best) - 1 and tries < max_tries:
         poses = junction_poses(start, best)
+        floors = _floors(best)
+        target = (1.0 - min_gain) * path_cost(best)
         improved = False
         for j in range(len(best), i + 1, -1):
             if tries >= max_tries or time.perf_counter() >= deadline:
                 return best, best_check, taken
+            # no way from junction i to junction j is shorter than the straight line: if
+            # even that cannot make the path cheap enough, no bridge is made
+            reach = max(0.0, math.dist(poses[i][:2], poses[j][:2]) - 1e-5)
+            if floors[i] + (floors[-1] - floors[j]) + _CHEAPEST_METRE * reach > target + 1e-9:
+                continue
             for bridge in _bridges(poses[i], poses[j], best[i].direction, radius):
                 candidate = merge(best[:i] + bridge + best[j:])
-                if path_cost(candidate) > (1.0 - min_gain) * path_cost(best):
+                if path_cost(candidate) > target:
                     continue
                 if clear is not None and not clear(poses[i], bridge):
                     continue
