@@ -268,9 +268,46 @@ def shortest_chord(field: DistanceField, x: float, y: float, reach: float = 2.5)
     """The shortest chord [m] through (x, y), wall to wall, over 36 directions (a chord
     across a corridor 2.5 deg off is 0.1 % long): a corridor's or a door's width wherever in
     it the point is (at least twice the point's distance from the walls); chords longer than
-    ``2 reach`` count as ``2 reach``."""
-    return min(width_across(field, x, y, th, reach) for th in np.linspace(0.0, math.pi, 36,
-                                                                           endpoint=False))
+    ``2 reach`` count as ``2 reach``. :func:`width_across` in every direction at once (the
+    same numbers, one lookup of the field instead of 36)."""
+    headings = np.linspace(0.0, math.pi, 36, endpoint=False)
+    h = 0.5 * field.resolution
+    t = np.arange(-reach, reach + h, h)
+    nx = np.array([-math.sin(th) for th in headings])[:, None]
+    ny = np.array([math.cos(th) for th in headings])[:, None]
+    k0 = int(np.argmin(np.abs(t)))
+    # the samples within 1 m of the point first; a direction that meets no wall on both sides
+    # within them is looked up beyond too (the field is looked up point by point: the same
+    # values as one lookup of the whole line)
+    m = int(math.ceil(1.0 / h))
+    lo, hi = max(0, k0 - m), min(t.size, k0 + m + 1)
+    d = np.full((len(headings), t.size), -1.0)
+    d[:, lo:hi] = field.at(x + t[None, lo:hi] * nx, y + t[None, lo:hi] * ny)
+    d[~np.isfinite(d)] = -1.0
+    if d[0, k0] <= 0.0:  # the same point in every direction
+        return 0.0
+    open_ = ~((d[:, lo:k0] <= 0.0).any(axis=1) & (d[:, k0 + 1:hi] <= 0.0).any(axis=1))
+    if open_.any() and (lo > 0 or hi < t.size):
+        out = np.r_[0:lo, hi:t.size]
+        rest = field.at(x + t[None, out] * nx[open_], y + t[None, out] * ny[open_])
+        rest[~np.isfinite(rest)] = -1.0
+        d[np.ix_(open_, out)] = rest
+    rows = np.arange(len(headings))
+    wall = d <= 0.0
+    # the last free sample before the first wall on each side of k0 (or the reach's end)
+    up = wall[:, k0 + 1:]
+    hit_up = up.any(axis=1)
+    k_up = np.where(hit_up, k0 + np.argmax(up, axis=1), t.size - 1)
+    down = wall[:, :k0][:, ::-1]
+    hit_down = down.any(axis=1)
+    k_down = np.where(hit_down, k0 - np.argmax(down, axis=1), 0)
+    ends = []
+    for k, hit, step in ((k_down, hit_down, -1), (k_up, hit_up, 1)):
+        b_at = np.clip(k + step, 0, t.size - 1)
+        a, b = d[rows, k], d[rows, b_at]  # a > 0 >= b where hit: the wall between
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ends.append(np.where(hit, t[k] + step * h * a / (a - b), t[k]))
+    return float(np.min(ends[1] - ends[0]))
 
 
 @dataclass(frozen=True)
