@@ -164,11 +164,16 @@ class DistanceField:
         i = np.minimum(np.floor(v), ny - 2)
         a = u - j
         b = v - i
-        k = i.astype(np.intp) * nx + j.astype(np.intp)
+        k = (i * nx + j).astype(np.intp)  # whole numbers below 2**53: exact
         f = self.values.reshape(-1)
-        out = ((1.0 - b) * ((1.0 - a) * f.take(k) + a * f.take(k + 1))
-               + b * ((1.0 - a) * f.take(k + nx) + a * f.take(k + nx + 1)))
-        return np.where(inside, out, -np.inf)
+        # the four corners: one take each, from views that start one node, one row and one
+        # row plus a node further
+        a1, b1 = 1.0 - a, 1.0 - b
+        out = (b1 * (a1 * f.take(k) + a * f[1:].take(k))
+               + b * (a1 * f[nx:].take(k) + a * f[nx + 1:].take(k)))
+        out = np.asarray(out)  # a 0-d array for one point, as np.where gives
+        out[~inside] = -np.inf
+        return out
 
     def clear(self, x, y, margin) -> np.ndarray:
         """Whether each point keeps ``margin`` [m] (scalar or broadcastable) from every wall."""

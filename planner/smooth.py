@@ -104,12 +104,14 @@ def shortcut(segments: list[Segment], checked, start, goal, radius: float,
     ``verify(segments)`` returns a check result with ``ok``; ``checked`` is the verified check
     of ``segments``. ``clear(pose, bridge)`` (optional) is a cheap necessary test of a bridge
     from ``pose`` (e.g. the last trailer's own footprint along it): a bridge it refuses is not
-    simulated. At most ``max_tries`` candidates are simulated, each at least ``min_gain`` (a
-    fraction) cheaper than the path so far. Returns (segments, their check, number of
-    shortcuts taken).
+    simulated. At most ``max_tries`` candidates are tried, each at least ``min_gain`` (a
+    fraction) cheaper than the path so far; one tried before (the same segments, from an
+    earlier pair of junctions) counts again but is not simulated again. Returns (segments,
+    their check, number of shortcuts taken).
     """
     best, best_check = list(segments), checked
     taken, tries = 0, 0
+    failed = set()  # the candidates verify refused
     i = 0
     while i < len(best) - 1 and tries < max_tries:
         poses = junction_poses(start, best)
@@ -128,10 +130,17 @@ def shortcut(segments: list[Segment], checked, start, goal, radius: float,
                 candidate = merge(best[:i] + bridge + best[j:])
                 if path_cost(candidate) > target:
                     continue
+                if tuple(candidate) in failed:
+                    # tried before from an earlier junction pair (so the bridge was clear):
+                    # the simulation is deterministic, it fails again
+                    tries += 1
+                    continue
                 if clear is not None and not clear(poses[i], bridge):
                     continue
                 tries += 1
                 result = verify(candidate)
+                if not result.ok:
+                    failed.add(tuple(candidate))
                 if result.ok:
                     best, best_check = candidate, result
                     taken += 1
