@@ -80,6 +80,32 @@ def polygon_from_points(points: Any, field_name: str, outline: bool = False) -> 
     return poly
 
 
+def _boundary_pieces(free, points: int = 16) -> np.ndarray:
+    """The rings of ``free`` cut into line strings of ``points`` edges (the last of a ring
+    shorter), in ring order, each sharing its end point with the next: one array of shapely
+    line strings, made at once (a SLAM map has thousands of rings)."""
+    rings = shapely.get_parts(shapely.get_rings(shapely.get_parts(free)))
+    xy, ring = shapely.get_coordinates(rings, return_index=True)
+    if not xy.size:
+        return np.array([], dtype=object)
+    first = np.flatnonzero(np.r_[True, ring[1:] != ring[:-1]])  # each ring's first point
+    size = np.diff(np.r_[first, ring.size])
+    at = np.arange(ring.size) - np.repeat(first, size)  # place of each point in its ring
+    edges = np.repeat(size - 1, size)
+    count = (size - 1 + points - 1) // points  # pieces of each ring
+    base = np.repeat(np.cumsum(count) - count, size)  # the ring's first piece
+    # a point p starts or continues piece p // points (the ring's last point closes its last
+    # piece); one at a multiple of ``points`` also ends the piece before
+    own = at < edges
+    own_piece = base + np.minimum(at // points, np.repeat(count, size) - 1)
+    ends = (at % points == 0) & (at > 0) & own
+    piece = np.concatenate([own_piece[own | (at == edges)], (base + at // points - 1)[ends]])
+    order_in = np.concatenate([at[own | (at == edges)], at[ends]])
+    coords = np.concatenate([xy[own | (at == edges)], xy[ends]])
+    order = np.lexsort((order_in, piece))
+    return shapely.linestrings(coords[order], indices=piece[order])
+
+
 @dataclass(frozen=True, eq=False)
 class World:
     """Free space for the train: ``outline`` minus ``obstacles``.
@@ -108,6 +134,9 @@ class World:
     (handle 2F) on layer WALLS of floor.dxf"``), in the order of ``obstacles``; may be shorter."""
     outline_label: str = field(default="", repr=False)
     """What the outline is, for messages (``"map.free"``, ``"the drawing's extent"``)."""
+    cache_key: str | None = field(default=None, repr=False)
+    """The map cache's key of :attr:`occupancy` (:func:`~pushtrain.facility.map_cache.map_key`)
+    when the map came through the cache: :meth:`eroded` keeps its regions there too."""
     _fields: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self):
@@ -225,12 +254,8 @@ class World:
         geoms = np.asarray(geoms, dtype=object)
         tree = self._fields.get("wall_tree")
         if tree is None:
-            pieces = []
-            for ring in shapely.get_parts(shapely.get_rings(shapely.get_parts(self.free))):
-                xy = shapely.get_coordinates(ring)
-                for i in range(0, len(xy) - 1, 16):
-                    pieces.append(shapely.linestrings(xy[i:i + 17]))
-            tree = shapely.STRtree(pieces) if pieces else None
+            pieces = _boundary_pieces(self.free)
+            tree = shapely.STRtree(pieces) if pieces.size else None
             self._fields["wall_tree"] = tree
         out = np.full(geoms.shape, np.inf)
         if tree is None or not geoms.size:
@@ -262,9 +287,7 @@ class World:
                 shared = self.free
             elif shared is None:
                 if self.occupancy is not None:
-                    from .raster import clear_region
-
-                    shared = clear_region(self.distance_field(), margin).intersection(self.free)
+                    shared = self._eroded_grid(margin)
                 else:
                     shared = self.free.buffer(-margin, quad_segs=16)
                 self._fields[("eroded", margin)] = shared
@@ -272,6 +295,21 @@ class World:
             shapely.prepare(geom)
             self._fields[own] = geom
         return geom
+
+    def _eroded_grid(self, margin: float):
+        """The grid world's free space shrunk by ``margin`` > 0 [m] (see :meth:`eroded`): from
+        the map cache when the map came through it (0.1-0.2 s on an office floor, read back in
+        milliseconds), else traced."""
+        from .raster import clear_region
+
+        def build():
+            return clear_region(self.distance_field(), margin).intersection(self.free)
+
+        if self.cache_key is None:
+            return build()
+        from .map_cache import eroded
+
+        return eroded(self.cache_key, margin, build)
 
     def with_obstacles(self, extra: Sequence[Polygon]) -> "World":
         """A copy with ``extra`` obstacle polygons added. An occupancy grid that can burn

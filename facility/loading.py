@@ -58,7 +58,8 @@ def grid_world(grid: OccupancyGrid, obstacles=(), keep_in: Polygon | None = None
     outline the map's footprint (cut to ``keep_in``), the obstacles the traced blocked cells of
     the map (one MultiPolygon) and ``obstacles`` themselves, exactly. The traced polygons, the
     free space and the distance field come from the map cache (:mod:`.map_cache`: by the
-    content of the grid and the polygons) when ``cache`` and it holds them."""
+    content of the grid and the polygons) when ``cache`` and it holds them, and so do the free
+    space's erosions (:meth:`~pushtrain.facility.free_space.World.eroded`)."""
     from .free_space import World
 
     obstacles = tuple(obstacles)
@@ -74,11 +75,10 @@ def grid_world(grid: OccupancyGrid, obstacles=(), keep_in: Polygon | None = None
                                              burned.resolution)
         return Prepared(traced, free, field)
 
-    if cache:
-        ready = prepared(burned, map_key(grid, obstacles, keep_in), build)
-    else:
-        ready = build()
-    world = World(outline, (ready.traced, *obstacles), occupancy=burned, free=ready.free)
+    key = map_key(grid, obstacles, keep_in) if cache else None
+    ready = prepared(burned, key, build) if cache else build()
+    world = World(outline, (ready.traced, *obstacles), occupancy=burned, free=ready.free,
+                  cache_key=key)
     world.adopt_distance_field(ready.field)
     return world
 

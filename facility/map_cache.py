@@ -35,7 +35,7 @@ from pushtrain.files import atomic_write
 
 from .distance_field import DistanceField
 
-__all__ = ["FORMAT", "Prepared", "cache_dir", "map_key", "prepared"]
+__all__ = ["FORMAT", "Prepared", "cache_dir", "eroded", "map_key", "prepared"]
 
 log = logging.getLogger(__name__)
 
@@ -77,26 +77,61 @@ def map_key(grid, obstacles=(), keep_in=None) -> str:
 def prepared(grid, key: str, build: Callable[[], Prepared]) -> Prepared:
     """The prepared map of ``key``: read from the cache if there and whole, else ``build()``
     (and written to the cache); see the module docstring."""
-    path = cache_dir() / f"{key}.npz"
+    out, source = _cached(cache_dir() / f"{key}.npz", "map", lambda path: _read(path, key, grid),
+                          build, lambda partial, built: _write(partial, key, built))
+    if source == "cache":
+        return out
+    return Prepared(out.traced, out.free, out.field, source)
+
+
+def eroded(key: str, margin: float, build: Callable[[], object]):
+    """The free space of the map ``key`` (:func:`map_key`) shrunk by ``margin`` [m] (a shapely
+    geometry, see :meth:`~pushtrain.facility.free_space.World.eroded`): read from
+    ``<cache>/eroded/<key>-<margin>.npz`` if there and whole (the same geometry to the bit:
+    WKB), else ``build()`` and written there. A damaged file is said to be damaged, built again
+    and rewritten, as a prepared map's."""
+    margin = float(margin)
+    path = cache_dir() / "eroded" / f"{key}-{margin.hex()}.npz"
+
+    def write(partial: Path, geom) -> None:
+        with open(partial, "wb") as f:
+            np.savez(f, key=np.array(key), margin=np.array(margin),
+                     geometry=np.frombuffer(shapely.to_wkb(geom), dtype=np.uint8))
+
+    def read(path: Path):
+        with np.load(path, allow_pickle=False) as data:
+            stored = (str(data["key"]), float(data["margin"]))
+            if stored != (key, margin):
+                raise ValueError(f"it holds the map {stored[0][:12]}... eroded by {stored[1]!r} m,"
+                                 f" not {key[:12]}... by {margin!r} m")
+            return shapely.from_wkb(data["geometry"].tobytes())
+
+    return _cached(path, f"eroded ({margin:g} m) map", read, build, write)[0]
+
+
+def _cached(path: Path, what: str, read: Callable, build: Callable, write: Callable):
+    """(``read(path)``, ``"cache"``) if ``path`` is there and whole, else (``build()``,
+    ``"built"`` or ``"rebuilt"``) written to ``path`` atomically (``write(partial, built)``);
+    a damaged file is a warning, a folder that cannot be written too."""
     damaged = None
     if path.is_file():
         try:
-            out = _read(path, key, grid)
-            log.info("map %s... read from the cache %s", key[:12], path)
-            return out
+            out = read(path)
+            log.info("%s %s read from the cache", what, path.name)
+            return out, "cache"
         except Exception as exc:  # BadZipFile, bad CRC, EOFError, KeyError, ValueError, ...
             damaged = f"{type(exc).__name__}: {exc}"
-            log.warning("the map cache %s is damaged (%s): the map is prepared again and the "
-                        "file rewritten", path, damaged)
+            log.warning("the map cache %s is damaged (%s): the %s is prepared again and the "
+                        "file rewritten", path, damaged, what)
     out = build()
-    log.info("map %s... prepared; cached in %s", key[:12], path)
+    log.info("%s %s prepared; cached in %s", what, path.stem[:12], path.parent)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write(path, lambda partial: _write(partial, key, out), keep_suffix=True)
+        atomic_write(path, lambda partial: write(partial, out), keep_suffix=True)
     except OSError as exc:  # pushtrain.files.WriteError is one
-        log.warning("the prepared map cannot be cached in %s (%s): it is kept in memory only",
-                    path.parent, exc)
-    return Prepared(out.traced, out.free, out.field, "rebuilt" if damaged else "built")
+        log.warning("the prepared %s cannot be cached in %s (%s): it is kept in memory only",
+                    what, path.parent, exc)
+    return out, "rebuilt" if damaged else "built"
 
 
 def _write(path: Path, key: str, out: Prepared) -> None:

@@ -50,6 +50,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage  # at import (0.1-0.3 s once), not in the first search
 
 from pushtrain.facility.distance_field import DistanceField
 
@@ -119,8 +120,6 @@ def _overlap(a: tuple[slice, slice], b: tuple[slice, slice]) -> bool:
 
 
 def _labels(field: DistanceField, level: float, cache: bool = False) -> np.ndarray:
-    from scipy import ndimage
-
     cache = cache and field.values.size <= _CACHE_NODES
     store = _LABELS.setdefault(field, {}) if cache else {}
     labels = store.get(level)
@@ -153,8 +152,6 @@ def widest_gap(field: DistanceField, start, goal, half_width: float) -> Bottlene
     docstring): the node of it nearest to both sides it separates, and its width (``2 d*``
     to ``2 d* + h``: the shortest chord through that node, wall to wall, within that).
     None where no free way joins them. ``half_width`` [m] gives ``needed``."""
-    from scipy import ndimage
-
     a, b = _window(field, *start[:2]), _window(field, *goal[:2])
     h = field.resolution
     lo, hi = 0.0, float(field.values.max())

@@ -24,13 +24,19 @@ import math
 import time
 from collections.abc import Callable, Sequence
 
-from pushtrain.core.segment import Segment
+from pushtrain.core.segment import PULL, Segment
 
 from .connect import corner_segments, sample_reference
 from .reeds_shepp import rs_segments
 from .search_settings import SearchSettings, segments_cost
 
 __all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]
+
+_SETTINGS = SearchSettings(radius=1.0)
+"""The prices of :func:`path_cost`."""
+
+_CHEAPEST_METRE = min(1.0, _SETTINGS.pull_factor)
+"""The least :func:`path_cost` of a metre of path (pushing 1, pulling ``pull_factor``)."""
 
 
 def merge(segments: Sequence[Segment]) -> list[Segment]:
@@ -54,7 +60,7 @@ def total_turning(segments: Sequence[Segment]) -> float:
 def path_cost(segments: Sequence[Segment], settings: SearchSettings | None = None) -> float:
     """The path's cost as the search prices it (:func:`segments_cost` with ``settings``,
     default :class:`~pushtrain.planner.search_settings.SearchSettings`)."""
-    return segments_cost(segments, settings or SearchSettings(radius=1.0))
+    return segments_cost(segments, settings or _SETTINGS)
 
 
 def junction_poses(start, segments: Sequence[Segment]) -> list[tuple]:
@@ -63,6 +69,19 @@ def junction_poses(start, segments: Sequence[Segment]) -> list[tuple]:
     for g in segments:
         poses.append(tuple(sample_reference(poses[-1], [g], g.length + 1.0)[-1]))
     return poses
+
+
+def _floors(segments: Sequence[Segment]) -> list[float]:
+    """Lower bounds of :func:`path_cost` of the first k segments, k = 0..len: their lengths
+    and turning at the search's prices, without the changes of curvature and the cusps (all
+    prices are >= 0, so the cost of a path that holds these segments is at least this)."""
+    s = _SETTINGS
+    out = [0.0]
+    for g in segments:
+        pull = g.direction == PULL
+        out.append(out[-1] + g.length * (s.pull_factor if pull else 1.0)
+                   + (s.pull_turn_weight if pull else s.turn_weight) * abs(g.curvature) * g.length)
+    return out
 
 
 def _bridges(a, b, direction: int, radius: float):
@@ -86,27 +105,43 @@ def shortcut(segments: list[Segment], checked, start, goal, radius: float,
     ``verify(segments)`` returns a check result with ``ok``; ``checked`` is the verified check
     of ``segments``. ``clear(pose, bridge)`` (optional) is a cheap necessary test of a bridge
     from ``pose`` (e.g. the last trailer's own footprint along it): a bridge it refuses is not
-    simulated. At most ``max_tries`` candidates are simulated, each at least ``min_gain`` (a
-    fraction) cheaper than the path so far. Returns (segments, their check, number of
-    shortcuts taken).
+    simulated. At most ``max_tries`` candidates are tried, each at least ``min_gain`` (a
+    fraction) cheaper than the path so far; one tried before (the same segments, from an
+    earlier pair of junctions) counts again but is not simulated again. Returns (segments,
+    their check, number of shortcuts taken).
     """
     best, best_check = list(segments), checked
     taken, tries = 0, 0
+    failed = set()  # the candidates verify refused
     i = 0
     while i < len(best) - 1 and tries < max_tries:
         poses = junction_poses(start, best)
+        floors = _floors(best)
+        target = (1.0 - min_gain) * path_cost(best)
         improved = False
         for j in range(len(best), i + 1, -1):
             if tries >= max_tries or time.perf_counter() >= deadline:
                 return best, best_check, taken
+            # no way from junction i to junction j is shorter than the straight line: if
+            # even that cannot make the path cheap enough, no bridge is made
+            reach = max(0.0, math.dist(poses[i][:2], poses[j][:2]) - 1e-5)
+            if floors[i] + (floors[-1] - floors[j]) + _CHEAPEST_METRE * reach > target + 1e-9:
+                continue
             for bridge in _bridges(poses[i], poses[j], best[i].direction, radius):
                 candidate = merge(best[:i] + bridge + best[j:])
-                if path_cost(candidate) > (1.0 - min_gain) * path_cost(best):
+                if path_cost(candidate) > target:
+                    continue
+                if tuple(candidate) in failed:
+                    # tried before from an earlier junction pair (so the bridge was clear):
+                    # the simulation is deterministic, it fails again
+                    tries += 1
                     continue
                 if clear is not None and not clear(poses[i], bridge):
                     continue
                 tries += 1
                 result = verify(candidate)
+                if not result.ok:
+                    failed.add(tuple(candidate))
                 if result.ok:
                     best, best_check = candidate, result
                     taken += 1

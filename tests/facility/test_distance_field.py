@@ -81,3 +81,27 @@ def test_bad_resolution_is_refused(bad):
     world = World.from_dict(example_layouts.bay()["world"])
     with pytest.raises(PlanningInputError, match="resolution"):
         DistanceField.from_world(world, bad)
+
+
+def test_lookup_is_bilinear_between_nodes_and_minus_infinity_outside():
+    """at() against scipy's own bilinear interpolation (map_coordinates, order 1) at random
+    points, the grid's corners and edges, and points outside it or not numbers (-inf)."""
+    from scipy.ndimage import map_coordinates
+
+    rng = np.random.default_rng(5)
+    values = rng.normal(size=(37, 53))
+    field = DistanceField(values, -2.0, 1.5, 0.05)
+    x0, y0, x1, y1 = field.bounds
+    x = np.concatenate([rng.uniform(x0, x1, 2034), [x0, x1, x0, x1, x0, 0.5 * (x0 + x1)]])
+    y = np.concatenate([rng.uniform(y0, y1, 2034), [y0, y0, y1, y1, 0.5 * (y0 + y1), y1]])
+    x[-6:] = np.clip(x[-6:], x0, x1 - 1e-12)  # the far edges, just inside
+    y[-6:] = np.clip(y[-6:], y0, y1 - 1e-12)
+    u, v = (x - x0) / field.resolution, (y - y0) / field.resolution
+    expected = map_coordinates(values, [v, u], order=1, mode="nearest")
+    got = field.at(x.reshape(40, 51), y.reshape(40, 51)).reshape(-1)
+    assert np.allclose(got, expected, rtol=0.0, atol=1e-12)
+    assert float(field.at(x0 + 0.01, y0 + 0.02)) == pytest.approx(
+        float(map_coordinates(values, [[0.4], [0.2]], order=1)[0]), abs=1e-12)
+    outside = field.at(np.array([x0 - 0.01, x1 + 0.01, 0.0, np.nan, np.inf]),
+                       np.array([0.0, 0.0, y1 + 0.01, 0.0, 0.0]))
+    assert np.all(outside == -np.inf)

@@ -273,3 +273,36 @@ def test_map_png_of_a_run_draws_the_grid(tmp_path):
     fig = map_figure(data, n, world=world)
     (image,) = fig.axes[0].get_images()
     assert image.get_array().shape == (40, 80)
+
+
+def test_the_walls_are_cut_into_pieces_that_cover_every_ring_in_order():
+    """The wall distance's pieces (free_space._boundary_pieces): each ring of a map with holes
+    and rings of every length cut into line strings of at most 16 edges, each starting where
+    the one before ended, together exactly the ring's points."""
+    import shapely
+    from shapely.geometry import Point, Polygon, box
+
+    from pushtrain.facility.free_space import _boundary_pieces
+
+    outline = Point(0.0, 0.0).buffer(20.0, quad_segs=40)  # 161 points: 10 pieces
+    holes = [box(-1, -1, 1, 1), Point(5.0, 5.0).buffer(1.0, quad_segs=4),  # 17 points: 1 piece
+             Point(-8.0, 0.0).buffer(2.0, quad_segs=8)]  # 33 points: 2 pieces
+    free = outline.difference(shapely.union_all(holes)).union(box(30, 0, 31, 1))
+    pieces = _boundary_pieces(free)
+    rings = shapely.get_parts(shapely.get_rings(shapely.get_parts(free)))
+    k = 0
+    for ring in rings:
+        xy = shapely.get_coordinates(ring)
+        got = []
+        while len(got) < len(xy) - 1:
+            part = shapely.get_coordinates(pieces[k])
+            assert 2 <= len(part) <= 17
+            if got:
+                assert np.array_equal(part[0], got[-1])  # starts where the last ended
+                got.extend(part[1:].tolist())
+            else:
+                got.extend(part.tolist())
+            k += 1
+        assert np.array_equal(np.array(got), xy)
+    assert k == len(pieces)
+    assert isinstance(free, shapely.MultiPolygon) and not isinstance(free, Polygon)

@@ -6,6 +6,7 @@ import logging
 
 import numpy as np
 import pytest
+import shapely
 from PIL import Image
 
 from pushtrain.facility.distance_field import DistanceField
@@ -129,3 +130,68 @@ def test_a_cache_folder_that_cannot_be_written_leaves_the_map_in_memory(tmp_path
         world = grid_world(load_map(_room(tmp_path)))
     assert world.distance_field().values.shape == (60, 80)
     assert "cannot be cached" in caplog.text
+
+
+@pytest.fixture
+def erosions(monkeypatch):
+    """How many times a grid world's free space was eroded (traced at a margin)."""
+    from pushtrain.facility import raster
+
+    count = {"eroded": 0}
+    clear_region = raster.clear_region
+
+    def traced(*args, **kwargs):
+        count["eroded"] += 1
+        return clear_region(*args, **kwargs)
+
+    monkeypatch.setattr(raster, "clear_region", traced)
+    return count
+
+
+def test_the_eroded_free_space_is_cached_with_the_map(tmp_path, cache, erosions):
+    yaml = _room(tmp_path)
+    built = grid_world(load_map(yaml)).eroded(0.1)
+    assert erosions["eroded"] == 1
+    (path,) = (cache / "eroded").glob("*.npz")
+    again = grid_world(load_map(yaml))
+    read = again.eroded(0.1)
+    assert erosions["eroded"] == 1  # read back, not traced again
+    # the same geometry to the bit, so the exact test decides the same
+    assert shapely.to_wkb(read) == shapely.to_wkb(built)
+    assert read.area < again.free.area  # and it is an erosion of the free space
+    # another margin, or the map without the cache, is traced
+    again.eroded(0.2)
+    grid_world(load_map(yaml), cache=False).eroded(0.1)
+    assert erosions["eroded"] == 3
+    assert len(list((cache / "eroded").glob("*.npz"))) == 2
+    # a changed map is another key
+    _room(tmp_path, wall_at=50)
+    moved = grid_world(load_map(yaml)).eroded(0.1)
+    assert erosions["eroded"] == 4 and not moved.equals(built)
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "other margin"])
+def test_a_damaged_eroded_cache_is_rebuilt_and_says_so(tmp_path, cache, erosions, caplog,
+                                                       damage):
+    yaml = _room(tmp_path)
+    good = shapely.to_wkb(grid_world(load_map(yaml)).eroded(0.1))
+    (path,) = (cache / "eroded").glob("*.npz")
+    data = path.read_bytes()
+    if damage == "truncate":
+        data = data[: len(data) // 2]
+    elif damage == "garbage":
+        data = b"not a zip at all"
+    else:  # the file of another margin under this margin's name
+        grid_world(load_map(yaml)).eroded(0.2)
+        (other,) = set((cache / "eroded").glob("*.npz")) - {path}
+        data = other.read_bytes()
+    path.write_bytes(data)
+    before = erosions["eroded"]
+    with caplog.at_level(logging.WARNING, logger="pushtrain.facility.map_cache"):
+        again = grid_world(load_map(yaml)).eroded(0.1)
+    assert erosions["eroded"] == before + 1
+    assert shapely.to_wkb(again) == good
+    assert any("damaged" in r.getMessage() and path.name in r.getMessage()
+               for r in caplog.records), caplog.text
+    grid_world(load_map(yaml)).eroded(0.1)  # rewritten whole: a hit
+    assert erosions["eroded"] == before + 1

@@ -349,3 +349,24 @@ def test_no_failure_names_a_passage_narrower_than_the_maps(monkeypatch):
     named = [float(w) for w in re.findall(r"(\d+\.\d+) m wide", text)]
     assert named, text
     assert min(named) >= widest - h, (named, widest, text)
+
+
+@pytest.mark.parametrize("name", MAPS)
+def test_the_shortest_chord_is_the_narrowest_width_across_of_its_directions(name):
+    """shortest_chord looks every direction up at once, near the point first: the same number
+    as measuring each of its 36 directions alone (width_across), at points of a public map in
+    rooms, corridors, doors, walls and outside it, for short and long reaches."""
+    from pushtrain.planner.passage import shortest_chord, width_across
+
+    field = map_world(grid=str(PUBLIC / f"{name}.yaml")).distance_field()
+    x0, y0, x1, y1 = field.bounds
+    rng = np.random.default_rng(7)
+    positive = 0
+    for x, y in zip(rng.uniform(x0 - 1.0, x1 + 1.0, 60), rng.uniform(y0 - 1.0, y1 + 1.0, 60),
+                    strict=True):
+        for reach in (0.3, 2.5):
+            each = min(width_across(field, x, y, th, reach)
+                       for th in np.linspace(0.0, math.pi, 36, endpoint=False))
+            assert shortest_chord(field, x, y, reach) == each
+            positive += each > 0.0
+    assert positive > 10  # not only walls and outside
