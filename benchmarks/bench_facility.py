@@ -340,7 +340,7 @@ def main() -> None:
     if args.witness:
         WITNESSES.mkdir(parents=True, exist_ok=True)
         for i, m in chosen:
-            if witness_of(m).exists():
+            if witness_of(m).exists() or m["key"] in impossible:
                 continue
             r = in_child([str(i), "lattice", str(args.witness), "1", str(witness_of(m))])
             print(f"witness {m['key']:<52} budget {args.witness:g} s: {r.get('status')} "
