@@ -402,7 +402,7 @@ class Corner:
             head = ("door the train cannot line up with" if self.too_tight
                     else "door the train barely lines up with")
             return (f"{head} ({self.door.width:.2f} m door, {math.degrees(self.turn):.0f} deg "
-                    f"turn{spare})")
+                    f"turn{spare}; the corridor in front of it)")
         head = "corner too tight" if self.too_tight else "tight corner"
         return (f"{head} ({math.degrees(self.turn):.0f} deg turn, {self.band.width:.2f} m "
                 f"swept{spare})")

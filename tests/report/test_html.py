@@ -344,6 +344,7 @@ def test_a_failed_plan_page_shows_the_door_the_train_cannot_line_up_with(browser
     assert state["kind"] == "failure"
     assert state["bottleneck"] == pytest.approx([b["x"], b["y"]], abs=1e-6)
     legend = browser.find_element("id", "legend").text
-    assert (f"door the train cannot line up with (0.90 m door, 90 deg turn) at "
+    assert (f"door the train cannot line up with (0.90 m door, 90 deg turn; the corridor in "
+            f"front of it) at "
             f"({b['x']:.2f}, {b['y']:.2f}): {b['width']:.2f} m wide, {b['needed']:.2f} m "
             "needed") in legend, legend
