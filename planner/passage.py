@@ -304,12 +304,14 @@ class Door:
     corridor: float
 
 
-def _door(route, sc: float, offsets, widths) -> Door | None:
+def _door(route, field: DistanceField, sc: float, offsets, widths) -> Door | None:
     """The door of the corner at ``sc`` [m] along ``route`` (module docstring), or None.
     ``widths`` [m] are the shortest chords at ``offsets`` [m] from the corner: a door is a
     dip in one leg, at most 0.5 m long, with wider samples (by 0.15 m) on both sides of it
     (toward the corner the corridor's mouth, beyond it a room); the other leg is the
-    corridor."""
+    corridor. Its width is the widest way's through it (:func:`widest_gap` on the field
+    within 1.2 m of it, between the route 0.3 m either side): a chord through a route point
+    off the door's middle, or cutting a ragged jamb, can be narrower than the door."""
     offsets, widths = np.asarray(offsets), np.asarray(widths, dtype=float)
     best = None
     for side in (1.0, -1.0):
@@ -328,14 +330,30 @@ def _door(route, sc: float, offsets, widths) -> Door | None:
                 continue
             other = widths[~leg][np.abs(offsets[~leg]) >= 0.5]
             if other.size and (best is None or w[k] < best[0]):
-                best = (float(w[k]), side * 0.5 * (o[first] + o[last]), float(depth),
+                best = (float(w[k]), side, o[first], o[last], float(depth),
                         float(np.median(other)))
             break
     if best is None:
         return None
-    width, at, depth, corridor = best
-    x, y, _ = route.pose_at(sc + at)
-    return Door(float(x), float(y), width, depth, corridor)
+    _, side, near, far, depth, corridor = best
+    x, y, _ = route.pose_at(sc + side * 0.5 * (near + far))
+    ends = [route.pose_at(sc + side * o) for o in (max(near - 0.3, 0.0), far + 0.3)]
+    gap = widest_gap(_crop(field, x, y, 1.2), ends[0], ends[1], 0.0)
+    width = w_min = best[0]
+    if gap is not None:
+        width = max(gap.width, w_min)
+    return Door(float(x), float(y), float(width), depth, corridor)
+
+
+def _crop(field: DistanceField, x: float, y: float, half: float) -> DistanceField:
+    """The nodes of ``field`` within ``half`` [m] of (x, y) (a square), as a field."""
+    h = field.resolution
+    ny, nx = field.shape
+    j0 = max(int(math.floor((x - half - field.x0) / h)), 0)
+    i0 = max(int(math.floor((y - half - field.y0) / h)), 0)
+    j1 = min(int(math.ceil((x + half - field.x0) / h)) + 1, nx)
+    i1 = min(int(math.ceil((y + half - field.y0) / h)) + 1, ny)
+    return DistanceField(field.values[i0:i1, j0:j1], field.x0 + j0 * h, field.y0 + i0 * h, h)
 
 
 def width_across(field: DistanceField, x: float, y: float, heading: float,
@@ -492,7 +510,7 @@ def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptB
         offsets = np.arange(-1.5 * window, 1.5 * window + 1e-9, 0.05)
         widths = [shortest_chord(field, *route.pose_at(sc + ds)[:2]) for ds in offsets]
         x, y, _ = route.pose_at(sc)
-        door = (_door(route, sc, offsets, widths)
+        door = (_door(route, field, sc, offsets, widths)
                 if abs(turn - 0.5 * math.pi) <= math.radians(30.0) else None)
         if door is not None:  # a door off a corridor: the corridor in front of it decides
             corners.append(Corner(door.x, door.y, min(turn, math.pi), door.corridor,

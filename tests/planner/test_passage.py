@@ -473,3 +473,36 @@ def test_a_door_off_a_wide_corridor_is_measured_and_not_too_tight():
     assert len(door) == 1 and math.dist((door[0].x, door[0].y), door_middle) < 0.3
     assert door[0].door.width == pytest.approx(0.9, abs=0.02)
     assert door[0].width == pytest.approx(2.0, abs=0.02) and not door[0].too_tight
+
+
+def test_a_door_on_a_public_map_is_never_named_narrower_than_the_way_through_it():
+    """The office's door at (7.7, 42.0) off the west corridor, in a ragged 0.3 m wall: a chord
+    through a route point near its jamb is 0.70 m, but the widest way through it is wider.
+    The door named is the widest way's through it: within one cell of the test's own maximin
+    over scipy's transform of the grid (0.70-0.80 m), and never narrower than the widest
+    way's narrowest place the same failure names (the way from start to goal passes it)."""
+    from pushtrain.planner.config import turning_radius_from_joint_limit
+    from pushtrain.planner.passage import swept_band, tight_corners
+    from pushtrain.planner.route import find_route
+
+    world = map_world(grid=str(PUBLIC / "willow_garage.yaml"))
+    grid, h = world.occupancy, world.occupancy.resolution
+    start, goal = (7.2, 39.7), (9.5, 42.65)
+    edt, _ = _transform(world)
+
+    def cell(p):
+        return round((p[1] - grid.y0) / h), round((p[0] - grid.x0) / h)
+
+    m, _ = _WidestTree(edt).maximin(cell(start), cell(goal))
+    field = world.distance_field()
+    train, config = Train.uniform(1), PlannerConfig()
+    margins = config.margins(train)
+    tightest = turning_radius_from_joint_limit(train.phi_max - config.joint_margin,
+                                               train.max_link(), 0.0)
+    corners = tight_corners(find_route(field, start, goal, 0.35), field,
+                            swept_band(train, config.radius_for(train), margins),
+                            swept_band(train, tightest, margins))
+    doors = [c.door for c in corners if c.door is not None]
+    assert doors and math.dist((doors[0].x, doors[0].y), (7.7, 42.0)) < 0.5
+    assert doors[0].width == pytest.approx((2 * m - 0.5) * h, abs=h)
+    assert doors[0].width >= widest_gap(field, start, goal, 0.35).width - 1e-9
