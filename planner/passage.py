@@ -37,7 +37,8 @@ Turning (:func:`swept_band`, :func:`corner_need`, :func:`tight_corners`)
     :func:`tight_corners` finds the corners of a route (turns of more than 30 deg within
     2 m) and measures the corridors' widths across each leg on the distance field (the
     shortest chord through the route within 1.5 m of the corner: a door in a thin wall
-    counts).
+    counts; never less than the widest way's through the corner, as a chord cutting a
+    ragged jamb's corner can be).
 
 Lining up with a door (:func:`door_need`)
     A leg that narrows for at most 0.5 m within 1.5 m of the corner and opens wider beyond
@@ -518,7 +519,13 @@ def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptB
                                   door_need(tightest, door.width, door.wall), tightest.radius,
                                   band, door))
             continue
-        corners.append(Corner(x, y, min(turn, math.pi), min(widths), corner_need(band, turn),
+        # a chord cutting a ragged jamb's corner can be narrower than the way there: the
+        # corner's width is at least the widest way's through it (within 2 m of it, between
+        # the route's points 1.5 windows either side)
+        ends = [route.pose_at(sc + ds) for ds in (-1.5 * window, 1.5 * window)]
+        local = widest_gap(_crop(field, x, y, 2.0 * window), ends[0], ends[1], 0.0)
+        width = max(min(widths), 0.0 if local is None else local.width)
+        corners.append(Corner(x, y, min(turn, math.pi), width, corner_need(band, turn),
                               corner_need(tightest, turn), tightest.radius, band))
     corners.sort(key=lambda c: c.width - c.needed)
     return corners
