@@ -20,11 +20,14 @@ co-simulates to the goal (``tests/benchmarks/test_facility_witnesses.py``, marke
 checks every one).
 ``--scenario KEY`` prints the scenario file to run it with. ``--witness SECONDS`` searches,
 with that budget, a witness for every chosen mission that has none and keeps it if the
-co-simulation reaches the goal. **Impossible** means a reason is recorded in
-``benchmarks/facility/impossible.toml`` (a proof: no way of the train's width, by the maximin
-bottleneck of the map, issue 34 item 3). A mission with neither is *unresolved*: it counts
-neither for nor against the planner. A mission the planner calls "impossible here" that has a
-witness is a false "impossible" and is counted.
+co-simulation reaches the goal. **Impossible** means a proof is recorded in
+``benchmarks/facility/impossible.toml`` by ``benchmarks/prove_impossible.py`` (no way of the last
+trailer's width on the map's occupancy grid, by scipy's distance transform, without the planner;
+issue 34 item 3). On those the planner must say "impossible here" naming the widest way's
+narrowest opening within one map cell of the proof's; a plan (a false "feasible"), another
+failure or a wrong width is counted against it, and the time it takes to say so is printed. A
+mission with neither is *unresolved*: it counts neither for nor against the planner. A mission
+the planner calls "impossible here" that has a witness is a false "impossible" and is counted.
 
 It prints one row per mission and planner (map preparation, search wall and CPU time, peak
 memory, result), then for each planner: success on the feasible missions (planned at the
@@ -126,11 +129,27 @@ def witness_of(mission: dict) -> Path:
 
 
 def impossible_reasons() -> dict:
-    """Mission key -> the recorded reason it is impossible (the proof, issue 34 item 3)."""
+    """Mission key -> its recorded proof (issue 34 item 3, ``prove_impossible.py``): a dict of
+    ``reason``, ``width`` [m] (the widest way's narrowest opening), ``at`` [x, y m],
+    ``needed`` [m] and ``cell`` [m]."""
     if not IMPOSSIBLE.exists():
         return {}
-    return {k: v for k, v in tomllib.loads(IMPOSSIBLE.read_text()).get("impossible",
-                                                                          {}).items()}
+    return dict(tomllib.loads(IMPOSSIBLE.read_text()).get("impossible", {}))
+
+
+def judge_impossible(row: dict, proof: dict) -> str:
+    """How the planner answered a mission proven impossible: ``"true"`` (it said "impossible
+    here" naming a width within one map cell of the proof's), ``"false feasible"`` (it
+    planned), ``"wrong width"`` or ``"not said"`` (it failed otherwise: no width, or not
+    "impossible")."""
+    if row.get("status") in ("planned", "goal_reached") or row.get("length_m"):
+        return "false feasible"
+    if not row.get("impossible"):
+        return "not said"
+    named = (row.get("bottleneck") or {}).get("width")
+    if named is None or abs(named - proof["width"]) > proof["cell"] + 1e-9:
+        return "wrong width"
+    return "true"
 
 
 def _cpu() -> float:
@@ -164,7 +183,7 @@ def run_one(mission: dict, planner: str, budget: float | None, cosim: bool,
         out.update(status="no_plan", reason=exc.reason, message=str(exc)[:600],
                    capped=bool(exc.details.get("time_capped")),
                    impossible=bool(exc.details.get("impossible")),
-                   steps=exc.details.get("steps"))
+                   bottleneck=exc.details.get("bottleneck"), steps=exc.details.get("steps"))
     out.update(search_s=time.perf_counter() - t1, search_cpu=_cpu() - c1)
     train = runner.train_of(sc)
     route = find_route(field, sc_pose(sc.start)[:2], sc_pose(sc.goal)[:2],
@@ -247,6 +266,11 @@ def _summary(planner: str, rows: list[dict], impossible: dict) -> str:
     ok = [r for r in feasible if r.get("status") == "goal_reached"]
     unresolved = [r for r in rows if not r["witness"] and r["key"] not in impossible]
     false_impossible = [r for r in feasible if r.get("impossible")]
+    proven = [r for r in rows if r["key"] in impossible]
+    verdicts = [judge_impossible(r, impossible[r["key"]]) for r in proven]
+    said = [r["search_s"] for r, v in zip(proven, verdicts, strict=True) if v == "true"]
+    said_cpu = [r["search_cpu"] for r, v in zip(proven, verdicts, strict=True) if v == "true"]
+    wrong = {v: verdicts.count(v) for v in ("false feasible", "wrong width", "not said")}
     wall = [r["search_s"] for r in rows if "search_s" in r]
     cpu = [r["search_cpu"] for r in rows if "search_cpu" in r]
     prep = [r["prep_s"] for r in rows if "prep_s" in r]
@@ -264,8 +288,12 @@ def _summary(planner: str, rows: list[dict], impossible: dict) -> str:
             f"{max((r['peak_mib'] for r in rows), default=0):.0f} MiB (target <= 1024); "
             f"path/route median {statistics.median(ratios) if ratios else math.nan:.2f}; "
             f"{crashed} crashed, {capped} cut by the clock; {len(false_impossible)} false "
-            f"'impossible'; {sum(r['key'] in impossible for r in rows)} impossible (proof "
-            f"recorded); {len(unresolved)} unresolved (no witness, no proof). {_load()}")
+            f"'impossible'; {len(said)}/{len(proven)} impossible (proof recorded) said "
+            f"'impossible here' with the proof's width (within a cell) in at most "
+            f"{max(said, default=math.nan):.2f} s ({max(said_cpu, default=math.nan):.2f} s CPU), "
+            f"{wrong['false feasible']} false 'feasible', {wrong['wrong width']} with a wrong "
+            f"width, {wrong['not said']} not said; {len(unresolved)} unresolved (no witness, no "
+            f"proof). {_load()}")
 
 
 def main() -> None:
@@ -307,12 +335,12 @@ def main() -> None:
     if args.list:
         for _, m in chosen:
             print(f"{m['key']:<58} witness {'yes' if witness_of(m).exists() else 'no '}  "
-                  f"{impossible.get(m['key'], '')}")
+                  f"{impossible.get(m['key'], {}).get('reason', '')}")
         return
     if args.witness:
         WITNESSES.mkdir(parents=True, exist_ok=True)
         for i, m in chosen:
-            if witness_of(m).exists():
+            if witness_of(m).exists() or m["key"] in impossible:
                 continue
             r = in_child([str(i), "lattice", str(args.witness), "1", str(witness_of(m))])
             print(f"witness {m['key']:<52} budget {args.witness:g} s: {r.get('status')} "
@@ -332,6 +360,11 @@ def main() -> None:
                 "route_m") else math.nan
             tag = ("feasible" if r["witness"] else "impossible" if m["key"] in impossible
                    else "unresolved")
+            if m["key"] in impossible:
+                proof = impossible[m["key"]]
+                named = (r.get("bottleneck") or {}).get("width", math.nan)
+                r["reason"] = (f"{r.get('reason', '')}: {judge_impossible(r, proof)} (named "
+                               f"{named:.2f} m, proof {proof['width']:.2f} m)")
             print(f"{m['key']:<50} {tag:<10} {r.get('status', '?'):<13} prep "
                   f"{r.get('prep_s', math.nan):5.2f} s search {r.get('search_s', math.nan):6.2f}"
                   f" s ({r.get('search_cpu', math.nan):6.2f} s CPU) {r.get('peak_mib', 0):5.0f} "

@@ -82,11 +82,14 @@ def _draw_failure(ax, world: World, details: dict, start) -> None:
         place = details.get(key)
         if place:
             what = place.get("what", "bottleneck")
+            needed = place.get("needed")  # None: no steady turn of the radius fits
+            need = "no steady turn fits" if needed is None else f"{needed:.2f} m needed"
             ax.plot([place["x"]], [place["y"]], marker, ms=14 if marker == "o" else 9,
                     mfc="none", mew=2, color="crimson", label=f"{what}: {place['width']:.2f} m "
-                    f"wide, {place['needed']:.2f} m needed")
-            ax.annotate(f"{place['width']:.2f} m < {place['needed']:.2f} m"
-                        if place["width"] < place["needed"] else f"{place['width']:.2f} m",
+                    f"wide, {need}")
+            ax.annotate(f"{place['width']:.2f} m < {needed:.2f} m"
+                        if needed is not None and place["width"] < needed
+                        else f"{place['width']:.2f} m",
                         (place["x"], place["y"]), xytext=(8, 8), textcoords="offset points",
                         color="crimson", fontsize=8)
     for k, trace in enumerate(details.get("tree") or []):

@@ -37,7 +37,23 @@ Turning (:func:`swept_band`, :func:`corner_need`, :func:`tight_corners`)
     :func:`tight_corners` finds the corners of a route (turns of more than 30 deg within
     2 m) and measures the corridors' widths across each leg on the distance field (the
     shortest chord through the route within 1.5 m of the corner: a door in a thin wall
-    counts).
+    counts; never less than the widest way's through the corner, as a chord cutting a
+    ragged jamb's corner can be).
+
+Lining up with a door (:func:`door_need`)
+    A leg that narrows for at most 0.5 m within 1.5 m of the corner and opens wider beyond
+    is a door of width ``D`` in a wall ``t`` thick (the narrow stretch's length) off a
+    corridor of width ``W`` (the other leg's). Turning into it by about a right angle, the
+    ring's centre ``(cx, cy)`` (door wall's face ``y = 0``, door ``0 <= x <= D``, corridor
+    ``0 <= y <= W``, the wall ``-t <= y <= 0`` either side of the door) must keep the quarter
+    ring (the turn from along the corridor to down through the door) off both pieces of wall
+    (along every ray from the centre, the part of the ring within the wall's band lies
+    between the jambs), the straight train along the corridor before it above the wall
+    (``cy + radius >= a``, ``a`` the widest body's half width with its clearance) and the
+    straight train leaving it, on ``x = cx + radius``, in the door (``a <= cx + radius <=
+    D - a``); the corridor then needs ``W >= cy + r_out`` (the ring's top, where the train
+    runs along it), least over those centres. A door need not be narrower than the
+    corridor: a 0.9 m door off a 0.8 m corridor is the corridor's problem, not the door's.
 
 Lengths in metres, angles in radians. Node (i, j) of a
 :class:`~pushtrain.facility.distance_field.DistanceField` is at ``(x0 + j h, y0 + i h)``.
@@ -55,8 +71,8 @@ from scipy import ndimage  # at import (0.1-0.3 s once), not in the first search
 from pushtrain.facility.distance_field import DistanceField
 
 __all__ = ["Bottleneck", "widest_gap", "passable", "needed_half_width", "SweptBand",
-           "swept_band", "corner_need", "Corner", "tight_corners", "width_across",
-           "shortest_chord"]
+           "swept_band", "corner_need", "door_need", "Door", "Corner", "tight_corners",
+           "width_across", "shortest_chord", "shortest_chords", "chords", "CHORD_DIRECTIONS"]
 
 _EIGHT = np.ones((3, 3), dtype=bool)
 _LABELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -207,6 +223,9 @@ class SweptBand:
     radius: float
     r_in: float
     r_out: float
+    half_straight: float = 0.0
+    """Half the width [m] of the straight train's band: its widest body's, clearance
+    included."""
 
     @property
     def width(self) -> float:
@@ -223,13 +242,14 @@ def swept_band(train, radius: float, margins) -> SweptBand:
     rho[n] = float(radius)
     for i in range(n, 0, -1):  # rho_{i-1}² = rho_i² - R_{i-1}² + F_i²
         rho[i - 1] = math.sqrt(max(rho[i] ** 2 - rear[i - 1] ** 2 + front[i - 1] ** 2, 0.0))
-    r_in, r_out = math.inf, 0.0
+    r_in, r_out, half = math.inf, 0.0, 0.0
     for i, body in enumerate(train.bodies):
         m = float(margins[i])
         along = abs(body.offset) + 0.5 * body.length
         r_out = max(r_out, math.hypot(rho[i] + 0.5 * body.width, along) + m)
         r_in = min(r_in, rho[i] - 0.5 * body.width - m)
-    return SweptBand(float(radius), max(r_in, 0.0), r_out)
+        half = max(half, 0.5 * body.width + m)
+    return SweptBand(float(radius), max(r_in, 0.0), r_out, half)
 
 
 def corner_need(band: SweptBand, turn: float) -> float:
@@ -268,6 +288,101 @@ def chords(field: DistanceField, x, y, headings, reach: float = 5.0) -> np.ndarr
     return np.where(d[..., k0] > 0.0, ends[0] - ends[1], 0.0)
 
 
+def door_need(band: SweptBand, door: float, wall: float = 0.0, step: float = 0.001) -> float:
+    """Width [m] of corridor in front of a door ``door`` [m] wide in a wall ``wall`` [m]
+    thick that a steady right-angle turn into it on ``band`` needs (module docstring): the
+    lowest ring centre, scanned every ``step`` [m], for which some sideways place keeps the
+    quarter ring and the straight train before and after it off both pieces of wall; inf if
+    none does (the door is narrower than the straight train)."""
+    r, big, rho, a = band.r_in, band.r_out, band.radius, band.half_straight
+    t = max(float(wall), 0.0)
+    theta = np.linspace(0.0, 0.5 * math.pi, 721)
+    sin, cos = np.sin(theta), np.cos(theta)
+    edge = sin < 1e-12
+    for cy in np.arange(a - rho, big, step):  # a straight train along the corridor: cy >= a - rho
+        # the quarter ring's points in the wall's band -t <= y <= 0, along each ray from the
+        # centre: s from s0 to s1 (x = cx + s cos(theta))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s0 = np.where(edge, r, np.maximum(r, (-t - cy) / sin))
+            s1 = np.where(edge, big, np.minimum(big, -cy / sin))
+        hit = s0 <= s1
+        hit &= ~edge | ((-t <= cy) & (cy <= 0.0))
+        lo_x, hi_x = -math.inf, math.inf  # the centre's x keeping off the near / far wall
+        if hit.any():
+            lo_x = -float(np.min(s0[hit] * cos[hit]))
+            hi_x = door - float(np.max(s1[hit] * cos[hit]))
+        if cy > -t:  # the straight train leaving the arc crosses the wall: in the door
+            lo_x, hi_x = max(lo_x, a - rho), min(hi_x, door - a - rho)
+        if lo_x <= hi_x:
+            return float(cy + big)
+    return math.inf
+
+
+@dataclass(frozen=True)
+class Door:
+    """A door a route turns through: where (x, y) [m] (the narrow stretch's middle), its
+    ``width`` [m], its ``wall`` [m] (the narrow stretch's length along the route) and the
+    width [m] of the ``corridor`` in front of it."""
+
+    x: float
+    y: float
+    width: float
+    wall: float
+    corridor: float
+
+
+def _door(route, field: DistanceField, sc: float, offsets, widths) -> Door | None:
+    """The door of the corner at ``sc`` [m] along ``route`` (module docstring), or None.
+    ``widths`` [m] are the shortest chords at ``offsets`` [m] from the corner: a door is a
+    dip in one leg, at most 0.5 m long, with wider samples (by 0.15 m) on both sides of it
+    (toward the corner the corridor's mouth, beyond it a room); the other leg is the
+    corridor. Its width is the widest way's through it (:func:`widest_gap` on the field
+    within 1.2 m of it, between the route 0.3 m either side): a chord through a route point
+    off the door's middle, or cutting a ragged jamb, can be narrower than the door."""
+    offsets, widths = np.asarray(offsets), np.asarray(widths, dtype=float)
+    best = None
+    for side in (1.0, -1.0):
+        leg = side * offsets > 0.0
+        order = np.argsort(np.abs(offsets[leg]))
+        w, o = widths[leg][order], np.abs(offsets[leg])[order]
+        for k in np.argsort(w, kind="stable"):
+            first, last = k, k  # the narrow stretch round sample k
+            while first > 0 and w[first - 1] <= w[k] + 0.05:
+                first -= 1
+            while last + 1 < w.size and w[last + 1] <= w[k] + 0.05:
+                last += 1
+            depth = o[last] - o[first] + 0.05
+            if (first == 0 or last + 1 == w.size or depth > 0.5
+                    or w[:first].max() < w[k] + 0.15 or w[last + 1:].max() < w[k] + 0.15):
+                continue
+            other = widths[~leg][np.abs(offsets[~leg]) >= 0.5]
+            if other.size and (best is None or w[k] < best[0]):
+                best = (float(w[k]), side, o[first], o[last], float(depth),
+                        float(np.median(other)))
+            break
+    if best is None:
+        return None
+    _, side, near, far, depth, corridor = best
+    x, y, _ = route.pose_at(sc + side * 0.5 * (near + far))
+    ends = [route.pose_at(sc + side * o) for o in (max(near - 0.3, 0.0), far + 0.3)]
+    gap = widest_gap(_crop(field, x, y, 1.2), ends[0], ends[1], 0.0)
+    width = w_min = best[0]
+    if gap is not None:
+        width = max(gap.width, w_min)
+    return Door(float(x), float(y), float(width), depth, corridor)
+
+
+def _crop(field: DistanceField, x: float, y: float, half: float) -> DistanceField:
+    """The nodes of ``field`` within ``half`` [m] of (x, y) (a square), as a field."""
+    h = field.resolution
+    ny, nx = field.shape
+    j0 = max(int(math.floor((x - half - field.x0) / h)), 0)
+    i0 = max(int(math.floor((y - half - field.y0) / h)), 0)
+    j1 = min(int(math.ceil((x + half - field.x0) / h)) + 1, nx)
+    i1 = min(int(math.ceil((y + half - field.y0) / h)) + 1, ny)
+    return DistanceField(field.values[i0:i1, j0:j1], field.x0 + j0 * h, field.y0 + i0 * h, h)
+
+
 def width_across(field: DistanceField, x: float, y: float, heading: float,
                  reach: float = 5.0) -> float:
     """Free width [m] of the corridor through (x, y) across the direction ``heading`` [rad]:
@@ -295,9 +410,10 @@ def shortest_chord(field: DistanceField, x: float, y: float, reach: float = 2.5)
 @dataclass(frozen=True)
 class Corner:
     """A corner of a route: where (x, y) [m], its ``turn`` [rad], the corridor ``width`` [m]
-    there (the narrower leg), the width ``needed`` [m] at the planner's radius and
-    ``needed_tightest`` [m] at the tightest steady radius the joints allow
-    (``tightest_radius`` [m])."""
+    there (the narrower leg; in front of the door when the route turns through a ``door``),
+    the width ``needed`` [m] at the planner's radius and ``needed_tightest`` [m] at the
+    tightest steady radius the joints allow (``tightest_radius`` [m]; inf where no steady
+    turn of that radius lines up with the door)."""
 
     x: float
     y: float
@@ -307,13 +423,29 @@ class Corner:
     needed_tightest: float
     tightest_radius: float
     band: SweptBand
+    door: Door | None = None
 
     @property
     def too_tight(self) -> bool:
         return self.width < self.needed
 
+    @property
+    def what(self) -> str:
+        """What blocks here, in a few words (the page's and the picture's label)."""
+        spare = "" if self.too_tight else f", {self.width - self.needed:.2f} m to spare"
+        if self.door is not None:
+            head = ("door the train cannot line up with" if self.too_tight
+                    else "door the train barely lines up with")
+            return (f"{head} ({self.door.width:.2f} m door, {math.degrees(self.turn):.0f} deg "
+                    f"turn{spare}; the corridor in front of it)")
+        head = "corner too tight" if self.too_tight else "tight corner"
+        return (f"{head} ({math.degrees(self.turn):.0f} deg turn, {self.band.width:.2f} m "
+                f"swept{spare})")
+
     def text(self) -> str:
         band = self.band
+        if self.door is not None:
+            return self._door_text()
         text = (f"at ({self.x:.2f}, {self.y:.2f}): the route turns "
                 f"{math.degrees(self.turn):.0f} deg where the way is {self.width:.2f} m wide "
                 f"(its narrowest within 1.5 m of the corner); on arcs of the planner's radius "
@@ -329,11 +461,41 @@ class Corner:
                      "a turn that tight leaves no margin for the transients)")
         return text
 
+    def _door_text(self) -> str:
+        band, door = self.band, self.door
+
+        def need(width):
+            return ("no steady turn of that radius lines up with it" if not math.isfinite(width)
+                    else f"{width:.2f} m of corridor in front of it")
+
+        text = (f"to line up with the door at ({door.x:.2f}, {door.y:.2f}) ({door.width:.2f} m "
+                f"wide in a {door.wall:.2f} m wall), turning "
+                f"{math.degrees(self.turn):.0f} deg into it from a corridor {self.width:.2f} m "
+                f"wide: on arcs of the planner's radius {band.radius:.2f} m the train sweeps "
+                f"a {band.width:.2f} m band (radii {band.r_in:.2f} to {band.r_out:.2f} m, "
+                f"clearances included) and needs {need(self.needed)}")
+        if self.width < self.needed_tightest:
+            text += (f"; at the tightest steady radius its joints allow "
+                     f"({self.tightest_radius:.2f} m) {need(self.needed_tightest)}")
+        elif self.width < self.needed:
+            text += (f" (at the tightest steady radius its joints allow, "
+                     f"{self.tightest_radius:.2f} m, {need(self.needed_tightest)}: a turn that "
+                     "tight leaves no margin for the transients)")
+        return text
+
     def to_dict(self) -> dict:
-        return {"x": self.x, "y": self.y, "width": self.width, "needed": self.needed,
-                "turn_deg": math.degrees(self.turn), "swept": self.band.width,
-                "radius": self.band.radius, "needed_tightest": self.needed_tightest,
-                "tightest_radius": self.tightest_radius}
+        """Plain data (JSON): a need no steady turn meets is None."""
+        def finite(v):
+            return float(v) if math.isfinite(v) else None
+
+        out = {"x": self.x, "y": self.y, "width": self.width, "needed": finite(self.needed),
+               "turn_deg": math.degrees(self.turn), "swept": self.band.width,
+               "radius": self.band.radius, "needed_tightest": finite(self.needed_tightest),
+               "tightest_radius": self.tightest_radius}
+        if self.door is not None:
+            out["door"] = {"x": self.door.x, "y": self.door.y, "width": self.door.width,
+                           "wall": self.door.wall, "corridor": self.door.corridor}
+        return out
 
 
 def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptBand,
@@ -365,6 +527,7 @@ def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptB
         # the narrowest the legs get within 1.5 windows of the corner: the shortest chord,
         # wall to wall, through the route's points every 5 cm (a door in a thin wall is only
         # a few centimetres of a leg)
+        offsets = np.arange(-1.5 * window, 1.5 * window + 1e-9, 0.05)
         if only_too_tight:
             # between the route's points (d is 1-Lipschitz) and to a sample of the field
             near = np.abs(s - sc) <= 1.5 * window + 1e-9
@@ -373,17 +536,30 @@ def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptB
                            - field.resolution)
             if lower >= corner_need(band, turn):
                 continue
-        legs = np.array([route.pose_at(sc + ds)
-                         for ds in np.arange(-1.5 * window, 1.5 * window + 1e-9, 0.05)])
+        legs = np.array([route.pose_at(sc + ds) for ds in offsets])
         if only_too_tight:
-            # across the legs only (within 20 deg of their normals), as far as the need: a
-            # width no smaller than the full measure's, the same wherever it is too tight
-            need = corner_need(band, turn)
+            # across the legs only (within 20 deg of their normals), a little farther than
+            # the need: widths no smaller than the full measure's, the same where too tight
             across = legs[:, 2:3] + np.radians(np.arange(-20.0, 20.1, 5.0))[None, :]
-            width = float(chords(field, legs[:, 0], legs[:, 1], across, need).min())
+            widths = chords(field, legs[:, 0], legs[:, 1], across,
+                            corner_need(band, turn) + 0.5).min(axis=1)
         else:
-            width = float(shortest_chords(field, legs[:, 0], legs[:, 1]).min())
+            widths = shortest_chords(field, legs[:, 0], legs[:, 1])
         x, y, _ = route.pose_at(sc)
+        door = (_door(route, field, sc, offsets, widths)
+                if abs(turn - 0.5 * math.pi) <= math.radians(30.0) else None)
+        if door is not None:  # a door off a corridor: the corridor in front of it decides
+            corners.append(Corner(door.x, door.y, min(turn, math.pi), door.corridor,
+                                  door_need(band, door.width, door.wall),
+                                  door_need(tightest, door.width, door.wall), tightest.radius,
+                                  band, door))
+            continue
+        # a chord cutting a ragged jamb's corner can be narrower than the way there: the
+        # corner's width is at least the widest way's through it (within 2 m of it, between
+        # the route's points 1.5 windows either side)
+        ends = [route.pose_at(sc + ds) for ds in (-1.5 * window, 1.5 * window)]
+        local = widest_gap(_crop(field, x, y, 2.0 * window), ends[0], ends[1], 0.0)
+        width = max(min(widths), 0.0 if local is None else local.width)
         corners.append(Corner(x, y, min(turn, math.pi), width, corner_need(band, turn),
                               corner_need(tightest, turn), tightest.radius, band))
     corners.sort(key=lambda c: c.width - c.needed)

@@ -251,7 +251,8 @@
             ["motion failures", "border:2px solid #e00000;width:6px;height:6px"],
             ["start", "background:#2ca02c;opacity:.5"], ["goal", "background:#d62728;opacity:.5"]]
            .concat(b ? [[`${b.what || "bottleneck"} at (${b.x.toFixed(2)}, ${b.y.toFixed(2)}): ` +
-                         `${b.width.toFixed(2)} m wide, ${b.needed.toFixed(2)} m needed`,
+                         `${b.width.toFixed(2)} m wide, ` + (b.needed === null ?
+                           "no steady turn fits" : `${b.needed.toFixed(2)} m needed`),
                          `border:2px solid ${COLORS.bottleneck};border-radius:50%;width:8px`]]
                       : []));
   }

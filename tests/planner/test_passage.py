@@ -248,18 +248,20 @@ def test_a_right_angle_corner_needs_what_the_formula_says(rho):
     assert not fits(need - 0.01)
 
 
-def _office_door():
-    """A 1.0 m corridor along x and a room below it through a 0.9 m door in a 0.1 m wall:
-    three trailers pushed along the corridor and down through the door."""
+def _office_door(corridor: float = 0.8):
+    """A corridor along x ``corridor`` m wide and a room below it through a 0.9 m door in a
+    0.1 m wall: three trailers pushed along the corridor and down through the door; the
+    door's middle."""
     from shapely.geometry import box
     from shapely.ops import unary_union
 
     from pushtrain.facility.free_space import World
 
-    free = unary_union([box(0.0, 5.0, 16.0, 6.0), box(8.0, 0.0, 13.0, 4.9),
+    free = unary_union([box(0.0, 5.0, 16.0, 5.0 + corridor), box(8.0, 0.0, 13.0, 4.9),
                         box(10.0, 4.85, 10.9, 5.05)])
     world = World(free.envelope, (free.envelope.difference(free),))
-    return world, (4.5, 5.5, math.pi), (10.45, 2.0, 0.5 * math.pi), (10.0, 5.0)
+    return (world, (4.5, 5.0 + 0.5 * corridor, math.pi), (10.45, 2.0, 0.5 * math.pi),
+            (10.45, 4.95))
 
 
 def _l_09():
@@ -270,15 +272,14 @@ def _l_09():
     return World.from_dict(case["world"]), case["start"], case["goal"], (8.1, 0.9)
 
 
-@pytest.mark.parametrize("case", [_l_09, _office_door], ids=["0.9 m L", "0.9 m door"])
-def test_a_corner_too_tight_for_the_train_is_named_with_its_numbers(case):
-    """Three trailers round a 0.9 m L, or from a 1.0 m corridor through a 0.9 m door (the
-    last trailer alone needs 0.70 m: the way is wide enough): the answer names the corner,
-    the swept band and the width the corner needs (the test's own steady placement and the
-    corner rule) against the 0.90 m the map has, and no width it names is below it."""
+def test_a_corner_too_tight_for_the_train_is_named_with_its_numbers():
+    """Three trailers round a 0.9 m L (the last trailer alone needs 0.70 m: the way is wide
+    enough): the answer names the corner, the swept band and the width the corner needs (the
+    test's own steady placement and the corner rule) against the 0.90 m the map has, and no
+    width it names is below it."""
     import re
 
-    world, start, goal, inside_corner = case()
+    world, start, goal, inside_corner = _l_09()
     train = Train.uniform(3)
     config = PlannerConfig()
     with pytest.raises(PlanningError) as info:
@@ -289,7 +290,7 @@ def test_a_corner_too_tight_for_the_train_is_named_with_its_numbers(case):
     assert err.where == (corner["x"], corner["y"])  # the mark on planning_failure.png
     assert math.dist((corner["x"], corner["y"]), inside_corner) < 1.0
     assert corner["turn_deg"] == pytest.approx(90.0, abs=10.0)
-    assert corner["width"] == pytest.approx(0.9, abs=0.02)
+    assert corner["width"] == pytest.approx(0.9, abs=0.02) and "door" not in corner
     rho = config.radius_for(train)
     polys = _steady_bodies(train, rho)
     r_in = min(shapely_point_distance(p) for p in polys) - 0.05
@@ -370,3 +371,159 @@ def test_the_shortest_chord_is_the_narrowest_width_across_of_its_directions(name
             assert shortest_chord(field, x, y, reach) == each
             positive += each > 0.0
     assert positive > 10  # not only walls and outside
+
+
+# ---------------------------------------------------------------------- lining up with a door
+def _fits_door(band, corridor: float, door: float, wall: float) -> bool:
+    """Whether a steady right-angle turn on ``band`` from a corridor (``0 <= y <= corridor``)
+    into a door (``0 <= x <= door`` through the wall ``-wall <= y <= 0``) and a room below
+    fits (shapely): some ring centre, on a 2.5 mm grid, whose quarter ring, the straight
+    train along the corridor before it and down through the door after it, lie in the free
+    space."""
+    import shapely
+    from shapely.geometry import box
+    from shapely.ops import unary_union
+
+    free = unary_union([box(-5.0, 0.0, 5.0, corridor), box(0.0, -wall - 0.01, door, 0.01),
+                        box(-5.0, -5.0, 5.0, -wall)]).buffer(1e-9)
+    shapely.prepare(free)
+    r, big, rho, a = band.r_in, band.r_out, band.radius, band.half_straight
+    angles = np.linspace(0.0, 0.5 * math.pi, 46)
+    ring = np.r_[np.c_[big * np.cos(angles), big * np.sin(angles)],
+                 np.c_[r * np.cos(angles), r * np.sin(angles)][::-1]]
+    cx = np.arange(-1.5, door, 0.0025)
+    for cy in np.arange(-r - wall - 0.2, corridor - big + 0.0025, 0.0025):
+        centres = np.stack([cx, np.full_like(cx, cy)], axis=1)
+        rings = shapely.polygons(ring[None, :, :] + centres[:, None, :])
+        before = shapely.box(cx - 4.0, cy + rho - a, cx, cy + rho + a)
+        after = shapely.box(cx + rho - a, cy - 4.0, cx + rho + a, cy)
+        if np.any(shapely.contains(free, rings) & shapely.contains(free, before)
+                  & shapely.contains(free, after)):
+            return True
+    return False
+
+
+@pytest.mark.parametrize("radius, door, wall", [(0.973, 0.9, 0.1), (0.567, 0.9, 0.1),
+                                                (0.973, 1.2, 0.05), (0.567, 1.0, 0.15),
+                                                (0.567, 0.8, 0.2)])
+def test_door_need_is_the_corridor_a_steady_turn_into_the_door_needs(radius, door, wall):
+    """door_need against the test's own search of ring centres (shapely containment of the
+    quarter ring and the straight train before and after it): a corridor 1.5 cm wider fits,
+    one 1.5 cm narrower does not."""
+    from pushtrain.planner.passage import door_need, swept_band
+
+    band = swept_band(Train.uniform(3), radius, [0.05] * 4)
+    need = door_need(band, door, wall)
+    assert math.isfinite(need) and need > band.width - 1e-9
+    assert _fits_door(band, need + 0.015, door, wall)
+    assert not _fits_door(band, need - 0.015, door, wall)
+
+
+def test_no_steady_turn_goes_through_a_door_narrower_than_the_straight_train():
+    """A 0.68 m door (the trailers need 0.70 m straight): inf, and no corridor however wide
+    lets a steady turn in (the test's own search, a 2 m corridor)."""
+    from pushtrain.planner.passage import door_need, swept_band
+
+    band = swept_band(Train.uniform(3), 0.567, [0.05] * 4)
+    assert door_need(band, 0.68, 0.1) == math.inf
+    assert not _fits_door(band, 2.0, 0.68, 0.1)
+
+
+def test_a_door_the_train_cannot_line_up_with_is_named_with_its_numbers():
+    """Three trailers along a 0.8 m corridor (the last trailer needs 0.70 m: the way is wide
+    enough), then right through a 0.9 m door in a 0.1 m wall: the answer names the door
+    (where, its width and wall), the corridor's width in front of it and what a steady turn
+    into it needs at the planner's radius and at the tightest the joints allow (door_need,
+    checked above), and no width it names is below the corridor's; the page's marker is the
+    door."""
+    import re
+
+    from pushtrain.planner.config import turning_radius_from_joint_limit
+    from pushtrain.planner.passage import door_need, swept_band
+    from pushtrain.report.html import failure_payload
+
+    world, start, goal, door_middle = _office_door(0.8)
+    train, config = Train.uniform(3), PlannerConfig()
+    with pytest.raises(PlanningError) as info:
+        plan(world, start, goal, train, config)
+    err = info.value
+    corner = err.details["corner"]
+    assert corner is not None and corner.get("door"), str(err)
+    door = corner["door"]
+    assert err.where == (corner["x"], corner["y"]) == (door["x"], door["y"])
+    assert math.dist(err.where, door_middle) < 0.3
+    assert door["width"] == pytest.approx(0.9, abs=0.02)
+    assert door["wall"] == pytest.approx(0.1, abs=0.06)
+    assert corner["width"] == door["corridor"] == pytest.approx(0.8, abs=0.02)
+    margins = config.margins(train)
+    tightest = turning_radius_from_joint_limit(train.phi_max - config.joint_margin,
+                                               train.max_link(), 0.0)
+    for key, radius in (("needed", config.radius_for(train)), ("needed_tightest", tightest)):
+        want = door_need(swept_band(train, radius, margins), door["width"], door["wall"])
+        assert corner[key] == pytest.approx(want, abs=1e-9)
+    assert corner["needed_tightest"] > corner["width"]  # even at the tightest radius
+    text = str(err)
+    assert "cannot turn on the planner's arcs: to line up with the door" in text, text
+    assert f"corridor {corner['width']:.2f} m wide" in text
+    assert f"needs {corner['needed']:.2f} m of corridor in front of it" in text
+    assert f"({tightest:.2f} m) {corner['needed_tightest']:.2f} m of corridor" in text
+    for width in re.findall(r"(\d+\.\d+) m wide", text):
+        assert float(width) >= 0.8 - 0.02
+    b = failure_payload(3, err.details, world=world, start=start, goal=goal)["bottleneck"]
+    assert (b["x"], b["y"]) == err.where
+    assert b["what"].startswith("door the train cannot line up with (0.90 m door")
+
+
+def test_a_door_off_a_wide_corridor_is_measured_and_not_too_tight():
+    """The same door off a 2 m corridor: the route's corner is the door, measured (0.9 m in a
+    0.1 m wall, the corridor 2 m), and a steady turn fits there."""
+    from pushtrain.planner.config import turning_radius_from_joint_limit
+    from pushtrain.planner.passage import swept_band, tight_corners
+    from pushtrain.planner.route import find_route
+
+    world, start, goal, door_middle = _office_door(2.0)
+    train, config = Train.uniform(3), PlannerConfig()
+    field = world.distance_field()
+    route = find_route(field, start[:2], goal[:2], 0.35)
+    margins = config.margins(train)
+    tightest = turning_radius_from_joint_limit(train.phi_max - config.joint_margin,
+                                               train.max_link(), 0.0)
+    corners = tight_corners(route, field, swept_band(train, config.radius_for(train), margins),
+                            swept_band(train, tightest, margins))
+    door = [c for c in corners if c.door is not None]
+    assert len(door) == 1 and math.dist((door[0].x, door[0].y), door_middle) < 0.3
+    assert door[0].door.width == pytest.approx(0.9, abs=0.02)
+    assert door[0].width == pytest.approx(2.0, abs=0.02) and not door[0].too_tight
+
+
+def test_a_door_on_a_public_map_is_never_named_narrower_than_the_way_through_it():
+    """The office's door at (7.7, 42.0) off the west corridor, in a ragged 0.3 m wall: a chord
+    through a route point near its jamb is 0.70 m, but the widest way through it is wider.
+    The door named is the widest way's through it: within one cell of the test's own maximin
+    over scipy's transform of the grid (0.70-0.80 m), and never narrower than the widest
+    way's narrowest place the same failure names (the way from start to goal passes it)."""
+    from pushtrain.planner.config import turning_radius_from_joint_limit
+    from pushtrain.planner.passage import swept_band, tight_corners
+    from pushtrain.planner.route import find_route
+
+    world = map_world(grid=str(PUBLIC / "willow_garage.yaml"))
+    grid, h = world.occupancy, world.occupancy.resolution
+    start, goal = (7.2, 39.7), (9.5, 42.65)
+    edt, _ = _transform(world)
+
+    def cell(p):
+        return round((p[1] - grid.y0) / h), round((p[0] - grid.x0) / h)
+
+    m, _ = _WidestTree(edt).maximin(cell(start), cell(goal))
+    field = world.distance_field()
+    train, config = Train.uniform(1), PlannerConfig()
+    margins = config.margins(train)
+    tightest = turning_radius_from_joint_limit(train.phi_max - config.joint_margin,
+                                               train.max_link(), 0.0)
+    corners = tight_corners(find_route(field, start, goal, 0.35), field,
+                            swept_band(train, config.radius_for(train), margins),
+                            swept_band(train, tightest, margins))
+    doors = [c.door for c in corners if c.door is not None]
+    assert doors and math.dist((doors[0].x, doors[0].y), (7.7, 42.0)) < 0.5
+    assert doors[0].width == pytest.approx((2 * m - 0.5) * h, abs=h)
+    assert doors[0].width >= widest_gap(field, start, goal, 0.35).width - 1e-9

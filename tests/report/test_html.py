@@ -41,6 +41,25 @@ y = 2.0
 theta_deg = 180.0
 """
 
+DOOR = """
+name = "door"
+[mission]
+kind = "plan"
+[train]
+n = 3
+[map]   # a 0.8 m corridor and a room below it through a 0.9 m door in a 0.1 m wall
+free = [[0, 5], [10, 5], [10, 4.9], [8, 4.9], [8, 0], [13, 0], [13, 4.9], [10.9, 4.9],
+        [10.9, 5], [16, 5], [16, 5.8], [0, 5.8]]
+[start]
+x = 4.5
+y = 5.4
+theta_deg = 180.0
+[goal]
+x = 10.45
+y = 2.0
+theta_deg = 90.0
+"""
+
 
 def _cli(*args, cwd=None):
     exe = Path(sys.executable).with_name("pushtrain")
@@ -64,6 +83,17 @@ def failed_plan(tmp_path_factory):
     (base / "slit.toml").write_text(SLIT)
     proc = _cli("plan-and-run", str(base / "slit.toml"), "--out", str(base / "run"))
     assert proc.returncode == 1, proc.stdout + proc.stderr  # no plan: exit 1 (README)
+    return base / "run"
+
+
+@pytest.fixture(scope="module")
+def door_plan(tmp_path_factory):
+    """plan-and-run of three trailers along a 0.8 m corridor and through a 0.9 m door off it
+    (wide enough for the last trailer, too narrow a corridor to line up with the door)."""
+    base = tmp_path_factory.mktemp("door")
+    (base / "door.toml").write_text(DOOR)
+    proc = _cli("plan-and-run", str(base / "door.toml"), "--out", str(base / "run"))
+    assert proc.returncode == 1, proc.stdout + proc.stderr
     return base / "run"
 
 
@@ -154,6 +184,18 @@ def test_a_failed_plan_leaves_a_page_with_its_bottleneck(failed_plan):
     assert payload["kind"] == "failure" and payload["summary"]["reason"] == "unreachable"
     b = payload["bottleneck"]
     assert 5.0 <= b["x"] <= 6.0 and b["width"] == pytest.approx(0.5, abs=0.1)
+
+
+def test_a_door_the_train_cannot_line_up_with_is_the_place_on_the_failure_page(door_plan):
+    """The page's marker is the door (its middle, 10-10.9 m by 4.9-5 m), labelled with the
+    corridor's width in front of it and what a steady turn into it needs, as the message
+    says."""
+    payload = _payload(door_plan / "report.html")
+    b = payload["bottleneck"]
+    assert 10.0 <= b["x"] <= 10.9 and 4.8 <= b["y"] <= 5.1, b
+    assert b["what"].startswith("door the train cannot line up with (0.90 m door")
+    assert b["width"] == pytest.approx(0.8, abs=0.02) and b["needed"] > 0.85
+    assert f"needs {b['needed']:.2f} m of corridor in front of it" in payload["message"]
 
 
 # ---------------------------------------------------------------------- in a browser
@@ -291,3 +333,18 @@ def test_a_sweep_page_shows_the_run_whose_row_is_clicked(browser, tmp_path):
     first.click()
     shown = dict(browser.execute_script("return window.pushtrainReport.state().shown"))
     assert shown["index"] == "5" and shown["steady_lat_m"] == "0.05000"
+
+
+@pytest.mark.browser
+def test_a_failed_plan_page_shows_the_door_the_train_cannot_line_up_with(browser, door_plan):
+    open_page(browser, door_plan / "report.html")
+    assert severe_errors(browser) == []
+    state = browser.execute_script("return window.pushtrainReport.state()")
+    b = _payload(door_plan / "report.html")["bottleneck"]
+    assert state["kind"] == "failure"
+    assert state["bottleneck"] == pytest.approx([b["x"], b["y"]], abs=1e-6)
+    legend = browser.find_element("id", "legend").text
+    assert (f"door the train cannot line up with (0.90 m door, 90 deg turn; the corridor in "
+            f"front of it) at "
+            f"({b['x']:.2f}, {b['y']:.2f}): {b['width']:.2f} m wide, {b['needed']:.2f} m "
+            "needed") in legend, legend
