@@ -185,7 +185,8 @@ class GoalConnections:
         pull, computed backward from the goal: a straight pull as long as the train plus
         ``pullback_extra`` (the whole train lies straight on it, as the pull rule asks),
         then an arc of the turning radius turning ``pullback_turns`` and a straight pull of
-        ``pullback_settle`` onto the goal. Of these, the ``pullback_keep`` whose reference
+        each of ``pullback_settle`` onto the goal. Of these, for each settling length, the
+        ``pullback_keep`` whose reference
         keeps farthest from the walls (the middle of the branch, where a driver straightens
         his train) among those where the last trailer's footprint clears the pull and the
         straight train fits at its start.
@@ -197,27 +198,34 @@ class GoalConnections:
         if route is None or not comes_in_across(route, self.goal, self.s.pullback_enter):
             return self._pullback_starts
         s = self.s
-        candidates = []
-        for extra in s.pullback_extra:
-            for turn in s.pullback_turns:
-                pull = [Segment("line", self.train.hitch_length + extra, 0.0, PULL)]
-                if turn != 0.0:
-                    pull.append(Segment("arc", abs(turn) * s.radius,
-                                        math.copysign(1.0 / s.radius, turn), PULL))
-                    pull.append(Segment("line", s.pullback_settle, 0.0, PULL))
-                poses = sample_reference(self.goal, _reversed(pull), 0.05)
-                room = float(self.prop.field.at(poses[:, 0], poses[:, 1]).min())
-                candidates.append((-room, len(candidates), tuple(map(float, poses[-1])), pull))
-        # the roomiest first, checked until enough pass (the checks cost a millisecond each)
-        for _, _, start, pull in sorted(candidates):
-            if len(self._pullback_starts) >= s.pullback_keep:
-                break
-            if not self._clear(start, pull):
-                continue
-            state = self.prop.initial_state(start, np.full(self.train.n + 1, start[2]))
-            failure, _ = self.prop.check(np.array([state.z]))
-            if failure is None:
-                self._pullback_starts.append((start, pull))
+        for group, settle in enumerate(s.pullback_settle):
+            candidates = []
+            for extra in s.pullback_extra:
+                for turn in s.pullback_turns:
+                    if turn == 0.0 and group > 0:
+                        continue  # a straight pull has no settling straight: tried once
+                    pull = [Segment("line", self.train.hitch_length + extra, 0.0, PULL)]
+                    if turn != 0.0:
+                        pull.append(Segment("arc", abs(turn) * s.radius,
+                                            math.copysign(1.0 / s.radius, turn), PULL))
+                        pull.append(Segment("line", settle, 0.0, PULL))
+                    poses = sample_reference(self.goal, _reversed(pull), 0.05)
+                    room = float(self.prop.field.at(poses[:, 0], poses[:, 1]).min())
+                    candidates.append((-room, len(candidates), tuple(map(float, poses[-1])),
+                                       pull))
+            # the roomiest first, checked until enough pass (the checks cost a millisecond
+            # each); as many for each settling length
+            kept = 0
+            for _, _, start, pull in sorted(candidates):
+                if kept >= s.pullback_keep:
+                    break
+                if not self._clear(start, pull):
+                    continue
+                state = self.prop.initial_state(start, np.full(self.train.n + 1, start[2]))
+                failure, _ = self.prop.check(np.array([state.z]))
+                if failure is None:
+                    self._pullback_starts.append((start, pull))
+                    kept += 1
         log.debug("pull-back connections from %s", [p for p, _ in self._pullback_starts])
         return self._pullback_starts
 

@@ -73,9 +73,12 @@ class SearchSettings:
         after a straight pull as long as the train plus each of ``pullback_extra`` [m].
     pullback_keep : int
         How many of those pulls are kept: the ones farthest from the walls.
-    pullback_settle : float
-        Length [m] of the straight pull after the pull-back's arc: the last trailer, which
-        cuts the arc's inside while pulled, settles onto the goal's line on it.
+    pullback_settle : tuple of float
+        Lengths [m] of the straight pull after the pull-back's arc: the last trailer, which
+        cuts the arc's inside while pulled, settles onto the goal's line on it. The shorter
+        one is for a goal near the branch's end: the office's T junction with 5 trailers,
+        whose 1 m settling pull starts where the push into the branch before it meets the
+        wall, plans with 0.5 m (0.5-0.8 m all do).
     kturn_push, kturn_extra : tuple of float
         The K-turn connection (:meth:`GoalConnections.kturns
         <pushtrain.planner.goal_connections.GoalConnections.kturns>`): where the chain is bent,
@@ -128,7 +131,7 @@ class SearchSettings:
     kturn_extra: tuple = (0.3,)
     kturn_min_turn: float = math.radians(30.0)
     pullback_keep: int = 3
-    pullback_settle: float = 1.0
+    pullback_settle: tuple = (1.0, 0.5)
     analytic_every: int = 4
     analytic_per_node: int = 2
     car_after: int = 20
