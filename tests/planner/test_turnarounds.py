@@ -131,3 +131,24 @@ def test_the_turnaround_plans_at_the_defaults(name, n):
         assert path.poses[:, 0].max() > 10.0 and path.n_cusps == 0
     if name == "t_junction_kturn":
         assert path.n_cusps == 2 and path.info["expansions"] <= 600
+
+
+def test_the_office_t_junction_with_five_trailers_pulls_back_onto_the_goal():
+    """Willow Garage's office (public map): five trailers up the middle corridor into the
+    north hall, to stop at its T junction pushed east. A driver pushes up the hall's diagonal
+    until the train is straight and pulls it back round onto the goal; the goal is so near
+    the diagonal's end that a 1 m settling pull after the arc would start where the push
+    before it meets the wall, so the pull-back settles in 0.5 m. Plans at the defaults with
+    one cusp in a few dozen expansions (the 1 m pull-backs alone: the default budget spent,
+    and a 240 s search found nothing)."""
+    office = EXAMPLES / "maps" / "public" / "willow_garage.yaml"
+    sc = parse_scenario({"mission": {"kind": "plan"}, "train": {"n": 5},
+                         "map": {"grid": str(office)},
+                         "start": {"x": 9.4, "y": 21.0, "theta_deg": -85.0},
+                         "goal": {"x": 15.0, "y": 46.8, "theta_deg": 180.0}}, "office_t5")
+    path = runner.plan_path(sc)
+    goal = _pose(sc.goal)
+    assert math.hypot(path.goal[0] - goal[0], path.goal[1] - goal[1]) < 0.05
+    assert path.n_cusps == 1 and path.info["expansions"] <= 200
+    last = path.segments[-1]
+    assert last.direction < 0 and last.kind == "line" and last.length == pytest.approx(0.5)
