@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import ClosedLoopEngine, simulate
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
-from pushtrain.planner.kinematic_loop import default_controller
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from reference.closed_loop import simulate_tracking  # noqa: E402  (the tests' reference loop)
@@ -52,7 +52,7 @@ def main(repeat: int) -> None:
           f"at step {STEP} s ({round(simulated / STEP)} steps)")
     for n in (3, 10):
         geom = ChainGeometry.uniform(n, 0.52)
-        config = default_controller(geom)
+        config = ControllerConfig(geometry=geom)
         heads = np.full(n + 1, math.pi)
         py = simulate_tracking(geom, ref, heads, config, STEP, SETTLE)
         c = simulate(geom, ref, heads, config, STEP, SETTLE)

@@ -33,14 +33,13 @@ from pushtrain.errors import PlanningError, PlanningInputError
 from pushtrain.facility.free_space import World
 
 from .budget import STEPS_PER_CHECK, Work
-from .config import ANYTIME_PLANNERS, PlannerConfig
+from .config import ANYTIME_PLANNERS, PlannerConfig, TrackerConfig
 from .curves import (
     chain_to_planner_state,
     segments_from_states,
 )
-from .kinematic_loop import TrackerConfig, reference_times
 from .ompl_search import Attempt, solve_once, solve_restarts
-from .path import PlannedPath
+from .path import PlannedPath, reference_times
 from .train import Train
 from .train_check import check_train
 from .whole_train import plan_lattice
@@ -232,7 +231,7 @@ def _train_check(world: World, train: Train, start, segments, start_headings,
         return None
     result = check_train(world, train, start, segments, start_headings, margin=config.inflation,
                          resolution=config.check_resolution, tracker=tracker)
-    work.used += result.trajectory.t.size // STEPS_PER_CHECK
+    work.used += result.simulated_t.size // STEPS_PER_CHECK
     entry["train_ok"] = result.ok
     entry["failure"] = result.failure
     return result

@@ -46,13 +46,12 @@ from pushtrain.core.reference import PULL
 from pushtrain.errors import PlanningError
 from pushtrain.facility.free_space import World
 
-from .config import turning_radius_from_joint_limit
+from .config import TrackerConfig, turning_radius_from_joint_limit
 from .footprint import body_name, body_positions, body_samples
 from .heuristic import Heuristic
-from .kinematic_loop import TrackerConfig, Trajectory, reference_times
 from .lattice import Search
 from .passage import needed_half_width, passable, swept_band, tight_corners, widest_gap
-from .path import PlannedPath
+from .path import PlannedPath, reference_times
 from .propagate import Cursor, Propagator
 from .route import find_route, loop_route, passes_back, starts_against
 from .search_settings import SearchSettings
@@ -175,7 +174,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         if solution is None:
             break
         run = solution.rollout  # the connection's run is the whole path's if it left the start
-        if not run.extra.get("from_start"):
+        if not run.from_start:
             run = _simulate(prop, start, headings, solution.segments, goal, deadline)
         if not run.ok and run.failure["kind"] in ("deadline", "budget"):
             search.stats.cut = run.failure["kind"]
@@ -330,7 +329,7 @@ def _simulate(prop: Propagator, start, headings, segments, goal, deadline: float
     (failure kind ``"deadline"``)."""
     state0 = prop.initial_state(start, headings)
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
-    return prop.rollout(state0, cursor0, segments, goal=goal, record=True, deadline=deadline)
+    return prop.rollout(state0, cursor0, segments, goal=goal, deadline=deadline)
 
 
 _EXACT_RATE = [2.0e-6]
@@ -343,7 +342,7 @@ def _exact_fits(run, train: Train, deadline: float) -> bool:
     ``time.perf_counter()`` value, the wall-clock safety cap): it cannot be interrupted, so
     one that would end past the cap is not started (the result says the clock cut the search
     short)."""
-    estimate = _EXACT_RATE[0] * run.z.shape[0] * (train.n + 1)
+    estimate = _EXACT_RATE[0] * run.run.states.shape[0] * (train.n + 1)
     if time.perf_counter() + estimate <= deadline:
         return True
     log.info("no time left for the exact test of a path found (about %.3f s)", estimate)
@@ -357,12 +356,10 @@ def _exact(world: World, train: Train, start, headings, segments, run, margins,
     limit, self-collision and the goal, with the clearances measured
     (:func:`~pushtrain.planner.train_check.check_train` on the run, no new simulation)."""
     t0 = time.perf_counter()
-    traj = Trajectory(run.extra["t"], run.z, run.extra["command"], run.reference,
-                      run.extra["direction"], np.ones(run.z.shape[0], dtype=bool))
     checked = check_train(world, train, start, segments, headings, margin=margins,
-                          resolution=0.01, tracker=tracker, trajectory=traj,
+                          resolution=0.01, tracker=tracker, run=run.run,
                           self_collision=True, field=world.distance_field())
-    _EXACT_RATE[0] = (time.perf_counter() - t0) / (run.z.shape[0] * (train.n + 1))
+    _EXACT_RATE[0] = (time.perf_counter() - t0) / (run.run.states.shape[0] * (train.n + 1))
     return checked
 
 

@@ -121,16 +121,16 @@ def test_bay_one_direction_change_whole_train_valid():
     assert np.abs(joint_angles(res.headings)).max() <= TRAIN.phi_max
     # the simulated motion obeys the chain kinematics under the held robot command, pulling
     # (towed chain) and pushing alike: compare each step's change with the rates at its middle
-    tr = res.trajectory
-    k = np.flatnonzero(tr.control[:-1] & tr.control[1:] & (tr.direction[:-1] != 0))
+    tr = res.run
+    k = np.flatnonzero(tr.direction != 0)
     for j in k[:: max(1, k.size // 300)]:
         h = tr.t[j + 1] - tr.t[j]
-        th0, th1 = tr.state[j, 2:], tr.state[j + 1, 2:]
-        v0, w0 = tr.command[j]
+        th0, th1 = tr.states[j, 2:], tr.states[j + 1, 2:]
+        v0, w0 = tr.commands[j]
         mid = 0.5 * (th0 + th1)
         rates = heading_rates_from_robot(mid, v0, w0, TRAIN.geometry)
         assert (th1 - th0) / h == pytest.approx(rates, abs=1e-4)
-        d = (tr.state[j + 1, :2] - tr.state[j, :2]) / h
+        d = (tr.states[j + 1, :2] - tr.states[j, :2]) / h
         assert d == pytest.approx(v0 * np.array([math.cos(mid[0]), math.sin(mid[0])]), abs=1e-5)
     assert {int(a) for a in tr.direction[k]} == {PUSH, PULL}
     # the path's headings are the closed loop's: they start with the start headings and the

@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 import shapely
 
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.facility.free_space import World
+from pushtrain.planner.config import TrackerConfig
 from pushtrain.planner.footprint import body_positions, body_samples, first_failure
-from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller
 from pushtrain.planner.propagate import Cursor, Propagator
 from pushtrain.planner.search_settings import SearchSettings, segments_cost
 from pushtrain.planner.train import Train
@@ -50,7 +51,7 @@ def test_the_search_cost_counts_every_cusp_and_curvature_change():
 
 # ----------------------------------------------------------------------------------- goal tests
 TRAIN = Train.uniform(3)
-CONTROLLER = default_controller(TRAIN.geometry)
+CONTROLLER = ControllerConfig(geometry=TRAIN.geometry)
 OPEN = World.from_dict({"bounds": [-8, -8, 8, 8]})
 START = (0.0, 0.0, math.pi)
 LINE = [Segment("line", 1.0)]

@@ -25,11 +25,8 @@ from pushtrain.core.kinematics import (
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.errors import PlanningInputError
 from pushtrain.facility.free_space import World
-from pushtrain.planner.kinematic_loop import (
-    TrackerConfig,
-    default_controller,
-    reference_times,
-)
+from pushtrain.planner.config import TrackerConfig
+from pushtrain.planner.path import reference_times
 from pushtrain.planner.train import Train
 from pushtrain.planner.train_check import check_train
 
@@ -96,30 +93,32 @@ def test_closed_loop_matches_an_independent_fine_euler_loop():
     assert res.ok, res.failure
     assert res.max_tracking_error > 0.05  # not a trivial run
     ref = Reference.from_segments(start, segs, 0.08, 1.0)
-    t, last = _independent_loop(TRAIN.geometry, ref, theta0, default_controller(TRAIN.geometry))
-    tr = res.trajectory
-    k = tr.control
-    x, y = body_positions_along(np.zeros((k.sum(), 3)), tr.state[k, 2:], TRAIN.geometry)
+    t, last = _independent_loop(TRAIN.geometry, ref, theta0,
+                                ControllerConfig(geometry=TRAIN.geometry))
+    tr = res.run
+    z = tr.states
+    x, y = body_positions_along(np.zeros((z.shape[0], 3)), z[:, 2:], TRAIN.geometry)
     # positions relative to the last trailer -> shift by the robot's position
-    lx = tr.state[k, 0] - x[:, 0] + x[:, -1]
-    ly = tr.state[k, 1] - y[:, 0] + y[:, -1]
-    err = np.hypot(lx - np.interp(tr.t[k], t, last[:, 0]), ly - np.interp(tr.t[k], t, last[:, 1]))
+    lx = z[:, 0] - x[:, 0] + x[:, -1]
+    ly = z[:, 1] - y[:, 0] + y[:, -1]
+    err = np.hypot(lx - np.interp(tr.t, t, last[:, 0]), ly - np.interp(tr.t, t, last[:, 1]))
     assert err.max() < 0.01
     # the result's last-trailer poses are the same trajectory
-    assert np.allclose(np.interp(res.t, tr.t[k], lx), res.poses[:, 0], atol=2e-3)
+    assert np.allclose(np.interp(res.t, tr.t, lx), res.poses[:, 0], atol=2e-3)
 
 
 def test_step_size_converges():
     segs = [Segment("arc", 1.0, 1 / 0.97, PULL), Segment("line", 1.0, 0.0, PULL),
             Segment("arc", 1.5, 1 / 0.97, PUSH), Segment("line", 1.0, 0.0, PUSH)]
     start = (0.0, 0.0, math.pi)
-    runs = {h: check_train(OPEN, TRAIN, start, segs, tracker=TrackerConfig(step=h)).trajectory
+    runs = {h: check_train(OPEN, TRAIN, start, segs, tracker=TrackerConfig(step=h)).run
             for h in (0.025, 0.0025)}
     coarse, fine = runs[0.025], runs[0.0025]
 
     def last(tr):
-        x, y = body_positions_along(np.zeros((tr.t.size, 3)), tr.state[:, 2:], TRAIN.geometry)
-        return tr.state[:, 0] - x[:, 0] + x[:, -1], tr.state[:, 1] - y[:, 0] + y[:, -1]
+        z = tr.states
+        x, y = body_positions_along(np.zeros((tr.t.size, 3)), z[:, 2:], TRAIN.geometry)
+        return z[:, 0] - x[:, 0] + x[:, -1], z[:, 1] - y[:, 0] + y[:, -1]
 
     (xc, yc), (xf, yf) = last(coarse), last(fine)
     err = np.hypot(xc - np.interp(coarse.t, fine.t, xf), yc - np.interp(coarse.t, fine.t, yf))
@@ -264,11 +263,11 @@ def test_pull_then_push_into_a_bay_leaves_the_chain_straight_at_the_cusp():
     res = check_train(world, TRAIN, start, segs)
     assert res.ok, res.failure
     assert res.max_tracking_error < 0.05
-    tr = res.trajectory
+    tr = res.run
     cusp = np.flatnonzero(tr.direction == 0)
     cusp = cusp[(tr.t[cusp] > 1.0) & (tr.t[cusp] < 2.5 / 0.08 + 1.0)]
     assert cusp.size > 0
-    phi = joint_angles(tr.state[cusp[-1], 2:])
+    phi = joint_angles(tr.states[cusp[-1], 2:])
     assert np.abs(phi).max() < math.radians(2.0)
 
 

@@ -6,12 +6,13 @@ through :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, Python
 command) at the control instants ``t_k = k * step`` with a perfect measurement, holds each
 command over the step and integrates the robot (along its heading) and the towed trailers with
 RK4 (``reference.ode.rk4_step``) on ``z = (x0, y0, theta_0..theta_n)``: the loop
-:func:`pushtrain.planner.kinematic_loop.simulate_tracking` runs in C. SI units, radians.
+:func:`pushtrain.core.engine.simulate` runs in C. SI units, radians.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -20,9 +21,22 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, body_positions_along
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
-from pushtrain.planner.kinematic_loop import Trajectory
 from reference.controller import BackwardController
 from reference.ode import rk4_step
+
+
+@dataclass
+class Trajectory:
+    """The reference loop's run, one row per control instant k = 0..K: ``t`` (K+1,) [s],
+    ``state`` (K+1, 3 + n), the ``command`` (v0, w0) computed there, the last trailer's
+    ``reference`` pose and its ``direction``; ``control`` all True."""
+
+    t: np.ndarray
+    state: np.ndarray
+    command: np.ndarray
+    reference: np.ndarray
+    direction: np.ndarray
+    control: np.ndarray
 
 
 def towed_rates(geometry: ChainGeometry):
