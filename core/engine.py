@@ -53,7 +53,7 @@ from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
 from .controller import ControllerConfig, controller_struct
-from .kinematics import ChainGeometry, body_positions_along, joint_angles
+from .kinematics import ChainGeometry, body_positions, joint_angles
 from .pulling import PullGuide
 from .reference import Reference
 
@@ -373,8 +373,8 @@ class ClosedLoopEngine:
         pose = np.asarray(last_pose, dtype=float).reshape(-1)
         if pose.size != 3 or not np.all(np.isfinite(pose)):
             raise ControllerError(f"last_pose = {last_pose!r}: need three finite numbers")
-        x, y = body_positions_along(pose[None, :], th[None, :], self.plant)
-        z = np.concatenate(([float(x[0, 0]), float(y[0, 0])], th))
+        x, y = body_positions(pose[0], pose[1], th, self.plant, from_last=True)
+        z = np.concatenate(([float(x[0]), float(y[0])], th))
         return LoopState(int(k), z, float(v0), float(w0), self.time(k) - self.step)
 
     def hold(self, z: Sequence[float], v0: float, w0: float, h: float, count: int) -> np.ndarray:

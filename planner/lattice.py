@@ -76,10 +76,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pushtrain.core.engine import LoopState
+from pushtrain.core.kinematics import body_positions
 from pushtrain.core.reference import PULL, PUSH, Segment
 
 from .connect import corner_segments, rs_segments, sample_reference
-from .footprint import body_positions
 from .goal_connections import GoalConnections
 from .heuristic import Heuristic
 from .propagate import Cursor, EdgeRun, Propagator
@@ -493,5 +493,5 @@ def _trace(rollout: EdgeRun, geometry, every: int = 25) -> np.ndarray:
     z = states[::every]
     if (states.shape[0] - 1) % every:
         z = np.vstack([z, states[-1:]])
-    x, y = body_positions(z, geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], geometry)
     return np.column_stack([x[:, -1], y[:, -1]])

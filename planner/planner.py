@@ -27,7 +27,7 @@ import numpy as np
 from shapely.geometry import Point
 from shapely.geometry import box as _box
 
-from pushtrain.core.kinematics import body_positions_along
+from pushtrain.core.kinematics import body_positions
 from pushtrain.core.reference import PULL, Segment
 from pushtrain.errors import PlanningError, PlanningInputError
 from pushtrain.facility.free_space import World
@@ -95,19 +95,17 @@ def _check_endpoints(world: World, train: Train, start, goal, start_headings, in
     theta0 = (np.full(train.n + 1, float(start[2])) if start_headings is None
               else np.asarray(start_headings, dtype=float))
 
-    x, y = body_positions_along(
-        np.asarray(start, dtype=float)[None, :], theta0[None, :], train.geometry
-    )
+    x, y = body_positions(float(start[0]), float(start[1]), theta0, train.geometry, from_last=True)
     for i, body in enumerate(train.bodies):
-        poly = body.polygons(x[0, i], y[0, i], theta0[i])
+        poly = body.polygons(x[i], y[i], theta0[i])
         if not region.contains(poly):
             name = "robot" if i == 0 else f"trailer {i}"
             raise PlanningError(
                 "start_in_collision",
-                f"at the start the {name} (body {i}) at ({x[0, i]:.3f}, {y[0, i]:.3f}), heading "
+                f"at the start the {name} (body {i}) at ({x[i]:.3f}, {y[i]:.3f}), heading "
                 f"{math.degrees(theta0[i]):.1f} deg, is not inside the free space with "
                 f"{inflation} m clearance",
-                where=(x[0, i], y[0, i], theta0[i]), details={"body": i},
+                where=(x[i], y[i], theta0[i]), details={"body": i},
             )
     if not region.contains(last.polygons(*goal)):
         raise PlanningError(

@@ -51,6 +51,7 @@ import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import Checks, ClosedLoopEngine, EngineRun, LoopState, join_runs
+from pushtrain.core.kinematics import ChainGeometry, body_positions
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.facility.distance_field import DistanceField
 
@@ -131,14 +132,11 @@ def _max_abs_phi(z: Sequence[float]) -> float:
     return max(abs(math.remainder(z[i] - z[i + 1], 2.0 * math.pi)) for i in range(2, len(z) - 1))
 
 
-def last_pose(z: Sequence[float], front, rear) -> tuple:
-    """The last trailer's pose (x, y, theta) from a train state ``z`` (plain floats)."""
-    x, y = z[0], z[1]
-    th = z[2:]
-    for i in range(len(front)):
-        x -= rear[i] * math.cos(th[i]) + front[i] * math.cos(th[i + 1])
-        y -= rear[i] * math.sin(th[i]) + front[i] * math.sin(th[i + 1])
-    return x, y, th[-1]
+def last_pose(z: Sequence[float], geometry: ChainGeometry) -> tuple:
+    """The last trailer's pose (x, y, theta) [m, m, rad] from a train state ``z`` (3 + n)
+    (:func:`~pushtrain.core.kinematics.body_positions`), as plain floats."""
+    x, y = body_positions(z[0], z[1], z[2:], geometry)
+    return float(x[-1]), float(y[-1]), float(z[-1])
 
 
 class Propagator:
@@ -202,8 +200,6 @@ class Propagator:
         self.phi_limit = float(phi_limit)
         self.goal_phi = None if goal_phi is None else float(goal_phi)
         self.step = float(tracker.step)
-        self._front = [float(a) for a in train.geometry.front]
-        self._rear = [float(a) for a in train.geometry.rear]
         self.steps = 0
         """Control steps simulated by this propagator so far (all rollouts)."""
         points, margins = [], []
@@ -226,16 +222,11 @@ class Propagator:
     def initial_state(self, start: Sequence[float], headings: Sequence[float]) -> LoopState:
         """The state at t = 0: the last trailer at ``start`` with ``headings`` (n+1,) [rad], at
         rest, the rate limits starting from rest one step before (as the co-simulation)."""
-        th = [float(a) for a in headings]
-        x, y = float(start[0]), float(start[1])
-        for i in range(len(self._front) - 1, -1, -1):
-            x += self._front[i] * math.cos(th[i + 1]) + self._rear[i] * math.cos(th[i])
-            y += self._front[i] * math.sin(th[i + 1]) + self._rear[i] * math.sin(th[i])
-        return LoopState(0, np.array([x, y, *th]), 0.0, 0.0, -self.step)
+        return self.loop.start(start, headings)
 
     def last_pose(self, state: LoopState) -> tuple:
         """The last trailer's pose (x, y, theta) [m, m, rad] in ``state``."""
-        return last_pose(state.z, self._front, self._rear)
+        return last_pose(state.z, self.train.geometry)
 
     def check(self, z: np.ndarray):
         """:func:`~pushtrain.planner.footprint.first_failure` of states ``z`` (K, 3 + n)."""
@@ -275,7 +266,7 @@ class Propagator:
             Most states one call of the engine runs (the deadline is looked at in between).
         """
         ref = self.reference(cursor, segments)
-        loop, step = self.loop, self.step
+        loop, step, geometry = self.loop, self.step, self.train.geometry
         t_end = ref.t_end
         end = ref.sample_at(t_end)
         new_cursor = Cursor(end.x, end.y, end.theta, t_end, segments[-1].direction)
@@ -296,12 +287,12 @@ class Propagator:
                 pull_starts.pop(0)
                 worst = _max_abs_phi(here.z)
                 if worst > pull_phi:
-                    x, y, _ = last_pose(here.z, self._front, self._rear)
+                    x, y, _ = last_pose(here.z, geometry)
                     failure = {"kind": "pull_rule", "k": k, "body": self.train.n, "x": x,
                                "y": y, "phi": worst}
                     break
             if goal is not None and k >= k_end:
-                x, y, th = last_pose(here.z, self._front, self._rear)
+                x, y, th = last_pose(here.z, geometry)
                 dist = math.hypot(x - goal[0], y - goal[1])
                 head = abs(math.remainder(th - goal[2], 2.0 * math.pi))
                 goal_error = (dist, head)
@@ -312,7 +303,7 @@ class Propagator:
             if k >= k_stop:
                 break
             if k >= limit or (deadline is not None and time.perf_counter() >= deadline):
-                x, y, _ = last_pose(here.z, self._front, self._rear)
+                x, y, _ = last_pose(here.z, geometry)
                 failure = {"kind": "budget" if k >= limit else "deadline", "k": k,
                            "body": self.train.n, "x": x, "y": y}
                 break
@@ -337,7 +328,7 @@ class Propagator:
             run = EngineRun(np.array([here.k * step]), np.array([here.z]), np.zeros((0, 2)),
                             np.zeros((0, 3)), np.zeros(0, dtype=int), here, None)
         if failure is None and goal is not None and not reached:
-            x, y, _ = last_pose(here.z, self._front, self._rear)
+            x, y, _ = last_pose(here.z, geometry)
             failure = {"kind": "goal_missed", "k": here.k, "t": here.k * step,
                        "body": self.train.n, "x": x, "y": y, "distance": goal_error[0],
                        "heading_error": goal_error[1], "max_abs_phi": _max_abs_phi(here.z)}

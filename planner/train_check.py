@@ -28,6 +28,7 @@ import shapely
 from pushtrain.core.engine import ClosedLoopEngine, EngineRun, simulate
 from pushtrain.core.kinematics import (
     ChainGeometry,
+    body_positions,
     joint_angles,
     wrap_angle,
     wrap_scalar,
@@ -37,7 +38,7 @@ from pushtrain.errors import ControllerError, PlanningInputError
 from pushtrain.facility.free_space import World
 
 from .config import TrackerConfig
-from .footprint import body_positions, self_overlap
+from .footprint import self_overlap
 from .path import reference_times
 from .train import Train
 
@@ -77,7 +78,7 @@ def _refine(traj: _Samples, geometry: ChainGeometry, train: Train, resolution: f
     """Subdivide the steps in which some corner moves more than ``resolution`` (RK4 substeps
     under the held command, the closed-loop engine's integrator). Returns (trajectory, x, y,
     corners)."""
-    x, y = body_positions(traj.state, geometry)
+    x, y = body_positions(traj.state[:, 0], traj.state[:, 1], traj.state[:, 2:], geometry)
     corners = _corners(train, x, y, traj.state[:, 2:])
     move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
     bad = np.flatnonzero(move > resolution)
@@ -97,7 +98,7 @@ def _refine(traj: _Samples, geometry: ChainGeometry, train: Train, resolution: f
     merged = {name: np.concatenate([np.asarray(r) for r in parts]) for name, parts in rows.items()}
     order = np.argsort(merged["t"], kind="stable")
     traj = _Samples(**{name: value[order] for name, value in merged.items()})
-    x, y = body_positions(traj.state, geometry)
+    x, y = body_positions(traj.state[:, 0], traj.state[:, 1], traj.state[:, 2:], geometry)
     return traj, x, y, _corners(train, x, y, traj.state[:, 2:])
 
 

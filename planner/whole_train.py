@@ -42,12 +42,13 @@ import numpy as np
 import shapely
 from shapely.geometry import Point
 
+from pushtrain.core.kinematics import body_positions
 from pushtrain.core.reference import PULL
 from pushtrain.errors import PlanningError
 from pushtrain.facility.free_space import World
 
 from .config import TrackerConfig, turning_radius_from_joint_limit
-from .footprint import body_name, body_positions, body_samples
+from .footprint import body_name, body_samples
 from .heuristic import Heuristic
 from .lattice import Search
 from .passage import needed_half_width, passable, swept_band, tight_corners, widest_gap
@@ -273,7 +274,7 @@ def _check_ends(world: World, train: Train, start, goal, state0, prop: Propagato
         raise PlanningError("start_in_collision", f"the start has {what}: {failure}",
                             where=(failure["x"], failure["y"]),
                             details={"body": failure["body"], "constraint": failure["kind"]})
-    x, y = body_positions(z, train.geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], train.geometry)
     th = z[0, 2:]
     for i, body in enumerate(train.bodies):
         gap = _exact_gap(world, body.polygons(x[0, i], y[0, i], th[i]))
@@ -549,7 +550,7 @@ def _budget_text(config) -> str:
 def _train_at(state, train: Train) -> dict:
     """Every body's axle midpoint and heading in ``state`` (plain lists, for the picture)."""
     z = np.array([state.z])
-    x, y = body_positions(z, train.geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], train.geometry)
     return {"x": x[0].tolist(), "y": y[0].tolist(), "headings": z[0, 2:].tolist()}
 
 

@@ -8,7 +8,6 @@ from hypothesis import strategies as st
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
-    body_positions_from_last,
     eq5_matrix,
     forward_velocities,
     heading_rates_from_robot,
@@ -114,7 +113,7 @@ def test_body_positions_hitches_coincide(n, data, x0, y0):
             [np.cos(theta[i]), np.sin(theta[i])]
         )
         np.testing.assert_allclose(rear_hitch, front_hitch, atol=1e-12)
-    xl, yl = body_positions_from_last(x[-1], y[-1], theta, geom)
+    xl, yl = body_positions(x[-1], y[-1], theta, geom, from_last=True)
     np.testing.assert_allclose(xl, x, atol=1e-12)
     np.testing.assert_allclose(yl, y, atol=1e-12)
 

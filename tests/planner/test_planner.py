@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 from shapely.geometry import Polygon
 
 from pushtrain.core.kinematics import (
-    body_positions_from_last,
+    body_positions,
     heading_rates_from_last,
     heading_rates_from_robot,
     joint_angles,
@@ -65,7 +65,7 @@ def _independent_push_check(world, path, train):
         for s in np.linspace(0.0, seg.length, m):
             th = sol.sol(s)
             x, y, _, _, _ = ref.sample([pos + s])
-            bx, by = body_positions_from_last(x[0], y[0], th, geom)
+            bx, by = body_positions(x[0], y[0], th, geom, from_last=True)
             for i, fp in enumerate(train.bodies):
                 poly = Polygon(_corners(fp, bx[i], by[i], th[i]))
                 assert world.free.contains(poly), f"body {i} hits at s = {pos + s:.3f} m"
@@ -165,7 +165,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
     for _a, b in runs:
         x, y, th, _, _ = ref.sample([(b - 1e-9) / 0.08])
         straight = np.full(TRAIN.n + 1, th[0])
-        bx, by = body_positions_from_last(x[0], y[0], straight, geom)
+        bx, by = body_positions(x[0], y[0], straight, geom, from_last=True)
         for i, fp in enumerate(TRAIN.bodies):
             assert region.contains(Polygon(_corners(fp, bx[i], by[i], th[0]))), (i, b)
     a, b = runs[0]
@@ -179,8 +179,8 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
                         theta, rtol=1e-10, atol=1e-12)
         theta = sol.y[:, -1]
         theta[-1] = th[j - 1]
-    bx, by = body_positions_from_last(0.0, 0.0, theta, geom)
-    sx, sy = body_positions_from_last(0.0, 0.0, np.full(TRAIN.n + 1, th[0]), geom)
+    bx, by = body_positions(0.0, 0.0, theta, geom, from_last=True)
+    sx, sy = body_positions(0.0, 0.0, np.full(TRAIN.n + 1, th[0]), geom, from_last=True)
     assert np.hypot(bx - sx, by - sy).max() <= cfg.pull_start_tolerance + 0.02
 
 

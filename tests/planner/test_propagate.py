@@ -87,7 +87,7 @@ def test_goal_mode_stops_at_the_first_instant_within_the_tolerance():
     t_end = 1.0 / 0.08
     if (run.state.k - 1) * 0.025 >= t_end - 1e-9:
         before = run.run.states[-2]
-        bx, by, _ = last_pose(before, TRAIN.geometry.front, TRAIN.geometry.rear)
+        bx, by, _ = last_pose(before, TRAIN.geometry)
         assert math.hypot(bx - goal[0], by - goal[1]) > 0.01
     # a goal the reference does not lead to is missed
     far = (goal[0] + 0.5, goal[1], goal[2])

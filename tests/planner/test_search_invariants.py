@@ -17,10 +17,11 @@ import pytest
 import shapely
 
 from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.kinematics import body_positions
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.facility.free_space import World
 from pushtrain.planner.config import TrackerConfig
-from pushtrain.planner.footprint import body_positions, body_samples, first_failure
+from pushtrain.planner.footprint import body_samples, first_failure
 from pushtrain.planner.propagate import Cursor, Propagator
 from pushtrain.planner.search_settings import SearchSettings, segments_cost
 from pushtrain.planner.train import Train
@@ -113,7 +114,7 @@ def test_a_wall_between_two_perimeter_samples_is_seen():
     half-spacing allowance (margin + s/2 + tol) sees it."""
     train = Train.uniform(1)
     z = np.array([[2.0, 0.0, 0.0, 0.0]])  # robot at (2, 0), all headings +x
-    x, y = body_positions(z, train.geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], train.geometry)
     ax, ay = x[0, 1], y[0, 1]  # the trailer's axle midpoint; its side y = ay - 0.3
     tip = (ax + 0.2, ay - 0.3 - 0.03)
     wedge = [tip, (tip[0] - 0.5, tip[1] - 1.0), (tip[0] + 0.5, tip[1] - 1.0)]

@@ -15,8 +15,6 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
-    body_positions_along,
-    body_positions_from_last,
     forward_velocities,
     heading_rates_from_last,
     joint_angles,
@@ -46,7 +44,7 @@ def _independent_loop(geom, reference, theta0, config, h=0.002, settle=2.0):
     ctrl = BackwardController(config)
     ctrl.reset(0.0, 0.0, -h)
     th = np.array(theta0, dtype=float)
-    bx, by = body_positions_from_last(*reference.start[:2], th, geom)
+    bx, by = body_positions(*reference.start[:2], th, geom, from_last=True)
     x0, y0 = bx[0], by[0]
     steps = int(math.ceil((reference.t_end + settle) / h))
     out = np.empty((steps + 1, 2))
@@ -76,9 +74,9 @@ def test_positions_match_kinematics():
     geom = ChainGeometry.uniform(3)
     th = rng.uniform(-3, 3, (6, 4))
     poses = np.column_stack([rng.uniform(-5, 5, (6, 2)), th[:, -1]])
-    x, y = body_positions_along(poses, th, geom)
+    x, y = body_positions(poses[:, 0], poses[:, 1], th, geom, from_last=True)
     for k in range(6):
-        ex, ey = body_positions_from_last(poses[k, 0], poses[k, 1], th[k], geom)
+        ex, ey = body_positions(poses[k, 0], poses[k, 1], th[k], geom, from_last=True)
         assert np.allclose(x[k], ex) and np.allclose(y[k], ey)
 
 
@@ -97,7 +95,7 @@ def test_closed_loop_matches_an_independent_fine_euler_loop():
                                 ControllerConfig(geometry=TRAIN.geometry))
     tr = res.run
     z = tr.states
-    x, y = body_positions_along(np.zeros((z.shape[0], 3)), z[:, 2:], TRAIN.geometry)
+    x, y = body_positions(0.0, 0.0, z[:, 2:], TRAIN.geometry, from_last=True)
     # positions relative to the last trailer -> shift by the robot's position
     lx = z[:, 0] - x[:, 0] + x[:, -1]
     ly = z[:, 1] - y[:, 0] + y[:, -1]
@@ -117,7 +115,7 @@ def test_step_size_converges():
 
     def last(tr):
         z = tr.states
-        x, y = body_positions_along(np.zeros((tr.t.size, 3)), z[:, 2:], TRAIN.geometry)
+        x, y = body_positions(0.0, 0.0, z[:, 2:], TRAIN.geometry, from_last=True)
         return z[:, 0] - x[:, 0] + x[:, -1], z[:, 1] - y[:, 0] + y[:, -1]
 
     (xc, yc), (xf, yf) = last(coarse), last(fine)
@@ -168,8 +166,8 @@ def test_collision_is_reported_with_body_time_and_place():
     # time and reference progress agree: s = speed * t while pushing
     assert f["s"] == pytest.approx(0.08 * f["t"])
     k = int(np.searchsorted(res.t, f["t"]))
-    bx, by = body_positions_from_last(res.poses[k, 0], res.poses[k, 1], res.headings[k],
-                                      TRAIN.geometry)
+    bx, by = body_positions(res.poses[k, 0], res.poses[k, 1], res.headings[k], TRAIN.geometry,
+                            from_last=True)
     i = f["body"]
     assert (bx[i], by[i]) == pytest.approx((f["body_x"], f["body_y"]), abs=1e-9)
     assert not world.free.contains(TRAIN.bodies[i].polygons(bx[i], by[i], res.headings[k, i]))
@@ -241,7 +239,7 @@ def _open_loop_sweep(train, start, segs, ds=0.005):
         for s in np.linspace(0.0, seg.length, int(seg.length / ds) + 2):
             th = sol.sol(s)
             x, y, _, _, _ = ref.sample([pos + s])
-            bx, by = body_positions_from_last(x[0], y[0], th, train.geometry)
+            bx, by = body_positions(x[0], y[0], th, train.geometry, from_last=True)
             polys += [b.polygons(bx[i], by[i], th[i]) for i, b in enumerate(train.bodies)]
             worst = max(worst, float(np.abs(joint_angles(th)).max()))
         theta, pos = sol.sol(seg.length), pos + seg.length

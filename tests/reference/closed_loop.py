@@ -18,7 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
-from pushtrain.core.kinematics import ChainGeometry, body_positions_along
+from pushtrain.core.kinematics import ChainGeometry, body_positions
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
 from reference.controller import BackwardController
@@ -93,9 +93,9 @@ def simulate_tracking(geometry: ChainGeometry, reference: Reference,
     loop = TrackingLoop(ctrl, reference)
     rates = towed_rates(geometry)
     th0 = np.asarray(start_headings, dtype=float)
-    x, y = body_positions_along(np.asarray(reference.start, dtype=float)[None, :], th0[None, :],
-                                geometry)
-    state = [float(x[0, 0]), float(y[0, 0])] + [float(a) for a in th0]
+    x0, y0, _ = reference.start
+    x, y = body_positions(x0, y0, th0, geometry, from_last=True)
+    state = [float(x[0]), float(y[0])] + [float(a) for a in th0]
     n_steps = int(math.ceil((reference.t_end + settle_time) / step - 1e-9))
     states, commands, refs, dirs = [], [], [], []
     for k in range(n_steps + 1):
