@@ -22,12 +22,13 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import ClosedLoopEngine, simulate
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import PULL, PUSH, Reference, Segment
+from pushtrain.defaults import ROLLOUT_SETTLE_TIME, ROLLOUT_STEP
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from reference.closed_loop import simulate_tracking  # noqa: E402  (the tests' reference loop)
 
-STEP = 0.025
-SETTLE = 2.0
+STEP = ROLLOUT_STEP
+SETTLE = ROLLOUT_SETTLE_TIME
 
 
 def bay_reference() -> Reference:

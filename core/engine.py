@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pushtrain.defaults import PULL_GUIDE_STEP, ROLLOUT_SETTLE_TIME
+from pushtrain.defaults import PULL_GUIDE_STEP, ROLLOUT_SETTLE_TIME, ROLLOUT_STEP
 from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
@@ -302,7 +302,7 @@ class ClosedLoopEngine:
         The train's chain (the controller uses its own model, ``controller.geometry``).
     controller : ControllerConfig
     step : float
-        Control and RK4 step [s], > 0.
+        Control and RK4 step [s], > 0 (:data:`pushtrain.defaults.ROLLOUT_STEP`).
     t_start : float
         Time [s] of instant k = 0.
     checks : Checks or None
@@ -315,7 +315,8 @@ class ClosedLoopEngine:
     reference's pull guide).
     """
 
-    def __init__(self, plant: ChainGeometry, controller: ControllerConfig, step: float = 0.025,
+    def __init__(self, plant: ChainGeometry, controller: ControllerConfig,
+                 step: float = ROLLOUT_STEP,
                  t_start: float = 0.0, checks: Checks | None = None,
                  guide_step: float = PULL_GUIDE_STEP):
         if not isinstance(plant, ChainGeometry):
@@ -478,7 +479,7 @@ class ClosedLoopEngine:
 
 
 def simulate(plant: ChainGeometry, reference: Reference, start_headings: Sequence[float],
-             controller: ControllerConfig, step: float = 0.025,
+             controller: ControllerConfig, step: float = ROLLOUT_STEP,
              settle_time: float = ROLLOUT_SETTLE_TIME,
              checks: Checks | None = None) -> EngineRun:
     """The closed loop along a whole reference: the run from t = 0 to the first instant at or

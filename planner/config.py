@@ -22,7 +22,13 @@ from pydantic import Field
 
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry
-from pushtrain.defaults import CUSP_DWELL, GOAL_TOLERANCE, REFERENCE_SPEED
+from pushtrain.defaults import (
+    CUSP_DWELL,
+    GOAL_TOLERANCE,
+    REFERENCE_SPEED,
+    ROLLOUT_SETTLE_TIME,
+    ROLLOUT_STEP,
+)
 from pushtrain.errors import PlanningInputError
 from pushtrain.settings import angle_setting, setting
 from pushtrain.validation import NonNegFloat, PositiveFloat
@@ -87,10 +93,12 @@ class TrackerConfig:
         no velocity lag, no slip). The error is that of the zero-order hold, first order in the
         step: on a bay plan with a cusp and 0.24 m transients (3 trailers) the last trailer's
         trajectory differs from a 0.002 s run by 2.4 cm with a 0.1 s step, 1.0 cm with 0.05 s
-        and 0.36 cm with the default 0.025 s (a test keeps it below 1 cm).
+        and 0.36 cm with the default 0.025 s (:data:`pushtrain.defaults.ROLLOUT_STEP`; a test
+        keeps it below 1 cm).
     settle_time : float
         Simulated time [s] past the reference's end, >= 0 (the reference then rests and the
-        robot brakes to a stop within its acceleration limit).
+        robot brakes to a stop within its acceleration limit;
+        :data:`pushtrain.defaults.ROLLOUT_SETTLE_TIME`).
     goal_tolerance : (float, float) or None
         Position [m] and heading [rad] tolerance of the last trailer at the end of the run
         (the co-simulation's goal test); None: report the goal error only.
@@ -99,8 +107,8 @@ class TrackerConfig:
     controller: ControllerConfig | None = None
     speed: float = REFERENCE_SPEED
     cusp_dwell: float = CUSP_DWELL
-    step: float = 0.025
-    settle_time: float = 2.0
+    step: float = ROLLOUT_STEP
+    settle_time: float = ROLLOUT_SETTLE_TIME
     goal_tolerance: tuple[float, float] | None = GOAL_TOLERANCE
 
     def __post_init__(self):

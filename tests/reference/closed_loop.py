@@ -21,6 +21,7 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import ChainGeometry, body_positions
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
+from pushtrain.defaults import ROLLOUT_SETTLE_TIME, ROLLOUT_STEP
 from reference.controller import BackwardController
 from reference.ode import rk4_step
 
@@ -84,7 +85,8 @@ class PerfectMeasurement:
 
 def simulate_tracking(geometry: ChainGeometry, reference: Reference,
                       start_headings: Sequence[float], controller: ControllerConfig,
-                      step: float = 0.025, settle_time: float = 2.0) -> Trajectory:
+                      step: float = ROLLOUT_STEP,
+                      settle_time: float = ROLLOUT_SETTLE_TIME) -> Trajectory:
     """The closed loop from t = 0 to the first instant at or after ``reference.t_end +
     settle_time``, the last trailer starting at ``reference.start`` with ``start_headings``, the
     robot at rest; every control instant one row."""
