@@ -82,9 +82,9 @@ from pushtrain.core.reference import PULL, PUSH, Segment
 from .connect import corner_segments, rs_segments, sample_reference
 from .goal_connections import GoalConnections
 from .heuristic import Heuristic
+from .lattice_settings import LatticeSettings, segments_cost
 from .propagate import Cursor, EdgeRun, Propagator
 from .route import Route
-from .search_settings import SearchSettings, segments_cost
 from .train import Train
 
 __all__ = ["Node", "Search", "Solution"]
@@ -176,7 +176,7 @@ class Search:
     start : LoopState
     start_cursor : Cursor
     goal : (x, y, theta)
-    settings : SearchSettings
+    settings : LatticeSettings
     route : callable or None
         Returns the route through the building (:mod:`~pushtrain.planner.route`), or None;
         called once, when the search first expands a node (a goal its start connects to
@@ -184,7 +184,7 @@ class Search:
     """
 
     def __init__(self, train: Train, propagator: Propagator, heuristic: Heuristic,
-                 start: LoopState, start_cursor: Cursor, goal, settings: SearchSettings,
+                 start: LoopState, start_cursor: Cursor, goal, settings: LatticeSettings,
                  route: Callable[[], Route | None] | None = None):
         self.train = train
         self._route_of = route

@@ -27,7 +27,7 @@ from collections.abc import Callable, Sequence
 from pushtrain.core.reference import Segment
 
 from .connect import corner_segments, rs_segments, sample_reference
-from .search_settings import SearchSettings, segments_cost
+from .lattice_settings import LatticeSettings, segments_cost
 
 __all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]
 
@@ -50,10 +50,10 @@ def total_turning(segments: Sequence[Segment]) -> float:
     return float(sum(abs(g.curvature) * g.length for g in segments))
 
 
-def path_cost(segments: Sequence[Segment], settings: SearchSettings | None = None) -> float:
+def path_cost(segments: Sequence[Segment], settings: LatticeSettings | None = None) -> float:
     """The path's cost as the search prices it (:func:`segments_cost` with ``settings``,
-    default :class:`~pushtrain.planner.search_settings.SearchSettings`)."""
-    return segments_cost(segments, settings or SearchSettings(radius=1.0))
+    default :class:`~pushtrain.planner.lattice_settings.LatticeSettings`)."""
+    return segments_cost(segments, settings or LatticeSettings(radius=1.0))
 
 
 def junction_poses(start, segments: Sequence[Segment]) -> list[tuple]:

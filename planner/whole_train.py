@@ -51,11 +51,11 @@ from .config import TrackerConfig, turning_radius_from_joint_limit
 from .footprint import body_name, body_samples
 from .heuristic import Heuristic
 from .lattice import Search
+from .lattice_settings import LatticeSettings
 from .passage import needed_half_width, passable, swept_band, tight_corners, widest_gap
 from .path import PlannedPath, reference_times
 from .propagate import Cursor, Propagator
 from .route import find_route, loop_route, passes_back, starts_against
-from .search_settings import SearchSettings
 from .smooth import merge, path_cost, shortcut
 from .train import Train
 from .train_check import check_train
@@ -164,7 +164,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     # with a straight train asked for at the goal, the final straight approach is as long as
     # the train (the followers line up behind the last trailer on it)
     approach = 1.5 if config.goal_max_phi is None else max(1.5, train.hitch_length + 0.5)
-    settings = SearchSettings(
+    settings = LatticeSettings(
         radius=radius, step_length=config.step_length, weight=config.search_weight,
         pull_phi=config.pull_max_phi, budget_steps=config.budget_steps(train.n), deadline=deadline,
         approach=approach)

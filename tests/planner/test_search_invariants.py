@@ -22,12 +22,12 @@ from pushtrain.core.reference import PULL, PUSH, Reference, Segment
 from pushtrain.facility.free_space import World
 from pushtrain.planner.config import TrackerConfig
 from pushtrain.planner.footprint import body_samples, first_failure
+from pushtrain.planner.lattice_settings import LatticeSettings, segments_cost
 from pushtrain.planner.propagate import Cursor, Propagator
-from pushtrain.planner.search_settings import SearchSettings, segments_cost
 from pushtrain.planner.train import Train
 
 # ------------------------------------------------------------------------------- the search cost
-SETTINGS = SearchSettings(radius=1.0, turn_weight=0.3, pull_turn_weight=1.0, change_weight=0.25,
+SETTINGS = LatticeSettings(radius=1.0, turn_weight=0.3, pull_turn_weight=1.0, change_weight=0.25,
                           cusp_cost=2.0, pull_factor=1.2)
 PATH = [Segment("line", 1.0, 0.0, PUSH),    # 1.0
         Segment("arc", 1.0, 1.0, PUSH),     # 1.0 + 0.3 x 1 rad turned + a curvature change
