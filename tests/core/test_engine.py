@@ -527,3 +527,13 @@ def test_integrator_equals_the_fmus_kinematic_motion_to_a_millimetre(fmu3):
     # and the plan was followed: the last trailer ends up the bay
     assert abs(float(wrap_angle(run.states[-1, -1] + 0.5 * math.pi))) < math.radians(5.0)
     assert np.hypot(*(last[-1] - ref.goal[:2])) < 0.05
+
+
+def test_loop_state_phi_is_wrapped_as_the_joint_check_wraps_it():
+    """LoopState.phi (the search's pull rule and straight-chain tests read it) is each
+    theta_{i-1} - theta_i wrapped to (-pi, pi], whatever turns the headings made."""
+    th = np.array([3.0, -3.0, 0.1 + 4.0 * math.pi, 0.1])
+    state = LoopState(0, np.concatenate(([0.0, 0.0], th)))
+    want = [math.remainder(a - b, 2.0 * math.pi) for a, b in zip(th[:-1], th[1:], strict=True)]
+    assert state.phi == pytest.approx(want, abs=1e-12)
+    assert np.all(np.abs(state.phi) <= math.pi)
