@@ -18,17 +18,18 @@ from pathlib import Path
 
 import numpy as np
 
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.engine import ClosedLoopEngine, simulate
 from pushtrain.core.kinematics import ChainGeometry
 from pushtrain.core.reference import Reference
 from pushtrain.core.segment import PULL, PUSH, Segment
-from pushtrain.planner.kinematic_loop import default_controller
+from pushtrain.defaults import ROLLOUT_SETTLE_TIME, ROLLOUT_STEP
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from reference.closed_loop import simulate_tracking  # noqa: E402  (the tests' reference loop)
 
-STEP = 0.025
-SETTLE = 2.0
+STEP = ROLLOUT_STEP
+SETTLE = ROLLOUT_SETTLE_TIME
 
 
 def bay_reference() -> Reference:
@@ -53,7 +54,7 @@ def main(repeat: int) -> None:
           f"at step {STEP} s ({round(simulated / STEP)} steps)")
     for n in (3, 10):
         geom = ChainGeometry.uniform(n, 0.52)
-        config = default_controller(geom)
+        config = ControllerConfig(geometry=geom)
         heads = np.full(n + 1, math.pi)
         py = simulate_tracking(geom, ref, heads, config, STEP, SETTLE)
         c = simulate(geom, ref, heads, config, STEP, SETTLE)

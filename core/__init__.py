@@ -1,7 +1,8 @@
 """The train model and the control law: what the planner and the co-simulation both stand on.
 
-Chain kinematics (:mod:`.kinematics`), line/arc reference paths (:mod:`.segment`,
-:mod:`.reference`; given as samples: :mod:`.sampled_reference`), the backward
+Chain kinematics (:mod:`.kinematics`; the bodies' positions from the headings are the engine's C,
+``pt_chain_positions``), line/arc reference paths (:mod:`.segment`, :mod:`.reference`; given as
+samples: :mod:`.sampled_reference`), the backward
 controller (Kanayama tracking in the travel frame + inverse chain, :mod:`.controller`), the pull
 guide (:mod:`.pulling`), one control instant (:mod:`.tracking`), the slip-aware governor
 (:mod:`.governor`), open-loop command profiles (:mod:`.openloop`), the closed-form analysis of

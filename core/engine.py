@@ -4,17 +4,19 @@
 ``t_k = t_start + k step``, the robot's own reference from the pull guide while pulling, the
 controller's command held over the step, the robot moving along its heading, the trailers towed,
 RK4 over the step on ``(x0, y0, theta_0..theta_n)``, in ``core/csrc/rollout.c`` on top of the
-compiled control law. The planner's search (:class:`pushtrain.planner.propagate.Propagator`) and
-its final check (:func:`pushtrain.planner.kinematic_loop.simulate_tracking`) both run it; the
-readable Python loop it is held equal to, bit for bit, is the tests' reference
-(``tests/reference/closed_loop.py``). :meth:`ClosedLoopEngine.hold` is its integrator alone
-(samples between two control instants).
+compiled control law. It is the planner's only closed loop: its search
+(:class:`pushtrain.planner.propagate.Propagator`, on :class:`LoopState` and :class:`EngineRun`)
+and its final check (:func:`simulate`, checked by
+:func:`pushtrain.planner.train_check.check_train`) both run it. The readable Python loop it is
+held equal to, bit for bit, is the tests' reference (``tests/reference/closed_loop.py``).
+:meth:`ClosedLoopEngine.hold` is its integrator alone (samples between two control instants).
 
 Resumable
     A run returns its end :class:`LoopState` (instant index k, state, the controller's rate-limit
     memory); the next run continues from it. Running instants [k0, k1) and then [k1, k2) gives
-    the states of one run over [k0, k2) bit for bit. The command at the end instant is left to
-    the next run, so that run may use a reference extended meanwhile.
+    the states of one run over [k0, k2) bit for bit (:func:`join_runs` makes the pieces one
+    :class:`EngineRun`). The command at the end instant is left to the next run, so that run
+    may use a reference extended meanwhile.
 
 Edges of a planner
     A planner's edge appends segments after the reference so far and continues the train's
@@ -46,12 +48,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pushtrain.defaults import PULL_GUIDE_STEP, ROLLOUT_SETTLE_TIME
+from pushtrain.defaults import PULL_GUIDE_STEP, ROLLOUT_SETTLE_TIME, ROLLOUT_STEP
 from pushtrain.errors import ControllerError, ReferencePathError
 
 from . import native
 from .controller import ControllerConfig, controller_struct
-from .kinematics import ChainGeometry, body_positions_along
+from .kinematics import ChainGeometry, body_positions, joint_angles
 from .pulling import PullGuide
 from .reference import Reference
 
@@ -62,6 +64,7 @@ __all__ = [
     "LoopState",
     "EngineRun",
     "Violation",
+    "join_runs",
     "rectangle_points",
     "simulate",
 ]
@@ -99,8 +102,9 @@ class LoopState:
 
     @property
     def phi(self) -> np.ndarray:
-        """Joint angles phi_i = theta_{i-1} - theta_i [rad], not wrapped."""
-        return self.z[2:-1] - self.z[3:]
+        """Joint angles phi_i = theta_{i-1} - theta_i [rad], wrapped to (-pi, pi] as the
+        engine's joint check wraps them (:func:`~pushtrain.core.kinematics.joint_angles`)."""
+        return joint_angles(self.z[2:])
 
 
 @dataclass(frozen=True)
@@ -154,6 +158,22 @@ class EngineRun:
     direction: np.ndarray
     end: LoopState
     violation: Violation | None
+
+
+def join_runs(runs: Sequence[EngineRun]) -> EngineRun:
+    """The pieces of one resumed run (each starting where the one before ended) as one
+    :class:`EngineRun`: its rows from the first piece's start to the last piece's end, the end
+    and violation of the last piece. Recorded pieces only (``run(..., record=True)``)."""
+    if not runs:
+        raise ControllerError("join_runs: no runs to join")
+    if len(runs) == 1:
+        return runs[0]
+    first, last = runs[0], runs[-1]
+    return EngineRun(np.concatenate([first.t] + [r.t[1:] for r in runs[1:]]),
+                     np.vstack([first.states] + [r.states[1:] for r in runs[1:]]),
+                     np.vstack([r.commands for r in runs]),
+                     np.vstack([r.reference for r in runs]),
+                     np.concatenate([r.direction for r in runs]), last.end, last.violation)
 
 
 def rectangle_points(length: float, width: float, offset: float = 0.0,
@@ -282,7 +302,7 @@ class ClosedLoopEngine:
         The train's chain (the controller uses its own model, ``controller.geometry``).
     controller : ControllerConfig
     step : float
-        Control and RK4 step [s], > 0.
+        Control and RK4 step [s], > 0 (:data:`pushtrain.defaults.ROLLOUT_STEP`).
     t_start : float
         Time [s] of instant k = 0.
     checks : Checks or None
@@ -295,7 +315,8 @@ class ClosedLoopEngine:
     reference's pull guide).
     """
 
-    def __init__(self, plant: ChainGeometry, controller: ControllerConfig, step: float = 0.025,
+    def __init__(self, plant: ChainGeometry, controller: ControllerConfig,
+                 step: float = ROLLOUT_STEP,
                  t_start: float = 0.0, checks: Checks | None = None,
                  guide_step: float = PULL_GUIDE_STEP):
         if not isinstance(plant, ChainGeometry):
@@ -336,7 +357,7 @@ class ClosedLoopEngine:
 
     def instant_at(self, t: float) -> int:
         """The first instant k at or after time ``t`` [s] (within 1e-9 steps, as
-        ``simulate_tracking`` counts its steps)."""
+        :func:`simulate` counts its steps)."""
         return int(math.ceil((float(t) - self.t_start) / self.step - 1e-9))
 
     # ------------------------------------------------------------------ states
@@ -345,7 +366,7 @@ class ClosedLoopEngine:
         """The state at instant ``k`` of a train whose last trailer is at ``last_pose``
         ``(x, y, theta)`` [m, m, rad] with ``headings`` theta_0..theta_n [rad]; the controller's
         previous command is ``(v0, w0)`` one step before (a robot at rest by default, as the
-        co-simulation master and ``simulate_tracking`` start)."""
+        co-simulation master and :func:`simulate` start)."""
         th = np.asarray(headings, dtype=float).reshape(-1)
         if th.size != self.n + 1 or not np.all(np.isfinite(th)):
             raise ControllerError(f"headings has {th.size} entries: need n + 1 = {self.n + 1}"
@@ -353,8 +374,8 @@ class ClosedLoopEngine:
         pose = np.asarray(last_pose, dtype=float).reshape(-1)
         if pose.size != 3 or not np.all(np.isfinite(pose)):
             raise ControllerError(f"last_pose = {last_pose!r}: need three finite numbers")
-        x, y = body_positions_along(pose[None, :], th[None, :], self.plant)
-        z = np.concatenate(([float(x[0, 0]), float(y[0, 0])], th))
+        x, y = body_positions(pose[0], pose[1], th, self.plant, from_last=True)
+        z = np.concatenate(([float(x[0]), float(y[0])], th))
         return LoopState(int(k), z, float(v0), float(w0), self.time(k) - self.step)
 
     def hold(self, z: Sequence[float], v0: float, w0: float, h: float, count: int) -> np.ndarray:
@@ -458,12 +479,13 @@ class ClosedLoopEngine:
 
 
 def simulate(plant: ChainGeometry, reference: Reference, start_headings: Sequence[float],
-             controller: ControllerConfig, step: float = 0.025,
+             controller: ControllerConfig, step: float = ROLLOUT_STEP,
              settle_time: float = ROLLOUT_SETTLE_TIME,
              checks: Checks | None = None) -> EngineRun:
-    """``simulate_tracking`` on the C integrator: the run from t = 0 to the first instant at or
-    after ``reference.t_end + settle_time``, the last trailer starting at ``reference.start``
-    with ``start_headings`` (n+1,) [rad], the robot at rest."""
+    """The closed loop along a whole reference: the run from t = 0 to the first instant at or
+    after ``reference.t_end + settle_time`` [s], the last trailer starting at
+    ``reference.start`` with ``start_headings`` (n+1,) [rad], the robot at rest (as the
+    co-simulation master starts); ``step`` [s] is the control and RK4 step."""
     loop = ClosedLoopEngine(plant, controller, step, 0.0, checks)
     state = loop.start(reference.start, start_headings)
     return loop.run(reference, state, loop.instant_at(reference.t_end + settle_time))

@@ -1,4 +1,5 @@
-"""Chain kinematics of a robot with n off-hooked trailers (pure numpy, no fmpy).
+"""Chain kinematics of a robot with n off-hooked trailers (numpy; the bodies' positions are the
+engine's C, :func:`body_positions`).
 
 Conventions (the paper's, except that headings are measured from +x: its Eq. (1) measures them
 from +y, while its Eq. (2)-(5) and (14) need +x): body 0 is the robot, bodies 1..n the trailers.
@@ -27,6 +28,7 @@ inverses from trailer n to the robot is the paper's Eq. (5).
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass
 from math import cos, sin
@@ -34,6 +36,8 @@ from math import cos, sin
 import numpy as np
 
 from pushtrain.table1 import LINK
+
+from . import native
 
 __all__ = [
     "ChainGeometry",
@@ -43,8 +47,6 @@ __all__ = [
     "forward_velocities",
     "inverse_velocities",
     "body_positions",
-    "body_positions_from_last",
-    "body_positions_along",
     "robot_velocity_from_last",
     "velocities_from_last",
     "heading_rates_from_robot",
@@ -165,42 +167,48 @@ def heading_rates_from_last(theta, v_n: float, w_n: float, geom: ChainGeometry) 
     return inverse_velocities(joint_angles(theta), v_n, w_n, geom)[1]
 
 
-def body_positions(x0: float, y0: float, theta, geom: ChainGeometry):
-    """Axle-midpoint positions of every body from the robot centre and headings.
+def body_positions(x, y, headings, geometry: ChainGeometry, from_last: bool = False):
+    """Axle-midpoint positions [m] of every body from one body's position and all headings.
 
-    Returns ``(x, y)`` of shape (n+1,) [m]; ``P_i = P_{i-1} - R_{i-1} e_{i-1} - F_i e_i``.
+    ``P_i = P_{i-1} - R_{i-1} e_{i-1} - F_i e_i``, each body's offset from the anchor summed
+    link by link outward from it and added to the anchor's position: the one definition,
+    ``pt_chain_positions`` in ``core/csrc/control.c`` (the engine's checks, the pull guide and
+    the controller's estimate of the last trailer use it too); this is its Python face.
+
+    Parameters
+    ----------
+    x, y : float or (K,) array
+        The robot's axle midpoint [m], or the last trailer's with ``from_last``.
+    headings : (n+1,) or (K, n+1) array
+        theta_0..theta_n [rad].
+    geometry : ChainGeometry
+    from_last : bool
+        ``x, y`` are the last trailer's position (else the robot's).
+
+    Returns
+    -------
+    (x, y)
+        Each (n+1,) for one state, (K, n+1) for K states.
     """
-    theta = np.asarray(theta, dtype=float)
-    c, s = np.cos(theta), np.sin(theta)
-    step_x = -geom.rear * c[:-1] - geom.front * c[1:]
-    step_y = -geom.rear * s[:-1] - geom.front * s[1:]
-    x = x0 + np.concatenate(([0.0], np.cumsum(step_x)))
-    y = y0 + np.concatenate(([0.0], np.cumsum(step_y)))
-    return x, y
-
-
-def body_positions_from_last(x_n: float, y_n: float, theta, geom: ChainGeometry):
-    """Positions of every body [m] given the last trailer's axle midpoint and all headings."""
-    x, y = body_positions(0.0, 0.0, theta, geom)
-    return x + (x_n - x[-1]), y + (y_n - y[-1])
-
-
-def body_positions_along(poses: np.ndarray, headings: np.ndarray, geometry: ChainGeometry):
-    """Positions [m] of every body from the last trailer's poses (N, 3) and headings (N, n+1).
-
-    Vectorized form of :func:`body_positions_from_last`: P_{i-1} = P_i + F_i e_i +
-    R_{i-1} e_{i-1}. Returns ``(x, y)``, each (N, n+1).
-    """
-    c, s = np.cos(headings), np.sin(headings)
-    # step k (k = 0..n-1): vector from P_{k+1} to P_k
-    step_x = geometry.front * c[:, 1:] + geometry.rear * c[:, :-1]
-    step_y = geometry.front * s[:, 1:] + geometry.rear * s[:, :-1]
-    x = np.empty_like(headings)
-    y = np.empty_like(headings)
-    x[:, -1], y[:, -1] = poses[:, 0], poses[:, 1]
-    x[:, :-1] = poses[:, :1] + np.cumsum(step_x[:, ::-1], axis=1)[:, ::-1]
-    y[:, :-1] = poses[:, 1:2] + np.cumsum(step_y[:, ::-1], axis=1)[:, ::-1]
-    return x, y
+    theta = np.asarray(headings, dtype=float)
+    nb = geometry.n + 1
+    if theta.shape[-1:] != (nb,) or theta.ndim > 2:
+        raise ValueError(f"headings has shape {theta.shape}: need ({nb},) or (K, {nb})")
+    rows = np.ascontiguousarray(theta.reshape(-1, nb))
+    k = rows.shape[0]
+    xa = np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=float), (k,)))
+    ya = np.ascontiguousarray(np.broadcast_to(np.asarray(y, dtype=float), (k,)))
+    out_x, out_y = np.empty((k, nb)), np.empty((k, nb))
+    front = np.ascontiguousarray(geometry.front, dtype=float)
+    rear = np.ascontiguousarray(geometry.rear, dtype=float)
+    chain = native.PtChain(geometry.n, native.dptr(front), native.dptr(rear))
+    work = np.empty(2 * nb)
+    native.load().pt_body_positions(ctypes.byref(chain), k, native.dptr(rows), native.dptr(xa),
+                                    native.dptr(ya), int(bool(from_last)), native.dptr(out_x),
+                                    native.dptr(out_y), native.dptr(work))
+    if theta.ndim == 1:
+        return out_x[0], out_y[0]
+    return out_x, out_y
 
 
 def velocities_from_last(phi, v_n: float, w_n: float, front, rear) -> tuple[float, list]:

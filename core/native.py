@@ -230,6 +230,8 @@ _PROTOTYPES = {
     "pt_sizeof": (c_size_t, [c_int]),
     "pt_wrap": (c_double, [c_double]),
     "pt_last_trailer_pose": (None, [P(PtChain), c_double, c_double, c_double, D_PTR, D_PTR]),
+    "pt_body_positions": (None, [P(PtChain), ctypes.c_long, D_PTR, D_PTR, D_PTR, c_int, D_PTR,
+                                 D_PTR, D_PTR]),
     "pt_robot_velocity_from_last": (None, [P(PtChain), D_PTR, c_double, c_double, D_PTR]),
     "pt_rates_from_last": (None, [P(PtChain), D_PTR, c_double, c_double, D_PTR]),
     "pt_towed_rates": (None, [P(PtChain), D_PTR, c_double, c_double, D_PTR]),

@@ -36,7 +36,7 @@ from pushtrain.defaults import PULL_GUIDE_STEP
 from pushtrain.errors import ReferencePathError
 
 from . import native
-from .kinematics import ChainGeometry, body_positions_along, velocities_from_last
+from .kinematics import ChainGeometry, body_positions, velocities_from_last
 from .reference import Reference, ReferenceSample
 from .segment import PULL
 
@@ -95,7 +95,7 @@ def straight_chain_mismatch(geometry: ChainGeometry, path, target_headings=None)
     target = (np.full(n + 1, th_last[0]) if target_headings is None
               else np.asarray(target_headings, dtype=float))
     # both chains with the last trailer at the origin
-    x, y = body_positions_along(np.zeros((2, 3)), np.array([theta, target]), geometry)
+    x, y = body_positions(0.0, 0.0, np.array([theta, target]), geometry, from_last=True)
     return float(np.hypot(x[0] - x[1], y[0] - y[1]).max())
 
 

@@ -11,7 +11,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field
 
-from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last
+from pushtrain.core.kinematics import ChainGeometry, body_positions
 from pushtrain.core.reference import Reference
 from pushtrain.errors import CosimInputError
 from pushtrain.fmu.variables import scalars_for, variables_for
@@ -133,7 +133,7 @@ class InitialState:
             raise CosimInputError(f"joint_angles has shape {phi.shape}; expected ({n},)")
         # theta_{i-1} = theta_i + phi_i, from the last trailer forward
         theta = th_n + np.concatenate((np.cumsum(phi[::-1])[::-1], [0.0]))
-        xs, ys = body_positions_from_last(x, y, theta, geometry)
+        xs, ys = body_positions(x, y, theta, geometry, from_last=True)
         return cls(float(xs[0]), float(ys[0]), theta)
 
     def start_values(self) -> dict:

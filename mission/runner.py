@@ -221,9 +221,9 @@ def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:
             theta = np.zeros(sc.train.n + 1)
             return InitialState(0.0, 0.0, theta)
         theta = _start_headings(sc)
-        from pushtrain.core.kinematics import body_positions_from_last
+        from pushtrain.core.kinematics import body_positions
 
-        xs, ys = body_positions_from_last(sc.start.x, sc.start.y, theta, geom)
+        xs, ys = body_positions(sc.start.x, sc.start.y, theta, geom, from_last=True)
         return InitialState(float(xs[0]), float(ys[0]), theta)
     joints = None if sc.start.joint_angles_deg is None else np.radians(sc.start.joint_angles_deg)
     return InitialState.behind_reference(

@@ -21,7 +21,14 @@ import numpy as np
 from pydantic import Field
 
 from pushtrain.core.controller import ControllerConfig
-from pushtrain.defaults import CUSP_DWELL, GOAL_TOLERANCE, REFERENCE_SPEED
+from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.defaults import (
+    CUSP_DWELL,
+    GOAL_TOLERANCE,
+    REFERENCE_SPEED,
+    ROLLOUT_SETTLE_TIME,
+    ROLLOUT_STEP,
+)
 from pushtrain.errors import PlanningInputError
 from pushtrain.settings import angle_setting, setting
 from pushtrain.validation import NonNegFloat, PositiveFloat
@@ -34,11 +41,10 @@ from .budget import (
     default_steps,
     steps_for,
 )
-from .kinematic_loop import TrackerConfig
 from .train import Train
 
-__all__ = ["PLANNERS", "PlannerConfig", "turning_radius_from_joint_limit", "ANYTIME_PLANNERS",
-           "OPTIMIZING_PLANNERS"]
+__all__ = ["PLANNERS", "PlannerConfig", "TrackerConfig", "turning_radius_from_joint_limit",
+           "ANYTIME_PLANNERS", "OPTIMIZING_PLANNERS"]
 
 PLANNERS = ("lattice", "rrtconnect", "restarts", "rrtstar", "bitstar", "prmstar")
 """Planner names: ``lattice`` (the default) searches closed-loop states of the whole train
@@ -64,6 +70,76 @@ def turning_radius_from_joint_limit(
             f"transient_margin = {transient_margin!r}: must be finite and >= 0"
         )
     return float(link / math.tan(phi_max / (2.0 * (1.0 + transient_margin))))
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """How the co-simulation will track the plan: what the planner's closed loop on the engine
+    (:mod:`pushtrain.core.engine`) simulates in the search and in
+    :func:`~pushtrain.planner.train_check.check_train`.
+
+    Parameters
+    ----------
+    controller : ControllerConfig or None
+        The co-simulation's controller; None: :class:`~pushtrain.core.controller.ControllerConfig`'s
+        defaults (the scenario's) with the train's geometry as its chain model.
+    speed : float
+        Reference speed |v_d| [m/s] on every segment without its own speed, > 0.
+    cusp_dwell : float
+        Rest [s] of the reference at every direction change, >= 0.
+    step : float
+        Control and integration step [s], > 0 (the controller is called every ``step``, its
+        command held over the step, RK4 of the kinematic chain with the train's own geometry,
+        no velocity lag, no slip). The error is that of the zero-order hold, first order in the
+        step: on a bay plan with a cusp and 0.24 m transients (3 trailers) the last trailer's
+        trajectory differs from a 0.002 s run by 2.4 cm with a 0.1 s step, 1.0 cm with 0.05 s
+        and 0.36 cm with the default 0.025 s (:data:`pushtrain.defaults.ROLLOUT_STEP`; a test
+        keeps it below 1 cm).
+    settle_time : float
+        Simulated time [s] past the reference's end, >= 0 (the reference then rests and the
+        robot brakes to a stop within its acceleration limit;
+        :data:`pushtrain.defaults.ROLLOUT_SETTLE_TIME`).
+    goal_tolerance : (float, float) or None
+        Position [m] and heading [rad] tolerance of the last trailer at the end of the run
+        (the co-simulation's goal test); None: report the goal error only.
+    """
+
+    controller: ControllerConfig | None = None
+    speed: float = REFERENCE_SPEED
+    cusp_dwell: float = CUSP_DWELL
+    step: float = ROLLOUT_STEP
+    settle_time: float = ROLLOUT_SETTLE_TIME
+    goal_tolerance: tuple[float, float] | None = GOAL_TOLERANCE
+
+    def __post_init__(self):
+        if self.controller is not None and not isinstance(self.controller, ControllerConfig):
+            raise PlanningInputError(
+                f"tracker.controller = {self.controller!r}: must be a ControllerConfig or None")
+        checks = (("speed", None), ("step", None), ("cusp_dwell", 0.0), ("settle_time", 0.0))
+        for key, low in checks:
+            value = getattr(self, key)
+            ok = isinstance(value, (int, float)) and math.isfinite(value)
+            ok = ok and (value > 0.0 if low is None else value >= low)
+            if not ok:
+                allowed = "finite and > 0" if low is None else "finite and >= 0"
+                raise PlanningInputError(f"tracker.{key} = {value!r}: must be {allowed}")
+        if self.goal_tolerance is not None:
+            tol = tuple(self.goal_tolerance)
+            if len(tol) != 2 or not all(math.isfinite(a) and a > 0.0 for a in tol):
+                raise PlanningInputError(
+                    f"tracker.goal_tolerance = {self.goal_tolerance!r}: need None or two finite "
+                    "numbers > 0 (position [m], heading [rad])")
+            object.__setattr__(self, "goal_tolerance", (float(tol[0]), float(tol[1])))
+
+    def controller_for(self, geometry: ChainGeometry) -> ControllerConfig:
+        """The controller configuration used for a chain of ``geometry`` (checks its n)."""
+        config = (self.controller if self.controller is not None
+                  else ControllerConfig(geometry=geometry))
+        if config.geometry.n != geometry.n:
+            raise PlanningInputError(
+                f"tracker.controller has a chain model of n = {config.geometry.n} trailers; the "
+                f"train has n = {geometry.n}")
+        return config
 
 
 @dataclass(frozen=True)
@@ -142,8 +218,7 @@ class PlannerConfig:
         straight lines (much harder for the sampling planners; for studies only).
     controller : ControllerConfig or None
         The co-simulation's controller, simulated by the whole-train check
-        (:class:`~pushtrain.planner.kinematic_loop.TrackerConfig`); None: the scenario defaults of
-        :func:`~pushtrain.planner.kinematic_loop.default_controller` for the train.
+        (:class:`TrackerConfig`); None: the scenario defaults with the train's chain model.
     speed : float
         Reference speed [m/s] the co-simulation will use (``PlannedPath.to_reference``).
     cusp_dwell : float

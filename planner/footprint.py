@@ -36,12 +36,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pushtrain.core.kinematics import ChainGeometry
+from pushtrain.core.kinematics import body_positions
 from pushtrain.facility.distance_field import DistanceField
 
 from .train import BodyFootprint, Train
 
-__all__ = ["BodySamples", "body_samples", "body_positions", "disc_cover", "first_failure",
+__all__ = ["BodySamples", "body_samples", "disc_cover", "first_failure",
            "FIELD_TOLERANCE", "body_name", "self_overlap"]
 
 FIELD_TOLERANCE = 0.002
@@ -160,19 +160,6 @@ def body_samples(train: Train, margins, spacing: float = 0.025, interior: float 
                        np.concatenate(thr), np.array(radius), np.array(slack), margins)
 
 
-def body_positions(z: np.ndarray, geometry: ChainGeometry):
-    """Axle midpoints (x, y), each (K, n+1), of all bodies from train states z (K, 3 + n) =
-    (x0, y0, theta_0..theta_n) (robot first)."""
-    th = z[:, 2:]
-    c, s = np.cos(th), np.sin(th)
-    step_x = -geometry.rear * c[:, :-1] - geometry.front * c[:, 1:]
-    step_y = -geometry.rear * s[:, :-1] - geometry.front * s[:, 1:]
-    zero = np.zeros((z.shape[0], 1))
-    x = z[:, :1] + np.concatenate((zero, np.cumsum(step_x, axis=1)), axis=1)
-    y = z[:, 1:2] + np.concatenate((zero, np.cumsum(step_y, axis=1)), axis=1)
-    return x, y
-
-
 def _wall_failure(field: DistanceField, samples: BodySamples, x, y, th, covers=None):
     """First state (index) where some body misses its clearance, as (k, body, x, y, distance,
     threshold) of the worst point, or None; and the motion's reserve: the smallest excess
@@ -284,7 +271,7 @@ def first_failure(train: Train, field: DistanceField, samples: BodySamples, z: n
     of :func:`disc_cover`; a body whose disc centres all keep the threshold at a state passes
     there whatever its sample points say (None: the samples alone decide).
     """
-    x, y = body_positions(z, train.geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], train.geometry)
     th = z[:, 2:]
     phi = th[:, :-1] - th[:, 1:]
     phi = (phi + math.pi) % (2.0 * math.pi) - math.pi

@@ -50,7 +50,7 @@ class GoalConnections:
         Its distance field and its checks of a train state (the pull-backs' starts).
     goal : (x, y, theta)
         The last trailer's goal pose [m, m, rad].
-    settings : SearchSettings
+    settings : LatticeSettings
         The search's settings (radii, pull rule, pull-back parameters).
     reach : float
         The longest straight a connection may have [m] (the map's diagonal).

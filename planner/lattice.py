@@ -19,7 +19,7 @@ Why this design (and not the last trailer alone, nor closed-loop RRT)
 Node
     The reference's end (:class:`~pushtrain.planner.propagate.Cursor`: the last trailer's
     reference pose, its time and the direction of the last motion) and the train's state there
-    (:class:`~pushtrain.planner.propagate.TrainState`: robot pose, every heading, the
+    (the engine's :class:`~pushtrain.core.engine.LoopState`: robot pose, every heading, the
     controller's rate-limit memory, the control instant).
 Edges
     A primitive of the last trailer's reference (a line or an arc of curvature ``k * kappa``
@@ -75,16 +75,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pushtrain.core.engine import LoopState
+from pushtrain.core.kinematics import body_positions
 from pushtrain.core.segment import PULL, PUSH, Segment
 
 from .connect import corner_segments, sample_reference
-from .footprint import body_positions
 from .goal_connections import GoalConnections
 from .heuristic import Heuristic
-from .propagate import Cursor, Propagator, Rollout, TrainState
+from .lattice_settings import LatticeSettings, segments_cost
+from .propagate import Cursor, EdgeRun, Propagator
 from .reeds_shepp import rs_segments
 from .route import Route
-from .search_settings import SearchSettings, segments_cost
 from .train import Train
 
 __all__ = ["Node", "Search", "Solution"]
@@ -100,7 +101,7 @@ many floats: 16 MB)."""
 class Node:
     """One state of the search (see the module docstring)."""
 
-    state: TrainState
+    state: LoopState
     cursor: Cursor
     g: float
     h: float
@@ -135,7 +136,7 @@ class Solution:
     segments: list
     cost: float
     node: Node
-    rollout: Rollout
+    rollout: EdgeRun
     expansions: int
     steps: int
 
@@ -173,10 +174,10 @@ class Search:
     train : Train
     propagator : Propagator
     heuristic : Heuristic
-    start : TrainState
+    start : LoopState
     start_cursor : Cursor
     goal : (x, y, theta)
-    settings : SearchSettings
+    settings : LatticeSettings
     route : callable or None
         Returns the route through the building (:mod:`~pushtrain.planner.route`), or None;
         called once, when the search first expands a node (a goal its start connects to
@@ -184,7 +185,7 @@ class Search:
     """
 
     def __init__(self, train: Train, propagator: Propagator, heuristic: Heuristic,
-                 start: TrainState, start_cursor: Cursor, goal, settings: SearchSettings,
+                 start: LoopState, start_cursor: Cursor, goal, settings: LatticeSettings,
                  route: Callable[[], Route | None] | None = None):
         self.train = train
         self._route_of = route
@@ -322,10 +323,10 @@ class Search:
                                             next(self._counter), node))
         log.debug("car heuristic built after %d expansions", self.stats.expansions)
 
-    def _h(self, cursor: Cursor, state: TrainState) -> float:
+    def _h(self, cursor: Cursor, state: LoopState) -> float:
         """The heuristic of a node: its reference pose, its last motion's direction and
         whether its chain is straight enough to pull."""
-        straight = bool(np.abs(state.phi()).max() <= self.s.pull_phi)
+        straight = bool(np.abs(state.phi).max() <= self.s.pull_phi)
         return self.heuristic(cursor.pose, cursor.direction, straight)
 
     # ------------------------------------------------------------------ edges
@@ -338,7 +339,7 @@ class Search:
                 if node.cursor.direction == PULL:
                     if node.run_length + s.pull_length > s.max_pull_run + 1e-9:
                         continue
-                elif np.abs(node.state.phi()).max() > s.pull_phi:
+                elif np.abs(node.state.phi).max() > s.pull_phi:
                     self.stats.failures["pull_rule"] += 1
                     continue
             length = fraction * (s.pull_length if direction == PULL else s.step_length)
@@ -365,7 +366,7 @@ class Search:
         travel_here = route.pose_at(along)[2]
         if abs(math.remainder(pose[2] + math.pi - travel_here, 2.0 * math.pi)) > s.follow_angle:
             return  # not pushed along the route here: the primitives turn it first
-        straight = np.abs(node.state.phi()).max() <= s.pull_phi
+        straight = np.abs(node.state.phi).max() <= s.pull_phi
         max_turn = s.follow_turn if straight else s.follow_turn_bent
         for ahead in s.follow_lengths:
             if along + ahead > route.length - 0.5 * ahead:
@@ -387,7 +388,7 @@ class Search:
     def _cost(self, node: Node, segments) -> float:
         return segments_cost(segments, self.s, node.cursor.direction, node.curvature())
 
-    def _roll(self, node: Node, segments, goal=None) -> tuple[Rollout, Node | None, tuple]:
+    def _roll(self, node: Node, segments, goal=None) -> tuple[EdgeRun, Node | None, tuple]:
         """Roll ``segments`` out after ``node`` (from the start of its pulling run if they
         continue it). Returns (rollout, run root, run segments)."""
         remaining = max(1, self.s.budget_steps - self.prop.steps)
@@ -398,8 +399,8 @@ class Search:
         # a connection to the goal keeps its commands: from the start it is the whole path's run
         rollout = self.prop.rollout(root.state, root.cursor, run, goal=goal,
                                     pull_phi=self.s.pull_phi, max_steps=remaining,
-                                    deadline=self.s.deadline, record=goal is not None)
-        rollout.extra["from_start"] = root is self.root
+                                    deadline=self.s.deadline)
+        rollout.from_start = root is self.root
         self.stats.rollouts += 1
         self.stats.steps["connections" if goal is not None else "motions"] += rollout.steps
         # the run (for a later continuation) is the tail of pulling segments
@@ -471,7 +472,7 @@ class Search:
         due = (self.stats.expansions - self._last_analytic >= s.analytic_every
                or node is self.root)
         attempts = 0
-        for kind, segments in self.connections.candidates(node.cursor.pose, node.state.phi(),
+        for kind, segments in self.connections.candidates(node.cursor.pose, node.state.phi,
                                                            kturns=due):
             if kind[0] in ("pullback", "kturn", "approach", "direct") and not due:
                 break
@@ -493,10 +494,11 @@ class Search:
         return None
 
 
-def _trace(rollout: Rollout, geometry, every: int = 25) -> np.ndarray:
+def _trace(rollout: EdgeRun, geometry, every: int = 25) -> np.ndarray:
     """The last trailer's positions along a rollout, thinned (for drawing the explored tree)."""
-    z = rollout.z[::every]
-    if (rollout.z.shape[0] - 1) % every:
-        z = np.vstack([z, rollout.z[-1:]])
-    x, y = body_positions(z, geometry)
+    states = rollout.run.states
+    z = states[::every]
+    if (states.shape[0] - 1) % every:
+        z = np.vstack([z, states[-1:]])
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], geometry)
     return np.column_stack([x[:, -1], y[:, -1]])

@@ -19,7 +19,7 @@ from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.defaults import CUSP_DWELL, REFERENCE_SPEED
 from pushtrain.errors import PlanningInputError
 
-__all__ = ["PlannedPath", "dense_samples", "FORMAT_VERSION"]
+__all__ = ["PlannedPath", "dense_samples", "reference_times", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
 """Version of the JSON layout written by :meth:`PlannedPath.to_json`."""
@@ -47,6 +47,33 @@ def dense_samples(start: Sequence[float], segments: Sequence[Segment], resolutio
     s = np.concatenate(pieces)
     x, y, theta, _, _ = ref.sample(s)
     return s, np.column_stack([x, y, theta]), np.concatenate(seg_ids).astype(int)
+
+
+def reference_times(segments: Sequence[Segment], speed: float, cusp_dwell: float, s):
+    """Time [s] at which the reference of :class:`~pushtrain.core.reference.Reference` (t0 = 0)
+    reaches the travelled distance ``s`` [m] (array); at a cusp the arrival (start of the dwell).
+
+    Returns ``(t, knots)`` where ``knots = (t_knots, s_knots)`` is the piecewise-linear map
+    t -> s (flat during dwells) for :func:`numpy.interp`.
+    """
+    t_k, s_k = [0.0], [0.0]
+    t, pos, previous = 0.0, 0.0, None
+    starts, ends, seg_t0, seg_speed = [], [], [], []
+    for seg in segments:
+        if previous is not None and seg.direction != previous:
+            t += cusp_dwell
+            t_k.append(t), s_k.append(pos)
+        v = speed if seg.speed is None else seg.speed
+        starts.append(pos), seg_t0.append(t), seg_speed.append(v)
+        t += seg.length / v
+        pos += seg.length
+        ends.append(pos)
+        t_k.append(t), s_k.append(pos)
+        previous = seg.direction
+    s = np.asarray(s, dtype=float)
+    j = np.clip(np.searchsorted(np.array(ends), s, side="left"), 0, len(ends) - 1)
+    times = np.array(seg_t0)[j] + (s - np.array(starts)[j]) / np.array(seg_speed)[j]
+    return times, (np.array(t_k), np.array(s_k))
 
 
 _MACHINE_DEPENDENT = ("time",)

@@ -27,16 +27,15 @@ import numpy as np
 from shapely.geometry import Point
 from shapely.geometry import box as _box
 
-from pushtrain.core.kinematics import body_positions_along
+from pushtrain.core.kinematics import body_positions
 from pushtrain.core.segment import PULL, Segment
 from pushtrain.errors import PlanningError, PlanningInputError
 from pushtrain.facility.free_space import World
 
 from .budget import STEPS_PER_CHECK, Work
-from .config import ANYTIME_PLANNERS, PlannerConfig
-from .kinematic_loop import TrackerConfig, reference_times
+from .config import ANYTIME_PLANNERS, PlannerConfig, TrackerConfig
 from .ompl_search import Attempt, solve_once, solve_restarts
-from .path import PlannedPath
+from .path import PlannedPath, reference_times
 from .reeds_shepp import chain_to_planner_state, segments_from_states
 from .train import Train
 from .train_check import check_train
@@ -93,19 +92,17 @@ def _check_endpoints(world: World, train: Train, start, goal, start_headings, in
     theta0 = (np.full(train.n + 1, float(start[2])) if start_headings is None
               else np.asarray(start_headings, dtype=float))
 
-    x, y = body_positions_along(
-        np.asarray(start, dtype=float)[None, :], theta0[None, :], train.geometry
-    )
+    x, y = body_positions(float(start[0]), float(start[1]), theta0, train.geometry, from_last=True)
     for i, body in enumerate(train.bodies):
-        poly = body.polygons(x[0, i], y[0, i], theta0[i])
+        poly = body.polygons(x[i], y[i], theta0[i])
         if not region.contains(poly):
             name = "robot" if i == 0 else f"trailer {i}"
             raise PlanningError(
                 "start_in_collision",
-                f"at the start the {name} (body {i}) at ({x[0, i]:.3f}, {y[0, i]:.3f}), heading "
+                f"at the start the {name} (body {i}) at ({x[i]:.3f}, {y[i]:.3f}), heading "
                 f"{math.degrees(theta0[i]):.1f} deg, is not inside the free space with "
                 f"{inflation} m clearance",
-                where=(x[0, i], y[0, i], theta0[i]), details={"body": i},
+                where=(x[i], y[i], theta0[i]), details={"body": i},
             )
     if not region.contains(last.polygons(*goal)):
         raise PlanningError(
@@ -229,7 +226,7 @@ def _train_check(world: World, train: Train, start, segments, start_headings,
         return None
     result = check_train(world, train, start, segments, start_headings, margin=config.inflation,
                          resolution=config.check_resolution, tracker=tracker)
-    work.used += result.trajectory.t.size // STEPS_PER_CHECK
+    work.used += result.simulated_t.size // STEPS_PER_CHECK
     entry["train_ok"] = result.ok
     entry["failure"] = result.failure
     return result

@@ -4,21 +4,22 @@ The whole-train planner (:mod:`~pushtrain.planner.lattice`) grows its search by 
 arc and Reeds-Shepp pieces to the last trailer's reference and asking what the *train* does
 when the co-simulation's controller tracks them. This module answers that, resumably:
 
-State (:class:`TrainState`)
+State (:class:`pushtrain.core.engine.LoopState`, the engine's own)
     The control instant ``k`` (time ``k * step``), the kinematic chain
     ``z = (x0, y0, theta_0..theta_n)`` and the controller's memory (the previous command and
     its time, for the rate limits). The state is taken at an instant *before* its command.
 Reference cursor (:class:`Cursor`)
     Where the reference stands: the last trailer's reference pose at time ``t`` and the
     direction of its last motion (0 before any).
-Rollout (:meth:`Propagator.rollout`)
+Rollout (:meth:`Propagator.rollout`, an :class:`EdgeRun`: the engine's
+:class:`~pushtrain.core.engine.EngineRun` and the planner's verdict on it)
     ``Reference.from_segments(cursor pose, segments, speed, cusp_dwell, t0)`` with
     ``t0 = cursor.t`` plus one cusp dwell if the first segment turns the cursor's direction
     (the reference then rests at the cursor before ``t0``, as a longer reference would during
     its dwell), tracked by the co-simulation's control law on the kinematic chain with the one
     closed-loop engine, :class:`pushtrain.core.engine.ClosedLoopEngine` (``core/csrc``: the loop
-    :func:`~pushtrain.planner.kinematic_loop.simulate_tracking` runs, RK4 of the towed chain
-    under the held command, step ``tracker.step``), from the state's instant up to the first
+    :func:`pushtrain.core.engine.simulate` runs, RK4 of the towed chain under the held command,
+    step ``tracker.step``), from the state's instant up to the first
     instant at or after the reference's end. The commands up to there depend only on these
     segments, so appending pushes is exact: a rollout continued piece by piece gives the run of
     the whole reference. Pulls are not: the robot's pulling reference (the pull guide) is
@@ -43,46 +44,23 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
-from pushtrain.core.engine import Checks, ClosedLoopEngine, LoopState
+from pushtrain.core.engine import Checks, ClosedLoopEngine, EngineRun, LoopState, join_runs
+from pushtrain.core.kinematics import ChainGeometry, body_positions
 from pushtrain.core.reference import Reference
 from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.facility.distance_field import DistanceField
 
+from .config import TrackerConfig
 from .footprint import FIELD_TOLERANCE, BodySamples, disc_cover, first_failure
-from .kinematic_loop import TrackerConfig
 from .train import Train
 
-__all__ = ["TrainState", "Cursor", "Rollout", "Propagator", "last_pose"]
-
-
-@dataclass(frozen=True)
-class TrainState:
-    """The closed loop at one control instant, before its command.
-
-    Attributes
-    ----------
-    k : int
-        Control instant (time ``k * step`` [s]).
-    z : tuple of float
-        ``(x0, y0, theta_0..theta_n)``: robot position [m] and every heading [rad].
-    memory : tuple
-        The controller's ``(v_prev [m/s], w_prev [rad/s], t_prev [s] or None)``.
-    """
-
-    k: int
-    z: tuple
-    memory: tuple = (0.0, 0.0, None)
-
-    def phi(self) -> np.ndarray:
-        """Joint angles phi_i = theta_{i-1} - theta_i [rad], wrapped, (n,)."""
-        th = np.asarray(self.z[2:])
-        return (th[:-1] - th[1:] + math.pi) % (2.0 * math.pi) - math.pi
+__all__ = ["Cursor", "EdgeRun", "Propagator", "last_pose"]
 
 
 @dataclass(frozen=True)
@@ -102,46 +80,52 @@ class Cursor:
 
 
 @dataclass
-class Rollout:
-    """What :meth:`Propagator.rollout` simulated.
+class EdgeRun:
+    """What :meth:`Propagator.rollout` simulated: the engine's run and the planner's verdict.
 
     Attributes
     ----------
-    ok : bool
-        No failure (and, with a goal, the goal reached).
+    run : EngineRun
+        The engine's run from the rollout's start state (its pieces joined,
+        :func:`~pushtrain.core.engine.join_runs`): ``states`` (K + 1, 3 + n) the first the
+        start state's, ``commands``, ``reference`` and ``direction`` (K rows), ``end`` the
+        :class:`~pushtrain.core.engine.LoopState` reached: at the first instant at or after the
+        reference's end (with a goal: where it was reached, or the end of the settling); at a
+        failure the last state simulated.
+    cursor : Cursor
+        The reference's end.
     failure : dict or None
         The first failure: ``kind`` (``"collision"``, ``"joint_limit"``, ``"self_collision"``,
         ``"non_finite"``, ``"control"`` from the engine's checks; ``"pull_rule"``,
         ``"budget"``, ``"deadline"``, ``"goal_missed"``), the instant ``k``, its time ``t`` [s],
         ``body`` and where (``x``, ``y`` [m]), with the numbers of its kind (``distance`` and
         ``margin``, ``phi``, ``other``, ``heading_error``, ...).
-    state : TrainState
-        At the first instant at or after the reference's end (with a goal: where it was
-        reached, or the end of the settling); at a failure the last state simulated.
-    cursor : Cursor
-        The reference's end.
-    z : (K, 3 + n) array
-        Every simulated state, the first one the start state's.
-    reference : (K, 3) array
-        The last trailer's reference pose at each state's time.
-    steps : int
-        Control steps simulated (the unit of the planner's work budget).
     goal_error : (float, float) or None
         Distance [m] and |heading error| [rad] of the last trailer to the goal at the end.
-    extra : dict
-        With ``record``: ``command`` (K, 2) [m/s, rad/s] held from each state on (zeros at the
-        last), ``direction`` (K,) of the reference there and ``t`` (K,) [s].
+    from_start : bool
+        The run starts at the search's start state (it is the whole path's run).
     """
 
-    ok: bool
-    failure: dict | None
-    state: TrainState
+    run: EngineRun
     cursor: Cursor
-    z: np.ndarray
-    reference: np.ndarray
-    steps: int
+    failure: dict | None = None
     goal_error: tuple | None = None
-    extra: dict = field(default_factory=dict)
+    from_start: bool = False
+
+    @property
+    def ok(self) -> bool:
+        """No failure (and, with a goal, the goal reached)."""
+        return self.failure is None
+
+    @property
+    def state(self) -> LoopState:
+        """Where the run ended (``run.end``)."""
+        return self.run.end
+
+    @property
+    def steps(self) -> int:
+        """Control steps simulated (the unit of the planner's work budget)."""
+        return self.run.states.shape[0] - 1
 
 
 def _max_abs_phi(z: Sequence[float]) -> float:
@@ -149,14 +133,11 @@ def _max_abs_phi(z: Sequence[float]) -> float:
     return max(abs(math.remainder(z[i] - z[i + 1], 2.0 * math.pi)) for i in range(2, len(z) - 1))
 
 
-def last_pose(z: Sequence[float], front, rear) -> tuple:
-    """The last trailer's pose (x, y, theta) from a train state ``z`` (plain floats)."""
-    x, y = z[0], z[1]
-    th = z[2:]
-    for i in range(len(front)):
-        x -= rear[i] * math.cos(th[i]) + front[i] * math.cos(th[i + 1])
-        y -= rear[i] * math.sin(th[i]) + front[i] * math.sin(th[i + 1])
-    return x, y, th[-1]
+def last_pose(z: Sequence[float], geometry: ChainGeometry) -> tuple:
+    """The last trailer's pose (x, y, theta) [m, m, rad] from a train state ``z`` (3 + n)
+    (:func:`~pushtrain.core.kinematics.body_positions`), as plain floats."""
+    x, y = body_positions(z[0], z[1], z[2:], geometry)
+    return float(x[-1]), float(y[-1]), float(z[-1])
 
 
 class Propagator:
@@ -220,8 +201,6 @@ class Propagator:
         self.phi_limit = float(phi_limit)
         self.goal_phi = None if goal_phi is None else float(goal_phi)
         self.step = float(tracker.step)
-        self._front = [float(a) for a in train.geometry.front]
-        self._rear = [float(a) for a in train.geometry.rear]
         self.steps = 0
         """Control steps simulated by this propagator so far (all rollouts)."""
         points, margins = [], []
@@ -241,19 +220,14 @@ class Propagator:
         self.loop = ClosedLoopEngine(train.geometry, controller, self.step, 0.0, self.checks)
 
     # ------------------------------------------------------------------ states
-    def initial_state(self, start: Sequence[float], headings: Sequence[float]) -> TrainState:
+    def initial_state(self, start: Sequence[float], headings: Sequence[float]) -> LoopState:
         """The state at t = 0: the last trailer at ``start`` with ``headings`` (n+1,) [rad], at
         rest, the rate limits starting from rest one step before (as the co-simulation)."""
-        th = [float(a) for a in headings]
-        x, y = float(start[0]), float(start[1])
-        for i in range(len(self._front) - 1, -1, -1):
-            x += self._front[i] * math.cos(th[i + 1]) + self._rear[i] * math.cos(th[i])
-            y += self._front[i] * math.sin(th[i + 1]) + self._rear[i] * math.sin(th[i])
-        return TrainState(0, (x, y, *th), (0.0, 0.0, -self.step))
+        return self.loop.start(start, headings)
 
-    def last_pose(self, state: TrainState) -> tuple:
+    def last_pose(self, state: LoopState) -> tuple:
         """The last trailer's pose (x, y, theta) [m, m, rad] in ``state``."""
-        return last_pose(state.z, self._front, self._rear)
+        return last_pose(state.z, self.train.geometry)
 
     def check(self, z: np.ndarray):
         """:func:`~pushtrain.planner.footprint.first_failure` of states ``z`` (K, 3 + n)."""
@@ -269,15 +243,15 @@ class Propagator:
         t0 = cursor.t + dwell if turn and dwell > 0.0 else cursor.t
         return Reference.from_segments(cursor.pose, list(segments), self.tracker.speed, dwell, t0)
 
-    def rollout(self, state: TrainState, cursor: Cursor, segments: Sequence[Segment],
+    def rollout(self, state: LoopState, cursor: Cursor, segments: Sequence[Segment],
                 goal: Sequence[float] | None = None, pull_phi: float | None = None,
                 max_steps: int | None = None, deadline: float | None = None,
-                record: bool = False, chunk: int = 4000) -> Rollout:
+                chunk: int = 4000) -> EdgeRun:
         """Track ``segments`` from ``state`` with the reference continued from ``cursor``.
 
         Parameters
         ----------
-        state, cursor : TrainState, Cursor
+        state, cursor : LoopState, Cursor
         segments : sequence of Segment
         goal : (x, y, theta) or None
             Go on at rest until the last trailer is within the goal tolerance of it.
@@ -289,14 +263,11 @@ class Propagator:
             Stop (failure kind ``"budget"``) after this many steps.
         deadline : float or None
             ``time.perf_counter()`` value at which to stop (failure kind ``"deadline"``).
-        record : bool
-            Keep the commands and reference directions (``extra["command"]``,
-            ``extra["direction"]``) for :func:`~pushtrain.planner.train_check.check_train`.
         chunk : int
             Most states one call of the engine runs (the deadline is looked at in between).
         """
         ref = self.reference(cursor, segments)
-        loop, step = self.loop, self.step
+        loop, step, geometry = self.loop, self.step, self.train.geometry
         t_end = ref.t_end
         end = ref.sample_at(t_end)
         new_cursor = Cursor(end.x, end.y, end.theta, t_end, segments[-1].direction)
@@ -308,8 +279,7 @@ class Propagator:
         pull_starts = ([k for k in (loop.instant_at(a) for a, _ in ref.pull_intervals())
                         if k >= state.k] if pull_phi is not None else [])
         limit = math.inf if max_steps is None else state.k + int(max_steps)
-        v_prev, w_prev, t_prev = state.memory
-        here = LoopState(state.k, np.array(state.z, dtype=float), v_prev, w_prev, t_prev)
+        here = state
         pieces, failure = [], None
         reached, goal_error = False, None
         while True:
@@ -318,12 +288,12 @@ class Propagator:
                 pull_starts.pop(0)
                 worst = _max_abs_phi(here.z)
                 if worst > pull_phi:
-                    x, y, _ = last_pose(here.z, self._front, self._rear)
+                    x, y, _ = last_pose(here.z, geometry)
                     failure = {"kind": "pull_rule", "k": k, "body": self.train.n, "x": x,
                                "y": y, "phi": worst}
                     break
             if goal is not None and k >= k_end:
-                x, y, th = last_pose(here.z, self._front, self._rear)
+                x, y, th = last_pose(here.z, geometry)
                 dist = math.hypot(x - goal[0], y - goal[1])
                 head = abs(math.remainder(th - goal[2], 2.0 * math.pi))
                 goal_error = (dist, head)
@@ -334,7 +304,7 @@ class Propagator:
             if k >= k_stop:
                 break
             if k >= limit or (deadline is not None and time.perf_counter() >= deadline):
-                x, y, _ = last_pose(here.z, self._front, self._rear)
+                x, y, _ = last_pose(here.z, geometry)
                 failure = {"kind": "budget" if k >= limit else "deadline", "k": k,
                            "body": self.train.n, "x": x, "y": y}
                 break
@@ -354,35 +324,22 @@ class Propagator:
                 break
         self.steps += here.k - state.k
         if pieces:
-            z_all = np.vstack([pieces[0].states] + [p.states[1:] for p in pieces[1:]])
-            refs = [p.reference for p in pieces if p.reference.size]
+            run = join_runs(pieces)
         else:
-            z_all = np.array([here.z])
-            refs = []
-        r = ref.sample_at(here.k * step)
-        reference = np.vstack(refs + [np.array([[r.x, r.y, r.theta]])])
+            run = EngineRun(np.array([here.k * step]), np.array([here.z]), np.zeros((0, 2)),
+                            np.zeros((0, 3)), np.zeros(0, dtype=int), here, None)
         if failure is None and goal is not None and not reached:
-            x, y, _ = last_pose(here.z, self._front, self._rear)
+            x, y, _ = last_pose(here.z, geometry)
             failure = {"kind": "goal_missed", "k": here.k, "t": here.k * step,
                        "body": self.train.n, "x": x, "y": y, "distance": goal_error[0],
                        "heading_error": goal_error[1], "max_abs_phi": _max_abs_phi(here.z)}
         if failure is not None:
             failure.setdefault("t", failure["k"] * step)
-        final = TrainState(here.k, tuple(float(a) for a in here.z),
-                           (here.v_prev, here.w_prev, here.t_prev))
-        extra = {}
-        if record:
-            commands = [p.commands for p in pieces if p.commands.size]
-            directions = [p.direction for p in pieces if p.direction.size]
-            extra = {"command": np.vstack(commands + [np.zeros((1, 2))]),
-                     "direction": np.concatenate(directions + [np.zeros(1, dtype=int)]),
-                     "t": step * np.arange(state.k, here.k + 1)}
-        return Rollout(failure is None, failure, final, new_cursor, z_all, reference,
-                       here.k - state.k, goal_error, extra)
+        return EdgeRun(run, new_cursor, failure, goal_error)
 
 
 def _failure_of(violation, margins) -> dict:
-    """A :class:`~pushtrain.core.engine.Violation` as a :attr:`Rollout.failure`."""
+    """A :class:`~pushtrain.core.engine.Violation` as an :attr:`EdgeRun.failure`."""
     base = {"k": int(violation.step), "t": float(violation.t), "body": int(violation.body),
             "x": float(violation.x), "y": float(violation.y)}
     if violation.reason == "footprint":

@@ -28,7 +28,12 @@ from .reeds_shepp import sample_curve_into, travel_between_states, wrap_yaw
 from .train import Train
 
 __all__ = ["shorten_by_local_search", "pull_end_rule", "first_pull_start_outside",
-           "pull_start_rule", "repair_pull_ends"]
+           "pull_start_rule", "repair_pull_ends", "PULL_RUN_SPACING"]
+
+PULL_RUN_SPACING = 0.02
+"""Spacing [m] of the samples of a finished path's pulling runs whose start
+:func:`first_pull_start_outside` checks (a length along the path, not the pull guide's RK4 step
+in seconds, :data:`pushtrain.defaults.PULL_GUIDE_STEP`)."""
 
 
 def pull_end_rule(train: Train, world: World, inflation: float):
@@ -64,17 +69,17 @@ def pull_start_rule(train: Train, tolerance: float, start_yaw, start_headings):
 
 
 def first_pull_start_outside(space, states: list, train: Train, tolerance: float, start_headings,
-                             step: float = 0.02):
+                             spacing: float = PULL_RUN_SPACING):
     """The first pull of the path (a whole run over any number of local curves) that starts
     farther than ``tolerance`` from the chain it needs, as (x, y, mismatch), or None.
 
     The motion validator checks the part of a pull inside one local curve; this checks whole
-    runs on the finished path, sampled every ``step`` metres. The chain a run starts from is
+    runs on the finished path, sampled every ``spacing`` metres. The chain a run starts from is
     ``start_headings`` at the start (None: straight) and a straight chain after a cusp."""
     tmp = space.allocState()
     rows = [(states[0].getX(), states[0].getY(), states[0].getYaw())]
     for a, b in zip(states[:-1], states[1:], strict=True):
-        pieces = max(1, int(math.ceil(space.distance(a, b) / step)))
+        pieces = max(1, int(math.ceil(space.distance(a, b) / spacing)))
         sample_curve_into(rows, space, a, b, pieces, tmp)
     pts = np.array(rows)
     if pts.shape[0] < 2:

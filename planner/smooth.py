@@ -27,12 +27,12 @@ from collections.abc import Callable, Sequence
 from pushtrain.core.segment import PULL, Segment
 
 from .connect import corner_segments, sample_reference
+from .lattice_settings import LatticeSettings, segments_cost
 from .reeds_shepp import rs_segments
-from .search_settings import SearchSettings, segments_cost
 
 __all__ = ["merge", "shortcut", "path_cost", "total_turning", "junction_poses"]
 
-_SETTINGS = SearchSettings(radius=1.0)
+_SETTINGS = LatticeSettings(radius=1.0)
 """The prices of :func:`path_cost`."""
 
 _CHEAPEST_METRE = min(1.0, _SETTINGS.pull_factor)
@@ -57,9 +57,9 @@ def total_turning(segments: Sequence[Segment]) -> float:
     return float(sum(abs(g.curvature) * g.length for g in segments))
 
 
-def path_cost(segments: Sequence[Segment], settings: SearchSettings | None = None) -> float:
+def path_cost(segments: Sequence[Segment], settings: LatticeSettings | None = None) -> float:
     """The path's cost as the search prices it (:func:`segments_cost` with ``settings``,
-    default :class:`~pushtrain.planner.search_settings.SearchSettings`)."""
+    default :class:`~pushtrain.planner.lattice_settings.LatticeSettings`)."""
     return segments_cost(segments, settings or _SETTINGS)
 
 

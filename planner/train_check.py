@@ -1,9 +1,9 @@
 """Whole-train check: predict the closed loop the co-simulation will run and test every body.
 
 The whole train's motion along the plan is the closed loop the co-simulation will run
-(:func:`~pushtrain.planner.kinematic_loop.simulate_tracking`: the co-simulation's controller on
-the kinematic chain, on the closed-loop engine :mod:`pushtrain.core.engine`; see
-:mod:`~pushtrain.planner.kinematic_loop`).
+(:func:`pushtrain.core.engine.simulate`: the co-simulation's controller on the kinematic chain,
+on the closed-loop engine, as :class:`~pushtrain.planner.config.TrackerConfig` says), or the
+engine's run the search already made (an :class:`~pushtrain.core.engine.EngineRun`).
 
 Every body's rectangle is tested against the free space shrunk by a margin (shapely,
 vectorized) at samples spaced so that no corner of any body travels more than ``resolution``
@@ -25,25 +25,22 @@ from typing import Sequence
 import numpy as np
 import shapely
 
-from pushtrain.core.engine import ClosedLoopEngine
+from pushtrain.core.engine import ClosedLoopEngine, EngineRun, simulate
 from pushtrain.core.kinematics import (
     ChainGeometry,
+    body_positions,
     joint_angles,
     wrap_angle,
     wrap_scalar,
 )
 from pushtrain.core.reference import Reference
 from pushtrain.core.segment import Segment
-from pushtrain.errors import PlanningInputError
+from pushtrain.errors import ControllerError, PlanningInputError
 from pushtrain.facility.free_space import World
 
-from .footprint import body_positions, self_overlap
-from .kinematic_loop import (
-    TrackerConfig,
-    Trajectory,
-    reference_times,
-    simulate_tracking,
-)
+from .config import TrackerConfig
+from .footprint import self_overlap
+from .path import reference_times
 from .train import Train
 
 __all__ = ["TrainCheckResult", "check_train"]
@@ -51,12 +48,38 @@ __all__ = ["TrainCheckResult", "check_train"]
 log = logging.getLogger(__name__)
 
 
-def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution: float,
+@dataclass
+class _Samples:
+    """The simulated samples the check looks at, one row each: the engine's control instants
+    and the subdivisions :func:`_refine` adds (``control`` False there); ``state`` (3 + n),
+    the ``command`` held from the sample on, the last trailer's ``reference`` pose and its
+    ``direction``."""
+
+    t: np.ndarray
+    state: np.ndarray
+    command: np.ndarray
+    reference: np.ndarray
+    direction: np.ndarray
+    control: np.ndarray
+
+    @classmethod
+    def of_run(cls, run: EngineRun, reference: Reference) -> _Samples:
+        """Every instant of ``run`` (no command at the last one: the run ends there; its
+        reference sampled here)."""
+        last = reference.sample_at(float(run.t[-1]))
+        k = run.t.size
+        return cls(run.t, run.states, np.vstack([run.commands, np.zeros((1, 2))]),
+                   np.vstack([run.reference, [[last.x, last.y, last.theta]]]),
+                   np.concatenate([run.direction, [last.direction]]),
+                   np.ones(k, dtype=bool))
+
+
+def _refine(traj: _Samples, geometry: ChainGeometry, train: Train, resolution: float,
             controller):
     """Subdivide the steps in which some corner moves more than ``resolution`` (RK4 substeps
     under the held command, the closed-loop engine's integrator). Returns (trajectory, x, y,
     corners)."""
-    x, y = body_positions(traj.state, geometry)
+    x, y = body_positions(traj.state[:, 0], traj.state[:, 1], traj.state[:, 2:], geometry)
     corners = _corners(train, x, y, traj.state[:, 2:])
     move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
     bad = np.flatnonzero(move > resolution)
@@ -75,8 +98,8 @@ def _refine(traj: Trajectory, geometry: ChainGeometry, train: Train, resolution:
             rows["direction"].append([traj.direction[k]]), rows["control"].append([False])
     merged = {name: np.concatenate([np.asarray(r) for r in parts]) for name, parts in rows.items()}
     order = np.argsort(merged["t"], kind="stable")
-    traj = Trajectory(**{name: value[order] for name, value in merged.items()})
-    x, y = body_positions(traj.state, geometry)
+    traj = _Samples(**{name: value[order] for name, value in merged.items()})
+    x, y = body_positions(traj.state[:, 0], traj.state[:, 1], traj.state[:, 2:], geometry)
     return traj, x, y, _corners(train, x, y, traj.state[:, 2:])
 
 
@@ -135,8 +158,11 @@ class TrainCheckResult:
         Distance [m] and |heading error| [rad] of the last trailer to the goal at the first
         control instant at or after the reference's end within ``tracker.goal_tolerance``
         (where the co-simulation stops with ``goal_reached``), else at the end of the run.
-    trajectory : Trajectory
-        Every simulated sample (control instants and subdivisions).
+    run : EngineRun
+        The engine's closed-loop run checked (every control instant).
+    simulated_t, simulated_headings : (M,) and (M, n+1) arrays
+        Every simulated sample (control instants and the subdivisions of the check): times [s]
+        and headings [rad].
     failure : dict or None
         First failure: ``kind`` ("collision", "joint_limit" or "goal_missed"), ``body``
         (0 robot .. n), ``t`` [s], ``s`` [m] (reference progress), ``direction`` (of the
@@ -164,17 +190,18 @@ class TrainCheckResult:
     max_lateral_error: float
     max_heading_error: float
     goal_error: tuple
-    trajectory: Trajectory
+    run: EngineRun
+    simulated_t: np.ndarray
+    simulated_headings: np.ndarray
     failure: dict | None = None
     collisions: list = field(default_factory=list)
     wall_clearance: float = math.nan
 
     def headings_at(self, t) -> np.ndarray:
         """Simulated headings [rad] at times ``t`` [s] (linear interpolation), (len(t), n+1)."""
-        tr = self.trajectory
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        return np.column_stack([np.interp(t, tr.t, tr.state[:, 2 + i])
-                                for i in range(tr.state.shape[1] - 2)])
+        return np.column_stack([np.interp(t, self.simulated_t, heading)
+                                for heading in self.simulated_headings.T])
 
 
 def check_train(
@@ -186,7 +213,7 @@ def check_train(
     margin: float | Sequence[float] = 0.0,
     resolution: float = 0.01,
     tracker: TrackerConfig | None = None,
-    trajectory: Trajectory | None = None,
+    run: EngineRun | None = None,
     self_collision: bool = False,
     measure: bool = True,
     field=None,
@@ -207,10 +234,10 @@ def check_train(
         Largest corner travel [m] of any body between checked samples.
     tracker : TrackerConfig or None
         Controller, reference speed, cusp dwell and simulation settings; None: the defaults.
-    trajectory : Trajectory or None
-        The closed loop along this reference already simulated (e.g. by the planner's
-        :class:`~pushtrain.planner.propagate.Propagator`, which runs the same loop): checked
-        instead of a new :func:`simulate_tracking` run.
+    run : EngineRun or None
+        The engine's closed loop along this reference from the start, already simulated (e.g.
+        by the planner's :class:`~pushtrain.planner.propagate.Propagator`, which runs the same
+        loop): checked instead of a new :func:`~pushtrain.core.engine.simulate` run.
     self_collision : bool
         Also test bodies that are not neighbours in the chain (i, j >= i + 2) against
         overlapping each other (failure kind ``"self_collision"``).
@@ -239,10 +266,13 @@ def check_train(
     margins = np.broadcast_to(np.asarray(margin, dtype=float), (n + 1,))
     regions = {m: world.eroded(m) for m in sorted(set(margins.tolist()))}
     reference = Reference.from_segments(start, segments, tracker.speed, tracker.cusp_dwell)
-    traj = trajectory
-    if traj is None:
-        traj = simulate_tracking(train.geometry, reference, theta0, controller, tracker.step,
-                                 tracker.settle_time)
+    if run is None:
+        run = simulate(train.geometry, reference, theta0, controller, tracker.step,
+                       tracker.settle_time)
+        if run.violation is not None:
+            raise ControllerError(f"the closed loop stopped at t = {run.violation.t:.6g} s: "
+                                  f"{run.violation.reason} (value {run.violation.value:g})")
+    traj = _Samples.of_run(run, reference)
     traj, x_all, y_all, corners = _refine(traj, train.geometry, train, resolution, controller)
     move = np.linalg.norm(np.diff(corners, axis=0), axis=-1).max(axis=(1, 2))
     keep = _thin(move, resolution)
@@ -331,7 +361,8 @@ def check_train(
         max_tracking_error=float(np.hypot(dx, dy).max()),
         max_lateral_error=float(np.abs(lateral).max()),
         max_heading_error=float(np.abs(heading_err).max()), goal_error=(goal_dist, goal_head),
-        trajectory=traj, failure=failure, collisions=collisions, wall_clearance=walls,
+        run=run, simulated_t=traj.t, simulated_headings=headings_all, failure=failure,
+        collisions=collisions, wall_clearance=walls,
     )
 
 

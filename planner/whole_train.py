@@ -42,20 +42,20 @@ import numpy as np
 import shapely
 from shapely.geometry import Point
 
+from pushtrain.core.kinematics import body_positions
 from pushtrain.core.segment import PULL
 from pushtrain.errors import PlanningError
 from pushtrain.facility.free_space import World
 
-from .config import turning_radius_from_joint_limit
-from .footprint import body_name, body_positions, body_samples
+from .config import TrackerConfig, turning_radius_from_joint_limit
+from .footprint import body_name, body_samples
 from .heuristic import Heuristic
-from .kinematic_loop import TrackerConfig, Trajectory, reference_times
 from .lattice import Search
+from .lattice_settings import LatticeSettings
 from .passage import needed_half_width, passable, swept_band, tight_corners, widest_gap
-from .path import PlannedPath
+from .path import PlannedPath, reference_times
 from .propagate import Cursor, Propagator
 from .route import find_route, loop_route, passes_back, starts_against
-from .search_settings import SearchSettings
 from .smooth import merge, path_cost, shortcut
 from .train import Train
 from .train_check import check_train
@@ -168,7 +168,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     # with a straight train asked for at the goal, the final straight approach is as long as
     # the train (the followers line up behind the last trailer on it)
     approach = 1.5 if config.goal_max_phi is None else max(1.5, train.hitch_length + 0.5)
-    settings = SearchSettings(
+    settings = LatticeSettings(
         radius=radius, step_length=config.step_length, weight=config.search_weight,
         pull_phi=config.pull_max_phi, budget_steps=config.budget_steps(train.n), deadline=deadline,
         approach=approach)
@@ -179,7 +179,7 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
         if solution is None:
             break
         run = solution.rollout  # the connection's run is the whole path's if it left the start
-        if not run.extra.get("from_start"):
+        if not run.from_start:
             run = _simulate(prop, start, headings, solution.segments, goal, deadline)
         if not run.ok and run.failure["kind"] in ("deadline", "budget"):
             search.stats.cut = run.failure["kind"]
@@ -324,7 +324,7 @@ def _check_ends(world: World, train: Train, start, goal, state0, prop: Propagato
         raise PlanningError("start_in_collision", f"the start has {what}: {failure}",
                             where=(failure["x"], failure["y"]),
                             details={"body": failure["body"], "constraint": failure["kind"]})
-    x, y = body_positions(z, train.geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], train.geometry)
     th = z[0, 2:]
     for i, body in enumerate(train.bodies):
         gap = _exact_gap(world, body.polygons(x[0, i], y[0, i], th[i]))
@@ -380,7 +380,7 @@ def _simulate(prop: Propagator, start, headings, segments, goal, deadline: float
     (failure kind ``"deadline"``)."""
     state0 = prop.initial_state(start, headings)
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
-    return prop.rollout(state0, cursor0, segments, goal=goal, record=True, deadline=deadline)
+    return prop.rollout(state0, cursor0, segments, goal=goal, deadline=deadline)
 
 
 _EXACT_RATE = [2.0e-6]
@@ -393,7 +393,7 @@ def _exact_fits(run, train: Train, deadline: float) -> bool:
     ``time.perf_counter()`` value, the wall-clock safety cap): it cannot be interrupted, so
     one that would end past the cap is not started (the result says the clock cut the search
     short)."""
-    estimate = _EXACT_RATE[0] * run.z.shape[0] * (train.n + 1)
+    estimate = _EXACT_RATE[0] * run.run.states.shape[0] * (train.n + 1)
     if time.perf_counter() + estimate <= deadline:
         return True
     log.info("no time left for the exact test of a path found (about %.3f s)", estimate)
@@ -407,12 +407,10 @@ def _exact(world: World, train: Train, start, headings, segments, run, margins,
     limit, self-collision and the goal, with the clearances measured
     (:func:`~pushtrain.planner.train_check.check_train` on the run, no new simulation)."""
     t0 = time.perf_counter()
-    traj = Trajectory(run.extra["t"], run.z, run.extra["command"], run.reference,
-                      run.extra["direction"], np.ones(run.z.shape[0], dtype=bool))
     checked = check_train(world, train, start, segments, headings, margin=margins,
-                          resolution=0.01, tracker=tracker, trajectory=traj,
+                          resolution=0.01, tracker=tracker, run=run.run,
                           self_collision=True, field=world.distance_field())
-    _EXACT_RATE[0] = (time.perf_counter() - t0) / (run.z.shape[0] * (train.n + 1))
+    _EXACT_RATE[0] = (time.perf_counter() - t0) / (run.run.states.shape[0] * (train.n + 1))
     return checked
 
 
@@ -607,7 +605,7 @@ def _budget_text(config) -> str:
 def _train_at(state, train: Train) -> dict:
     """Every body's axle midpoint and heading in ``state`` (plain lists, for the picture)."""
     z = np.array([state.z])
-    x, y = body_positions(z, train.geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], train.geometry)
     return {"x": x[0].tolist(), "y": y[0].tolist(), "headings": z[0, 2:].tolist()}
 
 

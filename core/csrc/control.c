@@ -69,22 +69,63 @@ double pt_wrap(double angle) {
     return (wrapped == -PT_PI) ? PT_PI : wrapped;
 }
 
+void pt_chain_positions(const PtChain *chain, const double *cs, const double *sn, double x_a,
+                        double y_a, int from_last, double *x, double *y) {
+    const int n = chain->n;
+    double dx = 0.0, dy = 0.0;
+    int i;
+    if (from_last) {
+        x[n] = x_a;
+        y[n] = y_a;
+        for (i = n - 1; i >= 0; i--) {
+            dx += chain->front[i] * cs[i + 1] + chain->rear[i] * cs[i];
+            dy += chain->front[i] * sn[i + 1] + chain->rear[i] * sn[i];
+            x[i] = x_a + dx;
+            y[i] = y_a + dy;
+        }
+        return;
+    }
+    x[0] = x_a;
+    y[0] = y_a;
+    for (i = 1; i <= n; i++) {
+        dx -= chain->rear[i - 1] * cs[i - 1] + chain->front[i - 1] * cs[i];
+        dy -= chain->rear[i - 1] * sn[i - 1] + chain->front[i - 1] * sn[i];
+        x[i] = x_a + dx;
+        y[i] = y_a + dy;
+    }
+}
+
+void pt_body_positions(const PtChain *chain, long rows, const double *theta, const double *x_a,
+                       const double *y_a, int from_last, double *x, double *y, double *work) {
+    const int nb = chain->n + 1;
+    double *cs = work, *sn = work + nb;
+    long r;
+    int i;
+    for (r = 0; r < rows; r++) {
+        for (i = 0; i < nb; i++) {
+            cs[i] = cos(theta[r * nb + i]);
+            sn[i] = sin(theta[r * nb + i]);
+        }
+        pt_chain_positions(chain, cs, sn, x_a[r], y_a[r], from_last, x + r * nb, y + r * nb);
+    }
+}
+
 void pt_last_trailer_pose(const PtChain *chain, double x0, double y0, double theta0,
                           const double *phi, double pose[3]) {
-    double x = x0, y = y0, th = theta0;
-    double c = cos(th), s = sin(th);
+    const int n = chain->n;
+    double cs[n + 1], sn[n + 1], x[n + 1], y[n + 1];
+    double th = theta0;
     int i;
-    for (i = 0; i < chain->n; i++) {
-        x -= chain->rear[i] * c;
-        y -= chain->rear[i] * s;
+    cs[0] = cos(th);
+    sn[0] = sin(th);
+    for (i = 0; i < n; i++) {
         th -= phi[i];
-        c = cos(th);
-        s = sin(th);
-        x -= chain->front[i] * c;
-        y -= chain->front[i] * s;
+        cs[i + 1] = cos(th);
+        sn[i + 1] = sin(th);
     }
-    pose[0] = x;
-    pose[1] = y;
+    pt_chain_positions(chain, cs, sn, x0, y0, 0, x, y);
+    pose[0] = x[n];
+    pose[1] = y[n];
     pose[2] = th;
 }
 
@@ -509,35 +550,28 @@ static double run_time(double t_b, double t_a, int k_steps, int j) {
     return (double)j * dstep + t_b;
 }
 
-/* One output row of the run at time tau with headings theta (PullGuide._backward_run's
- * positions through body_positions_along and velocities through robot_velocity_from_last). */
+/* One output row of the run at time tau with headings theta: the robot's position from the
+ * last trailer's (pt_chain_positions), its velocity through pt_robot_velocity_from_last. */
 static void pull_row(const PtChain *model, const Sampled *ref, double tau, double t_a,
                      double t_end_eps, const double *theta, double *phi, int row, double *T,
                      double *X, double *Y, double *TH, double *V, double *W, double *headings) {
     const int n = model->n;
     PtSample s;
-    double sx = 0.0, sy = 0.0, vw[2];
+    double cs[n + 1], sn[n + 1], bx[n + 1], by[n + 1], vw[2];
     int k;
     clamped_sample(ref, tau, t_a, t_end_eps, &s);
-    /* body_positions_along: x_0 = x_n + (step_{n-1} + ... + step_0), accumulated from the last */
-    for (k = n - 1; k >= 0; k--) {
-        const double step_x = model->front[k] * cos(theta[k + 1]) + model->rear[k] * cos(theta[k]);
-        const double step_y = model->front[k] * sin(theta[k + 1]) + model->rear[k] * sin(theta[k]);
-        if (k == n - 1) {
-            sx = step_x;
-            sy = step_y;
-        } else {
-            sx += step_x;
-            sy += step_y;
-        }
+    for (k = 0; k <= n; k++) {
+        cs[k] = cos(theta[k]);
+        sn[k] = sin(theta[k]);
     }
+    pt_chain_positions(model, cs, sn, s.x, s.y, 1, bx, by); /* the robot's position from the last */
     for (k = 0; k < n; k++) {
         phi[k] = theta[k] - theta[k + 1];
     }
     pt_robot_velocity_from_last(model, phi, s.v, s.w, vw);
     T[row] = tau;
-    X[row] = s.x + sx;
-    Y[row] = s.y + sy;
+    X[row] = bx[0];
+    Y[row] = by[0];
     TH[row] = theta[0];
     V[row] = vw[0];
     W[row] = vw[1];

@@ -158,8 +158,25 @@ PT_API size_t pt_sizeof(int which);
 /* Angle wrapped to (-pi, pi] exactly as kinematics.wrap_scalar (Python's float modulo). */
 PT_API double pt_wrap(double angle);
 
+/* Axle-midpoint positions x[0..n], y[0..n] [m] of every body from one body's position and the
+ * cos and sin of every heading, cs[0..n], sn[0..n]: the robot's (x_a, y_a) (from_last = 0) or
+ * the last trailer's (from_last = 1). P_i = P_{i-1} - R_{i-1} e_{i-1} - F_i e_i; each body's
+ * offset from the anchor is summed link by link outward from the anchor, then added to the
+ * anchor's position. The one definition of the bodies' positions (kinematics.body_positions
+ * is its Python face): the planner's checks, the pull guide and the controller's estimate of
+ * the last trailer call it. */
+PT_API void pt_chain_positions(const PtChain *chain, const double *cs, const double *sn,
+                               double x_a, double y_a, int from_last, double *x, double *y);
+
+/* pt_chain_positions for `rows` states: headings theta (rows, n+1), anchors x_a, y_a (rows,),
+ * out x, y (rows, n+1); work holds 2 (n+1) doubles. */
+PT_API void pt_body_positions(const PtChain *chain, long rows, const double *theta,
+                              const double *x_a, const double *y_a, int from_last, double *x,
+                              double *y, double *work);
+
 /* The last trailer's pose (x_n, y_n, theta_n) from the robot pose and the n joint angles
- * (BackwardController.last_trailer_pose); theta_n = theta0 - sum(phi), not wrapped. */
+ * (BackwardController.last_trailer_pose); theta_i = theta_{i-1} - phi_i (theta_n = theta0 -
+ * sum(phi), not wrapped), the position by pt_chain_positions. */
 PT_API void pt_last_trailer_pose(const PtChain *chain, double x0, double y0, double theta0,
                                  const double *phi, double pose[3]);
 

@@ -205,19 +205,6 @@ static void set_violation(PtViolation *v, long k, int body, int other, int reaso
     v->value = value;
 }
 
-/* Axle-midpoint positions of every body (kinematics.body_positions), from the cos and sin of
- * every heading. */
-static void positions(const PtChain *plant, const double *z, const double *cs, const double *sn,
-                      double *bx, double *by) {
-    int i;
-    bx[0] = z[0];
-    by[0] = z[1];
-    for (i = 1; i <= plant->n; i++) {
-        bx[i] = bx[i - 1] - plant->rear[i - 1] * cs[i - 1] - plant->front[i - 1] * cs[i];
-        by[i] = by[i - 1] - plant->rear[i - 1] * sn[i - 1] - plant->front[i - 1] * sn[i];
-    }
-}
-
 /* Whether body b (axle midpoint (x, y), heading cos/sin cs, sn) keeps its margin at every one
  * of its points offset[b] .. offset[b+1]-1 (px, py in its frame); else 0 and the first failing
  * point and its distance in out[0..2]. */
@@ -259,7 +246,7 @@ int pt_check_state(const PtChain *plant, const PtChecks *c, const double *z, lon
         cs[b] = cos(th[b]);
         sn[b] = sin(th[b]);
     }
-    positions(plant, z, cs, sn, bx, by);
+    pt_chain_positions(plant, cs, sn, z[0], z[1], 0, bx, by);
     if (c->nx >= 2 && c->ny >= 2 && c->sdf != NULL) {
         for (b = 0; b <= n; b++) {
             double miss[3];

@@ -1,5 +1,7 @@
 """Defaults are written once (``pushtrain/defaults.py``, ``pushtrain/table1.py``): no parameter
-or field of the engine's and the co-simulation's code retypes one as a number.
+or field of the product's code (the engine, the co-simulation, the planner, ...) retypes one as
+a number: the planner's closed-loop step and settle time (``ROLLOUT_STEP``,
+``ROLLOUT_SETTLE_TIME``) and the pull guide's step (``PULL_GUIDE_STEP``) included.
 
 A parameter default or a class field default whose name says which setting it is (``settle_time``,
 ``speed``, ``tau``, ...) must be the named constant, never a literal; the one packed layout of the
@@ -13,7 +15,7 @@ import pytest
 from pushtrain import defaults, table1
 
 ROOT = Path(__file__).resolve().parents[2]
-ROOMS = ("core", "cosim", "fmu", "mission")
+ROOMS = ("core", "cosim", "fmu", "mission", "planner", "facility", "report", "studies", "cli")
 NAMED = {
     # parameter or field name -> the defaults it may only be spelled as
     "settle_time": (defaults.SETTLE_TIME, defaults.ROLLOUT_SETTLE_TIME),
@@ -26,7 +28,7 @@ NAMED = {
     "alpha_max": (defaults.ROBOT_ALPHA_MAX,),
     "fraction": (defaults.GOVERNOR_FRACTION,), "governor_fraction": (defaults.GOVERNOR_FRACTION,),
     "dt": (table1.SAMPLING_TIME,),
-    "step": (table1.SAMPLING_TIME, defaults.PULL_GUIDE_STEP),
+    "step": (table1.SAMPLING_TIME, defaults.PULL_GUIDE_STEP, defaults.ROLLOUT_STEP),
 }
 """The settings checked, by the names they go by, with the values that would be a retyped copy
 (the scenario's old 0.1 m/s reference speed too)."""

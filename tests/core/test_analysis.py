@@ -20,7 +20,7 @@ from pushtrain.core.analysis import (
 from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import (
     ChainGeometry,
-    body_positions_from_last,
+    body_positions,
     forward_velocities,
 )
 from pushtrain.core.reference import ReferenceSample
@@ -108,7 +108,7 @@ def closed_loop_error_rate(ctrl, geom, phi, e, u_d, thd=0.3, tau=1e-6):
     theta = thn + np.concatenate(
         (np.cumsum(phi[::-1])[::-1], [0.0])
     )  # theta_{i-1} = theta_i + phi_i
-    x, y = body_positions_from_last(xn, yn, theta, geom)
+    x, y = body_positions(xn, yn, theta, geom, from_last=True)
     meas = Measurement(x[0], y[0], theta[0], phi)
     ref = ReferenceSample(*ref_pose, -u_d, 0.0, PUSH)
     v0, w0, _ = ctrl.command(0.0, meas, ref)

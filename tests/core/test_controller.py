@@ -25,7 +25,6 @@ from pushtrain.core.controller import (
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
-    body_positions_from_last,
     forward_velocities,
     inverse_velocities,
     joint_angles,
@@ -46,7 +45,7 @@ class KinematicPlant:
     def __init__(self, geom, x_n, y_n, theta):
         self.geom = geom
         theta = np.asarray(theta, dtype=float)
-        x, y = body_positions_from_last(x_n, y_n, theta, geom)
+        x, y = body_positions(x_n, y_n, theta, geom, from_last=True)
         self.state = np.concatenate(([x[0], y[0]], theta))
 
     def _f(self, s, v0, w0):

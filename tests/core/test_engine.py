@@ -2,7 +2,7 @@
 
 It must run the Python reference loop, tests/reference/closed_loop.py (equal states at the
 control instants to 1e-9 on a bay plan and random plans: push, pull, cusps, n = 1, 3, 10; the
-planner's simulate_tracking on it bit for bit), resume bit for bit, stop
+core.engine.simulate on it bit for bit), resume bit for bit, stop
 exactly where independent computations (shapely for footprints and rectangles, scipy for the
 bilinear grid, the joint angles from the states) say a check fails, and agree with the FMU's
 kinematic motion along a path to 1 mm.
@@ -26,8 +26,6 @@ from pushtrain.core.kinematics import ChainGeometry, body_positions, joint_angle
 from pushtrain.core.reference import Reference
 from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.errors import ControllerError
-from pushtrain.planner import kinematic_loop
-from pushtrain.planner.kinematic_loop import default_controller
 
 D = 0.52
 
@@ -73,7 +71,7 @@ def test_equals_simulate_tracking_on_a_bay_plan():
     geom = ChainGeometry.uniform(3, D)
     ref = Reference.from_segments(start, segments, 0.08, 1.0)
     heads = np.full(4, math.pi)
-    config = default_controller(geom)
+    config = ControllerConfig(geometry=geom)
     want = simulate_tracking(geom, ref, heads, config, 0.025, 2.0)
     got = simulate(geom, ref, heads, config, 0.025, 2.0)
     assert (want.direction == PULL).any() and (want.direction == 0).any()
@@ -105,9 +103,10 @@ def test_equals_simulate_tracking_on_random_plans(n):
     assert kinds == {PUSH, PULL}
 
 
-def test_the_planners_simulate_tracking_is_the_reference_loop_bit_for_bit():
-    """planner.kinematic_loop.simulate_tracking runs the engine: every row of the reference's
-    trajectory, the last instant's command, reference and direction included, bit for bit."""
+def test_simulate_is_the_reference_loop_bit_for_bit():
+    """core.engine.simulate (the planner's check runs it): every row of the reference loop's
+    trajectory bit for bit, and a run one instant longer gives the last instant's command,
+    reference and direction bit for bit."""
     rng = np.random.default_rng(7)
     start, segments = bay_plan()
     cases = [(ChainGeometry.uniform(3, D), start, segments, np.full(4, math.pi), 0.025, 2.0)]
@@ -117,12 +116,23 @@ def test_the_planners_simulate_tracking_is_the_reference_loop_bit_for_bit():
                       1.0))
     for geom, first, plan, heads, step, settle in cases:
         ref = Reference.from_segments(first, plan, 0.08, 1.0)
-        config = default_controller(geom)
+        config = ControllerConfig(geometry=geom)
         want = simulate_tracking(geom, ref, heads, config, step, settle)
-        got = kinematic_loop.simulate_tracking(geom, ref, heads, config, step, settle)
-        for name in ("t", "state", "command", "reference", "direction", "control"):
-            a, b = getattr(got, name), getattr(want, name)
-            assert a.shape == b.shape and a.tobytes() == b.tobytes(), name
+        got = simulate(geom, ref, heads, config, step, settle)
+        k = want.t.size
+        for a, b in ((got.t, want.t), (got.states, want.state),
+                     (got.commands, want.command[:-1]), (got.reference, want.reference[:-1]),
+                     (got.direction, want.direction[:-1])):
+            assert a.shape == b.shape and a.tobytes() == b.tobytes()
+        loop = ClosedLoopEngine(geom, config, step)
+        longer = loop.run(ref, loop.start(ref.start, heads), k)
+        for a, b in ((longer.commands[-1], want.command[-1]),
+                     (longer.reference[-1], want.reference[-1])):
+            assert a.tobytes() == b.tobytes()
+        assert longer.direction[-1] == want.direction[-1]
+        # the check samples the reference itself at the run's last instant: the same bits
+        last = ref.sample_at(float(got.t[-1]))
+        assert np.array([last.x, last.y, last.theta]).tobytes() == want.reference[-1].tobytes()
 
 
 def test_hold_is_the_reference_rk4_bit_for_bit():
@@ -132,7 +142,7 @@ def test_hold_is_the_reference_rk4_bit_for_bit():
 
     rng = np.random.default_rng(8)
     geom = random_geometry(rng, 3)
-    loop = ClosedLoopEngine(geom, default_controller(geom))
+    loop = ClosedLoopEngine(geom, ControllerConfig(geometry=geom))
     z = [0.3, -0.1, 1.0, 1.1, 0.9, 1.2]
     got = loop.hold(z, -0.08, 0.05, 0.004, 5)
     rates, want = towed_rates(geom), []
@@ -149,7 +159,7 @@ def _bay_loop(checks=None, step=0.025):
     start, segments = bay_plan()
     geom = ChainGeometry.uniform(3, D)
     ref = Reference.from_segments(start, segments, 0.08, 1.0)
-    loop = ClosedLoopEngine(geom, default_controller(geom), step, checks=checks)
+    loop = ClosedLoopEngine(geom, ControllerConfig(geometry=geom), step, checks=checks)
     return loop, ref, loop.start(start, np.full(4, math.pi) + [0.05, 0.0, -0.05, 0.0])
 
 
@@ -182,7 +192,7 @@ def test_planner_edges_continue_the_reference_and_the_state_bit_for_bit():
     segments = [Segment("line", 0.8), Segment("arc", 0.6, 0.7), Segment("line", 0.4),
                 Segment("line", 1.5, 0.0, PULL), Segment("arc", 0.7, -0.5, PUSH)]
     geom = ChainGeometry(np.array([0.5, 0.6, 0.45]), np.array([0.3, 0.52, 0.7]))
-    loop = ClosedLoopEngine(geom, default_controller(geom), 0.025)
+    loop = ClosedLoopEngine(geom, ControllerConfig(geometry=geom), 0.025)
     whole_ref = Reference(start, segments, 0.08, 1.0)
     state0 = loop.start(start, np.full(4, math.pi))
     k_end = loop.instant_at(whole_ref.t_end + 2.0)
@@ -348,14 +358,14 @@ def test_joint_limit_check_stops_at_the_first_excess():
     geom = ChainGeometry.uniform(3, D)
     segs = [Segment("arc", 1.2, 1 / 0.9), Segment("arc", 1.0, -1 / 0.8)]
     ref = Reference.from_segments((0.0, 0.0, 0.0), segs, 0.08, 1.0)
-    plain_loop = ClosedLoopEngine(geom, default_controller(geom), 0.025)
+    plain_loop = ClosedLoopEngine(geom, ControllerConfig(geometry=geom), 0.025)
     state = plain_loop.start(ref.start, np.zeros(4) + rng.uniform(-0.01, 0.01, 4) * [1, 1, 1, 0])
     plain = plain_loop.run(ref, state, plain_loop.instant_at(ref.t_end + 1.0))
     phi = np.abs(joint_angles(plain.states[:, 2:]))
     for phi_max in (0.3, 0.5, 0.7):
         over = np.flatnonzero((phi > phi_max).any(axis=1))
         checks = Checks(3, phi_max=phi_max)
-        run = ClosedLoopEngine(geom, default_controller(geom), 0.025, checks=checks).run(
+        run = ClosedLoopEngine(geom, ControllerConfig(geometry=geom), 0.025, checks=checks).run(
             ref, state, plain.end.k)
         if over.size == 0:
             assert run.violation is None
@@ -443,7 +453,7 @@ def test_self_collision_check_equals_shapely_on_random_states():
 
 def test_non_finite_states_and_refused_commands_stop_a_run():
     geom = ChainGeometry.uniform(2, D)
-    loop = ClosedLoopEngine(geom, default_controller(geom), 0.025)
+    loop = ClosedLoopEngine(geom, ControllerConfig(geometry=geom), 0.025)
     ref = Reference.from_segments((0.0, 0.0, 0.0), [Segment("line", 1.0)], 0.08)
     good = loop.start(ref.start, np.zeros(3))
     bad = LoopState(good.k, np.array([0.0, math.nan, 0.0, 0.0, 0.0]), 0.0, 0.0, -0.025)
@@ -518,3 +528,13 @@ def test_integrator_equals_the_fmus_kinematic_motion_to_a_millimetre(fmu3):
     # and the plan was followed: the last trailer ends up the bay
     assert abs(float(wrap_angle(run.states[-1, -1] + 0.5 * math.pi))) < math.radians(5.0)
     assert np.hypot(*(last[-1] - ref.goal[:2])) < 0.05
+
+
+def test_loop_state_phi_is_wrapped_as_the_joint_check_wraps_it():
+    """LoopState.phi (the search's pull rule and straight-chain tests read it) is each
+    theta_{i-1} - theta_i wrapped to (-pi, pi], whatever turns the headings made."""
+    th = np.array([3.0, -3.0, 0.1 + 4.0 * math.pi, 0.1])
+    state = LoopState(0, np.concatenate(([0.0, 0.0], th)))
+    want = [math.remainder(a - b, 2.0 * math.pi) for a, b in zip(th[:-1], th[1:], strict=True)]
+    assert state.phi == pytest.approx(want, abs=1e-12)
+    assert np.all(np.abs(state.phi) <= math.pi)

@@ -8,7 +8,6 @@ from hypothesis import strategies as st
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
-    body_positions_from_last,
     eq5_matrix,
     forward_velocities,
     heading_rates_from_robot,
@@ -114,7 +113,7 @@ def test_body_positions_hitches_coincide(n, data, x0, y0):
             [np.cos(theta[i]), np.sin(theta[i])]
         )
         np.testing.assert_allclose(rear_hitch, front_hitch, atol=1e-12)
-    xl, yl = body_positions_from_last(x[-1], y[-1], theta, geom)
+    xl, yl = body_positions(x[-1], y[-1], theta, geom, from_last=True)
     np.testing.assert_allclose(xl, x, atol=1e-12)
     np.testing.assert_allclose(yl, y, atol=1e-12)
 
@@ -133,3 +132,25 @@ def test_wrap_angle_range():
 def test_bad_geometry_raises(front, rear):
     with pytest.raises(ValueError):
         ChainGeometry(front, rear)
+
+
+def test_body_positions_of_many_states_are_each_states_own():
+    """K states in one call (anchors per state or one for all) give each state's positions bit
+    for bit, from the robot and from the last trailer; a heading array of another n is refused
+    with the shape it had."""
+    rng = np.random.default_rng(3)
+    geom = ChainGeometry(rng.uniform(0.2, 1.0, 4), rng.uniform(0.2, 1.0, 4))
+    theta = rng.uniform(-3.0, 3.0, (7, 5))
+    xa, ya = rng.uniform(-5, 5, 7), rng.uniform(-5, 5, 7)
+    for from_last in (False, True):
+        x, y = body_positions(xa, ya, theta, geom, from_last=from_last)
+        assert x.shape == y.shape == (7, 5)
+        for k in range(7):
+            xk, yk = body_positions(xa[k], ya[k], theta[k], geom, from_last=from_last)
+            assert x[k].tobytes() == xk.tobytes() and y[k].tobytes() == yk.tobytes()
+        anchor = 4 if from_last else 0
+        assert np.array_equal(x[:, anchor], xa) and np.array_equal(y[:, anchor], ya)
+        x0, _ = body_positions(1.5, -2.0, theta, geom, from_last=from_last)
+        assert np.all(x0[:, anchor] == 1.5)
+    with pytest.raises(ValueError, match=r"shape \(7, 4\)"):
+        body_positions(0.0, 0.0, theta[:, :4], geom)

@@ -421,13 +421,11 @@ def test_native_controller_drops_into_the_closed_loop(monkeypatch):
     of the Python one: the same run."""
     import reference.closed_loop as tc
 
-    from pushtrain.planner.kinematic_loop import default_controller
-
     geom = ChainGeometry(np.array([0.5, 0.6, 0.45]), np.array([0.3, 0.52, 0.7]))
     ref = Reference.from_segments((0.0, 0.0, math.pi), [
         Segment("line", 0.6), Segment("arc", 0.8, 0.8), Segment("line", 0.5, 0.0, PULL),
         Segment("arc", 0.5, -0.6, PULL)], speed=0.08, cusp_dwell=1.0)
-    config = default_controller(geom)
+    config = ControllerConfig(geometry=geom)
     heads = np.full(4, math.pi) + np.array([0.1, 0.05, 0.0, 0.0])
     want = tc.simulate_tracking(geom, ref, heads, config, 0.05, 1.0)
     monkeypatch.setattr(tc, "BackwardController", Controller)

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.engine import simulate
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
@@ -18,7 +20,6 @@ from pushtrain.core.reference import Reference
 from pushtrain.core.sampled_reference import SampledReference
 from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.errors import ReferencePathError
-from pushtrain.planner.kinematic_loop import default_controller, simulate_tracking
 
 GEOM = ChainGeometry.uniform(3, 0.52)
 CHAIN = float(np.sum(GEOM.front + GEOM.rear))
@@ -131,21 +132,21 @@ def test_straight_chain_mismatch_agrees_with_the_guide_and_decays_with_a_lead_in
 def test_closed_loop_pull_from_the_guides_start_tracks_the_s_curve():
     ref = _s_curve_pull()
     guide = PullGuide(ref, GEOM)
-    traj = simulate_tracking(GEOM, ref, guide.runs[0].headings[0], default_controller(GEOM),
-                             step=0.025, settle_time=0.0)
-    th = traj.state[:, 2:]
+    traj = simulate(GEOM, ref, guide.runs[0].headings[0], ControllerConfig(geometry=GEOM),
+                    step=0.025, settle_time=0.0)
+    th = traj.states[:, 2:]
     err = []
-    for k in range(traj.t.size):
-        bx, by = body_positions(traj.state[k, 0], traj.state[k, 1], th[k], GEOM)
+    for k in range(traj.t.size - 1):
+        bx, by = body_positions(traj.states[k, 0], traj.states[k, 1], th[k], GEOM)
         err.append(math.hypot(bx[-1] - traj.reference[k, 0], by[-1] - traj.reference[k, 1]))
     assert max(err) < 0.03
     # ... and from a straight chain the S-curve (1.2 m arc right after a 1 m line) cannot be
     # followed: the error is an order of magnitude larger, as straight_chain_mismatch predicts
-    traj = simulate_tracking(GEOM, ref, np.full(GEOM.n + 1, 0.3), default_controller(GEOM),
-                             step=0.025, settle_time=0.0)
+    traj = simulate(GEOM, ref, np.full(GEOM.n + 1, 0.3), ControllerConfig(geometry=GEOM),
+                    step=0.025, settle_time=0.0)
     err_straight = []
-    for k in range(traj.t.size):
-        bx, by = body_positions(traj.state[k, 0], traj.state[k, 1], traj.state[k, 2:], GEOM)
+    for k in range(traj.t.size - 1):
+        bx, by = body_positions(traj.states[k, 0], traj.states[k, 1], traj.states[k, 2:], GEOM)
         err_straight.append(math.hypot(bx[-1] - traj.reference[k, 0],
                                        by[-1] - traj.reference[k, 1]))
     assert max(err_straight) > 10 * max(err)

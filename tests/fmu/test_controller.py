@@ -20,7 +20,7 @@ from conftest import TrailerSim
 from reference.controller import BackwardController
 
 from pushtrain.core.controller import ControllerConfig
-from pushtrain.core.kinematics import ChainGeometry, body_positions_from_last, wrap_scalar
+from pushtrain.core.kinematics import ChainGeometry, body_positions, wrap_scalar
 from pushtrain.core.reference import Reference
 from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.core.sensors import SensorConfig, Sensors
@@ -145,7 +145,7 @@ def _random_state(rng, reference: Reference, geometry: ChainGeometry, t: float):
     th_n = ref.theta + rng.normal(0, 0.2)
     phi = rng.uniform(-0.6, 0.6, n)
     theta = th_n + np.concatenate((np.cumsum(phi[::-1])[::-1], [0.0]))
-    xs, ys = body_positions_from_last(x_n, y_n, theta, geometry)
+    xs, ys = body_positions(x_n, y_n, theta, geometry, from_last=True)
     return (float(xs[0]), float(ys[0]), float(theta[0])), phi, (x_n, y_n, th_n)
 
 

@@ -4,12 +4,13 @@ import math
 
 import numpy as np
 
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.reference import Reference
 from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.cosim.master import simulate
 from pushtrain.cosim.plant import InitialState
 from pushtrain.facility.free_space import World
-from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller
+from pushtrain.planner.config import TrackerConfig
 from pushtrain.planner.train import Train
 from pushtrain.planner.train_check import check_train
 
@@ -24,7 +25,7 @@ def test_predicted_last_trailer_matches_the_fmu(fmu3):
             Segment("line", 0.8, 0.0, PULL)]
     start = (0.0, 0.0, math.pi)
     theta0 = math.pi + np.array([0.4, 0.25, 0.1, 0.0])
-    controller = default_controller(train.geometry)
+    controller = ControllerConfig(geometry=train.geometry)
     tracker = TrackerConfig(controller=controller, speed=0.08, cusp_dwell=1.0, goal_tolerance=None)
     res = check_train(world, train, start, segs, theta0, tracker=tracker)
     assert res.ok, res.failure
@@ -35,22 +36,22 @@ def test_predicted_last_trailer_matches_the_fmu(fmu3):
                                             joint_angles=theta0[:-1] - theta0[1:])
     run = simulate(fmu3, reference, controller, initial=initial, settle_time=2.0, check_goal=False)
     data = run.data
-    tr = res.trajectory
-    k = tr.control
+    tr = res.run
+    z = tr.states
     # the planner's last-trailer trajectory at the co-simulation's times
-    x = tr.state[k, 0] - np.array([_chain_offset(train, th)[0] for th in tr.state[k, 2:]])
-    y = tr.state[k, 1] - np.array([_chain_offset(train, th)[1] for th in tr.state[k, 2:]])
+    x = z[:, 0] - np.array([_chain_offset(train, th)[0] for th in z[:, 2:]])
+    y = z[:, 1] - np.array([_chain_offset(train, th)[1] for th in z[:, 2:]])
     t = data["t"]
-    err = np.hypot(data["x3"] - np.interp(t, tr.t[k], x), data["y3"] - np.interp(t, tr.t[k], y))
+    err = np.hypot(data["x3"] - np.interp(t, tr.t, x), data["y3"] - np.interp(t, tr.t, y))
     # the FMU's robot follows the command with a 0.05 s lag, the prediction ignores it
     assert err.max() < 0.03
     # the robot as well, and the joint angles within a few degrees (measured: 2.1 cm, 1.6 cm,
     # 3.3 deg)
-    robot = np.hypot(data["x0"] - np.interp(t, tr.t[k], tr.state[k, 0]),
-                     data["y0"] - np.interp(t, tr.t[k], tr.state[k, 1]))
+    robot = np.hypot(data["x0"] - np.interp(t, tr.t, z[:, 0]),
+                     data["y0"] - np.interp(t, tr.t, z[:, 1]))
     assert robot.max() < 0.03
     for i in range(1, 4):
-        phi = np.interp(t, tr.t[k], tr.state[k, 1 + i] - tr.state[k, 2 + i])
+        phi = np.interp(t, tr.t, z[:, 1 + i] - z[:, 2 + i])
         assert np.abs(data[f"phi{i}"] - phi).max() < math.radians(5.0)
     # the tracking error the planner reports is the co-simulation's, to the same few cm
     # (0.67 m: the pulled last trailer lags far behind its reference)

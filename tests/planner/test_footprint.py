@@ -27,9 +27,9 @@ def _train_state(x0, y0, headings):
 
 def _exact_gaps(world, train, z):
     """Distance [m] of every body to the walls (shapely), negative if it leaves the free space."""
-    from pushtrain.planner.footprint import body_positions
+    from pushtrain.core.kinematics import body_positions
 
-    x, y = body_positions(z, train.geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], train.geometry)
     out = []
     for i, body in enumerate(train.bodies):
         poly = body.polygons(x[0, i], y[0, i], z[0, 2 + i])
@@ -109,9 +109,9 @@ def test_a_folded_train_collides_with_itself_and_the_joint_limit():
     th = np.radians([0.0, -120.0, -240.0, -240.0])
     failure, _ = first_failure(train, field, samples, np.array([[0.0, 0.0, *th]]), math.pi)
     assert failure["kind"] == "self_collision"
-    from pushtrain.planner.footprint import body_positions
+    from pushtrain.core.kinematics import body_positions
 
-    x, y = body_positions(np.array([[0.0, 0.0, *th]]), train.geometry)
+    x, y = body_positions(0.0, 0.0, np.array([th]), train.geometry)
     polys = [b.polygons(x[0, i], y[0, i], th[i]) for i, b in enumerate(train.bodies)]
     assert shapely.intersects(polys[failure["body"]], polys[failure["other"]])
     assert failure["other"] >= failure["body"] + 2

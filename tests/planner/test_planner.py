@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 from shapely.geometry import Polygon
 
 from pushtrain.core.kinematics import (
-    body_positions_from_last,
+    body_positions,
     heading_rates_from_last,
     heading_rates_from_robot,
     joint_angles,
@@ -66,7 +66,7 @@ def _independent_push_check(world, path, train):
         for s in np.linspace(0.0, seg.length, m):
             th = sol.sol(s)
             x, y, _, _, _ = ref.sample([pos + s])
-            bx, by = body_positions_from_last(x[0], y[0], th, geom)
+            bx, by = body_positions(x[0], y[0], th, geom, from_last=True)
             for i, fp in enumerate(train.bodies):
                 poly = Polygon(_corners(fp, bx[i], by[i], th[i]))
                 assert world.free.contains(poly), f"body {i} hits at s = {pos + s:.3f} m"
@@ -122,16 +122,16 @@ def test_bay_one_direction_change_whole_train_valid():
     assert np.abs(joint_angles(res.headings)).max() <= TRAIN.phi_max
     # the simulated motion obeys the chain kinematics under the held robot command, pulling
     # (towed chain) and pushing alike: compare each step's change with the rates at its middle
-    tr = res.trajectory
-    k = np.flatnonzero(tr.control[:-1] & tr.control[1:] & (tr.direction[:-1] != 0))
+    tr = res.run
+    k = np.flatnonzero(tr.direction != 0)
     for j in k[:: max(1, k.size // 300)]:
         h = tr.t[j + 1] - tr.t[j]
-        th0, th1 = tr.state[j, 2:], tr.state[j + 1, 2:]
-        v0, w0 = tr.command[j]
+        th0, th1 = tr.states[j, 2:], tr.states[j + 1, 2:]
+        v0, w0 = tr.commands[j]
         mid = 0.5 * (th0 + th1)
         rates = heading_rates_from_robot(mid, v0, w0, TRAIN.geometry)
         assert (th1 - th0) / h == pytest.approx(rates, abs=1e-4)
-        d = (tr.state[j + 1, :2] - tr.state[j, :2]) / h
+        d = (tr.states[j + 1, :2] - tr.states[j, :2]) / h
         assert d == pytest.approx(v0 * np.array([math.cos(mid[0]), math.sin(mid[0])]), abs=1e-5)
     assert {int(a) for a in tr.direction[k]} == {PUSH, PULL}
     # the path's headings are the closed loop's: they start with the start headings and the
@@ -166,7 +166,7 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
     for _a, b in runs:
         x, y, th, _, _ = ref.sample([(b - 1e-9) / 0.08])
         straight = np.full(TRAIN.n + 1, th[0])
-        bx, by = body_positions_from_last(x[0], y[0], straight, geom)
+        bx, by = body_positions(x[0], y[0], straight, geom, from_last=True)
         for i, fp in enumerate(TRAIN.bodies):
             assert region.contains(Polygon(_corners(fp, bx[i], by[i], th[0]))), (i, b)
     a, b = runs[0]
@@ -180,8 +180,8 @@ def test_bay_pulls_end_with_a_free_straight_train_and_start_near_straight(seed):
                         theta, rtol=1e-10, atol=1e-12)
         theta = sol.y[:, -1]
         theta[-1] = th[j - 1]
-    bx, by = body_positions_from_last(0.0, 0.0, theta, geom)
-    sx, sy = body_positions_from_last(0.0, 0.0, np.full(TRAIN.n + 1, th[0]), geom)
+    bx, by = body_positions(0.0, 0.0, theta, geom, from_last=True)
+    sx, sy = body_positions(0.0, 0.0, np.full(TRAIN.n + 1, th[0]), geom, from_last=True)
     assert np.hypot(bx - sx, by - sy).max() <= cfg.pull_start_tolerance + 0.02
 
 

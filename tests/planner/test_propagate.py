@@ -6,17 +6,18 @@ import numpy as np
 import pytest
 from reference.closed_loop import simulate_tracking
 
+from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.reference import Reference
 from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.facility.free_space import World
+from pushtrain.planner.config import TrackerConfig
 from pushtrain.planner.footprint import body_samples
-from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller
-from pushtrain.planner.propagate import Cursor, Propagator
+from pushtrain.planner.propagate import Cursor, Propagator, last_pose
 from pushtrain.planner.train import Train
 
 TRAIN = Train.uniform(3)
 OPEN = World.from_dict({"bounds": [-6, -6, 6, 6]})
-CONTROLLER = default_controller(TRAIN.geometry)
+CONTROLLER = ControllerConfig(geometry=TRAIN.geometry)
 
 
 def _propagator(tracker=None, world=OPEN, margin=0.0):
@@ -43,14 +44,17 @@ def test_pieces_rolled_out_one_after_another_equal_the_whole_run():
     assert np.array_equal(np.array(state.z), whole.state[0])
     cursor = Cursor(*START, 0.0, 0)
     for piece in ([SEGMENTS[0]], [SEGMENTS[1]], [SEGMENTS[2]], SEGMENTS[3:5], [SEGMENTS[5]]):
-        run = prop.rollout(state, cursor, piece, pull_phi=math.radians(30.0), record=True)
-        assert run.ok, run.failure
-        k0, k1 = state.k, run.state.k
-        assert np.array_equal(run.z, whole.state[k0:k1 + 1])
-        assert np.array_equal(run.reference, whole.reference[k0:k1 + 1])
-        assert np.array_equal(run.extra["command"][:-1], whole.command[k0:k1])
-        assert np.array_equal(run.extra["direction"][:-1], whole.direction[k0:k1])
-        assert run.state.memory[:2] == tuple(whole.command[k1 - 1])
+        edge = prop.rollout(state, cursor, piece, pull_phi=math.radians(30.0))
+        assert edge.ok, edge.failure
+        run = edge.run
+        k0, k1 = state.k, edge.state.k
+        assert np.array_equal(run.states, whole.state[k0:k1 + 1])
+        assert np.array_equal(run.t, whole.t[k0:k1 + 1])
+        assert np.array_equal(run.reference, whole.reference[k0:k1])
+        assert np.array_equal(run.commands, whole.command[k0:k1])
+        assert np.array_equal(run.direction, whole.direction[k0:k1])
+        assert (run.end.v_prev, run.end.w_prev) == tuple(whole.command[k1 - 1])
+        run = edge
         state, cursor = run.state, run.cursor
     assert state.k == whole.t.size - 1
     assert prop.steps == state.k
@@ -83,10 +87,8 @@ def test_goal_mode_stops_at_the_first_instant_within_the_tolerance():
     # one instant earlier it was not yet within the tolerance, or the reference had not ended
     t_end = 1.0 / 0.08
     if (run.state.k - 1) * 0.025 >= t_end - 1e-9:
-        before = run.z[-2]
-        from pushtrain.planner.propagate import last_pose
-
-        bx, by, _ = last_pose(before, TRAIN.geometry.front, TRAIN.geometry.rear)
+        before = run.run.states[-2]
+        bx, by, _ = last_pose(before, TRAIN.geometry)
         assert math.hypot(bx - goal[0], by - goal[1]) > 0.01
     # a goal the reference does not lead to is missed
     far = (goal[0] + 0.5, goal[1], goal[2])

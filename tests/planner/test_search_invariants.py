@@ -16,17 +16,19 @@ import numpy as np
 import pytest
 import shapely
 
+from pushtrain.core.controller import ControllerConfig
+from pushtrain.core.kinematics import body_positions
 from pushtrain.core.reference import Reference
 from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.facility.free_space import World
-from pushtrain.planner.footprint import body_positions, body_samples, first_failure
-from pushtrain.planner.kinematic_loop import TrackerConfig, default_controller
+from pushtrain.planner.config import TrackerConfig
+from pushtrain.planner.footprint import body_samples, first_failure
+from pushtrain.planner.lattice_settings import LatticeSettings, segments_cost
 from pushtrain.planner.propagate import Cursor, Propagator
-from pushtrain.planner.search_settings import SearchSettings, segments_cost
 from pushtrain.planner.train import Train
 
 # ------------------------------------------------------------------------------- the search cost
-SETTINGS = SearchSettings(radius=1.0, turn_weight=0.3, pull_turn_weight=1.0, change_weight=0.25,
+SETTINGS = LatticeSettings(radius=1.0, turn_weight=0.3, pull_turn_weight=1.0, change_weight=0.25,
                           cusp_cost=2.0, pull_factor=1.2)
 PATH = [Segment("line", 1.0, 0.0, PUSH),    # 1.0
         Segment("arc", 1.0, 1.0, PUSH),     # 1.0 + 0.3 x 1 rad turned + a curvature change
@@ -51,7 +53,7 @@ def test_the_search_cost_counts_every_cusp_and_curvature_change():
 
 # ----------------------------------------------------------------------------------- goal tests
 TRAIN = Train.uniform(3)
-CONTROLLER = default_controller(TRAIN.geometry)
+CONTROLLER = ControllerConfig(geometry=TRAIN.geometry)
 OPEN = World.from_dict({"bounds": [-8, -8, 8, 8]})
 START = (0.0, 0.0, math.pi)
 LINE = [Segment("line", 1.0)]
@@ -113,7 +115,7 @@ def test_a_wall_between_two_perimeter_samples_is_seen():
     half-spacing allowance (margin + s/2 + tol) sees it."""
     train = Train.uniform(1)
     z = np.array([[2.0, 0.0, 0.0, 0.0]])  # robot at (2, 0), all headings +x
-    x, y = body_positions(z, train.geometry)
+    x, y = body_positions(z[:, 0], z[:, 1], z[:, 2:], train.geometry)
     ax, ay = x[0, 1], y[0, 1]  # the trailer's axle midpoint; its side y = ay - 0.3
     tip = (ax + 0.2, ay - 0.3 - 0.03)
     wedge = [tip, (tip[0] - 0.5, tip[1] - 1.0), (tip[0] + 0.5, tip[1] - 1.0)]

@@ -15,8 +15,6 @@ from pushtrain.core.controller import ControllerConfig
 from pushtrain.core.kinematics import (
     ChainGeometry,
     body_positions,
-    body_positions_along,
-    body_positions_from_last,
     forward_velocities,
     heading_rates_from_last,
     joint_angles,
@@ -26,11 +24,8 @@ from pushtrain.core.reference import Reference
 from pushtrain.core.segment import PULL, PUSH, Segment
 from pushtrain.errors import PlanningInputError
 from pushtrain.facility.free_space import World
-from pushtrain.planner.kinematic_loop import (
-    TrackerConfig,
-    default_controller,
-    reference_times,
-)
+from pushtrain.planner.config import TrackerConfig
+from pushtrain.planner.path import reference_times
 from pushtrain.planner.train import Train
 from pushtrain.planner.train_check import check_train
 
@@ -50,7 +45,7 @@ def _independent_loop(geom, reference, theta0, config, h=0.002, settle=2.0):
     ctrl = BackwardController(config)
     ctrl.reset(0.0, 0.0, -h)
     th = np.array(theta0, dtype=float)
-    bx, by = body_positions_from_last(*reference.start[:2], th, geom)
+    bx, by = body_positions(*reference.start[:2], th, geom, from_last=True)
     x0, y0 = bx[0], by[0]
     steps = int(math.ceil((reference.t_end + settle) / h))
     out = np.empty((steps + 1, 2))
@@ -80,9 +75,9 @@ def test_positions_match_kinematics():
     geom = ChainGeometry.uniform(3)
     th = rng.uniform(-3, 3, (6, 4))
     poses = np.column_stack([rng.uniform(-5, 5, (6, 2)), th[:, -1]])
-    x, y = body_positions_along(poses, th, geom)
+    x, y = body_positions(poses[:, 0], poses[:, 1], th, geom, from_last=True)
     for k in range(6):
-        ex, ey = body_positions_from_last(poses[k, 0], poses[k, 1], th[k], geom)
+        ex, ey = body_positions(poses[k, 0], poses[k, 1], th[k], geom, from_last=True)
         assert np.allclose(x[k], ex) and np.allclose(y[k], ey)
 
 
@@ -97,30 +92,32 @@ def test_closed_loop_matches_an_independent_fine_euler_loop():
     assert res.ok, res.failure
     assert res.max_tracking_error > 0.05  # not a trivial run
     ref = Reference.from_segments(start, segs, 0.08, 1.0)
-    t, last = _independent_loop(TRAIN.geometry, ref, theta0, default_controller(TRAIN.geometry))
-    tr = res.trajectory
-    k = tr.control
-    x, y = body_positions_along(np.zeros((k.sum(), 3)), tr.state[k, 2:], TRAIN.geometry)
+    t, last = _independent_loop(TRAIN.geometry, ref, theta0,
+                                ControllerConfig(geometry=TRAIN.geometry))
+    tr = res.run
+    z = tr.states
+    x, y = body_positions(0.0, 0.0, z[:, 2:], TRAIN.geometry, from_last=True)
     # positions relative to the last trailer -> shift by the robot's position
-    lx = tr.state[k, 0] - x[:, 0] + x[:, -1]
-    ly = tr.state[k, 1] - y[:, 0] + y[:, -1]
-    err = np.hypot(lx - np.interp(tr.t[k], t, last[:, 0]), ly - np.interp(tr.t[k], t, last[:, 1]))
+    lx = z[:, 0] - x[:, 0] + x[:, -1]
+    ly = z[:, 1] - y[:, 0] + y[:, -1]
+    err = np.hypot(lx - np.interp(tr.t, t, last[:, 0]), ly - np.interp(tr.t, t, last[:, 1]))
     assert err.max() < 0.01
     # the result's last-trailer poses are the same trajectory
-    assert np.allclose(np.interp(res.t, tr.t[k], lx), res.poses[:, 0], atol=2e-3)
+    assert np.allclose(np.interp(res.t, tr.t, lx), res.poses[:, 0], atol=2e-3)
 
 
 def test_step_size_converges():
     segs = [Segment("arc", 1.0, 1 / 0.97, PULL), Segment("line", 1.0, 0.0, PULL),
             Segment("arc", 1.5, 1 / 0.97, PUSH), Segment("line", 1.0, 0.0, PUSH)]
     start = (0.0, 0.0, math.pi)
-    runs = {h: check_train(OPEN, TRAIN, start, segs, tracker=TrackerConfig(step=h)).trajectory
+    runs = {h: check_train(OPEN, TRAIN, start, segs, tracker=TrackerConfig(step=h)).run
             for h in (0.025, 0.0025)}
     coarse, fine = runs[0.025], runs[0.0025]
 
     def last(tr):
-        x, y = body_positions_along(np.zeros((tr.t.size, 3)), tr.state[:, 2:], TRAIN.geometry)
-        return tr.state[:, 0] - x[:, 0] + x[:, -1], tr.state[:, 1] - y[:, 0] + y[:, -1]
+        z = tr.states
+        x, y = body_positions(0.0, 0.0, z[:, 2:], TRAIN.geometry, from_last=True)
+        return z[:, 0] - x[:, 0] + x[:, -1], z[:, 1] - y[:, 0] + y[:, -1]
 
     (xc, yc), (xf, yf) = last(coarse), last(fine)
     err = np.hypot(xc - np.interp(coarse.t, fine.t, xf), yc - np.interp(coarse.t, fine.t, yf))
@@ -170,8 +167,8 @@ def test_collision_is_reported_with_body_time_and_place():
     # time and reference progress agree: s = speed * t while pushing
     assert f["s"] == pytest.approx(0.08 * f["t"])
     k = int(np.searchsorted(res.t, f["t"]))
-    bx, by = body_positions_from_last(res.poses[k, 0], res.poses[k, 1], res.headings[k],
-                                      TRAIN.geometry)
+    bx, by = body_positions(res.poses[k, 0], res.poses[k, 1], res.headings[k], TRAIN.geometry,
+                            from_last=True)
     i = f["body"]
     assert (bx[i], by[i]) == pytest.approx((f["body_x"], f["body_y"]), abs=1e-9)
     assert not world.free.contains(TRAIN.bodies[i].polygons(bx[i], by[i], res.headings[k, i]))
@@ -243,7 +240,7 @@ def _open_loop_sweep(train, start, segs, ds=0.005):
         for s in np.linspace(0.0, seg.length, int(seg.length / ds) + 2):
             th = sol.sol(s)
             x, y, _, _, _ = ref.sample([pos + s])
-            bx, by = body_positions_from_last(x[0], y[0], th, train.geometry)
+            bx, by = body_positions(x[0], y[0], th, train.geometry, from_last=True)
             polys += [b.polygons(bx[i], by[i], th[i]) for i, b in enumerate(train.bodies)]
             worst = max(worst, float(np.abs(joint_angles(th)).max()))
         theta, pos = sol.sol(seg.length), pos + seg.length
@@ -265,11 +262,11 @@ def test_pull_then_push_into_a_bay_leaves_the_chain_straight_at_the_cusp():
     res = check_train(world, TRAIN, start, segs)
     assert res.ok, res.failure
     assert res.max_tracking_error < 0.05
-    tr = res.trajectory
+    tr = res.run
     cusp = np.flatnonzero(tr.direction == 0)
     cusp = cusp[(tr.t[cusp] > 1.0) & (tr.t[cusp] < 2.5 / 0.08 + 1.0)]
     assert cusp.size > 0
-    phi = joint_angles(tr.state[cusp[-1], 2:])
+    phi = joint_angles(tr.states[cusp[-1], 2:])
     assert np.abs(phi).max() < math.radians(2.0)
 
 

@@ -6,23 +6,38 @@ through :class:`~pushtrain.core.tracking.TrackingLoop` (reference sample, Python
 command) at the control instants ``t_k = k * step`` with a perfect measurement, holds each
 command over the step and integrates the robot (along its heading) and the towed trailers with
 RK4 (``reference.ode.rk4_step``) on ``z = (x0, y0, theta_0..theta_n)``: the loop
-:func:`pushtrain.planner.kinematic_loop.simulate_tracking` runs in C. SI units, radians.
+:func:`pushtrain.core.engine.simulate` runs in C. SI units, radians.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from pushtrain.core.controller import ControllerConfig
-from pushtrain.core.kinematics import ChainGeometry, body_positions_along
+from pushtrain.core.kinematics import ChainGeometry, body_positions
 from pushtrain.core.reference import Reference
 from pushtrain.core.tracking import TrackingLoop
-from pushtrain.planner.kinematic_loop import Trajectory
+from pushtrain.defaults import ROLLOUT_SETTLE_TIME, ROLLOUT_STEP
 from reference.controller import BackwardController
 from reference.ode import rk4_step
+
+
+@dataclass
+class Trajectory:
+    """The reference loop's run, one row per control instant k = 0..K: ``t`` (K+1,) [s],
+    ``state`` (K+1, 3 + n), the ``command`` (v0, w0) computed there, the last trailer's
+    ``reference`` pose and its ``direction``; ``control`` all True."""
+
+    t: np.ndarray
+    state: np.ndarray
+    command: np.ndarray
+    reference: np.ndarray
+    direction: np.ndarray
+    control: np.ndarray
 
 
 def towed_rates(geometry: ChainGeometry):
@@ -70,7 +85,8 @@ class PerfectMeasurement:
 
 def simulate_tracking(geometry: ChainGeometry, reference: Reference,
                       start_headings: Sequence[float], controller: ControllerConfig,
-                      step: float = 0.025, settle_time: float = 2.0) -> Trajectory:
+                      step: float = ROLLOUT_STEP,
+                      settle_time: float = ROLLOUT_SETTLE_TIME) -> Trajectory:
     """The closed loop from t = 0 to the first instant at or after ``reference.t_end +
     settle_time``, the last trailer starting at ``reference.start`` with ``start_headings``, the
     robot at rest; every control instant one row."""
@@ -79,9 +95,9 @@ def simulate_tracking(geometry: ChainGeometry, reference: Reference,
     loop = TrackingLoop(ctrl, reference)
     rates = towed_rates(geometry)
     th0 = np.asarray(start_headings, dtype=float)
-    x, y = body_positions_along(np.asarray(reference.start, dtype=float)[None, :], th0[None, :],
-                                geometry)
-    state = [float(x[0, 0]), float(y[0, 0])] + [float(a) for a in th0]
+    x0, y0, _ = reference.start
+    x, y = body_positions(x0, y0, th0, geometry, from_last=True)
+    state = [float(x[0]), float(y[0])] + [float(a) for a in th0]
     n_steps = int(math.ceil((reference.t_end + settle_time) / step - 1e-9))
     states, commands, refs, dirs = [], [], [], []
     for k in range(n_steps + 1):

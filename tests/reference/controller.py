@@ -102,19 +102,18 @@ class BackwardController:
     def last_trailer_pose(self, x0: float, y0: float, theta0: float, phi) -> tuple:
         """Pose (x_n, y_n, theta_n) [m, m, rad] of trailer n from the robot pose and joint angles.
 
-        ``theta_n = theta_0 - sum(phi)`` is continuous in theta_0 (not wrapped).
+        ``theta_i = theta_{i-1} - phi_i`` (``theta_n`` continuous in theta_0, not wrapped); the
+        offset of trailer n from the robot summed link by link, ``R_{i-1} e_{i-1} + F_i e_i``,
+        then added to the robot's position (``pt_chain_positions``).
         """
-        x, y, th = float(x0), float(y0), float(theta0)
+        th, dx, dy = float(theta0), 0.0, 0.0
         front, rear = self._front, self._rear
-        c, s = cos(th), sin(th)
         for i in range(self.n):
-            x -= rear[i] * c
-            y -= rear[i] * s
-            th -= phi[i]
             c, s = cos(th), sin(th)
-            x -= front[i] * c
-            y -= front[i] * s
-        return x, y, th
+            th -= phi[i]
+            dx -= rear[i] * c + front[i] * cos(th)
+            dy -= rear[i] * s + front[i] * sin(th)
+        return float(x0) + dx, float(y0) + dy, th
 
     def robot_velocity(self, phi, v_n: float, w_n: float) -> tuple:
         """Robot (v0 [m/s], w0 [rad/s]) making trailer n move with (v_n, w_n) (Step 3, Eq. 5)."""

@@ -16,7 +16,7 @@ import numpy as np
 
 from pushtrain.core.kinematics import (
     ChainGeometry,
-    body_positions_along,
+    body_positions,
     robot_velocity_from_last,
 )
 from pushtrain.core.pulling import PullRun, rates_driven_by_last
@@ -96,8 +96,8 @@ class PullGuide:
         times = times[::-1].copy()
         headings = np.array(rows)
         last = [ref.sample_at(min(max(t, t_a), t_b - eps)) for t in times]
-        x, y = body_positions_along(np.array([(s.x, s.y, s.theta) for s in last]), headings,
-                                    self.geometry)
+        x, y = body_positions(np.array([s.x for s in last]), np.array([s.y for s in last]),
+                              headings, self.geometry, from_last=True)
         velocities = np.array([
             robot_velocity_from_last([th[i - 1] - th[i] for i in range(1, n + 1)], s.v, s.w,
                                      self._front, self._rear)

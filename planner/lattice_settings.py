@@ -10,11 +10,11 @@ from pushtrain.core.segment import PULL, PUSH
 
 from .config import PlannerConfig
 
-__all__ = ["SearchSettings", "segments_cost"]
+__all__ = ["LatticeSettings", "segments_cost"]
 
 
 @dataclass(frozen=True)
-class SearchSettings:
+class LatticeSettings:
     """Settings of :class:`Search` (SI units, radians; see the module docstring).
 
     Attributes
@@ -139,7 +139,7 @@ class SearchSettings:
     deadline: float = math.inf
 
 
-def segments_cost(segments, settings: SearchSettings, direction: int = 0,
+def segments_cost(segments, settings: LatticeSettings, direction: int = 0,
                   curvature: float | None = None) -> float:
     """The search's cost of ``segments`` after a motion in ``direction`` (0: none) with
     ``curvature`` (None: none): length (pulls times ``pull_factor``), the heading turned (times
