@@ -10,9 +10,6 @@ a blocked region and more inflation, see :func:`_next_attempt`) until a plan pas
 load; the wall clock only stops planning at the safety cap ``time_cap``. The planner's
 settings and turning-radius rule are in :mod:`~pushtrain.planner.config`, its pull rules in
 :mod:`~pushtrain.planner.repair`.
-
-This module also re-exports the planner's public names, so ``from pushtrain.planner.planner
-import plan, PlannerConfig, ReedsSheppCurve, ...`` keeps working.
 """
 
 from __future__ import annotations
@@ -254,7 +251,7 @@ def _segments(states: np.ndarray, radius: float) -> list[Segment]:
     segments, deviation = segments_from_states(states, radius)
     if deviation > 1e-6:
         raise RuntimeError(
-            f"Reeds-Shepp segment recovery deviates {deviation:.3g} m from OMPL's curve"
+            f"the Reeds-Shepp segments computed deviate {deviation:.3g} m from OMPL's curve"
         )
     return segments
 
