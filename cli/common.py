@@ -23,8 +23,15 @@ __all__ = ["BadInput", "load_scenario_with_overrides", "check_map", "click_error
            "scenario_argument", "out_dir_option", "trailers_option", "csv_option",
            "workers_option", "local_workers", "usable_cores", "writable_folder"]
 
-# planning failures that are the scenario's fault (exit 2); the others mean no plan was found
+# planning failures that are the scenario's fault (exit 2); the others mean no plan was found.
+# A goal no way of the train's width reaches ("impossible here", details["impossible"]) is one
+# too: it is proven from the map before any search, not a search that gave up.
 _INPUT_REASONS = {"start_in_collision", "goal_in_collision", "no_free_space"}
+
+
+def _scenario_fault(exc: PlanningError) -> bool:
+    """Whether a planning failure is the scenario's fault (bad input, exit 2)."""
+    return exc.reason in _INPUT_REASONS or bool(exc.details.get("impossible"))
 
 log = logging.getLogger("pushtrain.cli")
 
@@ -74,10 +81,11 @@ def check_map(sc: Scenario) -> None:
 
 def click_error(exc: PushtrainError) -> click.ClickException:
     """The click exception for one of pushtrain's errors: exit 2 for bad input (including a
-    start or goal in collision), 1 for a run-time failure (no plan found, an FMU build)."""
+    start or goal in collision, and a goal proven impossible to reach), 1 for a run-time
+    failure (no plan found by the search, an FMU build)."""
     planning = isinstance(exc, PlanningError)
     text = f"planning failed ({exc.reason}): {exc}" if planning else str(exc)
-    if isinstance(exc, InputError) or planning and exc.reason in _INPUT_REASONS:
+    if isinstance(exc, InputError) or planning and _scenario_fault(exc):
         return BadInput(text)
     err = click.ClickException(text)
     err.exit_code = EXIT_NOT_REACHED

@@ -3,8 +3,10 @@
 Every exception is a :class:`PushtrainError`. Bad input (a scenario field, a map, an option, a
 path, an argument) is an :class:`InputError`, which is also a :class:`ValueError`: its message
 names the value and what is allowed, and the CLI turns it into exit code 2. Run-time failures (a
-plan that cannot be found, an FMU that fails, a compiler that fails) are not ``ValueError``\\ s;
-the CLI turns them into exit code 1.
+plan the search cannot find, an FMU that fails, a compiler that fails) are not ``ValueError``\\ s;
+the CLI turns them into exit code 1. A :class:`PlanningError` that is the scenario's fault (a
+start or goal in collision, a goal no way of the train's width reaches: ``details["impossible"]``)
+is exit code 2 too.
 
 ::
 

@@ -164,19 +164,35 @@ def test_plan_and_run_console_script_with_overrides(runner, tmp_path):
     assert not list(out.glob(".*.part"))
 
 
-def test_unreachable_goal_exits_1_with_a_diagnostic_picture(runner, tmp_path):
+def test_a_goal_no_way_reaches_exits_2_with_a_diagnostic_picture(runner, tmp_path):
+    """A wall across the L's second leg: no way joins start and goal, proven from the map
+    before any search ("impossible here"): the scenario asks for the impossible, which is bad
+    input (exit 2), and the failure's picture and page are written."""
     text = (EXAMPLES / "l_corridor.toml").read_text().replace(
         "free = [[0.0, 0.0], [9.0, 0.0], [9.0, 9.0], [7.0, 9.0], [7.0, 2.0], [0.0, 2.0]]",
         "free = [[0.0, 0.0], [9.0, 0.0], [9.0, 9.0], [7.0, 9.0], [7.0, 2.0], [0.0, 2.0]]\n"
         "obstacles = [[[7.0, 4.0], [9.0, 4.0], [9.0, 4.5], [7.0, 4.5]]]")
-    text = text.replace("time_budget = 2.0", "time_budget = 0.5")
     path = _write(tmp_path, text, "blocked.toml")
     out = tmp_path / "out"
     result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert "planning failed (unreachable)" in result.output and "impossible here" in result.output
+    assert (out / "planning_failure.png").is_file() and (out / "report.html").is_file()
+    assert json.loads((out / "summary.json").read_text())["exit_code"] == 2
+
+
+def test_a_search_that_finds_nothing_in_its_budget_exits_1(runner, tmp_path):
+    """The T junction's K-turn is possible (the example plans it), but not within 0.01 s of
+    budget: the search gave up, which says nothing against the scenario (exit 1)."""
+    text = (EXAMPLES / "t_junction_kturn.toml").read_text()
+    text = text.replace("[planner]\n", "[planner]\ntime_budget = 0.01\n") if "[planner]" in text \
+        else text + "\n[planner]\ntime_budget = 0.01\n"
+    path = _write(tmp_path, text, "short.toml")
+    out = tmp_path / "out"
+    result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out)])
     assert result.exit_code == 1, result.output
-    assert "planning failed" in result.output
+    assert "planning failed (budget_exhausted)" in result.output
     assert (out / "planning_failure.png").is_file()
-    assert (out / "run.log").is_file()
 
 
 def test_a_goal_too_close_to_the_walls_exits_2_with_numbers_and_a_picture(runner, tmp_path):

@@ -283,7 +283,7 @@ def test_a_failed_plan_stops_the_plot_processes(tmp_path):
     path = tmp_path / "blocked.toml"
     path.write_text(blocked)
     result = _invoke(["plan-and-run", str(path), "--out", str(tmp_path / "out")])
-    assert result.exit_code == 1, result.output
+    assert result.exit_code == 2, result.output  # no way joins start and goal: bad input
     assert "planning failed" in result.output
     _no_plot_process_left()
 

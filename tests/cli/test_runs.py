@@ -95,14 +95,14 @@ def test_a_failed_plan_after_a_successful_run_leaves_only_the_failed_run(tmp_pat
                         replace=[(L_FREE, BLOCKED_MAP),
                                  ("time_budget = 2.0", "time_budget = 0.3")])
     second = _invoke(["plan-and-run", blocked, "--no-plots", "--out", str(out)])
-    assert second.exit_code == 1, second.output
-    assert "planning failed" in second.output
+    assert second.exit_code == 2, second.output  # no way joins start and goal: bad input
+    assert "planning failed" in second.output and "impossible here" in second.output
     assert sorted(p.name for p in out.iterdir()) == sorted(
         [RUN_MARKER, "planning_failure.png", "report.html", "run.log", "scenario.json",
          "summary.json"])
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "planning_failed" and summary["scenario"] == "second_run"
-    assert summary["exit_code"] == 1 and summary["message"].startswith("planning failed")
+    assert summary["status"] == "invalid" and summary["scenario"] == "second_run"
+    assert summary["exit_code"] == 2 and summary["message"].startswith("planning failed")
     assert json.loads((out / "scenario.json").read_text())["name"] == "second_run"
     assert "first_run" not in (out / "run.log").read_text()
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
