@@ -19,7 +19,8 @@ The proof (no way of the last trailer's width)
     GEOS draws the eroded set's round corners with chords whose vertices lie on the arcs
     (``quad_segs = 32``: at most ``r (1 - cos(pi / 128))``, 0.1 mm, inside the exact set's
     boundary), so the polygon holds the exact eroded set: parts separate in it are separate
-    in the exact one, and the proof never overstates.
+    in the exact one, and the proof never overstates. It erodes by ``r`` less half a
+    millimetre: a way exactly ``2 r`` wide erodes to a line, which GEOS drops.
 The width named
     The widest way's: the largest disc diameter ``2 rho`` whose eroded free space still joins
     start and goal, by bisection on ``rho`` until the bracket is below half a millimetre
@@ -85,8 +86,9 @@ class Proof:
         return (f"the widest way narrows at ({self.x:.2f}, {self.y:.2f}) to {self.width:.3f} m "
                 f"(the largest disc that joins start and goal through the map's free space, "
                 f"shapely erosion bisected to 1 mm); the last trailer and its clearance need "
-                f"{self.needed:.3f} m: the free space eroded by {0.5 * self.needed:.3f} m leaves "
-                "the start and the goal in separate parts")
+                f"{self.needed:.3f} m: the free space eroded by "
+                f"{0.5 * self.needed - PRECISION:.4f} m leaves the start and the goal in "
+                "separate parts")
 
     def to_toml(self, key: str) -> str:
         return (f'[impossible."{key}"]\nreason = "{self.reason()}"\n'
@@ -122,7 +124,8 @@ def prove(free, start, goal, radius: float) -> Proof | None:
         return None  # an end inside an obstacle: not a question of the way
     if not piece.covers(g):  # no way at all: separate parts of the map
         return Proof(0.0, float(g.x), float(g.y), 2.0 * radius)
-    at_need = eroded(piece, radius)
+    at_need = eroded(piece, radius - PRECISION)  # a way exactly the disc's width passes:
+    # eroded by the full radius it is a line, which GEOS drops
     start_part = part_holding(at_need, s)
     if start_part is None or not at_need.covers(g) or start_part.covers(g):
         return None
