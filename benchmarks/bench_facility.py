@@ -377,7 +377,7 @@ def main() -> None:
                 proof = impossible[m["key"]]
                 named = (r.get("bottleneck") or {}).get("width", math.nan)
                 r["reason"] = (f"{r.get('reason', '')}: {judge_impossible(r, proof)} (named "
-                               f"{named:.2f} m, proof {proof['width']:.2f} m)")
+                               f"{named:.3f} m, proof {proof['width']:.3f} m)")
             print(f"{m['key']:<50} {tag:<10} {r.get('status', '?'):<13} prep "
                   f"{r.get('prep_s', math.nan):5.2f} s search {r.get('search_s', math.nan):6.2f}"
                   f" s ({r.get('search_cpu', math.nan):6.2f} s CPU) {r.get('peak_mib', 0):5.0f} "
