@@ -29,10 +29,13 @@ The width named
     (the middle of shapely's ``shortest_line`` between them). This is the geometry's own
     width (a door of width ``D`` between square jambs gives ``D``), which the planner's
     "impossible here" must name within ``bench_facility.WIDTH_TOLERANCE`` (2 cm).
-No grid transform is kept as a cross-check: the cell-centre distance transform (scipy's EDT)
-bounds a way only up to ``h / sqrt 2`` less the traced corner's cut (about ``0.36 h``, 3.5 cm
-at 10 cm cells) on the radius, more than the 3.4 cm the office's 0.633 m doors lack of the
-0.70 m needed, so it proves 2 of the 6 office missions and names widths only within a cell.
+No grid transform is kept as a cross-check. The first proof here (scipy's EDT over the
+cells' centres, a blocked cell taken as a disc of ``h / 2``) is not the traced geometry, whose
+corners are cut to about ``0.35 h`` of a blocked centre; with that cell model, the cells a way
+crosses keep only ``r - h / sqrt 2 + 0.35 h`` (0.314 m at 10 cm cells) from blocked centres,
+which joins start and goal for 4 of the 6 office missions (the ways 0.606 and 0.630 m wide lack
+only 3.5-4.7 cm of radius): it would check 2 and name widths only within a cell. The tests
+check each recorded proof by their own erosion instead.
 
 Lengths in metres.
 """
