@@ -33,9 +33,9 @@ No grid transform is kept as a cross-check. The first proof here (scipy's EDT ov
 cells' centres, a blocked cell taken as a disc of ``h / 2``) is not the traced geometry, whose
 corners are cut to about ``0.35 h`` of a blocked centre; with that cell model, the cells a way
 crosses keep only ``r - h / sqrt 2 + 0.35 h`` (0.314 m at 10 cm cells) from blocked centres,
-which joins start and goal for 4 of the 6 office missions (the ways 0.606 and 0.630 m wide lack
-only 3.5-4.7 cm of radius): it would check 2 and name widths only within a cell. The tests
-check each recorded proof by their own erosion instead.
+which joins start and goal for 4 of the 6 office missions (sw_office and w_office, measured):
+it would check only 2, and name widths only within a cell. The tests check each recorded proof
+by their own erosion instead.
 
 Lengths in metres.
 """
