@@ -1,159 +1,169 @@
-"""Proofs that a facility mission is impossible, independent of the planner (issue 34 item 3).
+"""Proofs that a facility mission is impossible, independent of the planner (issue 34 items 3-4).
 
 Usage: python benchmarks/prove_impossible.py [--write]
 
 For every mission of ``benchmarks/facility/missions.toml`` without a witness it tries the proof
-below on the map's occupancy grid (scipy's ``distance_transform_edt`` and ``label``; no distance
-field, route or search of the planner) and prints it; ``--write`` records the missions it proves
-in ``benchmarks/facility/impossible.toml`` (atomically, the file's header kept).
+below on the scenario's World (``pushtrain.mission.runner.world_of``: for a map_server grid, the
+free space traced by ``facility/raster.py``, the geometry the planner and the co-simulation
+check bodies against), with shapely alone (no distance field, route or search of the planner),
+and prints it; ``--write`` records the missions it proves in ``benchmarks/facility/
+impossible.toml`` (atomically, the file's header kept).
 
 The proof (no way of the last trailer's width)
     Wherever the last trailer goes, the disc of radius ``r`` round its axle midpoint (half its
-    width, or less if its rectangle ends nearer, plus its clearance) lies in the free space.
-    Take a point ``p`` of its way and the centre ``c`` of the grid cell holding it
-    (``|p - c| <= h / sqrt 2``). A blocked cell (a square of side ``h``; outside the grid is
-    blocked) whose centre is ``b`` holds the disc of radius ``h / 2`` round ``b``, so
-    ``|c - b| >= dist(c, cell) + h / 2 >= r - h / sqrt 2 + h / 2``. Every cell the axle midpoint
-    crosses is therefore at least ``need = r - 0.207 h`` from every blocked cell's centre (the
-    Euclidean distance transform of the grid), and consecutive cells of a continuous way are
-    8-neighbours. If the cells at ``need`` or more (8-connected) do not join the start's cell
-    to the goal's, the train has no way: impossible, with that clearance, on this map.
+    width, or less if its rectangle ends nearer, plus its clearance: what the planner's
+    ``needed_half_width`` asks, from the Train's geometry and the default clearance) lies in
+    the free space ``F``, so the midpoint stays in ``F`` eroded by ``r``
+    (``F.buffer(-r)``, shapely/GEOS). A continuous way stays in one connected part of it: if
+    the part holding the start does not hold the goal, the train has no way on this map.
+    GEOS draws the eroded set's round corners with chords whose vertices lie on the arcs
+    (``quad_segs = 32``: at most ``r (1 - cos(pi / 128))``, 0.1 mm, inside the exact set's
+    boundary), so the polygon holds the exact eroded set: parts separate in it are separate
+    in the exact one, and the proof never overstates. It erodes by ``r`` less half a
+    millimetre: a way exactly ``2 r`` wide erodes to a line, which GEOS drops.
 The width named
-    The widest way's narrowest place by the same transform: the largest ``m`` such that cells at
-    ``m`` or more join start and goal (a maximin), at the cell of that level nearest to both
-    sides it joins. A cell ``m`` from the nearest blocked centres on both sides lies in an
-    opening ``2 m - h`` (centred) to ``2 m`` (one cell off centre) wide wall to wall:
-    ``width = 2 m - h / 2``, within half a cell. The planner's "impossible here" must name that
-    width within one cell (``bench_facility.py``, ``tests/benchmarks/test_impossible.py``).
+    The widest way's: the largest disc diameter ``2 rho`` whose eroded free space still joins
+    start and goal, by bisection on ``rho`` until the bracket is below half a millimetre
+    (width to 1 mm; eroding the last joined part further, as erosions by discs compose).
+    It is where the start's and the goal's parts come closest at the bracket's upper end
+    (the middle of shapely's ``shortest_line`` between them). This is the geometry's own
+    width (a door of width ``D`` between square jambs gives ``D``), which the planner's
+    "impossible here" must name within ``bench_facility.WIDTH_TOLERANCE`` (2 cm).
+No grid transform is kept as a cross-check. The first proof here (scipy's EDT over the
+cells' centres, a blocked cell taken as a disc of ``h / 2``) is not the traced geometry, whose
+corners are cut to about ``0.35 h`` of a blocked centre; with that cell model, the cells a way
+crosses keep only ``r - h / sqrt 2 + 0.35 h`` (0.314 m at 10 cm cells) from blocked centres,
+which joins start and goal for 4 of the 6 office missions (sw_office and w_office, measured):
+it would check only 2, and name widths only within a cell. The tests check each recorded proof
+by their own erosion instead.
 
-Lengths in metres; a cell (i, j) of the grid is at ``(x0 + j h, y0 + i h)``.
+Lengths in metres.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-from scipy import ndimage
+from shapely import shortest_line
+from shapely.geometry import Point
 
 HERE = Path(__file__).resolve().parent
-_EIGHT = np.ones((3, 3), dtype=bool)
-
+QUAD_SEGS = 32
+"""Chords per quarter circle of the eroded set's round corners (at most 0.1 mm short of the
+arc at 0.35 m)."""
+PRECISION = 0.0005
+"""Bisection bracket on the radius [m] (the width to 1 mm)."""
+REBASE = 0.01
+"""Below this bracket [m] the bisection erodes one fixed part (each erosion of an eroded set
+draws its round corners again, and the vertices, so the time, grow with every step)."""
 HEADER = """\
 # Missions of the facility benchmark shown impossible, each with its proof: computed by
-# benchmarks/prove_impossible.py from the map's occupancy grid with scipy's
-# distance_transform_edt, independently of the planner (issue 34 item 3; the proof is in that
-# script's docstring). `width` [m] is the widest way's narrowest opening wall to wall (within
-# half a cell), at `at` [x, y m]; `needed` [m] what the last trailer and its clearance need;
-# `cell` [m] the map's cell. Written by `python benchmarks/prove_impossible.py --write`.
+# benchmarks/prove_impossible.py on the scenario's World (the free space traced from the map's
+# grid, which the planner and the co-simulation check against) with shapely, independently of
+# the planner (issue 34 items 3-4; the proof is in that script's docstring). `width` [m] is
+# the widest disc that joins start and goal (to 1 mm, bisection of the erosion's radius), its
+# narrowest place at `at` [x, y m]; `needed` [m] the disc the last trailer and its clearance
+# need. Written by `python benchmarks/prove_impossible.py --write`.
 """
 
 
 @dataclass(frozen=True)
 class Proof:
-    """No way of the last trailer from ``start`` to ``goal``: ``width`` [m] of the widest way's
-    narrowest opening at ``(x, y)`` [m], ``needed`` [m] (twice the disc radius), ``cell`` [m]."""
+    """No way of the last trailer from the start to the goal: ``width`` [m], the widest disc
+    that joins them (0 if no way at all), narrowest at ``(x, y)`` [m]; ``needed`` [m], the
+    disc the last trailer and its clearance need."""
 
     width: float
     x: float
     y: float
     needed: float
-    cell: float
-    level: float
-    best: float
 
     def reason(self) -> str:
-        h = self.cell
-        return (f"every way passes an opening at ({self.x:.2f}, {self.y:.2f}) "
-                f"{self.width - 0.5 * h:.2f}-{self.width + 0.5 * h:.2f} m wide wall to wall (the "
-                f"best of its cells is {self.best:.3f} m from the nearest blocked cell's centre, "
-                f"scipy distance_transform_edt of the grid); the last trailer and its clearance "
-                f"need {self.needed:.2f} m: its axle midpoint would cross only cells at least "
-                f"{self.level:.3f} m from every blocked centre, and those join no way from the "
-                "start to the goal")
+        if self.width == 0.0:
+            return ("start and goal lie in separate parts of the map's free space (shapely): no "
+                    "way at all")
+        return (f"the widest way narrows at ({self.x:.2f}, {self.y:.2f}) to {self.width:.3f} m "
+                f"(the largest disc that joins start and goal through the map's free space, "
+                f"shapely erosion bisected to 1 mm); the last trailer and its clearance need "
+                f"{self.needed:.3f} m: the free space eroded by "
+                f"{0.5 * self.needed - PRECISION:.4f} m leaves the start and the goal in "
+                "separate parts")
 
     def to_toml(self, key: str) -> str:
         return (f'[impossible."{key}"]\nreason = "{self.reason()}"\n'
                 f"width = {self.width:.3f}\nat = [{self.x:.2f}, {self.y:.2f}]\n"
-                f"needed = {self.needed:.3f}\ncell = {self.cell:g}\n")
+                f"needed = {self.needed:.3f}\n")
 
 
-def transform(blocked: np.ndarray, h: float) -> np.ndarray:
-    """Distance [m] of every cell's centre from the nearest blocked cell's centre (outside the
-    grid blocked): scipy's exact Euclidean distance transform."""
-    return ndimage.distance_transform_edt(np.pad(~blocked, 1))[1:-1, 1:-1] * h
+def _parts(geom):
+    return getattr(geom, "geoms", (geom,))
 
 
-def _joined(edt: np.ndarray, a, b, level: float) -> bool:
-    labels, _ = ndimage.label(edt >= level, structure=_EIGHT)
-    return bool(labels[a] > 0 and labels[a] == labels[b])
+def part_holding(geom, point: Point):
+    """The connected part (a Polygon) of ``geom`` that holds ``point``, or None."""
+    for part in _parts(geom):
+        if not part.is_empty and part.covers(point):
+            return part
+    return None
 
 
-def maximin(edt: np.ndarray, a, b) -> float | None:
-    """The largest ``m`` [m] such that cells at ``m`` or more join cells ``a`` and ``b``
-    (8-connected); None if no free cells join them."""
-    values = np.unique(edt[edt > 0])
-    if not _joined(edt, a, b, values[0]):
-        return None
-    lo, hi = 0, values.size - 1
-    while lo < hi:
-        mid = (lo + hi + 1) // 2
-        if _joined(edt, a, b, values[mid]):
-            lo = mid
-        else:
-            hi = mid - 1
-    return float(values[lo])
+def eroded(geom, radius: float):
+    """``geom`` eroded by a disc of ``radius`` [m] (a superset of the exact set by at most
+    0.1 mm, see the module docstring)."""
+    return geom.buffer(-radius, quad_segs=QUAD_SEGS)
 
 
-def _place(edt: np.ndarray, a, b, m: float) -> tuple[int, int]:
-    """The cell at level ``m`` the widest way crosses nearest to both pieces it joins."""
-    low, _ = ndimage.label(edt >= m, structure=_EIGHT)
-    high, _ = ndimage.label(edt > m, structure=_EIGHT)
-    narrow = (low == low[a]) & (edt <= m)
-    score = np.zeros(edt.shape)
-    for end in (a, b):
-        side = high == high[end] if high[end] > 0 else np.zeros(edt.shape, dtype=bool)
-        side[end] = True
-        score += ndimage.distance_transform_edt(~side)
-    score[~narrow] = np.inf
-    ti, tj = np.nonzero(score <= score.min() + 1e-9)
-    k = int(np.argmin((ti - ti.mean()) ** 2 + (tj - tj.mean()) ** 2))
-    return int(ti[k]), int(tj[k])
-
-
-def prove(grid, start, goal, radius: float) -> Proof | None:
+def prove(free, start, goal, radius: float) -> Proof | None:
     """The proof (module docstring) that no disc of ``radius`` [m] goes from ``start`` to
-    ``goal`` (x, y, ...) [m] on ``grid`` (an OccupancyGrid: ``blocked``, ``x0``, ``y0``,
-    ``resolution``), or None where it does not hold (or an end has not that room itself)."""
-    h = grid.resolution
-    edt = transform(grid.blocked, h)
-    a, b = grid.cell_of(*start[:2]), grid.cell_of(*goal[:2])
-    level = radius - h / math.sqrt(2.0) + 0.5 * h
-    if a is None or b is None or min(edt[a], edt[b]) < level or _joined(edt, a, b, level):
+    ``goal`` (x, y, ...) [m] through ``free`` (a shapely (Multi)Polygon: a World's ``free``),
+    or None where it does not hold (or an end has not that room itself)."""
+    s, g = Point(start[:2]), Point(goal[:2])
+    piece = part_holding(free, s)
+    if piece is None or not free.covers(g):
+        return None  # an end inside an obstacle: not a question of the way
+    if not piece.covers(g):  # no way at all: separate parts of the map
+        return Proof(0.0, float(g.x), float(g.y), 2.0 * radius)
+    at_need = eroded(piece, radius - PRECISION)  # a way exactly the disc's width passes:
+    # eroded by the full radius it is a line, which GEOS drops
+    start_part = part_holding(at_need, s)
+    if start_part is None or not at_need.covers(g) or start_part.covers(g):
         return None
-    m = maximin(edt, a, b)
-    if m is None:  # no free way at all: separate parts of the map
-        i, j = b
-        return Proof(0.0, grid.x0 + h * j, grid.y0 + h * i, 2 * radius, h, level, 0.0)
-    i, j = _place(edt, a, b, m)
-    return Proof(2.0 * m - 0.5 * h, grid.x0 + h * j, grid.y0 + h * i, 2.0 * radius, h, level, m)
+    lo, hi = 0.0, radius
+    base, base_lo = piece, 0.0  # the part holding both at radius base_lo <= lo
+    while hi - lo > PRECISION:
+        mid = 0.5 * (lo + hi)
+        part = part_holding(eroded(base, mid - base_lo), s)  # erosions by discs compose
+        if part is not None and part.covers(g):
+            lo = mid
+            if hi - lo > REBASE:  # eroding an eroded part again adds vertices: only while coarse
+                base, base_lo = part, mid
+        else:
+            hi = mid
+    split = eroded(base, hi - base_lo)
+    a, b = part_holding(split, s), part_holding(split, g)
+    if a is None or b is None:  # an end lost its room above lo: name the end
+        x, y = (s.x, s.y) if a is None else (g.x, g.y)
+    else:
+        x, y = shortest_line(a, b).interpolate(0.5, normalized=True).coords[0]
+    return Proof(round(2.0 * lo, 3), float(x), float(y), 2.0 * radius)
 
 
 def disc_radius(train, clearance: float) -> float:
     """The last trailer's disc [m]: half its width, or less if its rectangle ends nearer (its
-    axle midpoint ``offset`` from its centre), plus ``clearance``."""
+    axle midpoint ``offset`` from its centre), plus ``clearance`` (the planner's
+    ``needed_half_width``, written here again so that the proof uses no planner code)."""
     last = train.last
     return min(0.5 * last.width, 0.5 * last.length - abs(last.offset)) + float(clearance)
 
 
-def prove_mission(mission: dict) -> Proof | None:
-    """:func:`prove` for a map mission of bench_facility at the scenario's defaults (its
-    train and the last trailer's default clearance)."""
+def mission_world_and_radius(mission: dict):
+    """The scenario's World and the last trailer's disc radius [m] at the scenario's defaults
+    (its train and the last trailer's default clearance), or None for a mission without a
+    map grid."""
     if "grid" not in mission:
         return None
     from bench_facility import scenario_of
@@ -163,10 +173,17 @@ def prove_mission(mission: dict) -> Proof | None:
 
     sc = scenario_of(mission, None)
     train = runner.train_of(sc)
-    world = runner.world_of(sc)
     clearance = float(PlannerConfig().margins(train)[-1])
-    return prove(world.occupancy, mission["start"], mission["goal"],
-                 disc_radius(train, clearance))
+    return runner.world_of(sc), disc_radius(train, clearance)
+
+
+def prove_mission(mission: dict) -> Proof | None:
+    """:func:`prove` for a map mission of bench_facility at the scenario's defaults."""
+    found = mission_world_and_radius(mission)
+    if found is None:
+        return None
+    world, radius = found
+    return prove(world.free, mission["start"], mission["goal"], radius)
 
 
 def main() -> None:
@@ -175,12 +192,20 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--write", action="store_true", help="record the proofs in impossible.toml")
     args = ap.parse_args()
-    entries = []
+    entries, done = [], {}
     for m in bench_facility.load_missions():
         if bench_facility.witness_of(m).exists():
             continue
-        proof = prove_mission(m)
-        print(f"{m['key']}: {'impossible: ' + proof.reason() if proof else 'no proof'}")
+        found = mission_world_and_radius(m)
+        proof = None
+        if found is not None:
+            world, radius = found
+            key = (m["grid"], tuple(m["start"][:2]), tuple(m["goal"][:2]), radius)
+            if key not in done:  # n = 1 and n = 3 share the last trailer
+                done[key] = prove(world.free, m["start"], m["goal"], radius)
+            proof = done[key]
+        print(f"{m['key']}: {'impossible: ' + proof.reason() if proof else 'no proof'}",
+              flush=True)
         if proof is not None:
             entries.append(proof.to_toml(m["key"]))
     if args.write:
