@@ -28,7 +28,7 @@ The width named
     It is where the start's and the goal's parts come closest at the bracket's upper end
     (the middle of shapely's ``shortest_line`` between them). This is the geometry's own
     width (a door of width ``D`` between square jambs gives ``D``), which the planner's
-    "impossible here" must name within ``bench_facility.WIDTH_TOLERANCE`` (2 cm).
+    "impossible here" must name within ``bench_facility.WIDTH_TOLERANCE`` (5 cm).
 No grid transform is kept as a cross-check. The first proof here (scipy's EDT over the
 cells' centres, a blocked cell taken as a disc of ``h / 2``) is not the traced geometry, whose
 corners are cut to about ``0.35 h`` of a blocked centre; with that cell model, the cells a way
