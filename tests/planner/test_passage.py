@@ -496,6 +496,40 @@ def test_a_door_off_a_wide_corridor_is_measured_and_not_too_tight():
     assert door[0].width == pytest.approx(2.0, abs=0.02) and not door[0].too_tight
 
 
+def test_the_quick_screen_keeps_a_door_too_tight_at_a_wide_radius_as_the_full_measure_does():
+    """A 1.3 m corridor, the room below it through a 1.1 m door in a 0.4 m wall, the goal down
+    and to the right: the route turns about 72 deg into the door. On arcs of 3 m the steady
+    turn (corner_need) fits the corridor, lining up with the door (door_need) does not: the
+    quick path turnable_route uses (only_too_tight) keeps that corner with the full measure's
+    numbers (it measured the door on chords within 20 deg of the legs' normals, and missed
+    it: the corner came back as a plain one, needing only corner_need)."""
+    from shapely.geometry import box
+    from shapely.ops import unary_union
+
+    from pushtrain.facility.free_space import World
+    from pushtrain.planner.passage import corner_need, door_need, swept_band, tight_corners
+    from pushtrain.planner.route import find_route
+
+    free = unary_union([box(0.0, 5.0, 16.0, 6.3), box(8.0, 0.0, 16.0, 4.6),
+                        box(10.0, 4.55, 11.1, 5.05)])
+    world = World(free.envelope, (free.envelope.difference(free),))
+    field = world.distance_field()
+    train, config = Train.uniform(3), PlannerConfig()
+    margins = config.margins(train)
+    route = find_route(field, (4.5, 5.65), (14.0, 3.0), 0.35)
+    band = swept_band(train, 3.0, margins)
+    doors = [c for c in tight_corners(route, field, band, band)
+             if c.door is not None and math.radians(60.0) <= c.turn <= math.radians(80.0)]
+    assert doors and doors[0].too_tight
+    corner = doors[0]
+    assert corner.door.width == pytest.approx(1.1, abs=0.02)
+    assert corner.door.wall == pytest.approx(0.4, abs=0.06)
+    assert corner.width == pytest.approx(1.3, abs=0.02)
+    assert corner_need(band, corner.turn) < 1.3 - 0.05 and door_need(band, 1.1, 0.4) > 1.3 + 0.2
+    quick = tight_corners(route, field, band, band, only_too_tight=True)
+    assert corner in quick
+
+
 def test_a_door_on_a_public_map_is_never_named_narrower_than_the_way_through_it():
     """The office's door at (7.7, 42.0) off the west corridor, in a ragged 0.3 m wall: a chord
     through a route point near its jamb is 0.70 m, but the widest way through it is wider.
