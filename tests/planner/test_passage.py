@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from reference.chords import chord as reference_chord
+from reference.chords import shortest_chord as reference_shortest_chord
 from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
@@ -353,23 +355,38 @@ def test_no_failure_names_a_passage_narrower_than_the_maps(monkeypatch):
 
 
 @pytest.mark.parametrize("name", MAPS)
-def test_the_shortest_chord_is_the_narrowest_width_across_of_its_directions(name):
-    """shortest_chord looks every direction up at once, near the point first: the same number
-    as measuring each of its 36 directions alone (width_across), at points of a public map in
-    rooms, corridors, doors, walls and outside it, for short and long reaches."""
-    from pushtrain.planner.passage import shortest_chord, width_across
+def test_chords_are_the_walk_out_from_the_point_of_the_scalar_reference(name):
+    """chords (all points and directions at once), width_across and shortest_chord(s) against
+    tests/reference/chords.py (one chord at a time: walk out sample by sample until the field
+    is <= 0, the zero crossing interpolated), at points of a public map in rooms, corridors,
+    doors, walls and outside it, for short and long reaches."""
+    from pushtrain.planner.passage import (
+        CHORD_DIRECTIONS,
+        chords,
+        shortest_chord,
+        shortest_chords,
+        width_across,
+    )
 
     field = map_world(grid=str(PUBLIC / f"{name}.yaml")).distance_field()
     x0, y0, x1, y1 = field.bounds
     rng = np.random.default_rng(7)
+    xs, ys = rng.uniform(x0 - 1.0, x1 + 1.0, 40), rng.uniform(y0 - 1.0, y1 + 1.0, 40)
     positive = 0
-    for x, y in zip(rng.uniform(x0 - 1.0, x1 + 1.0, 60), rng.uniform(y0 - 1.0, y1 + 1.0, 60),
-                    strict=True):
-        for reach in (0.3, 2.5):
-            each = min(width_across(field, x, y, th, reach)
-                       for th in np.linspace(0.0, math.pi, 36, endpoint=False))
-            assert shortest_chord(field, x, y, reach) == each
-            positive += each > 0.0
+    for reach in (0.3, 2.5):
+        every = chords(field, xs, ys, CHORD_DIRECTIONS, reach)
+        shortest = shortest_chords(field, xs, ys, reach)
+        for p, (x, y) in enumerate(zip(xs, ys, strict=True)):
+            expected = [reference_chord(field, x, y, th, reach) for th in CHORD_DIRECTIONS]
+            np.testing.assert_allclose(every[p], expected, rtol=0.0, atol=1e-12)
+            th = CHORD_DIRECTIONS[p % CHORD_DIRECTIONS.size]
+            assert width_across(field, x, y, th, reach) == pytest.approx(
+                reference_chord(field, x, y, th, reach), rel=0.0, abs=1e-12)
+            narrowest = reference_shortest_chord(field, x, y, reach)
+            assert shortest[p] == pytest.approx(narrowest, rel=0.0, abs=1e-12)
+            assert shortest_chord(field, x, y, reach) == pytest.approx(narrowest, rel=0.0,
+                                                                       abs=1e-12)
+            positive += narrowest > 0.0
     assert positive > 10  # not only walls and outside
 
 
