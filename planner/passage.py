@@ -462,8 +462,9 @@ class Corner:
             return self._door_text()
         text = (f"at ({self.x:.2f}, {self.y:.2f}): the route turns "
                 f"{math.degrees(self.turn):.0f} deg where the way is {self.width:.2f} m wide "
-                f"(its narrowest within 1.5 m of the corner); on arcs of the planner's radius "
-                f"{band.radius:.2f} m the train sweeps a {band.width:.2f} m band (radii "
+                "(the narrowest chord across the route within 1.5 m of the corner, or the "
+                "widest way through the corner where that is wider); on arcs of the planner's "
+                f"radius {band.radius:.2f} m the train sweeps a {band.width:.2f} m band (radii "
                 f"{band.r_in:.2f} to {band.r_out:.2f} m, clearances included), so this corner "
                 f"needs {self.needed:.2f} m of corridor")
         if self.width < self.needed_tightest:
