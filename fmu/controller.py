@@ -3,7 +3,8 @@
 The FMU compiles the engine's control instant, the files ``core/csrc`` declares for it
 (:func:`pushtrain.core.native.engine_files` ``("instant")``: the one control law, reference and
 pull guide of ``control.c``, held equal to the tests' readable ``tests/reference/``, the
-sensor model ``sensors.c`` and the step's tracking errors ``step.c``; this module's one
+speed governor ``governor.c``, the open-loop profiles ``openloop.c``, the sensor model
+``sensors.c`` and the step's tracking errors ``step.c``; this module's one
 dependency on core, with :class:`~pushtrain.core.segment.Segment`), with the plant's FMI glue
 (``fmu/src``: ``instance.c`` under ``fmi2.c``, see ``fmu_model.h``), the controller's model in
 ``fmu/controller_src`` (its variables, the mission table) and the files rendered from

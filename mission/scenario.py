@@ -347,6 +347,9 @@ def _implausible(sc: "Scenario") -> list[tuple[str, object, str]]:
         _bound_problem("robot.alpha_max_deg", "robot_alpha_max", r.alpha_max_deg, deg=True),
         _bound_problem("robot.w_max_deg", "robot.w_max", r.w_max_deg, deg=True),
         _bound_problem("train.phi_max_deg", "phi_max", t.phi_max_deg, deg=True),
+        _bound_problem("rotation.w_max_deg", "rotation.w_max", sc.rotation.w_max_deg, deg=True),
+        _bound_problem("rotation.alpha_deg", "rotation.alpha", sc.rotation.alpha_deg, deg=True),
+        _bound_problem("rotation.hold", "rotation.hold", sc.rotation.hold),
     ]
     problems += [_bound_problem(w, "map.coordinate", v) for w, v in _coordinates(sc)]
     problems += [_bound_problem(w, "planner.clearance", v)

@@ -61,6 +61,7 @@ Lengths in metres, angles in radians. Node (i, j) of a
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 from dataclasses import dataclass
@@ -372,6 +373,19 @@ def _door(route, field: DistanceField, sc: float, offsets, widths) -> Door | Non
     return Door(float(x), float(y), float(width), depth, corridor)
 
 
+def _door_need_at_least(band: SweptBand, lower: float) -> float:
+    """A lower bound [m] of the corridor a door found where every chord is at least ``lower``
+    [m] wide may need: :func:`door_need` of a door ``lower`` wide (rounded down to 1 cm; a
+    door is at least its narrowest chord wide, and a wider door needs less) in a 0.5 m wall
+    (the thickest :func:`_door` takes; a thicker wall needs more)."""
+    return _door_need_cached(band, math.floor(100.0 * lower) / 100.0)
+
+
+@functools.lru_cache(maxsize=256)
+def _door_need_cached(band: SweptBand, door: float) -> float:
+    return door_need(band, door, 0.5)
+
+
 def _crop(field: DistanceField, x: float, y: float, half: float) -> DistanceField:
     """The nodes of ``field`` within ``half`` [m] of (x, y) (a square), as a field."""
     h = field.resolution
@@ -448,8 +462,9 @@ class Corner:
             return self._door_text()
         text = (f"at ({self.x:.2f}, {self.y:.2f}): the route turns "
                 f"{math.degrees(self.turn):.0f} deg where the way is {self.width:.2f} m wide "
-                f"(its narrowest within 1.5 m of the corner); on arcs of the planner's radius "
-                f"{band.radius:.2f} m the train sweeps a {band.width:.2f} m band (radii "
+                "(the narrowest chord across the route within 1.5 m of the corner, or the "
+                "widest way through the corner where that is wider); on arcs of the planner's "
+                f"radius {band.radius:.2f} m the train sweeps a {band.width:.2f} m band (radii "
                 f"{band.r_in:.2f} to {band.r_out:.2f} m, clearances included), so this corner "
                 f"needs {self.needed:.2f} m of corridor")
         if self.width < self.needed_tightest:
@@ -528,26 +543,27 @@ def tight_corners(route, field: DistanceField, band: SweptBand, tightest: SweptB
         # wall to wall, through the route's points every 5 cm (a door in a thin wall is only
         # a few centimetres of a leg)
         offsets = np.arange(-1.5 * window, 1.5 * window + 1e-9, 0.05)
+        door_like = abs(turn - 0.5 * math.pi) <= math.radians(30.0)
         if only_too_tight:
             # between the route's points (d is 1-Lipschitz) and to a sample of the field
             near = np.abs(s - sc) <= 1.5 * window + 1e-9
             spacing = float(np.max(np.diff(s))) if s.size > 1 else 0.0
             lower = 2.0 * (float(route.half_width[near].min()) - 0.5 * spacing
                            - field.resolution)
-            if lower >= corner_need(band, turn):
+            if lower >= corner_need(band, turn) and not (
+                    door_like and lower < _door_need_at_least(band, lower)):
                 continue
         legs = np.array([route.pose_at(sc + ds) for ds in offsets])
-        if only_too_tight:
+        if only_too_tight and not door_like:
             # across the legs only (within 20 deg of their normals), a little farther than
             # the need: widths no smaller than the full measure's, the same where too tight
             across = legs[:, 2:3] + np.radians(np.arange(-20.0, 20.1, 5.0))[None, :]
             widths = chords(field, legs[:, 0], legs[:, 1], across,
                             corner_need(band, turn) + 0.5).min(axis=1)
-        else:
+        else:  # (a door is found, and measured, on the same widths in both modes)
             widths = shortest_chords(field, legs[:, 0], legs[:, 1])
         x, y, _ = route.pose_at(sc)
-        door = (_door(route, field, sc, offsets, widths)
-                if abs(turn - 0.5 * math.pi) <= math.radians(30.0) else None)
+        door = _door(route, field, sc, offsets, widths) if door_like else None
         if door is not None:  # a door off a corridor: the corridor in front of it decides
             corners.append(Corner(door.x, door.y, min(turn, math.pi), door.corridor,
                                   door_need(band, door.width, door.wall),

@@ -98,6 +98,14 @@ SCENARIO_BOUNDS: dict[str, Bound] = {
         Bound("robot.w_max", 1e-3, 10.0, "rad/s",
               "below 1 mrad/s the robot hardly turns; over 10 rad/s is not a robot "
               "pushing trailers"),
+        Bound("rotation.w_max", 1e-3, 10.0, "rad/s",
+              "the rotation's peak yaw rate: below 1 mrad/s the robot hardly turns; over "
+              "10 rad/s is not a robot pushing trailers"),
+        Bound("rotation.alpha", 1e-3, 1e4, "rad/s2",
+              "the rotation's yaw acceleration: below 1 mrad/s2 one ramp to the peak lasts "
+              "hours; 1e4 rad/s2 reaches 10 rad/s in 1 ms"),
+        Bound("rotation.hold", 0.0, 86400.0, "s",
+              "a swing that holds its peak yaw rate longer than a day is not a swing"),
         Bound("controller.gain", 1e-3, 1e3, "",
               "Kanayama's gains (1/s, 1/m2, 1/m): gains over 1e3 demand responses far "
               "beyond the robot's 5 ms loop, under 1e-3 do nothing"),

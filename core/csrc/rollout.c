@@ -1,6 +1,7 @@
 /*
- * The fast closed-loop integrator (see rollout.h): planner/train_check.py's simulate_tracking
- * in C, with the same order of floating-point operations, plus the body checks.
+ * The fast closed-loop integrator (see rollout.h): the loop core.engine.simulate runs (its
+ * readable twin tests/reference/closed_loop.py, the same order of floating-point operations),
+ * plus the body checks.
  */
 #include <math.h>
 #include <stddef.h>

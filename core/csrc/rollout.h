@@ -1,7 +1,8 @@
 /*
  * The fast closed-loop integrator: the controller of control.h in closed loop with the
- * kinematic chain, as planner/train_check.py's simulate_tracking runs it, plus optional checks
- * of every body along the way with an early exit at the first violation.
+ * kinematic chain, as core.engine.simulate runs it (its readable twin
+ * tests/reference/closed_loop.py), plus optional checks of every body along the way with an
+ * early exit at the first violation.
  *
  * Control instants t_k = t_start + k step. At each: sample the last trailer's reference (and,
  * while pulling, the robot's own reference from the leader table), ask pt_command for (v0, w0)

@@ -69,6 +69,9 @@ BOUNDED_FIELDS = [
     ("sim.horizon", "sim.horizon", 1.0),
     ("controller.k_y", "controller.gain", 1.0),
     ("train.trailer_size", "body.size", 1.0),
+    ("rotation.w_max_deg", "rotation.w_max", math.pi / 180),
+    ("rotation.alpha_deg", "rotation.alpha", math.pi / 180),
+    ("rotation.hold", "rotation.hold", 1.0),
 ]
 
 
@@ -142,6 +145,24 @@ def test_validate_exits_2_naming_the_field(tmp_path, text, field):
     done = CliRunner().invoke(cli, ["validate", str(path)])
     assert done.exit_code == 2, done.output
     assert field in done.output and "Traceback" not in done.output
+
+
+@pytest.mark.parametrize("field, value", [
+    ("alpha_deg", "1e-310"),  # w_max / alpha overflowed: the swing's table got t = inf
+    ("alpha_deg", "1e308"), ("w_max_deg", "1e308"), ("w_max_deg", "1e-310"), ("hold", "1e308"),
+])
+def test_a_rotation_out_of_range_exits_2_naming_the_field_not_a_traceback(tmp_path, field, value):
+    """plan-and-run of a rotation mission with an absurd (but positive, finite) yaw rate,
+    acceleration or hold: exit 2 naming rotation.<field>, the value and the allowed range."""
+    path = tmp_path / "rotation.toml"
+    path.write_text(f"[mission]\nkind = 'rotation'\n[rotation]\n{field} = {value}\n"
+                    "duration = 1.0\n")
+    done = CliRunner().invoke(cli, ["plan-and-run", str(path), "--out", str(tmp_path / "o"),
+                                    "--no-plots"])
+    assert done.exit_code == 2, done.output
+    assert f"rotation.{field} = {float(value):g}" in done.output, done.output
+    assert "allowed" in done.output and "Traceback" not in done.output
+    assert not (tmp_path / "o").exists()
 
 
 # The bound test above checks each field against the table it is computed from, so it cannot

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from reference.chords import chord as reference_chord
+from reference.chords import shortest_chord as reference_shortest_chord
 from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
@@ -353,23 +355,38 @@ def test_no_failure_names_a_passage_narrower_than_the_maps(monkeypatch):
 
 
 @pytest.mark.parametrize("name", MAPS)
-def test_the_shortest_chord_is_the_narrowest_width_across_of_its_directions(name):
-    """shortest_chord looks every direction up at once, near the point first: the same number
-    as measuring each of its 36 directions alone (width_across), at points of a public map in
-    rooms, corridors, doors, walls and outside it, for short and long reaches."""
-    from pushtrain.planner.passage import shortest_chord, width_across
+def test_chords_are_the_walk_out_from_the_point_of_the_scalar_reference(name):
+    """chords (all points and directions at once), width_across and shortest_chord(s) against
+    tests/reference/chords.py (one chord at a time: walk out sample by sample until the field
+    is <= 0, the zero crossing interpolated), at points of a public map in rooms, corridors,
+    doors, walls and outside it, for short and long reaches."""
+    from pushtrain.planner.passage import (
+        CHORD_DIRECTIONS,
+        chords,
+        shortest_chord,
+        shortest_chords,
+        width_across,
+    )
 
     field = map_world(grid=str(PUBLIC / f"{name}.yaml")).distance_field()
     x0, y0, x1, y1 = field.bounds
     rng = np.random.default_rng(7)
+    xs, ys = rng.uniform(x0 - 1.0, x1 + 1.0, 40), rng.uniform(y0 - 1.0, y1 + 1.0, 40)
     positive = 0
-    for x, y in zip(rng.uniform(x0 - 1.0, x1 + 1.0, 60), rng.uniform(y0 - 1.0, y1 + 1.0, 60),
-                    strict=True):
-        for reach in (0.3, 2.5):
-            each = min(width_across(field, x, y, th, reach)
-                       for th in np.linspace(0.0, math.pi, 36, endpoint=False))
-            assert shortest_chord(field, x, y, reach) == each
-            positive += each > 0.0
+    for reach in (0.3, 2.5):
+        every = chords(field, xs, ys, CHORD_DIRECTIONS, reach)
+        shortest = shortest_chords(field, xs, ys, reach)
+        for p, (x, y) in enumerate(zip(xs, ys, strict=True)):
+            expected = [reference_chord(field, x, y, th, reach) for th in CHORD_DIRECTIONS]
+            np.testing.assert_allclose(every[p], expected, rtol=0.0, atol=1e-12)
+            th = CHORD_DIRECTIONS[p % CHORD_DIRECTIONS.size]
+            assert width_across(field, x, y, th, reach) == pytest.approx(
+                reference_chord(field, x, y, th, reach), rel=0.0, abs=1e-12)
+            narrowest = reference_shortest_chord(field, x, y, reach)
+            assert shortest[p] == pytest.approx(narrowest, rel=0.0, abs=1e-12)
+            assert shortest_chord(field, x, y, reach) == pytest.approx(narrowest, rel=0.0,
+                                                                       abs=1e-12)
+            positive += narrowest > 0.0
     assert positive > 10  # not only walls and outside
 
 
@@ -494,6 +511,40 @@ def test_a_door_off_a_wide_corridor_is_measured_and_not_too_tight():
     assert len(door) == 1 and math.dist((door[0].x, door[0].y), door_middle) < 0.3
     assert door[0].door.width == pytest.approx(0.9, abs=0.02)
     assert door[0].width == pytest.approx(2.0, abs=0.02) and not door[0].too_tight
+
+
+def test_the_quick_screen_keeps_a_door_too_tight_at_a_wide_radius_as_the_full_measure_does():
+    """A 1.3 m corridor, the room below it through a 1.1 m door in a 0.4 m wall, the goal down
+    and to the right: the route turns about 72 deg into the door. On arcs of 3 m the steady
+    turn (corner_need) fits the corridor, lining up with the door (door_need) does not: the
+    quick path turnable_route uses (only_too_tight) keeps that corner with the full measure's
+    numbers (it measured the door on chords within 20 deg of the legs' normals, and missed
+    it: the corner came back as a plain one, needing only corner_need)."""
+    from shapely.geometry import box
+    from shapely.ops import unary_union
+
+    from pushtrain.facility.free_space import World
+    from pushtrain.planner.passage import corner_need, door_need, swept_band, tight_corners
+    from pushtrain.planner.route import find_route
+
+    free = unary_union([box(0.0, 5.0, 16.0, 6.3), box(8.0, 0.0, 16.0, 4.6),
+                        box(10.0, 4.55, 11.1, 5.05)])
+    world = World(free.envelope, (free.envelope.difference(free),))
+    field = world.distance_field()
+    train, config = Train.uniform(3), PlannerConfig()
+    margins = config.margins(train)
+    route = find_route(field, (4.5, 5.65), (14.0, 3.0), 0.35)
+    band = swept_band(train, 3.0, margins)
+    doors = [c for c in tight_corners(route, field, band, band)
+             if c.door is not None and math.radians(60.0) <= c.turn <= math.radians(80.0)]
+    assert doors and doors[0].too_tight
+    corner = doors[0]
+    assert corner.door.width == pytest.approx(1.1, abs=0.02)
+    assert corner.door.wall == pytest.approx(0.4, abs=0.06)
+    assert corner.width == pytest.approx(1.3, abs=0.02)
+    assert corner_need(band, corner.turn) < 1.3 - 0.05 and door_need(band, 1.1, 0.4) > 1.3 + 0.2
+    quick = tight_corners(route, field, band, band, only_too_tight=True)
+    assert corner in quick
 
 
 def test_a_door_on_a_public_map_is_never_named_narrower_than_the_way_through_it():

@@ -293,7 +293,7 @@ def test_the_route_keeps_off_a_corner_the_train_cannot_turn():
     the wide column instead, and none of its corners is too tight; with the wide way shut the
     tight corner is the only way, and the route keeps it."""
     from pushtrain.planner.passage import swept_band, tight_corners
-    from pushtrain.planner.whole_train import turnable_route
+    from pushtrain.planner.turnable import turnable_route
 
     world, start, goal = _two_ways()
     field = world.distance_field()
