@@ -82,7 +82,8 @@ def failed_plan(tmp_path_factory):
     base = tmp_path_factory.mktemp("slit")
     (base / "slit.toml").write_text(SLIT)
     proc = _cli("plan-and-run", str(base / "slit.toml"), "--out", str(base / "run"))
-    assert proc.returncode == 1, proc.stdout + proc.stderr  # no plan: exit 1 (README)
+    # no way through the slit, proven before any search: bad input, exit 2 (README)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
     return base / "run"
 
 
