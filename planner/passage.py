@@ -412,8 +412,21 @@ def shortest_chords(field: DistanceField, x, y, reach: float = 2.5) -> np.ndarra
     """The shortest chord [m] through each point (x, y) (P,), wall to wall, over
     :data:`CHORD_DIRECTIONS`: a corridor's or a door's width wherever in it the point is (at
     least twice the point's distance from the walls); chords longer than ``2 reach`` count as
-    ``2 reach``."""
-    return chords(field, x, y, CHORD_DIRECTIONS, reach).min(axis=1)
+    ``2 reach``. Points are measured a few at a time, so that the samples of one call to the
+    field stay under about :data:`CHORD_SAMPLES` (memory: a 2 cm map's chords have 500 samples
+    each)."""
+    x = np.atleast_1d(np.asarray(x, dtype=float))
+    y = np.atleast_1d(np.asarray(y, dtype=float))
+    per_point = CHORD_DIRECTIONS.size * (2.0 * reach / (0.5 * field.resolution) + 2.0)
+    step = max(1, int(CHORD_SAMPLES // per_point))
+    return np.concatenate([chords(field, x[k:k + step], y[k:k + step], CHORD_DIRECTIONS,
+                                  reach).min(axis=1) for k in range(0, x.size, step)]
+                          or [np.zeros(0)])
+
+
+CHORD_SAMPLES = 200_000
+"""About the most samples :func:`shortest_chords` looks up in one call to the field (each
+costs some 15 float arrays of that size while it is measured: about 25 MB)."""
 
 
 def shortest_chord(field: DistanceField, x: float, y: float, reach: float = 2.5) -> float:
