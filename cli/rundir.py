@@ -45,6 +45,10 @@ def default_folder(name: str) -> Path:
 
 
 def _status_of(exc: PushtrainError, exit_code: int) -> str:
+    if isinstance(exc, PlanningError) and exc.details.get("impossible"):
+        # bad input (exit 2), but a failed plan all the same: its page, picture and bag
+        # (export-bag reads the status) show where no way of the train's width goes
+        return STATUS_PLANNING_FAILED
     if exit_code == EXIT_BAD_INPUT:
         return STATUS_INVALID
     return STATUS_PLANNING_FAILED if isinstance(exc, PlanningError) else STATUS_FAILED

@@ -167,18 +167,21 @@ def test_plan_and_run_console_script_with_overrides(runner, tmp_path):
 def test_a_goal_no_way_reaches_exits_2_with_a_diagnostic_picture(runner, tmp_path):
     """A wall across the L's second leg: no way joins start and goal, proven from the map
     before any search ("impossible here"): the scenario asks for the impossible, which is bad
-    input (exit 2), and the failure's picture and page are written."""
+    input (exit 2), and the failure's picture, page and bag are written."""
     text = (EXAMPLES / "l_corridor.toml").read_text().replace(
         "free = [[0.0, 0.0], [9.0, 0.0], [9.0, 9.0], [7.0, 9.0], [7.0, 2.0], [0.0, 2.0]]",
         "free = [[0.0, 0.0], [9.0, 0.0], [9.0, 9.0], [7.0, 9.0], [7.0, 2.0], [0.0, 2.0]]\n"
         "obstacles = [[[7.0, 4.0], [9.0, 4.0], [9.0, 4.5], [7.0, 4.5]]]")
     path = _write(tmp_path, text, "blocked.toml")
     out = tmp_path / "out"
-    result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out)])
+    result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out), "--bag"])
     assert result.exit_code == 2, result.output
     assert "planning failed (unreachable)" in result.output and "impossible here" in result.output
     assert (out / "planning_failure.png").is_file() and (out / "report.html").is_file()
-    assert json.loads((out / "summary.json").read_text())["exit_code"] == 2
+    summary = json.loads((out / "summary.json").read_text())
+    # a failed plan all the same: its status says so, and its bag (the map, the start) is made
+    assert summary["exit_code"] == 2 and summary["status"] == "planning_failed"
+    assert (out / "bag" / "metadata.yaml").is_file()
 
 
 def test_a_search_that_finds_nothing_in_its_budget_exits_1(runner, tmp_path):

@@ -101,7 +101,7 @@ def test_a_failed_plan_after_a_successful_run_leaves_only_the_failed_run(tmp_pat
         [RUN_MARKER, "planning_failure.png", "report.html", "run.log", "scenario.json",
          "summary.json"])
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "invalid" and summary["scenario"] == "second_run"
+    assert summary["status"] == "planning_failed" and summary["scenario"] == "second_run"
     assert summary["exit_code"] == 2 and summary["message"].startswith("planning failed")
     assert json.loads((out / "scenario.json").read_text())["name"] == "second_run"
     assert "first_run" not in (out / "run.log").read_text()
