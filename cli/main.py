@@ -1,7 +1,8 @@
 """The ``pushtrain`` command line: plan, co-simulate and look at a robot pushing n trailers.
 
-Exit codes: 0 success; 1 the run completed but the goal was not reached (or no plan was found,
-or a plot could not be drawn); 2 bad input (scenario file, option, path file, output folder).
+Exit codes: 0 success; 1 the run completed but the goal was not reached (or the search found
+no plan, or a plot could not be drawn); 2 bad input (scenario file, option, path file, output
+folder, a start or goal in collision, a goal no way of the train's width reaches).
 
 One module per command in :mod:`pushtrain.cli.commands`; the heavy libraries (OMPL, Dask,
 matplotlib) are imported only by the commands that need them.

@@ -26,7 +26,7 @@ log = logging.getLogger(__name__)
 
 # summary.json status of a run that ended before the co-simulation wrote its own summary
 STATUS_INVALID = "invalid"                  # bad input found late (exit 2)
-STATUS_PLANNING_FAILED = "planning_failed"  # no plan found (exit 1)
+STATUS_PLANNING_FAILED = "planning_failed"  # no plan found (exit 1; 2 if proven impossible)
 STATUS_FAILED = "failed"                    # another run-time failure, e.g. an FMU build (exit 1)
 STATUS_ERROR = "error"                      # an unexpected exception (a bug; traceback, exit 1)
 STATUS_INTERRUPTED = "interrupted"          # Ctrl-C (exit 130) or SIGTERM (exit 143)
