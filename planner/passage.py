@@ -480,14 +480,21 @@ class Corner:
                 f"radius {band.radius:.2f} m the train sweeps a {band.width:.2f} m band (radii "
                 f"{band.r_in:.2f} to {band.r_out:.2f} m, clearances included), so this corner "
                 f"needs {self.needed:.2f} m of corridor")
+        return text + self._tightest_text(
+            f", and {self.needed_tightest:.2f} m even at the tightest steady radius its joints "
+            f"allow ({self.tightest_radius:.2f} m)", f"{self.needed_tightest:.2f} m")
+
+    def _tightest_text(self, beyond: str, need: str) -> str:
+        """What the tightest steady radius the joints allow changes: ``beyond`` where even it
+        needs more than the map has; where only it fits, that it leaves no margin (``need``:
+        what it needs, said)."""
         if self.width < self.needed_tightest:
-            text += (f", and {self.needed_tightest:.2f} m even at the tightest steady radius "
-                     f"its joints allow ({self.tightest_radius:.2f} m)")
-        elif self.width < self.needed:
-            text += (f" (at the tightest steady radius its joints allow, "
-                     f"{self.tightest_radius:.2f} m, {self.needed_tightest:.2f} m: "
-                     "a turn that tight leaves no margin for the transients)")
-        return text
+            return beyond
+        if self.width < self.needed:
+            return (f" (at the tightest steady radius its joints allow, "
+                    f"{self.tightest_radius:.2f} m, {need}: a turn that tight leaves no "
+                    "margin for the transients)")
+        return ""
 
     def _door_text(self) -> str:
         band, door = self.band, self.door
@@ -502,14 +509,9 @@ class Corner:
                 f"wide: on arcs of the planner's radius {band.radius:.2f} m the train sweeps "
                 f"a {band.width:.2f} m band (radii {band.r_in:.2f} to {band.r_out:.2f} m, "
                 f"clearances included) and needs {need(self.needed)}")
-        if self.width < self.needed_tightest:
-            text += (f"; at the tightest steady radius its joints allow "
-                     f"({self.tightest_radius:.2f} m) {need(self.needed_tightest)}")
-        elif self.width < self.needed:
-            text += (f" (at the tightest steady radius its joints allow, "
-                     f"{self.tightest_radius:.2f} m, {need(self.needed_tightest)}: a turn that "
-                     "tight leaves no margin for the transients)")
-        return text
+        return text + self._tightest_text(
+            f"; at the tightest steady radius its joints allow ({self.tightest_radius:.2f} m) "
+            f"{need(self.needed_tightest)}", need(self.needed_tightest))
 
     def to_dict(self) -> dict:
         """Plain data (JSON): a need no steady turn meets is None."""

@@ -13,9 +13,19 @@ from .passage import swept_band, tight_corners
 from .route import find_route
 from .train import Train
 
-__all__ = ["turnable_route"]
+__all__ = ["turnable_route", "turning_bands"]
 
 log = logging.getLogger(__name__)
+
+
+def turning_bands(train: Train, config, margins):
+    """The bands the train sweeps turning steadily (:func:`~pushtrain.planner.passage.
+    swept_band`): on the planner's radius, and on the tightest radius its joints allow
+    (``config``'s joint margin kept), each body keeping ``margins`` [m]."""
+    band = swept_band(train, config.radius_for(train), margins)
+    tightest = swept_band(train, turning_radius_from_joint_limit(
+        train.phi_max - config.joint_margin, train.max_link(), 0.0), margins)
+    return band, tightest
 
 
 def turnable_route(field, train: Train, start, goal, half_width: float, config, margins,
@@ -30,9 +40,7 @@ def turnable_route(field, train: Train, start, goal, half_width: float, config, 
     route = find_route(field, start, goal, half_width)
     if route is None:
         return None
-    band = swept_band(train, config.radius_for(train), margins)
-    tightest = swept_band(train, turning_radius_from_joint_limit(
-        train.phi_max - config.joint_margin, train.max_link(), 0.0), margins)
+    band, tightest = turning_bands(train, config, margins)
 
     def worst(r):
         # too tight by more than a cell of the map (what the widths' measure may be off by)

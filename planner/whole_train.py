@@ -47,7 +47,7 @@ from pushtrain.core.segment import PULL
 from pushtrain.errors import PlanningError
 from pushtrain.facility.free_space import World
 
-from .config import TrackerConfig, turning_radius_from_joint_limit
+from .config import TrackerConfig
 from .footprint import body_name, body_samples
 from .heuristic import Heuristic
 from .lattice import Search
@@ -59,7 +59,7 @@ from .route import find_route, loop_route, passes_back, starts_against
 from .smooth import merge, path_cost, shortcut
 from .train import Train
 from .train_check import check_train
-from .turnable import turnable_route
+from .turnable import turnable_route, turning_bands
 
 __all__ = ["plan_lattice"]
 
@@ -449,9 +449,7 @@ def _widest(field, train: Train, start, goal, config, margins, route) -> dict:
         route = find_route(field, start, goal, 0.5 * train.last.width + float(margins[-1]))
     if route is None:
         return out
-    band = swept_band(train, config.radius_for(train), margins)
-    tightest = swept_band(train, turning_radius_from_joint_limit(
-        train.phi_max - config.joint_margin, train.max_link(), 0.0), margins)
+    band, tightest = turning_bands(train, config, margins)
     corners = tight_corners(route, field, band, tightest)
     # a corner a steady turn does not fit, or fits with less to spare than the followers cut
     # inside entering an arc (0.1-0.2 m, not in the steady band): the place to look at
