@@ -159,6 +159,21 @@ class EngineRun:
     end: LoopState
     violation: Violation | None
 
+    def head(self, k: int) -> EngineRun:
+        """The run's rows up to instant ``k`` (after its first instant, at most its last
+        recorded one): a run that ends there, in the state it was in then (the controller's
+        previous command and its time included), so that continuing it from its ``end``
+        gives, bit for bit, what the rest of this run gave with the same reference."""
+        k0 = self.end.k - (self.t.shape[0] - 1)
+        j = int(k) - k0
+        if not (1 <= j < self.t.shape[0]) or self.states.shape[0] != self.t.shape[0]:
+            raise ControllerError(f"head: instant {k} is not after the first instant {k0} of "
+                                  f"a recorded run ending at {self.end.k}")
+        v_prev, w_prev = (float(c) for c in self.commands[j - 1])
+        end = LoopState(int(k), self.states[j].copy(), v_prev, w_prev, float(self.t[j - 1]))
+        return EngineRun(self.t[:j + 1], self.states[:j + 1], self.commands[:j],
+                         self.reference[:j], self.direction[:j], end, None)
+
 
 def join_runs(runs: Sequence[EngineRun]) -> EngineRun:
     """The pieces of one resumed run (each starting where the one before ended) as one

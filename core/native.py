@@ -3,7 +3,8 @@
 The engine's C files (:data:`ENGINE_FILES`: ``control.c``, the law, reference and pull guide,
 ``ode.h``, the RK4, ``sensors.c``, the sensor model, ``openloop.c``, open-loop command
 profiles, ``step.c``, a co-simulation step's closed-loop work, ``rollout.c``, the planner's
-closed loop) are compiled once per machine with the system C compiler into a shared library,
+closed loop, ``field.c``, the planner's lookups on a distance field) are compiled once per
+machine with the system C compiler into a shared library,
 ``-std=c99 -O2 -fPIC -shared -ffp-contract=off -lm`` (no fused multiply-add, so the C
 arithmetic rounds like Python's), and cached under ``$PUSHTRAIN_CACHE/native`` (default
 ``~/.cache/pushtrain/native``) by a hash of the sources,
@@ -81,10 +82,11 @@ log = logging.getLogger(__name__)
 ENGINE_FILES = {
     "instant": ("control.c", "control.h", "governor.c", "governor.h", "ode.h", "openloop.c",
                 "openloop.h", "sensors.c", "sensors.h", "step.c", "step.h"),
-    "rollout": ("rollout.c", "rollout.h"),
+    "rollout": ("rollout.c", "rollout.h", "field.c", "field.h"),
 }
 """The engine's C files in ``core/csrc``: one control instant with its sensors and step
-(``"instant"``, what the controller FMU compiles) and the planner's rollout (``"rollout"``)."""
+(``"instant"``, what the controller FMU compiles) and the planner's rollout and its lookups on
+the distance field (``"rollout"``)."""
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-ffp-contract=off")
 LDFLAGS = ("-shared",)
 LIBS = ("-lm",)
@@ -278,6 +280,16 @@ _PROTOTYPES = {
                                P(PtViolation)]),
     "pt_hold": (c_int, [P(PtChain), D_PTR, c_double, c_double, c_double, c_int, D_PTR, D_PTR]),
     "pt_sdf_at": (c_double, [P(PtChecks), c_double, c_double]),
+    "pt_field_at": (None, [ctypes.c_void_p, ctypes.c_long, ctypes.c_long, c_double, c_double,
+                           c_double, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p,
+                           ctypes.c_void_p]),
+    "pt_sample_count": (ctypes.c_long, [c_int, ctypes.c_void_p, c_double]),
+    "pt_sample_segments": (c_int, [ctypes.c_void_p, c_int, ctypes.c_void_p, c_double,
+                                   ctypes.c_void_p]),
+    "pt_poses_clear": (c_int, [ctypes.c_void_p, ctypes.c_long, ctypes.c_long, c_double, c_double,
+                               c_double, ctypes.c_long, ctypes.c_void_p, c_double,
+                               ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p,
+                               ctypes.c_void_p]),
     "pt_rects_overlap": (c_int, [D_PTR, D_PTR, D_PTR]),
 }
 

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from pushtrain.core.field import values_at
 from pushtrain.errors import PlanningInputError
 
 __all__ = ["DistanceField", "DEFAULT_RESOLUTION", "MAX_CELLS"]
@@ -75,6 +76,8 @@ class DistanceField:
             raise PlanningInputError(
                 f"distance field resolution = {self.resolution!r} m: must be finite and > 0")
         object.__setattr__(self, "values", values)
+        for name in ("x0", "y0", "resolution"):
+            object.__setattr__(self, name, float(getattr(self, name)))
         values.setflags(write=False)
 
     # ------------------------------------------------------------------ construction
@@ -146,34 +149,23 @@ class DistanceField:
         return (self.x0, self.y0, self.x0 + (nx - 1) * h, self.y0 + (ny - 1) * h)
 
     def at(self, x, y) -> np.ndarray:
-        """Signed distance [m] at points (arrays of any matching shape), bilinear between nodes;
-        ``-inf`` outside the grid."""
+        """Signed distance [m] at points (arrays of any shapes that broadcast together, or
+        scalars), bilinear between nodes; ``-inf`` outside the grid (and at NaN).
+
+        One pass in C over the points (:func:`pushtrain.core.field.values_at`): the node below a
+        point is the cell's corner (the last cell's at the grid's far edges), its weights lie in
+        [0, 1]; the arithmetic is numpy's bilinear formula operation for operation, without
+        fused multiply-add (``tests/reference/field_lookup.py`` is the numpy version it is
+        checked against, bit for bit)."""
         x = np.asarray(x, dtype=float)
         y = np.asarray(y, dtype=float)
-        ny, nx = self.values.shape
-        u = (x - self.x0) / self.resolution
-        v = (y - self.y0) / self.resolution
-        inside = (u >= 0.0) & (u <= nx - 1) & (v >= 0.0) & (v <= ny - 1)
-        # a point outside (or NaN) is looked up at node (0, 0) and then set to -inf; inside,
-        # the cell's corner is the node below (the last cell's at the grid's far edges), so the
-        # weights a, b lie in [0, 1]. Flat indices: one take per corner (2-3 times faster than
-        # indexing with two arrays)
-        u = np.where(inside, u, 0.0)
-        v = np.where(inside, v, 0.0)
-        j = np.minimum(np.floor(u), nx - 2)
-        i = np.minimum(np.floor(v), ny - 2)
-        a = u - j
-        b = v - i
-        k = (i * nx + j).astype(np.intp)  # whole numbers below 2**53: exact
-        f = self.values.reshape(-1)
-        # the four corners: one take each, from views that start one node, one row and one
-        # row plus a node further
-        a1, b1 = 1.0 - a, 1.0 - b
-        out = (b1 * (a1 * f.take(k) + a * f[1:].take(k))
-               + b * (a1 * f[nx:].take(k) + a * f[nx + 1:].take(k)))
-        out = np.asarray(out)  # a 0-d array for one point, as np.where gives
-        out[~inside] = -np.inf
-        return out
+        if x.shape != y.shape:
+            x, y = np.broadcast_arrays(x, y)
+        if not x.flags.c_contiguous:  # (np.ascontiguousarray would make a 0-d array 1-d)
+            x = x.copy()
+        if not y.flags.c_contiguous:
+            y = y.copy()
+        return values_at(self.values, self.x0, self.y0, self.resolution, x, y)
 
     def clear(self, x, y, margin) -> np.ndarray:
         """Whether each point keeps ``margin`` [m] (scalar or broadcastable) from every wall."""

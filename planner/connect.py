@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from pushtrain.core.field import sample_segments
 from pushtrain.core.segment import PUSH, Segment
 
 __all__ = ["corner_segments", "sample_reference", "MAX_CORNER_REACH", "MAX_SAMPLES"]
@@ -72,7 +73,10 @@ def corner_segments(pose, goal, direction: int, radius: float | None = None,
 
 
 def sample_reference(pose, segments, spacing: float) -> np.ndarray:
-    """Poses (x, y, theta) along line/arc ``segments`` from ``pose`` every <= ``spacing`` m.
+    """Poses (x, y, theta) along line/arc ``segments`` from ``pose`` every <= ``spacing`` m
+    ((count, 3): the pose first, then each segment in max(1, ceil(length / spacing)) equal
+    steps), computed in C (:func:`pushtrain.core.field.sample_segments`; its readable twin is
+    ``tests/reference/sweep.py``).
 
     Raises ValueError for a non-finite length or more than :data:`MAX_SAMPLES` poses (a
     caller's bug, never a long path of a real building)."""
@@ -81,25 +85,11 @@ def sample_reference(pose, segments, spacing: float) -> np.ndarray:
     if not total <= MAX_SAMPLES:
         raise ValueError(f"sample_reference: {sum(s.length for s in segments):.6g} m at "
                          f"{spacing} m spacing is more than {MAX_SAMPLES} poses")
-    # vectorized, and the same floats as stepping pose by pose: each running sum is a
-    # sequential np.cumsum of the same increments (np.sin, np.cos are math.sin, math.cos here)
-    parts = [np.array([tuple(pose)], dtype=float)]
-    x, y, th = (float(a) for a in pose)
-    for seg in segments:
-        sigma = -float(seg.direction)
-        m = max(1, int(math.ceil(seg.length / spacing)))
-        ds = seg.length / m
-        k = seg.curvature
-        if abs(k) < 1e-12:
-            xs = np.cumsum(np.concatenate(([x], np.full(m, sigma * ds * math.cos(th)))))[1:]
-            ys = np.cumsum(np.concatenate(([y], np.full(m, sigma * ds * math.sin(th)))))[1:]
-            ths = np.full(m, th)
-        else:
-            ths = np.cumsum(np.concatenate(([th], np.full(m, k * ds))))
-            sin, cos = np.sin(ths), np.cos(ths)
-            xs = np.cumsum(np.concatenate(([x], sigma * (sin[1:] - sin[:-1]) / k)))[1:]
-            ys = np.cumsum(np.concatenate(([y], -(sigma * (cos[1:] - cos[:-1]) / k))))[1:]
-            ths = ths[1:]
-        parts.append(np.column_stack((xs, ys, ths)))
-        x, y, th = float(xs[-1]), float(ys[-1]), float(ths[-1])
-    return np.concatenate(parts)
+    return sample_segments(pose, segment_table(segments), spacing, total)
+
+
+def segment_table(segments) -> np.ndarray:
+    """(length [m], curvature [1/m], direction) of each segment, (len, 3) float64: the C
+    sweep's input."""
+    return np.array([(g.length, g.curvature, g.direction) for g in segments],
+                    dtype=float).reshape(-1, 3)

@@ -269,6 +269,7 @@ class CarGrid:
             j2 = jj[:, None] + np.rint(reach * np.cos(th0) / h).astype(int)[None, :]
             inside = (i2 >= 0) & (i2 < ny) & (j2 >= 0) & (j2 < nx)
             fits &= inside & free[np.clip(i2, 0, ny - 1), np.clip(j2, 0, nx - 1)]
+        cell_x, cell_y = x0 + h * jj, y0 + h * ii  # the cells' centres [m]
         for gear, sigma, turn, run, factor, after in moves:
             s_pts = np.linspace(0.0, run, max(5, int(math.ceil(run / h)) + 1))[1:]
             # offsets (K, samples) of the move from each heading (chain convention:
@@ -281,18 +282,26 @@ class CarGrid:
                 th = th0[:, None] + kap * s_pts[None, :]
                 px = sigma * (np.sin(th) - np.sin(th0)[:, None]) / kap
                 py = -sigma * (np.cos(th) - np.cos(th0)[:, None]) / kap
-            di = np.rint(py / h).astype(int)[kk]  # (m K, samples)
-            dj = np.rint(px / h).astype(int)[kk]
-            i2 = ii[cell][:, None] + di
-            j2 = jj[cell][:, None] + dj
-            ok = ((i2 >= 0) & (i2 < ny) & (j2 >= 0) & (j2 < nx)).all(axis=1)
-            i2c, j2c = np.clip(i2, 0, ny - 1), np.clip(j2, 0, nx - 1)
-            ok &= free[i2c, j2c].all(axis=1)
-            if band is not None:
-                ok &= _band_clear(band, x0 + h * jj[cell], y0 + h * ii[cell], kk, px, py,
-                                  th0, turn, radius, sigma, s_pts)
+            # each heading in turn over every cell (m, samples): the same tests as over all
+            # (cell, heading) pairs at once, in a tenth of the memory
+            di = np.rint(py / h).astype(int)  # (K, samples)
+            dj = np.rint(px / h).astype(int)
+            offsets = None if band is None else _band_offsets(band, px, py, th0, turn, radius,
+                                                               sigma, s_pts)
+            ok = np.zeros((m, k_n), dtype=bool)
+            for k in range(k_n):
+                i2 = ii[:, None] + di[k]
+                j2 = jj[:, None] + dj[k]
+                good = ((i2 >= 0) & (i2 < ny) & (j2 >= 0) & (j2 < nx)).all(axis=1)
+                good &= free[np.clip(i2, 0, ny - 1), np.clip(j2, 0, nx - 1)].all(axis=1)
+                if offsets is not None:
+                    _band_clear(band[0], band[1], offsets, k, cell_x, cell_y, good)
+                ok[:, k] = good
+            ok = ok.reshape(-1)  # cell-major like cell and kk
+            i2c = np.clip(ii[cell[ok]] + di[kk[ok], -1], 0, ny - 1)  # the moves' ends
+            j2c = np.clip(jj[cell[ok]] + dj[kk[ok], -1], 0, nx - 1)
             src = self._state(cell[ok], kk[ok], 0) // GEARS
-            dst_cell = index[i2c[ok, -1], j2c[ok, -1]]
+            dst_cell = index[i2c, j2c]
             k_end = (kk[ok] + turn * step) % k_n
             cost = run * factor + turn_weight * abs(turn) * dth * step
             straight = fits[dst_cell, k_end]
@@ -392,14 +401,12 @@ class CarGrid:
         return best
 
 
-def _band_clear(band: tuple, x: np.ndarray, y: np.ndarray, kk: np.ndarray, px: np.ndarray,
-                py: np.ndarray, th0: np.ndarray, turn: int, radius: float, sigma: float,
-                s_pts: np.ndarray) -> np.ndarray:
-    """Whether a move of the car from (x, y) (m K,) [m] in heading bins ``kk`` keeps, on the
-    distance field itself, ``clearance`` at its own samples (offsets ``px``, ``py``
-    (K, samples) [m]) and, on an arc, at the same samples on the arcs of ``radii`` [m] round
-    its centre: ``band`` = (field, clearance, radii), the ring the turning train sweeps."""
-    field, clearance, radii = band
+def _band_offsets(band: tuple, px: np.ndarray, py: np.ndarray, th0: np.ndarray, turn: int,
+                  radius: float, sigma: float, s_pts: np.ndarray) -> list[tuple]:
+    """Offsets [m] from the car of the points a move must keep clear, per heading bin
+    (K, samples) each: the move's own samples (``px``, ``py``) and, on an arc, the same samples
+    on the arcs of radii ``band[2]`` [m] round its centre (the ring the turning train sweeps)."""
+    radii = band[2]
     offsets = [(px, py)]
     if turn != 0:
         kap = turn / radius
@@ -408,11 +415,20 @@ def _band_clear(band: tuple, x: np.ndarray, y: np.ndarray, kk: np.ndarray, px: n
         cx, cy = -vx[:, :1], -vy[:, :1]
         offsets += [(cx + vx * r * abs(kap), cy + vy * r * abs(kap)) for r in radii
                     if abs(r - radius) > 0.01]
-    ok = np.ones(x.size, dtype=bool)
+    return offsets
+
+
+def _band_clear(field, clearance: float, offsets: list[tuple], k: int, x: np.ndarray,
+                y: np.ndarray, good: np.ndarray) -> None:
+    """Clear ``good`` (m,) where the car at (x, y) (m,) [m] in heading bin ``k`` misses
+    ``clearance`` [m] on the distance field at one of its move's points (``offsets``, see
+    :func:`_band_offsets`). Points of cells already refused are not looked up."""
     for qx, qy in offsets:
-        d = field.at(x[:, None] + qx[kk], y[:, None] + qy[kk])
-        ok &= (d >= clearance).all(axis=1)
-    return ok
+        sel = np.flatnonzero(good)
+        if sel.size == 0:
+            return
+        d = field.at(x[sel, None] + qx[k][None, :], y[sel, None] + qy[k][None, :])
+        good[sel] = (d >= clearance).all(axis=1)
 
 
 GEARS = 3

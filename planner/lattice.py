@@ -76,6 +76,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pushtrain.core.engine import LoopState
+from pushtrain.core.field import poses_clear
 from pushtrain.core.kinematics import body_positions
 from pushtrain.core.segment import PULL, PUSH, Segment
 
@@ -91,11 +92,6 @@ from .train import Train
 __all__ = ["Node", "Search", "Solution"]
 
 log = logging.getLogger(__name__)
-
-REFERENCE_CHUNK = 200_000
-"""Most footprint points :meth:`Search.reference_clear` tests at once (about 10 arrays of this
-many floats: 16 MB)."""
-
 
 @dataclass(eq=False)
 class Node:
@@ -206,6 +202,13 @@ class Search:
         self.nodes: list[Node] = []
         self._last_analytic = -10**9
         self._pending: Node | None = None
+        # the last trailer's outline points and their thresholds, and its reach (a pose whose
+        # axle midpoint keeps it is clear whatever its points say): reference_clear's body
+        smp = propagator.samples
+        sel = smp.body == train.n
+        self._last_points = tuple(np.ascontiguousarray(a[sel], dtype=float)
+                                  for a in (smp.u, smp.v, smp.threshold))
+        self._last_reach = float(smp.slack[train.n])
         self.connections = GoalConnections(train, propagator, self.goal, settings, self.reach,
                                            lambda: self.route, self.reference_clear,
                                            start=start_cursor.pose)
@@ -435,35 +438,16 @@ class Search:
         return self.reference_clear(cursor.pose, segments, spacing)
 
     def reference_clear(self, pose, segments, spacing: float = 0.05) -> bool:
-        """:meth:`_reference_clear` from a pose (x, y, theta). Poses whose axle midpoint is
-        clear by the body's whole reach are passed without looking at their points."""
+        """:meth:`_reference_clear` from a pose (x, y, theta): in C
+        (:func:`pushtrain.core.field.poses_clear`; its readable twin is
+        ``tests/reference/sweep.py``). Poses whose
+        axle midpoint is clear by the body's whole reach are passed without looking at their
+        points; the first point that misses ends the test."""
         poses = sample_reference(pose, segments, spacing)
-        prop = self.prop
-        n = self.train.n
-        smp = prop.samples
-        field = prop.field
-        centre = field.at(poses[:, 0], poses[:, 1])
-        close = centre < smp.slack[n]
-        if not close.any():
-            return True
-        # the poses closest to a wall first (a reference through a wall is refused after a
-        # few of them), in chunks growing fourfold up to REFERENCE_CHUNK points, stopping at
-        # the first that misses: memory stays bounded whatever the reference's length and the
-        # body's outline. The answer is the same in any order
-        near = poses[close][np.argsort(centre[close], kind="stable")]
-        sel = smp.body == n
-        u, v, threshold = smp.u[sel][None, :], smp.v[sel][None, :], smp.threshold[sel][None, :]
-        most = max(1, REFERENCE_CHUNK // max(1, u.size))
-        k, rows = 0, min(4, most)
-        while k < len(near):
-            chunk = near[k:k + rows]
-            k, rows = k + rows, min(4 * rows, most)
-            c, s = np.cos(chunk[:, 2])[:, None], np.sin(chunk[:, 2])[:, None]
-            px = chunk[:, :1] + u * c - v * s
-            py = chunk[:, 1:2] + u * s + v * c
-            if not (field.at(px, py) >= threshold).all():
-                return False
-        return True
+        field = self.prop.field
+        u, v, threshold = self._last_points
+        return poses_clear(field.values, field.x0, field.y0, field.resolution, poses,
+                           self._last_reach, u, v, threshold)
 
     # ------------------------------------------------------------------ goal
     def _analytic(self, node: Node) -> Solution | None:

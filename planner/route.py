@@ -182,12 +182,14 @@ def grid_graph(open_mask: np.ndarray, h: float):
     index[ii, jj] = np.arange(ii.size)
     rows, cols, lengths = [], [], []
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        i2, j2 = ii + di, jj + dj
-        ok = (i2 < ny) & (j2 >= 0) & (j2 < nx)
-        ok[ok] &= open_mask[i2[ok], j2[ok]]
-        rows.append(index[ii[ok], jj[ok]])
-        cols.append(index[i2[ok], j2[ok]])
-        lengths.append(np.full(int(ok.sum()), h * math.hypot(di, dj)))
+        # the nodes (i, j) whose neighbour (i + di, j + dj) exists, and those neighbours: two
+        # views of the grid; both open, in row-major order of (i, j) like np.nonzero's
+        a = (slice(0, ny - di), slice(max(0, -dj), nx - max(0, dj)))
+        b = (slice(di, ny), slice(max(0, dj), nx + min(0, dj)))
+        ok = open_mask[a] & open_mask[b]
+        rows.append(index[a][ok])
+        cols.append(index[b][ok])
+        lengths.append(np.full(rows[-1].size, h * math.hypot(di, dj)))
     return ii, jj, index, np.concatenate(rows), np.concatenate(cols), np.concatenate(lengths)
 
 

@@ -14,8 +14,9 @@ make it the path a driver would drive:
     that lowers the path's cost (length, turning, changes of curvature, cusps, as the search
     prices them) and the whole new path passes the closed-loop verification. Hybrid A*'s
     detours (an S-bend of a few centimetres to land on a grid cell)
-    disappear this way. Each try costs one closed-loop run of the whole path, so the tries are
-    bounded by ``max_tries`` and the deadline.
+    disappear this way. Each try costs a closed-loop run of the path from a little before
+    where it parts from the path so far (the same run as from the start:
+    ``whole_train._simulate``), so the tries are bounded by ``max_tries`` and the deadline.
 """
 
 from __future__ import annotations

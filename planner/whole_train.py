@@ -16,7 +16,8 @@
    cusp dwells, pull guides over whole pulling runs) and the search's checks.
 4. **Smoothing.** :mod:`~pushtrain.planner.smooth` merges equal pieces and replaces
    stretches by corner and Reeds-Shepp shortcuts where the closed loop allows (fewer turns,
-   shorter), each candidate simulated in one go from the start.
+   shorter), each candidate simulated as from the start (continued, bit for bit, from the run
+   of the path it parts from: ``_simulate``'s ``base``).
 5. **Exact test.** The final path's run is checked with
    :func:`~pushtrain.planner.train_check.check_train`: every body's exact rectangle (shapely)
    against the free space shrunk by its clearance, the joint limit, self-collision and the goal
@@ -42,6 +43,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Point
 
+from pushtrain.core.engine import join_runs
 from pushtrain.core.kinematics import body_positions
 from pushtrain.core.segment import PULL
 from pushtrain.errors import PlanningError
@@ -328,14 +330,56 @@ def _gap_text(gap: float, margin: float) -> str:
 
 
 # --------------------------------------------------------------------------- verification
-def _simulate(prop: Propagator, start, headings, segments, goal, deadline: float | None):
-    """The whole path simulated in one go from the start with the co-simulation's reference
-    (one :class:`~pushtrain.core.reference.Reference`: cusp dwells, pull guides over whole
-    pulling runs) and the search's checks; it stops at the first failure or at ``deadline``
-    (failure kind ``"deadline"``)."""
+def _simulate(prop: Propagator, start, headings, segments, goal, deadline: float | None,
+              base: tuple | None = None):
+    """The whole path simulated from the start with the co-simulation's reference (one
+    :class:`~pushtrain.core.reference.Reference`: cusp dwells, pull guides over whole pulling
+    runs) and the search's checks; it stops at the first failure or at ``deadline`` (failure
+    kind ``"deadline"``).
+
+    ``base`` = (segments, run): a whole run from the start of another path. Up to a little
+    before the end of the leading segments both paths share (:func:`_shared_until`), the
+    reference, the pull guides and so the closed loop are the same to the bit: those rows are
+    taken from it and the loop continues from its state there (the same run as from the
+    start, in fewer steps)."""
     state0 = prop.initial_state(start, headings)
     cursor0 = Cursor(float(start[0]), float(start[1]), float(start[2]), 0.0, 0)
-    return prop.rollout(state0, cursor0, segments, goal=goal, deadline=deadline)
+    head = None
+    if base is not None:
+        k = _shared_until(prop, base[0], segments)
+        if k >= 1 and base[1].ok and k < base[1].state.k:
+            head = base[1].run.head(k)
+            state0 = head.end
+    run = prop.rollout(state0, cursor0, segments, goal=goal, deadline=deadline)
+    if head is not None:
+        run = replace(run, run=join_runs([head, run.run]))
+    return run
+
+
+def _shared_until(prop: Propagator, base, segments) -> int:
+    """The last instant at which the closed loops along ``base`` and ``segments`` (two paths
+    from the same start) are still the same: two instants before the end of the leading
+    segments they share, or before the pulling run that ends there (its pull guide depends on
+    where the run ends); 0 where they share none."""
+    p = 0
+    for a, b in zip(base, segments, strict=False):
+        if a != b:
+            break
+        p += 1
+    after = {g[p].direction for g in (base, segments) if p < len(g)}
+    if p > 0 and base[p - 1].direction == PULL and PULL in after:
+        while p > 0 and base[p - 1].direction == PULL:
+            p -= 1
+    if p == 0:
+        return 0
+    tracker = prop.tracker
+    t, previous = 0.0, None
+    for g in base[:p]:
+        if previous is not None and g.direction != previous:
+            t += tracker.cusp_dwell
+        t += g.length / (tracker.speed if g.speed is None else g.speed)
+        previous = g.direction
+    return max(0, prop.loop.instant_at(t) - 2)
 
 
 _EXACT_RATE = [2.0e-6]
@@ -387,8 +431,15 @@ def _smoothed(prop, start, headings, segments, run, goal, config, train, deadlin
     if not config.smooth:
         return merged, run, info
 
+    # the path whose whole run is at hand: the search's, then each shortcut taken (shortcut
+    # takes every candidate verify passes); each candidate's run continues it where they part
+    base = [segments, run]
+
     def verify(candidate):
-        return _simulate(prop, start, headings, candidate, goal, deadline)
+        result = _simulate(prop, start, headings, candidate, goal, deadline, base=tuple(base))
+        if result.ok:
+            base[:] = [candidate, result]
+        return result
 
     best, best_run, n_short = shortcut(merged, run, start, goal, config.radius_for(train),
                                        verify, deadline, clear=clear)

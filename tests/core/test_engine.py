@@ -185,6 +185,33 @@ def test_resuming_is_bit_identical_to_one_run():
     assert np.array_equal(bare.end.z, whole.end.z) and bare.states.shape[0] == 0
 
 
+def test_a_runs_head_continues_as_the_run_went_on():
+    """EngineRun.head(k) is the run as it stood at instant k: continued from there (the
+    controller's previous command and its time, whose rate limits bind while the robot speeds
+    up from rest at k = 1, 2), it gives the rest of the run bit for bit; head(k) of a piece
+    that starts later counts its instants from that piece's start; instants outside are
+    refused."""
+    loop, ref, state = _bay_loop()
+    k_end = loop.instant_at(ref.t_end + 2.0)
+    whole = loop.run(ref, state, k_end)
+    for k in (1, 2, 3, 351, 1200, k_end - 1, k_end):
+        head = whole.head(k)
+        assert head.end.k == k and head.t.shape[0] == head.states.shape[0] == k + 1
+        assert (head.end.v_prev, head.end.w_prev) == tuple(whole.commands[k - 1])
+        rest = loop.run(ref, head.end, k_end)
+        assert np.array_equal(np.vstack([head.states, rest.states[1:]]), whole.states)
+        assert np.array_equal(np.vstack([head.commands, rest.commands]), whole.commands)
+        assert (rest.end.v_prev, rest.end.w_prev, rest.end.t_prev) == (
+            whole.end.v_prev, whole.end.w_prev, whole.end.t_prev)
+    later = loop.run(ref, whole.head(500).end, k_end)
+    assert np.array_equal(later.head(700).states, whole.states[500:701])
+    for k in (0, k_end + 1):
+        with pytest.raises(ControllerError, match="head"):
+            whole.head(k)
+    with pytest.raises(ControllerError, match="head"):
+        later.head(500)
+
+
 def test_planner_edges_continue_the_reference_and_the_state_bit_for_bit():
     """Edges of one segment each (continuation references; the pull is one edge) give the run
     of the whole reference, and extending a copy does too."""

@@ -105,3 +105,46 @@ def test_lookup_is_bilinear_between_nodes_and_minus_infinity_outside():
     outside = field.at(np.array([x0 - 0.01, x1 + 0.01, 0.0, np.nan, np.inf]),
                        np.array([0.0, 0.0, y1 + 0.01, 0.0, 0.0]))
     assert np.all(outside == -np.inf)
+
+
+def test_lookup_equals_the_readable_reference_bit_for_bit():
+    """The C lookup against tests/reference/field_lookup.py, point by point, to the bit: random
+    points (some outside), the nodes themselves, the four edges and corners exactly, the
+    smallest steps outside them, NaN and infinities; scalar, broadcast and strided inputs keep
+    their shapes."""
+    from tests.reference.field_lookup import field_at
+
+    rng = np.random.default_rng(11)
+    values = rng.normal(size=(23, 31))
+    field = DistanceField(values, -1.25, 0.75, 0.037)
+    x0, y0, x1, y1 = field.bounds
+    xs = list(rng.uniform(x0 - 0.1, x1 + 0.1, 3000))
+    ys = list(rng.uniform(y0 - 0.1, y1 + 0.1, 3000))
+    edges_x = [x0, x1, np.nextafter(x0, -np.inf), np.nextafter(x1, np.inf),
+               np.nextafter(x1, -np.inf), 0.5 * (x0 + x1)]
+    edges_y = [y0, y1, np.nextafter(y0, -np.inf), np.nextafter(y1, np.inf),
+               np.nextafter(y1, -np.inf), 0.5 * (y0 + y1)]
+    for ex in edges_x:
+        for ey in edges_y:
+            xs.append(ex)
+            ys.append(ey)
+    nodes_x = x0 + field.resolution * np.arange(31)
+    nodes_y = y0 + field.resolution * np.arange(23)
+    xs += list(np.repeat(nodes_x, 23))
+    ys += list(np.tile(nodes_y, 31))
+    xs += [np.nan, 0.0, np.inf, -np.inf]
+    ys += [0.0, np.nan, 0.0, 0.0]
+    x, y = np.array(xs), np.array(ys)
+    got = field.at(x, y)
+    want = np.array([field_at(values, x0, y0, field.resolution, a, b)
+                     for a, b in zip(xs, ys, strict=True)])
+    assert got.shape == x.shape
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))  # the same bits
+    assert (got == -np.inf).sum() > 900  # the points outside (and NaN) were tried
+    # shapes: a scalar gives a 0-d array, broadcast and strided inputs their broadcast shape
+    assert field.at(0.0, 1.0).shape == ()
+    assert float(field.at(0.0, 1.0)) == field_at(values, x0, y0, field.resolution, 0.0, 1.0)
+    grid = field.at(nodes_x[None, :-1:2], nodes_y[:-1, None])  # (the far edge may round out)
+    assert grid.shape == (22, 15)
+    assert np.allclose(grid, values[:-1, :-1:2], rtol=0.0, atol=1e-12)
+    assert np.array_equal(field.at(x[::3], y[::3]), got[::3])

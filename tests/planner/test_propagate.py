@@ -122,3 +122,57 @@ def test_a_wall_stops_the_rollout_with_the_body_and_point():
     assert run.failure["body"] == 3  # the last trailer leads into the upper wall
     assert run.failure["y"] > 0.4
     assert run.state.k < state.k + int(1.5 / 0.08 / 0.025)
+
+
+def _same_run(a, b) -> bool:
+    return (np.array_equal(a.run.t, b.run.t) and np.array_equal(a.run.states, b.run.states)
+            and np.array_equal(a.run.commands, b.run.commands)
+            and np.array_equal(a.run.reference, b.run.reference)
+            and np.array_equal(a.run.direction, b.run.direction)
+            and a.failure == b.failure and a.goal_error == b.goal_error
+            and a.state.k == b.state.k and np.array_equal(a.state.z, b.state.z)
+            and (a.state.v_prev, a.state.w_prev, a.state.t_prev)
+            == (b.state.v_prev, b.state.w_prev, b.state.t_prev))
+
+
+@pytest.mark.parametrize("change, shared", [
+    (5, 5),   # the last push after the pulling run: continued after the pull's end
+    (2, 2),   # the push before the pulling run
+    (4, 3),   # inside the pulling run: its guide changes, so from where the run began
+    (1, 1),   # the second segment
+    (0, 0),   # the first: nothing shared, simulated from the start
+])
+def test_a_path_continued_from_another_equals_its_whole_run(change, shared):
+    """Smoothing's verification (whole_train._simulate with ``base``) continues a candidate
+    from the run of the path it parts from: the result equals the candidate's own whole run
+    from the start bit for bit (states, commands, references, failure, goal error, the
+    controller's memory), and fewer steps are simulated where they share segments. A
+    changed segment inside a pulling run changes that run's guide: the run is continued
+    from before the pull began."""
+    from pushtrain.planner.whole_train import _shared_until, _simulate
+
+    prop = _propagator()
+    goal = None  # (the loop's own tolerance is not what is tested)
+    base = _simulate(prop, START, HEADINGS, SEGMENTS, goal, None)
+    assert base.ok, base.failure
+    g = SEGMENTS[change]
+    candidate = list(SEGMENTS)
+    candidate[change] = Segment(g.kind, g.length + 0.15, g.curvature, g.direction)
+    if change + 1 < len(candidate):  # another way on: a short straight in the same direction
+        candidate.insert(change + 1, Segment("arc", 0.2, 0.3, candidate[change].direction))
+    whole = _simulate(prop, START, HEADINGS, candidate, goal, None)
+    before = prop.steps
+    continued = _simulate(prop, START, HEADINGS, candidate, goal, None,
+                          base=(SEGMENTS, base))
+    assert _same_run(continued, whole)
+    k = _shared_until(prop, SEGMENTS, candidate)
+    if shared == 0:
+        assert k == 0 and prop.steps - before == whole.state.k
+    else:
+        # the shared time: the first `shared` segments (and the dwell at each cusp)
+        t = sum(s.length for s in SEGMENTS[:shared]) / prop.tracker.speed
+        kept = SEGMENTS[:shared]
+        t += prop.tracker.cusp_dwell * sum(
+            a.direction != b.direction for a, b in zip(kept, kept[1:], strict=False))
+        assert k == prop.loop.instant_at(t) - 2
+        assert prop.steps - before == whole.state.k - k

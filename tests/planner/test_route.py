@@ -343,3 +343,116 @@ def test_chords_across_a_straight_corridor_are_its_width_over_the_cosine(angle_d
     own = chords(field, x, y, np.column_stack([np.full(40, a), rng.uniform(-1.0, 1.0, 40)]),
                  reach=2.5)
     assert own[:, 0] == pytest.approx(got[:, 0])
+
+
+def _random_segments(rng, count: int):
+    out = []
+    for _ in range(count):
+        length = float(rng.uniform(0.0, 3.0)) if rng.random() > 0.05 else 1e-9
+        direction = int(rng.choice([PUSH, PULL]))
+        if rng.random() < 0.35:
+            out.append(Segment("line", length, 0.0, direction))
+        else:
+            kappa = float(rng.choice([-1, 1]) * rng.uniform(0.05, 2.5))
+            out.append(Segment("arc", length, kappa, direction))
+    return out
+
+
+def test_sampled_poses_equal_the_readable_sweep_bit_for_bit():
+    """sample_reference (C, core/csrc/field.c) against tests/reference/sweep.py stepping pose by
+    pose: the same doubles on random lines and arcs, pushed and pulled, at several spacings
+    (and a segment shorter than one step)."""
+    from reference.sweep import sample_poses
+
+    rng = np.random.default_rng(3)
+    for _ in range(400):
+        segments = _random_segments(rng, int(rng.integers(1, 5)))
+        pose = (*rng.uniform(-20.0, 20.0, 2), float(rng.uniform(-7.0, 7.0)))
+        spacing = float(rng.choice([0.05, 0.01, 0.3, 0.037]))
+        got = sample_reference(pose, segments, spacing)
+        want = np.array(sample_poses(pose, segments, spacing))
+        assert got.shape == want.shape and np.array_equal(got, want)
+
+
+def test_the_swept_outline_test_equals_the_readable_one():
+    """Search.reference_clear (C) against tests/reference/sweep.py's poses_clear on an L
+    corridor: references along the corridor, into its walls and off the map, for the
+    5-trailer train's last trailer (clear and refused both happen)."""
+    from reference.sweep import poses_clear
+
+    from pushtrain.core.controller import ControllerConfig
+    from pushtrain.planner.config import TrackerConfig
+    from pushtrain.planner.footprint import body_samples
+    from pushtrain.planner.heuristic import Heuristic
+    from pushtrain.planner.lattice import Search
+    from pushtrain.planner.lattice_settings import LatticeSettings
+    from pushtrain.planner.propagate import Cursor, Propagator
+
+    case = example_layouts.l_corridor(2.0)
+    world = World.from_dict(case["world"])
+    field = world.distance_field()
+    train = Train.uniform(5)
+    controller = ControllerConfig(geometry=train.geometry)
+    samples = body_samples(train, 0.05)
+    prop = Propagator(train, controller, TrackerConfig(controller=controller), field, samples,
+                      train.phi_max)
+    start = np.asarray(case["start"], dtype=float)
+    goal = np.asarray(case["goal"], dtype=float)
+    heuristic = Heuristic(field, goal, 1.5, 0.35, build_car=False)
+    state = prop.initial_state(start, np.full(train.n + 1, start[2]))
+    search = Search(train, prop, heuristic, state, Cursor(*start, 0.0, 0), goal,
+                    LatticeSettings(radius=1.5))
+    sel = samples.body == train.n
+    points = list(zip(samples.u[sel], samples.v[sel], samples.threshold[sel], strict=True))
+    reach = float(samples.slack[train.n])
+    rng = np.random.default_rng(8)
+    x0, y0, x1, y1 = field.bounds
+    verdicts = []
+    for trial in range(300):
+        if trial % 3:  # near the start or the goal (in the 2 m corridor), any heading, a
+            # short way on: near a wall, whether the outline fits depends on its heading
+            end = start if trial % 3 == 1 else goal
+            pose = (float(end[0] + rng.uniform(-0.7, 0.7)), float(end[1] + rng.uniform(-0.7, 0.7)),
+                    float(rng.uniform(-math.pi, math.pi)))
+            segments = [Segment("line", float(rng.uniform(0.01, 0.1)), 0.0,
+                                int(rng.choice([PUSH, PULL])))]
+        else:  # anywhere, also off the map
+            pose = (float(rng.uniform(x0 - 0.5, x1 + 0.5)),
+                    float(rng.uniform(y0 - 0.5, y1 + 0.5)), float(rng.uniform(-4.0, 4.0)))
+            segments = _random_segments(rng, int(rng.integers(1, 4)))
+        got = search.reference_clear(pose, segments)
+        poses = sample_reference(pose, segments, 0.05)
+        want = poses_clear(field.values, field.x0, field.y0, field.resolution, poses, reach,
+                           points)
+        assert got == want
+        verdicts.append(got)
+    assert 20 < sum(verdicts) < 280  # both answers were tried
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (6, 1), (9, 13), (40, 31)])
+def test_the_grid_graph_holds_every_8_connected_edge_once_in_its_order(shape):
+    """grid_graph against a walk over the nodes: for each direction (right, up, up-right,
+    up-left) in turn, every open node in row-major order with its open neighbour that way."""
+    from pushtrain.planner.route import grid_graph
+
+    rng = np.random.default_rng(sum(shape))
+    mask = rng.random(shape) < 0.7
+    ii, jj, index, rows, cols, lengths = grid_graph(mask, 0.05)
+    ny, nx = shape
+    number = {}
+    for i in range(ny):
+        for j in range(nx):
+            if mask[i, j]:
+                number[(i, j)] = len(number)
+    want_r, want_c, want_l = [], [], []
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        for (i, j), k in number.items():
+            if (i + di, j + dj) in number:
+                want_r.append(k)
+                want_c.append(number[(i + di, j + dj)])
+                want_l.append(0.05 * math.hypot(di, dj))
+    assert [tuple(p) for p in zip(ii, jj, strict=True)] == list(number)
+    assert rows.tolist() == want_r and cols.tolist() == want_c
+    assert np.array_equal(lengths, np.array(want_l, dtype=float))
+    assert all(index[i, j] == k for (i, j), k in number.items())
+    assert (index[~mask] == -1).all()
