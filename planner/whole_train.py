@@ -372,14 +372,10 @@ def _shared_until(prop: Propagator, base, segments) -> int:
             p -= 1
     if p == 0:
         return 0
-    tracker = prop.tracker
-    t, previous = 0.0, None
-    for g in base[:p]:
-        if previous is not None and g.direction != previous:
-            t += tracker.cusp_dwell
-        t += g.length / (tracker.speed if g.speed is None else g.speed)
-        previous = g.direction
-    return max(0, prop.loop.instant_at(t) - 2)
+    shared = base[:p]
+    times, _ = reference_times(shared, prop.tracker.speed, prop.tracker.cusp_dwell,
+                               [sum(g.length for g in shared)])
+    return max(0, prop.loop.instant_at(float(times[0])) - 2)
 
 
 _EXACT_RATE = [2.0e-6]
