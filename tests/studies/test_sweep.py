@@ -640,9 +640,12 @@ def test_ctrl_c_stops_quietly_with_130_and_the_sweep_resumes(tmp_path):
     out = tmp_path / "out"
     args = ["sweep", str(tmp_path / "base.toml"), "--spec", str(tmp_path / "spec.toml"),
             "--out", str(out), "--no-plots"]
+    # SIGINT as a terminal's foreground process has it, however pytest was started (a job
+    # put in the background by a shell without job control inherits it ignored)
     proc = subprocess.Popen([sys.executable, "-c", HOLD_AFTER_THE_FIRST_CHUNK, *args,
                              "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+                            text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     watchdog = threading.Timer(600.0, os.killpg, (proc.pid, signal.SIGKILL))  # a hang only
     watchdog.start()
     try:
