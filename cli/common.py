@@ -84,7 +84,7 @@ def click_error(exc: PushtrainError) -> click.ClickException:
     start or goal in collision, and a goal proven impossible to reach), 1 for a run-time
     failure (no plan found by the search, an FMU build)."""
     planning = isinstance(exc, PlanningError)
-    text = f"planning failed ({exc.reason}): {exc}" if planning else str(exc)
+    text = f"planning failed ({exc.reason}): {exc.message}" if planning else str(exc)
     if isinstance(exc, InputError) or planning and _scenario_fault(exc):
         return BadInput(text)
     err = click.ClickException(text)

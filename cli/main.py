@@ -32,6 +32,8 @@ __all__ = ["cli", "plan_and_run_main"]
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="pushtrain", prog_name="pushtrain",
+                      message="%(prog)s %(version)s")
 @click.option("-v", "--verbose", count=True, help="More log output on stderr (-v info, -vv debug).")
 @click.pass_context
 def cli(ctx: click.Context, verbose: int):

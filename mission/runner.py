@@ -196,22 +196,38 @@ def _start_headings(sc: Scenario) -> np.ndarray:
     return th_n + np.concatenate((np.cumsum(phi[::-1])[::-1], [0.0]))
 
 
-def plan_path(sc: Scenario):
-    """Plan the last trailer's path of a ``plan`` mission (raises PlanningError).
-
-    The whole-train check simulates the scenario's own controller at the reference speed and
-    cusp dwell the co-simulation will use.
-    """
+def _planner_args(sc: Scenario) -> tuple:
+    """(world, start, goal, train, config) of :func:`~pushtrain.planner.planner.plan` for a
+    ``plan`` mission, and its start headings."""
     from pushtrain.planner.config import PlannerConfig
-    from pushtrain.planner.planner import plan
 
     config = PlannerConfig(
         **config_values(PlannerConfig, sc.planner), seed=sc.seed, controller=controller_of(sc),
         goal_tolerance=goal_tolerance_of(sc),
     )
     goal = (sc.goal.x, sc.goal.y, math.radians(sc.goal.theta_deg))
-    return plan(world_of(sc), _start_pose(sc), goal, train_of(sc), config,
-                start_headings=_start_headings(sc))
+    return (world_of(sc), _start_pose(sc), goal, train_of(sc), config), _start_headings(sc)
+
+
+def plan_path(sc: Scenario):
+    """Plan the last trailer's path of a ``plan`` mission (raises PlanningError).
+
+    The whole-train check simulates the scenario's own controller at the reference speed and
+    cusp dwell the co-simulation will use.
+    """
+    from pushtrain.planner.planner import plan
+
+    args, headings = _planner_args(sc)
+    return plan(*args, start_headings=headings)
+
+
+def check_plan(sc: Scenario) -> None:
+    """The checks :func:`plan_path` makes before it searches, without searching (raises their
+    PlanningError): a start or goal that misses its clearance, a goal proven unreachable."""
+    from pushtrain.planner.planner import check_mission
+
+    args, headings = _planner_args(sc)
+    check_mission(*args, start_headings=headings)
 
 
 def initial_of(sc: Scenario, reference: Reference | None) -> InitialState:

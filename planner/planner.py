@@ -36,9 +36,9 @@ from .path import PlannedPath, reference_times
 from .reeds_shepp import chain_to_planner_state, segments_from_states
 from .train import Train
 from .train_check import check_train
-from .whole_train import plan_lattice
+from .whole_train import check_lattice_ends, plan_lattice
 
-__all__ = ["plan"]
+__all__ = ["check_mission", "plan"]
 
 log = logging.getLogger(__name__)
 
@@ -128,6 +128,22 @@ def _check_endpoints(world: World, train: Train, start, goal, start_headings, in
                 f"connection is narrower than {2 * half:.3f} m (trailer width + 2 x clearance)",
                 where=tuple(goal[:2]), details={"start_piece": ka, "goal_piece": kb},
             )
+
+
+def check_mission(world: World, start: Sequence[float], goal: Sequence[float], train: Train,
+                  config: PlannerConfig | None = None,
+                  start_headings: Sequence[float] | None = None) -> None:
+    """What :func:`plan` refuses before it searches, without searching (a scenario's check):
+    malformed poses (PlanningInputError), an empty map, a start or goal that misses its
+    clearance, and, for the lattice planner, a goal no way as wide as the last trailer reaches
+    ("impossible here"). Raises that PlanningError, else returns. Same arguments as
+    :func:`plan`."""
+    config = config or PlannerConfig()
+    start, goal, start_headings = _checked_poses(start, goal, train, start_headings)
+    if config.planner == "lattice":
+        check_lattice_ends(world, train, start, goal, start_headings, config)
+    else:
+        _check_endpoints(world, train, start, goal, start_headings, config.inflation)
 
 
 def plan(

@@ -63,7 +63,7 @@ from .train import Train
 from .train_check import check_train
 from .turnable import turnable_route, turning_bands
 
-__all__ = ["plan_lattice"]
+__all__ = ["check_lattice_ends", "plan_lattice"]
 
 log = logging.getLogger(__name__)
 
@@ -92,44 +92,15 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     (:meth:`~pushtrain.planner.config.PlannerConfig.wall_cap`: 50 s at the default budget),
     and a result cut short by it says so.
     """
-    field = world.distance_field()
+    world.distance_field()  # (prepared before the clock starts; cached)
     t_begin = time.perf_counter()
     deadline = t_begin + config.wall_cap()
-    margins = config.margins(train)
-    # the prediction must end within a fraction of the co-simulation's goal tolerance: the rest
-    # is left to the difference between the kinematic prediction and the FMU
-    tol = config.goal_tolerance
-    tracker = replace(config.tracker(), goal_tolerance=(config.goal_fraction * tol[0],
-                                                        config.goal_fraction * tol[1]))
-    controller = tracker.controller_for(train.geometry)
-    samples = body_samples(train, margins, spacing=config.sample_spacing)
-    phi_limit = train.phi_max - config.joint_margin
-    prop = Propagator(train, controller, tracker, field, samples, phi_limit,
-                      goal_phi=config.goal_max_phi)
-    headings = (np.full(train.n + 1, float(start[2])) if start_headings is None
-                else np.asarray(start_headings, dtype=float))
-    state0 = prop.initial_state(start, headings)
-    _check_ends(world, train, start, goal, state0, prop, margins)
-    for spacing in FINE_SPACINGS:
-        failure, _ = prop.check(np.array([state0.z]))
-        if failure is None or failure["kind"] != "collision" or spacing >= config.sample_spacing:
-            break
-        # the exact test passed the start (_check_ends): what refuses it is the sampled test's
-        # slack (half the sample spacing), and no motion could leave it. Finer samples let a
-        # train that starts a few centimetres off a wall move off it.
-        log.info("the start keeps its clearance but not the sampled test's slack: samples "
-                 "every %.3f m", spacing)
-        samples = body_samples(train, margins, spacing=spacing)
-        prop = Propagator(train, controller, tracker, field, samples, phi_limit,
-                          goal_phi=config.goal_max_phi)
-        state0 = prop.initial_state(start, headings)
+    loop = _checked_loop(world, train, start, goal, start_headings, config)
+    field, margins, tracker, prop = loop.field, loop.margins, loop.tracker, loop.prop
+    headings, state0, phi_limit = loop.headings, loop.state0, loop.phi_limit
     radius = config.radius_for(train)
     last = train.last
-    # no way as wide as the last trailer's disc: impossible, said before any search (one
-    # labelling of the distance field)
     passage = needed_half_width(train, margins[-1])
-    if not passable(field, start, goal, passage):
-        raise _unreachable(field, train, start, goal, passage, impossible=True)
     # the grid's Dijkstra run (about 3.5 million nodes a second on a laptop core) is not
     # interruptible: it may take at most a quarter of the budget at a million nodes a second
     # the car heuristic pulls only after a straight push that straightens the chain (about
@@ -227,6 +198,69 @@ def plan_lattice(world: World, train: Train, start, goal, start_headings, config
     smooth_info["solutions"] = found
     return _planned(start, headings, segments, radius, config, tracker, checked, search,
                     t_begin, rejected, smooth_info)
+
+
+@dataclass
+class _Loop:
+    """The closed loop the search runs from the start (see :func:`_checked_loop`)."""
+
+    field: object
+    margins: np.ndarray
+    tracker: TrackerConfig
+    prop: Propagator
+    headings: np.ndarray
+    state0: object
+    phi_limit: float
+
+
+def _checked_loop(world: World, train: Train, start, goal, start_headings, config) -> _Loop:
+    """The checks made before any search, and the closed loop the search runs.
+
+    Raises PlanningError where the map has no free space, the train at the start or the last
+    trailer at the goal misses its clearance (measured exactly), or no way as wide as the last
+    trailer's disc joins start and goal ("impossible here", one labelling of the distance
+    field). A start that keeps its clearance but not the sampled test's slack gets finer
+    outline samples (:data:`FINE_SPACINGS`)."""
+    field = world.distance_field()
+    margins = config.margins(train)
+    # the prediction must end within a fraction of the co-simulation's goal tolerance: the rest
+    # is left to the difference between the kinematic prediction and the FMU
+    tol = config.goal_tolerance
+    tracker = replace(config.tracker(), goal_tolerance=(config.goal_fraction * tol[0],
+                                                        config.goal_fraction * tol[1]))
+    controller = tracker.controller_for(train.geometry)
+    samples = body_samples(train, margins, spacing=config.sample_spacing)
+    phi_limit = train.phi_max - config.joint_margin
+    prop = Propagator(train, controller, tracker, field, samples, phi_limit,
+                      goal_phi=config.goal_max_phi)
+    headings = (np.full(train.n + 1, float(start[2])) if start_headings is None
+                else np.asarray(start_headings, dtype=float))
+    state0 = prop.initial_state(start, headings)
+    _check_ends(world, train, start, goal, state0, prop, margins)
+    for spacing in FINE_SPACINGS:
+        failure, _ = prop.check(np.array([state0.z]))
+        if failure is None or failure["kind"] != "collision" or spacing >= config.sample_spacing:
+            break
+        # the exact test passed the start (_check_ends): what refuses it is the sampled test's
+        # slack (half the sample spacing), and no motion could leave it. Finer samples let a
+        # train that starts a few centimetres off a wall move off it.
+        log.info("the start keeps its clearance but not the sampled test's slack: samples "
+                 "every %.3f m", spacing)
+        samples = body_samples(train, margins, spacing=spacing)
+        prop = Propagator(train, controller, tracker, field, samples, phi_limit,
+                          goal_phi=config.goal_max_phi)
+        state0 = prop.initial_state(start, headings)
+    # no way as wide as the last trailer's disc: impossible, said before any search
+    passage = needed_half_width(train, margins[-1])
+    if not passable(field, start, goal, passage):
+        raise _unreachable(field, train, start, goal, passage, impossible=True)
+    return _Loop(field, margins, tracker, prop, headings, state0, phi_limit)
+
+
+def check_lattice_ends(world: World, train: Train, start, goal, start_headings, config) -> None:
+    """What :func:`plan_lattice` refuses before any search (see :func:`_checked_loop`), without
+    searching: raises its PlanningError, else returns."""
+    _checked_loop(world, train, start, goal, start_headings, config)
 
 
 def _unreachable(field, train: Train, start, goal, half_width: float, impossible: bool,

@@ -133,6 +133,7 @@ class PlanningError(PushtrainError, RuntimeError):
             raise ValueError(f"PlanningError reason = {reason!r}: allowed are {PLANNING_REASONS}")
         super().__init__(f"[{reason}] {message}")
         self.reason = reason
+        self.message = message
         self.where = None if where is None else tuple(float(a) for a in where)
         self.details = dict(details or {})
 

@@ -90,6 +90,35 @@ def test_validate_accepts_every_example(runner):
         assert result.exit_code == 0, (path.name, result.output)
 
 
+def test_validate_refuses_what_plan_and_run_refuses_before_it_searches(runner, tmp_path):
+    """A goal that leaves the last trailer no clearance from the wall, and a goal behind an
+    obstacle across the corridor (no way of the train's width): validate says so (exit 2) as
+    plan-and-run does, with the same reason, and without searching."""
+    corridor = (EXAMPLES / "l_corridor.toml").read_text()
+    near = _write(tmp_path, corridor.replace("x = 8.0\ny = 7.5", "x = 8.7\ny = 7.5"), "near.toml")
+    blocked = _write(tmp_path, corridor.replace(
+        "free = [[0.0, 0.0], [9.0, 0.0], [9.0, 9.0], [7.0, 9.0], [7.0, 2.0], [0.0, 2.0]]",
+        "free = [[0.0, 0.0], [9.0, 0.0], [9.0, 9.0], [7.0, 9.0], [7.0, 2.0], [0.0, 2.0]]\n"
+        "obstacles = [[[7.0, 4.0], [9.0, 4.0], [9.0, 4.5], [7.0, 4.5]]]"), "blocked.toml")
+    for path, reason, words in ((near, "goal_in_collision", "keeps only 0.000 m"),
+                                (blocked, "unreachable", "impossible here")):
+        checked = runner.invoke(cli, ["validate", path])
+        assert checked.exit_code == 2, checked.output
+        assert f"planning failed ({reason}): " in checked.output and words in checked.output
+        assert f"[{reason}]" not in checked.output  # the reason once
+        ran = runner.invoke(cli, ["plan-and-run", path, "--out", str(tmp_path / reason),
+                                  "--no-plots"])
+        assert ran.exit_code == 2 and f"planning failed ({reason}): " in ran.output, ran.output
+
+
+def test_the_version_is_the_installed_distributions(runner):
+    from importlib.metadata import version
+
+    result = runner.invoke(cli, ["--version"])
+    assert result.exit_code == 0
+    assert result.output.strip() == f"pushtrain {version('pushtrain')}"
+
+
 def test_plan_writes_a_path_that_run_replays(runner, tmp_path):
     path_file = tmp_path / "path.json"
     png = tmp_path / "path.png"
@@ -177,6 +206,7 @@ def test_a_goal_no_way_reaches_exits_2_with_a_diagnostic_picture(runner, tmp_pat
     result = runner.invoke(cli, ["plan-and-run", path, "--out", str(out), "--bag"])
     assert result.exit_code == 2, result.output
     assert "planning failed (unreachable)" in result.output and "impossible here" in result.output
+    assert "[unreachable]" not in result.output  # the reason is said once
     assert (out / "planning_failure.png").is_file() and (out / "report.html").is_file()
     summary = json.loads((out / "summary.json").read_text())
     # a failed plan all the same: its status says so, and its bag (the map, the start) is made
