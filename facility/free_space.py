@@ -18,7 +18,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Point, Polygon, box
-from shapely.ops import unary_union
+from shapely.ops import nearest_points, unary_union
 from shapely.validation import explain_validity
 
 from pushtrain.errors import PlanningInputError
@@ -336,9 +336,16 @@ class World:
             return None
         where = f"({x:g}, {y:g}) m"
         if not self.outline.contains(point):
+            label = self.outline_label or "the outline"
             xmin, ymin, xmax, ymax = self.outline.bounds
-            return (f"{where} lies outside {self.outline_label or 'the outline'} (x from "
-                    f"{xmin:g} to {xmax:g} m, y from {ymin:g} to {ymax:g} m)")
+            if not (xmin <= x <= xmax and ymin <= y <= ymax) or self.free.is_empty:
+                return (f"{where} lies outside {label} (x from {xmin:g} to {xmax:g} m, y from "
+                        f"{ymin:g} to {ymax:g} m)")
+            # within the outline's bounds but not on it (an L, a ring): where the free space is
+            near = nearest_points(self.free, point)[0]
+            return (f"{where} lies outside {label}, within its bounds but off its polygon: the "
+                    f"nearest free point is ({near.x:.2f}, {near.y:.2f}) m, "
+                    f"{point.distance(near):.2f} m away")
         for k, obstacle in enumerate(self.obstacles):
             if obstacle.intersects(point):
                 label = self.labels[k] if k < len(self.labels) else f"obstacle {k}"

@@ -306,3 +306,18 @@ def test_the_walls_are_cut_into_pieces_that_cover_every_ring_in_order():
         assert np.array_equal(np.array(got), xy)
     assert k == len(pieces)
     assert isinstance(free, shapely.MultiPolygon) and not isinstance(free, Polygon)
+
+
+def test_a_point_off_an_l_shaped_outline_is_told_where_the_free_space_is():
+    """Inside the L's bounding box but off its polygon, the bounds would not say why (the
+    point lies within them): the answer names the nearest free point and its distance,
+    computed here from the L's two arms. Outside the bounds, the bounds are named."""
+    world = World.from_dict({"free": [[0, 0], [9, 0], [9, 9], [7, 9], [7, 2], [0, 2]]})
+    said = world.why_not_free(3.0, 5.0)
+    # the arms are y <= 2 (x <= 9) and x >= 7: the nearest free point of (3, 5) is (3, 2)
+    assert "within its bounds but off its polygon" in said
+    assert "(3.00, 2.00) m, 3.00 m away" in said
+    assert "x from" not in said
+    far = world.why_not_free(12.0, 5.0)
+    assert "x from 0 to 9 m, y from 0 to 9 m" in far
+    assert world.why_not_free(8.0, 5.0) is None
