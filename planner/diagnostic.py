@@ -9,7 +9,7 @@ from pushtrain.facility.free_space import World
 
 from .train import BodyFootprint, Train
 
-__all__ = ["draw_poses", "save_diagnostic"]
+__all__ = ["draw_poses", "place_label", "save_diagnostic"]
 
 
 def draw_poses(ax, train: Train, x, y, theta, color="tab:blue", alpha=0.6, label=None):
@@ -68,6 +68,24 @@ def save_diagnostic(path, world: World, start=None, goal=None, train: Train | No
     fig.savefig(path, dpi=110)
 
 
+def place_label(place: dict) -> tuple[str, str, str]:
+    """(legend label, note beside it, colour) of a failure's place (a ``bottleneck``: the
+    widest way's narrowest passage, or a corner or door too tight to turn in, whose width is
+    the corridor's there): the width the map has against the width needed. The widest way's
+    narrowest passage when it is wide enough is drawn grey and says so: what blocked the
+    search is elsewhere."""
+    what = place.get("what", "bottleneck")
+    needed = place.get("needed")  # None: no steady turn of the radius fits
+    need = "no steady turn fits" if needed is None else f"{needed:.2f} m needed"
+    width = float(place["width"])
+    if what == "bottleneck" and needed is not None and width >= needed:
+        return (f"narrowest place of the widest way: {width:.2f} m wide, {need} (wide "
+                "enough)", f"{width:.2f} m", "0.45")
+    note = f"{width:.2f} m < {needed:.2f} m" if needed is not None and width < needed \
+        else f"{width:.2f} m"
+    return f"{what}: {width:.2f} m wide, {need}", note, "crimson"
+
+
 def _draw_failure(ax, world: World, details: dict, start) -> None:
     """The search's tree, failure points, best partial plan, keep-out margins, the route
     through the building and the bottleneck on ``ax``."""
@@ -81,17 +99,11 @@ def _draw_failure(ax, world: World, details: dict, start) -> None:
     for key, marker in (("bottleneck", "o"), ("widest", "D")):
         place = details.get(key)
         if place:
-            what = place.get("what", "bottleneck")
-            needed = place.get("needed")  # None: no steady turn of the radius fits
-            need = "no steady turn fits" if needed is None else f"{needed:.2f} m needed"
+            label, note, color = place_label(place)
             ax.plot([place["x"]], [place["y"]], marker, ms=14 if marker == "o" else 9,
-                    mfc="none", mew=2, color="crimson", label=f"{what}: {place['width']:.2f} m "
-                    f"wide, {need}")
-            ax.annotate(f"{place['width']:.2f} m < {needed:.2f} m"
-                        if needed is not None and place["width"] < needed
-                        else f"{place['width']:.2f} m",
-                        (place["x"], place["y"]), xytext=(8, 8), textcoords="offset points",
-                        color="crimson", fontsize=8)
+                    mfc="none", mew=2, color=color, label=label)
+            ax.annotate(note, (place["x"], place["y"]), xytext=(8, 8),
+                        textcoords="offset points", color=color, fontsize=8)
     for k, trace in enumerate(details.get("tree") or []):
         xy = np.asarray(trace, dtype=float)
         if xy.ndim == 2 and xy.shape[0] > 1:

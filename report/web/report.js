@@ -6,7 +6,11 @@
   const D = JSON.parse(document.getElementById("report-data").textContent);
   const COLORS = {robot: "#d62728", trailer: "#1f77b4", path: "#2ca02c", ref: "#111111",
                   robotTrace: "#d62728", lastTrace: "#1f77b4", keepOut: "#ff7f0e",
-                  tree: "#8c8c8c", partial: "#1f77b4", route: "#2ca02c", bottleneck: "#dc143c"};
+                  tree: "#8c8c8c", partial: "#1f77b4", route: "#2ca02c", bottleneck: "#dc143c",
+                  wideEnough: "#737373"};
+  // the widest way's narrowest passage where it is wide enough: drawn grey (not the cause)
+  const wideEnough = (b) => (b.what || "bottleneck") === "bottleneck" && b.needed !== null &&
+    b.width >= b.needed;
   const LINE_COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2",
                        "#17becf", "#bcbd22", "#7f7f7f"];
   const isRun = D.kind === "run";
@@ -136,8 +140,9 @@
       if (D.bottleneck) {
         const b = D.bottleneck;
         const r = Math.max(10, 0.5 * (b.width || 1) * view.s / dpr);
-        marker(c, b.x, b.y, "circle", COLORS.bottleneck, r);
-        marker(c, b.x, b.y, "circle", COLORS.bottleneck, r + 3);
+        const col = wideEnough(b) ? COLORS.wideEnough : COLORS.bottleneck;
+        marker(c, b.x, b.y, "circle", col, r);
+        marker(c, b.x, b.y, "circle", col, r + 3);
         drawnBottleneck = toWorld(...toPx(b.x, b.y));
       }
     }
@@ -250,10 +255,14 @@
             ["trailers", `background:${COLORS.trailer}`],
             ["motion failures", "border:2px solid #e00000;width:6px;height:6px"],
             ["start", "background:#2ca02c;opacity:.5"], ["goal", "background:#d62728;opacity:.5"]]
-           .concat(b ? [[`${b.what || "bottleneck"} at (${b.x.toFixed(2)}, ${b.y.toFixed(2)}): ` +
+           .concat(b ? [[(wideEnough(b) ? "narrowest place of the widest way" :
+                          (b.what || "bottleneck")) +
+                         ` at (${b.x.toFixed(2)}, ${b.y.toFixed(2)}): ` +
                          `${b.width.toFixed(2)} m wide, ` + (b.needed === null ?
-                           "no steady turn fits" : `${b.needed.toFixed(2)} m needed`),
-                         `border:2px solid ${COLORS.bottleneck};border-radius:50%;width:8px`]]
+                           "no steady turn fits" : `${b.needed.toFixed(2)} m needed`) +
+                         (wideEnough(b) ? " (wide enough: what blocked is elsewhere)" : ""),
+                         `border:2px solid ${wideEnough(b) ? COLORS.wideEnough :
+                           COLORS.bottleneck};border-radius:50%;width:8px`]]
                       : []));
   }
   if (D.keep_out) legend([[D.keep_out.omitted

@@ -86,3 +86,21 @@ def test_worlds_are_plain_data_and_diagnostic_png(tmp_path):
         out, World.from_dict(case["world"]), case["start"], case["goal"], Train.uniform(3)
     )
     assert out.stat().st_size > 1000 and out.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_failures_place_says_whether_it_is_what_blocked():
+    """The failure picture's label of the widest way's narrowest passage: crimson with
+    "width < needed" where it is too narrow; grey and "wide enough" where it is not (the
+    l_corridor with a goal the train cannot take: the 2 m corridor was ringed as a
+    bottleneck); a corner too tight keeps its own words and its need."""
+    from pushtrain.planner.diagnostic import place_label
+
+    label, note, color = place_label({"what": "bottleneck", "x": 0, "y": 0, "width": 0.55,
+                                      "needed": 0.70})
+    assert color == "crimson" and note == "0.55 m < 0.70 m" and "bottleneck: 0.55 m" in label
+    label, note, color = place_label({"what": "bottleneck", "x": 0, "y": 0, "width": 2.0,
+                                      "needed": 0.70})
+    assert color != "crimson" and "wide enough" in label and note == "2.00 m"
+    label, note, color = place_label({"what": "corner too tight (90 deg turn, 0.76 m swept)",
+                                      "x": 0, "y": 0, "width": 1.1, "needed": None})
+    assert color == "crimson" and "no steady turn fits" in label and note == "1.10 m"

@@ -310,6 +310,29 @@ def test_a_failed_plan_page_shows_the_bottleneck(browser, failed_plan):
 
 
 @pytest.mark.browser
+def test_a_wide_enough_narrowest_place_is_not_drawn_as_the_cause(browser, tmp_path):
+    """A search that gave up (the T junction's K-turn in 0.01 s of budget) where every way is
+    wide enough: the page names the widest way's narrowest place as wide enough, in grey, not
+    as the bottleneck (it ringed a 2 m corridor in red as one)."""
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    text = (examples / "t_junction_kturn.toml").read_text()
+    text = text.replace("[planner]\n", "[planner]\ntime_budget = 0.01\n") \
+        if "[planner]" in text else text + "\n[planner]\ntime_budget = 0.01\n"
+    (tmp_path / "short.toml").write_text(text)
+    proc = _cli("plan-and-run", str(tmp_path / "short.toml"), "--out", str(tmp_path / "run"),
+                "--no-plots")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    b = _payload(tmp_path / "run" / "report.html")["bottleneck"]
+    assert b["what"] == "bottleneck" and b["width"] >= b["needed"]
+    open_page(browser, tmp_path / "run" / "report.html")
+    assert severe_errors(browser) == []
+    legend = browser.find_element("id", "legend").text
+    assert (f"narrowest place of the widest way at ({b['x']:.2f}, {b['y']:.2f}): "
+            f"{b['width']:.2f} m wide, {b['needed']:.2f} m needed (wide enough") in legend, legend
+    assert "bottleneck at" not in legend
+
+
+@pytest.mark.browser
 def test_a_sweep_page_shows_the_run_whose_row_is_clicked(browser, tmp_path):
     from pushtrain.studies.sweep_report import write_report
 
