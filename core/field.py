@@ -37,7 +37,7 @@ def values_at(values: np.ndarray, x0: float, y0: float, h: float, x: np.ndarray,
     out = np.empty(x.shape)
     ny, nx = values.shape
     _lib().pt_field_at(values.ctypes.data, ny, nx, x0, y0, h, out.size, x.ctypes.data,
-                              y.ctypes.data, out.ctypes.data)
+                       y.ctypes.data, out.ctypes.data)
     return out
 
 

@@ -154,9 +154,9 @@ class DistanceField:
 
         One pass in C over the points (:func:`pushtrain.core.field.values_at`): the node below a
         point is the cell's corner (the last cell's at the grid's far edges), its weights lie in
-        [0, 1]; the arithmetic is numpy's bilinear formula operation for operation, without
-        fused multiply-add (``tests/reference/field_lookup.py`` is the numpy version it is
-        checked against, bit for bit)."""
+        [0, 1]; the arithmetic is the bilinear formula operation for operation, without fused
+        multiply-add (checked bit for bit against ``tests/reference/field_lookup.py``, the same
+        formula in Python a point at a time)."""
         x = np.asarray(x, dtype=float)
         y = np.asarray(y, dtype=float)
         if x.shape != y.shape:

@@ -85,10 +85,10 @@ def sample_reference(pose, segments, spacing: float) -> np.ndarray:
     if not total <= MAX_SAMPLES:
         raise ValueError(f"sample_reference: {sum(s.length for s in segments):.6g} m at "
                          f"{spacing} m spacing is more than {MAX_SAMPLES} poses")
-    return sample_segments(pose, segment_table(segments), spacing, total)
+    return sample_segments(pose, _segment_table(segments), spacing, total)
 
 
-def segment_table(segments) -> np.ndarray:
+def _segment_table(segments) -> np.ndarray:
     """(length [m], curvature [1/m], direction) of each segment, (len, 3) float64: the C
     sweep's input."""
     return np.array([(g.length, g.curvature, g.direction) for g in segments],

@@ -93,6 +93,7 @@ __all__ = ["Node", "Search", "Solution"]
 
 log = logging.getLogger(__name__)
 
+
 @dataclass(eq=False)
 class Node:
     """One state of the search (see the module docstring)."""
