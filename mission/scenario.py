@@ -21,6 +21,7 @@ Three kinds of mission (``mission.kind``):
 from __future__ import annotations
 
 import math
+import re
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -40,6 +41,7 @@ from pushtrain.validation import (
     Integer,
     NonNegFloat,
     PositiveFloat,
+    field_errors,
     no_bool,
     read_toml,
     validate_model,
@@ -299,6 +301,11 @@ class Scenario(_Section):
         return self
 
 
+class _OutOfRange(tuple):
+    """A problem (where, value, allowed) of one value against its own plausible range: it holds
+    whatever the scenario's other fields are (see :func:`parse_scenario`)."""
+
+
 def _bound_problem(where: str, bound_name: str, value, deg: bool = False):
     """(where, value, allowed) if ``value`` is outside the plausible range of ``bound_name``
     (:data:`pushtrain.limits.BOUNDS`); ``deg``: the field is in degrees, the bound in radians."""
@@ -309,7 +316,7 @@ def _bound_problem(where: str, bound_name: str, value, deg: bool = False):
     if lo <= value <= hi:
         return None
     unit = f" {unit}" if unit else ""
-    return (where, value, f"allowed {lo:.6g} to {hi:.6g}{unit} ({bound.reason})")
+    return _OutOfRange((where, value, f"allowed {lo:.6g} to {hi:.6g}{unit} ({bound.reason})"))
 
 
 def _per_trailer_values(where: str, value):
@@ -524,8 +531,45 @@ def _long_reference(sc: "Scenario", times, limit: float) -> list[tuple[str, obje
 
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> Scenario:
-    """Validate plain data (a parsed TOML document) into a :class:`Scenario`."""
-    return validate_model(Scenario, data, source, ScenarioError)
+    """Validate plain data (a parsed TOML document) into a :class:`Scenario`.
+
+    Every bad field is reported at once: the checks of whole values against their plausible
+    ranges (``sim.step = 5``) run on a model, which fields of the wrong type or schema range
+    prevent; so the fields refused are left at their defaults and the rest checked again, and
+    the values out of their own range are reported too (the checks that combine fields are
+    not: a default could make them say what the file does not)."""
+    try:
+        return validate_model(Scenario, data, source, ScenarioError)
+    except ScenarioError as exc:
+        more = _out_of_range_beside(data, exc.errors)
+        if not more:
+            raise
+        raise ScenarioError(source, [*exc.errors, *more]) from None
+
+
+def _out_of_range_beside(data: dict, problems: list) -> list:
+    """The values out of their own range (:class:`_OutOfRange`) in ``data`` once the fields of
+    ``problems`` are removed (left at their defaults), not already among ``problems``."""
+    import copy
+
+    from pydantic import ValidationError
+
+    rest = copy.deepcopy(data)
+    for where, _, _ in problems:
+        keys = [k for k in re.split(r"\.", re.sub(r"\[\d+\]", "", str(where))) if k]
+        node = rest
+        for key in keys[:-1]:
+            node = node.get(key) if isinstance(node, dict) else None
+        if keys and isinstance(node, dict):
+            node.pop(keys[-1], None)
+    try:
+        Scenario.model_validate(rest)
+    except ValidationError as exc:
+        said = {where for where, _, _ in problems}
+        return [p for p in field_errors(exc) if isinstance(p, _OutOfRange) and p[0] not in said]
+    except Exception:  # noqa: BLE001, S110 - a second look only: the problems found stand
+        pass            # alone, whatever the defaults left for the fields refused make of it
+    return []
 
 
 def load_scenario(path) -> Scenario:

@@ -392,3 +392,23 @@ def test_the_smallest_turning_radius_of_unequal_links_matches_the_geometry():
     parse_scenario({**plan, "planner": {"turning_radius": 1.001 * expected}})
     problems = _problems({**plan, "planner": {"turning_radius": 0.999 * expected}})
     assert [p[0] for p in problems] == ["planner.turning_radius"]
+
+
+def test_a_value_out_of_its_range_is_reported_beside_schema_errors():
+    """Every bad field at once: a file with train.n = 70 (schema), planner.time_budget = -1
+    (schema) and sim.step = 5 s (its plausible range, checked on a whole model) lists all
+    three; a combination that only the defaults of the refused fields would make wrong is not
+    invented (train.mass with 70 values against the default n = 3 is not said)."""
+    data = _with("train.n", 70)
+    data["planner"] = {"time_budget": -1}
+    data["sim"] = {"step": 5.0}
+    data["train"]["mass"] = [42.1] * 70
+    wheres = [where for where, _, _ in _problems(data)]
+    assert wheres == ["train.n", "planner.time_budget", "sim.step"]
+    # a bad type too; the range of another section still said
+    data = _with("train.n", "three")
+    data["robot"] = {"v_max": 50.0}
+    wheres = [where for where, _, _ in _problems(data)]
+    assert wheres == ["train.n", "robot.v_max"]
+    # nothing else wrong: the schema error alone
+    assert [w for w, _, _ in _problems(_with("train.n", 70))] == ["train.n"]
