@@ -5,11 +5,11 @@ space, the Euclidean distance transforms of the distance field) costs 0.1 to 0.6
 building floor; a study or a user running mission after mission on one map pays it once.
 
 Key
-    SHA-256 of the grid as planned: its blocked cells (after the scenario's polygons and
-    outline were burned in), shape, origin, resolution and the polygons themselves, plus
-    :data:`FORMAT`. Any change of the map file's pixels, its YAML (resolution, origin,
-    thresholds) or the scenario's polygons is another key; the file's name and date are not
-    part of it.
+    SHA-256 of the grid as the map file gives it (its blocked cells, shape, origin,
+    resolution), the scenario's polygons drawn on it, each with its role (an obstacle, or the
+    keep-in outline: the same polygon in either role is another map), and :data:`FORMAT`.
+    Any change of the map file's pixels, its YAML (resolution, origin, thresholds) or the
+    scenario's polygons is another key; the file's name and date are not part of it.
 File
     ``<PUSHTRAIN_CACHE or ~/.cache/pushtrain>/maps/<key>.npz`` (uncompressed NumPy zip): the
     field's values, origin and resolution, and the traced polygons and free space as WKB.
@@ -39,7 +39,7 @@ __all__ = ["FORMAT", "Prepared", "cache_dir", "eroded", "map_key", "prepared"]
 
 log = logging.getLogger(__name__)
 
-FORMAT = "1"
+FORMAT = "2"
 """Bumped when what is cached or how it is computed changes."""
 
 
@@ -69,8 +69,18 @@ def map_key(grid, obstacles=(), keep_in=None) -> str:
     digest.update(f"pushtrain map {FORMAT} {blocked.shape} {grid.x0!r} {grid.y0!r} "
                   f"{grid.resolution!r}".encode())
     digest.update(np.packbits(blocked).tobytes())
-    for poly in (*obstacles, *([keep_in] if keep_in is not None else [])):
-        digest.update(shapely.to_wkb(poly))
+    # each polygon with its role: the same polygon as an obstacle (blocked) and as the keep-in
+    # outline (everything else blocked) are two maps
+    obstacles = tuple(obstacles)
+    digest.update(f" obstacles {len(obstacles)}".encode())
+    for poly in obstacles:
+        wkb = shapely.to_wkb(poly)
+        digest.update(f" {len(wkb)} ".encode() + wkb)
+    if keep_in is None:
+        digest.update(b" no keep_in")
+    else:
+        wkb = shapely.to_wkb(keep_in)
+        digest.update(f" keep_in {len(wkb)} ".encode() + wkb)
     return digest.hexdigest()
 
 

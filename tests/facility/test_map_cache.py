@@ -91,6 +91,29 @@ def test_a_changed_map_is_prepared_again(tmp_path, cache, builds):
     assert builds == {"traced": 3, "field": 3}
 
 
+def test_a_polygon_as_an_obstacle_and_as_the_keep_in_outline_are_two_maps(tmp_path, cache,
+                                                                          builds):
+    """The same box drawn on the room once as an obstacle (the room without it) and once as
+    the keep-in outline (only the box): two cache entries, and each loads its own free space
+    (they shared one key: the second read the first's). Areas against the room's own: 4 x 3 m
+    less its border and wall stub, less or only the 1.5 m x 1 m box."""
+    from shapely.geometry import box
+
+    yaml = _room(tmp_path)
+    piece = box(1.0, 1.0, 2.5, 2.0)
+    for _ in range(2):  # built, then read back from the cache: the same answers
+        without = grid_world(load_map(yaml), [piece])
+        only = grid_world(load_map(yaml), keep_in=piece)
+        assert without.cache_key != only.cache_key
+        assert only.free_area == pytest.approx(piece.area, abs=0.05)
+        assert without.free_area > 6.0  # the room (about 7.3 m2) less the box
+        assert without.free.intersection(piece).area < 1e-9
+        assert only.distance_field().at(1.75, 1.5) > 0.0
+        assert without.distance_field().at(1.75, 1.5) < 0.0
+    assert builds == {"traced": 2, "field": 2}
+    assert len(list(cache.glob("*.npz"))) == 2
+
+
 @pytest.mark.parametrize("damage", ["truncate", "flip", "garbage", "other map"])
 def test_a_damaged_cache_is_rebuilt_and_says_so(tmp_path, cache, builds, caplog, damage):
     yaml = _room(tmp_path)
