@@ -7,7 +7,6 @@ import click
 from pushtrain.errors import PushtrainError
 
 from ..common import (
-    BadInput,
     check_map,
     click_error,
     load_scenario_with_overrides,
@@ -37,6 +36,6 @@ def validate_cmd(scenario):
 
         try:
             check_plan(sc)
-        except PushtrainError as exc:  # all of it the scenario's: bad input
-            raise BadInput(click_error(exc).message) from None
+        except PushtrainError as exc:  # the scenario's (exit 2), or a build's (a compiler, 1)
+            raise click_error(exc) from None
     click.echo(f"{scenario}: ok ({sc.mission.kind} mission, n = {sc.train.n} trailers)")

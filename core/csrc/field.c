@@ -114,8 +114,8 @@ int pt_poses_clear(const double *values, long ny, long nx, double x0, double y0,
     for (q = 0; q < count; q++) {
         const double x = poses[3 * q], y = poses[3 * q + 1], th = poses[3 * q + 2];
         double c, s;
-        if (field_at(values, ny, nx, x0, y0, h, x, y) >= reach) {
-            continue;
+        if (!(field_at(values, ny, nx, x0, y0, h, x, y) < reach)) {
+            continue; /* clear by its whole reach (or a NaN node: not "close") */
         }
         c = cos(th);
         s = sin(th);

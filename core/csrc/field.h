@@ -37,7 +37,7 @@ PT_API int pt_sample_segments(const double pose[3], int n_segments, const double
 
 /* Whether a body keeps its clearance at `count` poses (3 doubles each): every one of its m
  * points (u[p], v[p]) [m] in its own frame (u along theta) has a signed distance of at least
- * threshold[p] [m]. A pose whose own signed distance is at least `reach` [m] is passed without
+ * threshold[p] [m]. A pose whose own signed distance is not below `reach` [m] is passed without
  * looking at its points. Returns 1 (all clear) or 0. */
 PT_API int pt_poses_clear(const double *values, long ny, long nx, double x0, double y0, double h,
                           long count, const double *poses, double reach, long m, const double *u,

@@ -111,6 +111,17 @@ def test_validate_refuses_what_plan_and_run_refuses_before_it_searches(runner, t
         assert ran.exit_code == 2 and f"planning failed ({reason}): " in ran.output, ran.output
 
 
+def test_validate_without_a_c_compiler_is_not_a_bad_scenario(runner, tmp_path, monkeypatch):
+    """The planner's checks need the engine's C: with no compiler (and no library built in
+    this cache) validate says so and exits 1, as plan-and-run does, not 2 (the scenario is
+    fine)."""
+    monkeypatch.setenv("CC", "/nonexistent/bin/cc")
+    monkeypatch.setenv("PUSHTRAIN_CACHE", str(tmp_path / "cache"))
+    result = runner.invoke(cli, ["validate", str(EXAMPLES / "l_corridor.toml")])
+    assert result.exit_code == 1, result.output
+    assert "C compiler not found" in result.output
+
+
 def test_the_version_is_the_installed_distributions(runner):
     from importlib.metadata import version
 

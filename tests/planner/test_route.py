@@ -427,6 +427,16 @@ def test_the_swept_outline_test_equals_the_readable_one():
         assert got == want
         verdicts.append(got)
     assert 20 < sum(verdicts) < 280  # both answers were tried
+    # a NaN node under a pose (no map makes one) is not "close": the pose passes without its
+    # points, as the vectorised test before the C did (NaN < reach is false)
+    values = np.ones((10, 10))
+    values[4:6, 4:6] = np.nan
+    points_u, points_v = np.array([0.0]), np.array([0.0])
+    poses = np.array([[4.5, 4.5, 0.0]])
+    from pushtrain.core.field import poses_clear as c_clear
+
+    assert c_clear(values, 0.0, 0.0, 1.0, poses, 0.5, points_u, points_v, np.array([2.0]))
+    assert poses_clear(values, 0.0, 0.0, 1.0, poses, 0.5, [(0.0, 0.0, 2.0)])
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (6, 1), (9, 13), (40, 31)])

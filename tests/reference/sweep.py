@@ -45,9 +45,9 @@ def sample_poses(pose, segments, spacing: float) -> list[tuple[float, float, flo
 def poses_clear(values, x0: float, y0: float, h: float, poses, reach: float, points) -> bool:
     """Whether every point (u, v, threshold) of ``points`` (in the body's frame, u along
     theta [m]) keeps its threshold [m] of signed distance at every pose; a pose whose own
-    distance is at least ``reach`` [m] passes without its points."""
+    distance is not below ``reach`` [m] passes without its points."""
     for x, y, th in poses:
-        if field_at(values, x0, y0, h, x, y) >= reach:
+        if not field_at(values, x0, y0, h, x, y) < reach:
             continue
         c, s = math.cos(th), math.sin(th)
         for u, v, threshold in points:
