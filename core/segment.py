@@ -72,6 +72,14 @@ class Segment:
         if self.speed is not None and not (np.isfinite(self.speed) and self.speed > 0.0):
             raise ReferencePathError(f"segment speed = {self.speed!r} m/s: must be finite and > 0")
 
+    def to_dict(self) -> dict:
+        """Plain data (JSON-ready), what :meth:`from_dict` reads: ``kind``, ``length`` [m],
+        ``curvature`` [1/m], ``direction`` ('push' or 'pull'), and ``speed`` [m/s] if set."""
+        return {"kind": self.kind, "length": float(self.length),
+                "curvature": float(self.curvature),
+                "direction": "push" if self.direction == PUSH else "pull",
+                **({} if self.speed is None else {"speed": float(self.speed)})}
+
     @classmethod
     def from_dict(cls, data: dict) -> Segment:
         """The segment of its plain form (``path.json``, a planning failure's ``closest``):

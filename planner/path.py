@@ -206,16 +206,7 @@ class PlannedPath:
             if self.start_headings is None
             else [float(a) for a in self.start_headings],
             "resolution": float(self.resolution),
-            "segments": [
-                {
-                    "kind": g.kind,
-                    "length": float(g.length),
-                    "curvature": float(g.curvature),
-                    "direction": "push" if g.direction == PUSH else "pull",
-                    **({} if g.speed is None else {"speed": float(g.speed)}),
-                }
-                for g in self.segments
-            ],
+            "segments": [g.to_dict() for g in self.segments],
             "info": _plain({k: v for k, v in self.info.items() if k not in _MACHINE_DEPENDENT}),
         }
 
