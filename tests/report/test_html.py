@@ -297,15 +297,21 @@ def test_play_advances_the_train(browser, corridor_run):
     assert state["playing"] and state["row"] > 0 and state["t"] > 0.0
 
 
-@pytest.mark.browser
-def test_a_failed_plan_page_shows_the_bottleneck(browser, failed_plan):
-    open_page(browser, failed_plan / "report.html")
+def _failure_page(browser, run: Path) -> tuple[dict, str]:
+    """Open a failed plan's page: no severe errors, a failure page marking its bottleneck where
+    the data puts it. Its bottleneck (the data) and the legend's text."""
+    open_page(browser, run / "report.html")
     assert severe_errors(browser) == []
     state = browser.execute_script("return window.pushtrainReport.state()")
-    b = _payload(failed_plan / "report.html")["bottleneck"]
+    b = _payload(run / "report.html")["bottleneck"]
     assert state["kind"] == "failure"
     assert state["bottleneck"] == pytest.approx([b["x"], b["y"]], abs=1e-6)
-    legend = browser.find_element("id", "legend").text
+    return b, browser.find_element("id", "legend").text
+
+
+@pytest.mark.browser
+def test_a_failed_plan_page_shows_the_bottleneck(browser, failed_plan):
+    b, legend = _failure_page(browser, failed_plan)
     assert f"bottleneck at ({b['x']:.2f}, {b['y']:.2f})" in legend and "m needed" in legend
 
 
@@ -322,11 +328,8 @@ def test_a_wide_enough_narrowest_place_is_not_drawn_as_the_cause(browser, tmp_pa
     proc = _cli("plan-and-run", str(tmp_path / "short.toml"), "--out", str(tmp_path / "run"),
                 "--no-plots")
     assert proc.returncode == 1, proc.stdout + proc.stderr
-    b = _payload(tmp_path / "run" / "report.html")["bottleneck"]
+    b, legend = _failure_page(browser, tmp_path / "run")
     assert b["what"] == "bottleneck" and b["width"] >= b["needed"]
-    open_page(browser, tmp_path / "run" / "report.html")
-    assert severe_errors(browser) == []
-    legend = browser.find_element("id", "legend").text
     assert (f"narrowest place of the widest way at ({b['x']:.2f}, {b['y']:.2f}): "
             f"{b['width']:.2f} m wide, {b['needed']:.2f} m needed (wide enough") in legend, legend
     assert "bottleneck at" not in legend
@@ -361,13 +364,7 @@ def test_a_sweep_page_shows_the_run_whose_row_is_clicked(browser, tmp_path):
 
 @pytest.mark.browser
 def test_a_failed_plan_page_shows_the_door_the_train_cannot_line_up_with(browser, door_plan):
-    open_page(browser, door_plan / "report.html")
-    assert severe_errors(browser) == []
-    state = browser.execute_script("return window.pushtrainReport.state()")
-    b = _payload(door_plan / "report.html")["bottleneck"]
-    assert state["kind"] == "failure"
-    assert state["bottleneck"] == pytest.approx([b["x"], b["y"]], abs=1e-6)
-    legend = browser.find_element("id", "legend").text
+    b, legend = _failure_page(browser, door_plan)
     assert (f"door the train cannot line up with (0.90 m door, 90 deg turn; the corridor in "
             f"front of it) at "
             f"({b['x']:.2f}, {b['y']:.2f}): {b['width']:.2f} m wide, {b['needed']:.2f} m "
